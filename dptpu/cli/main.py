@@ -1,0 +1,46 @@
+"""The ``dptpu`` command line: a thin shell over the packages' functions.
+
+Each sub-command lives in its own module of this package and exposes ``register(subparsers)``, which
+adds its parser and sets ``func`` (a callable taking the parsed ``argparse.Namespace`` and returning an
+exit code). Bad input raises ``ValueError`` (or ``FileNotFoundError``) inside the packages; here it
+becomes one line on stderr and exit code 2, never a traceback.
+"""
+from __future__ import annotations
+
+import argparse
+import importlib
+import sys
+
+#: Modules of ``dptpu.cli`` that add sub-commands, in the order ``dptpu --help`` lists them.
+COMMAND_MODULES = ("eval_cmd", "unwrap_cmd", "triangulate_cmd", "rig_cmd", "bench_cmd")
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog="dptpu", description="dptpu: structured-light 3D scanner tools")
+    subparsers = parser.add_subparsers(dest="command", metavar="COMMAND")
+    for name in COMMAND_MODULES:
+        try:
+            module = importlib.import_module(f"dptpu.cli.{name}")
+        except ModuleNotFoundError as exc:
+            if exc.name != f"dptpu.cli.{name}":
+                raise
+            continue  # a command module not written yet
+        module.register(subparsers)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    if not getattr(args, "func", None):
+        parser.print_help(sys.stderr)
+        return 2
+    try:
+        return int(args.func(args) or 0)
+    except (ValueError, FileNotFoundError) as exc:
+        print(f"dptpu {args.command}: error: {exc}", file=sys.stderr)
+        return 2
+
+
+if __name__ == "__main__":
+    sys.exit(main())

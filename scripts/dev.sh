@@ -1,0 +1,43 @@
+#!/usr/bin/env bash
+# Set up the project's virtual environment (idempotent) and run one job.
+#   bash scripts/dev.sh run    set up, then run the main job
+#   bash scripts/dev.sh test   set up with test extras, then run the test suite
+# Needs Python 3.11 and, for open3d, the system library libusb-1.0-0 (installed here when run as root).
+set -euo pipefail
+cd "$(dirname "$0")/.."
+job="${1:-run}"
+
+python="${PYTHON:-python3.11}"
+command -v "$python" >/dev/null || python=python3
+"$python" -c 'import sys; sys.exit(0 if sys.version_info[:2] == (3, 11) else 1)' \
+  || { echo "dptpu needs Python 3.11; $python is $("$python" --version 2>&1)" >&2; exit 2; }
+
+if ! ldconfig -p 2>/dev/null | grep -q 'libusb-1.0.so.0'; then
+  if [ "$(id -u)" = 0 ] && command -v apt-get >/dev/null; then
+    echo "installing libusb-1.0-0 (needed by open3d)"
+    apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq libusb-1.0-0 >/dev/null
+  else
+    echo "open3d needs the system library libusb-1.0-0: run 'sudo apt-get install libusb-1.0-0'" >&2
+    exit 2
+  fi
+fi
+
+[ -x .venv/bin/python ] || "$python" -m venv .venv
+pip() { .venv/bin/python -m pip --disable-pip-version-check -q "$@"; }
+
+case "$job" in
+  run)
+    pip install -e .
+    shift || true
+    exec .venv/bin/dptpu eval sphere "$@"
+    ;;
+  test)
+    pip install -e '.[test]'
+    shift || true
+    exec .venv/bin/python -m pytest -q "$@"
+    ;;
+  *)
+    echo "usage: bash scripts/dev.sh run|test [args...]" >&2
+    exit 2
+    ;;
+esac
