@@ -1,0 +1,351 @@
+"""The rig model: a camera and a projector (an inverse camera), and the files it is read from and written to.
+
+One model serves every reader: each device has ``K`` (3x3 intrinsics, skew allowed), ``dist`` (Brown-Conrady
+k1 k2 p1 p2 k3, OpenCV order), ``R``, ``T`` (world to device: ``X_dev = R @ X_world + T``) and ``size``
+(width, height) in pixels. Units of ``T`` are the rig's declared ``units`` (the DP-TPU sphere data: mm).
+
+Readers:
+
+- Bouguet camera-calibration-toolbox ``.mat`` files (``KK``, ``kc``, ``Rc_<n>``, ``Tc_<n>``): the extrinsics
+  of calibration pose ``n`` (default 1) define the world frame, as in the DP-TPU data;
+- OpenCV FileStorage YAML, either one rig file (``cam_K``, ``cam_kc``, ``proj_K``, ``proj_kc``, ``R``,
+  ``T`` as written by projector-camera calibration tools, world = camera frame; our writer adds ``cam_R``,
+  ``cam_T``, ``cam_size``, ``proj_size``, ``units``) or one file per device (``camera_matrix``,
+  ``distortion_coefficients``, ``image_width``, ``image_height``, optional ``R`` or ``rvec`` and ``T``);
+- ``dptpu-rig/1`` YAML (ARCHITECTURE.md).
+
+Writers: ``dptpu-rig/1`` YAML and the OpenCV FileStorage rig file.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import yaml
+
+RIG_FORMAT = "dptpu-rig/1"
+
+
+@dataclass(frozen=True)
+class DeviceModel:
+    """One pinhole device (camera, or projector as an inverse camera) with Brown-Conrady distortion.
+
+    Attributes
+    ----------
+    K : ndarray (3, 3)
+        Intrinsics ``[[fx, s, cx], [0, fy, cy], [0, 0, 1]]``, pixels.
+    dist : ndarray (5,)
+        ``k1, k2, p1, p2, k3`` (OpenCV order; Bouguet's ``kc`` is the same order).
+    R : ndarray (3, 3)
+        Rotation world -> device.
+    T : ndarray (3,)
+        Translation world -> device, in the rig's units.
+    size : tuple of int
+        ``(width, height)`` in pixels.
+
+    Convention: pixel centres are 0-based, ``X_dev = R @ X_world + T``, ``x_pix = K @ distort(X_dev / z)``.
+    """
+
+    K: np.ndarray
+    dist: np.ndarray
+    R: np.ndarray
+    T: np.ndarray
+    size: tuple[int, int]
+
+    def __post_init__(self):
+        K = _as_matrix(self.K, (3, 3), "K")
+        if K[2, 0] != 0 or K[2, 1] != 0 or K[2, 2] != 1 or K[1, 0] != 0:
+            raise ValueError(f"K must be upper triangular with K[2] = [0, 0, 1]; got {K.tolist()}")
+        dist = np.zeros(5)
+        given = np.asarray(self.dist, dtype=np.float64).ravel()
+        if given.size not in (4, 5) or not np.all(np.isfinite(given)):
+            raise ValueError(f"dist must hold 4 or 5 finite coefficients (k1 k2 p1 p2 [k3]); got {given.tolist()}")
+        dist[: given.size] = given
+        R = _as_matrix(self.R, (3, 3), "R")
+        if not np.allclose(R @ R.T, np.eye(3), atol=1e-6) or np.linalg.det(R) < 0:
+            raise ValueError("R must be a rotation matrix (orthonormal, det +1)")
+        T = _as_matrix(self.T, (3,), "T")
+        size = tuple(int(v) for v in np.asarray(self.size).ravel())
+        if len(size) != 2 or min(size) <= 0:
+            raise ValueError(f"size must be (width, height) > 0; got {self.size}")
+        for name, value in (("K", K), ("dist", dist), ("R", R), ("T", T), ("size", size)):
+            object.__setattr__(self, name, value)
+
+    @property
+    def projection_matrix(self) -> np.ndarray:
+        """``K [R | T]``, (3, 4): the paper's Eq. (10) without distortion."""
+        return self.K @ np.hstack([self.R, self.T[:, None]])
+
+    @property
+    def center(self) -> np.ndarray:
+        """Optical centre in world coordinates, ``-R^T T`` (the paper's Eq. (13)), shape (3,)."""
+        return -self.R.T @ self.T
+
+
+@dataclass(frozen=True)
+class Rig:
+    """A camera and a projector in one world frame, with the twin's physical effects (docs/effects.md)."""
+
+    camera: DeviceModel
+    projector: DeviceModel
+    units: str = "mm"
+    effects: tuple = field(default_factory=tuple)
+
+    @property
+    def scale_to_m(self) -> float:
+        """Factor from the rig's units to metres."""
+        try:
+            return {"m": 1.0, "mm": 1e-3, "cm": 1e-2, "um": 1e-6}[self.units]
+        except KeyError:
+            raise ValueError(f"rig units must be one of m, cm, mm, um; got {self.units!r}") from None
+
+
+def _as_matrix(value, shape, name) -> np.ndarray:
+    try:
+        array = np.asarray(value, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name} must be numeric with shape {shape}; got {value!r}") from None
+    if array.shape != shape:
+        array = array.reshape(-1) if shape == (3,) and array.size == 3 else array
+    if array.shape != shape:
+        raise ValueError(f"{name} must have shape {shape}; got {array.shape}")
+    if not np.all(np.isfinite(array)):
+        raise ValueError(f"{name} contains NaN or inf")
+    return array
+
+
+# --- Bouguet toolbox ------------------------------------------------------------------------------------
+
+def load_bouguet(path, size, *, pose: int = 1) -> DeviceModel:
+    """Read one device from a Bouguet camera-calibration-toolbox ``.mat`` file.
+
+    Parameters
+    ----------
+    path : path-like
+        ``Calib_Results.mat``-style file with ``KK``, ``kc``, ``Rc_<pose>``, ``Tc_<pose>``.
+    size : (int, int)
+        ``(width, height)`` of the device in pixels (the toolbox stores ``nx``, ``ny`` too; they are used when
+        ``size`` is None).
+    pose : int
+        Calibration pose whose extrinsics define the world frame (1-based, as in the toolbox).
+    """
+    from scipy.io import loadmat
+
+    path = Path(path)
+    if not path.exists():
+        raise FileNotFoundError(f"{path}: no such calibration file")
+    try:
+        data = loadmat(str(path))
+    except Exception as exc:  # scipy raises several types for a damaged file
+        raise ValueError(f"{path}: not a readable MATLAB .mat file ({exc})") from None
+    fields = {"KK": (3, 3), "kc": None, f"Rc_{pose}": (3, 3), f"Tc_{pose}": None}
+    for name, shape in fields.items():
+        if name not in data:
+            raise ValueError(f"{path}: missing field '{name}' (a Bouguet calibration needs KK, kc, Rc_{pose}, Tc_{pose})")
+        if shape is not None and np.shape(data[name]) != shape:
+            raise ValueError(f"{path}: field '{name}' must have shape {shape}; got {np.shape(data[name])}")
+    if size is None:
+        if "nx" not in data or "ny" not in data:
+            raise ValueError(f"{path}: no image size given and the file has no 'nx'/'ny' fields")
+        size = (int(np.ravel(data["nx"])[0]), int(np.ravel(data["ny"])[0]))
+    try:
+        return DeviceModel(K=data["KK"], dist=np.ravel(data["kc"]), R=data[f"Rc_{pose}"],
+                           T=np.ravel(data[f"Tc_{pose}"]), size=size)
+    except ValueError as exc:
+        raise ValueError(f"{path}: {exc}") from None
+
+
+def load_bouguet_pair(camera_path, projector_path, *, camera_size=None, projector_size=None, pose=1,
+                      units="mm") -> Rig:
+    """A rig from the Bouguet camera and projector files of one calibration (same world pose)."""
+    return Rig(camera=load_bouguet(camera_path, camera_size, pose=pose),
+               projector=load_bouguet(projector_path, projector_size, pose=pose), units=units)
+
+
+# --- dptpu-rig/1 YAML ----------------------------------------------------------------------------------
+
+def _device_to_dict(device: DeviceModel) -> dict:
+    return {"size": list(device.size), "K": device.K.tolist(), "dist": device.dist.tolist(),
+            "R": device.R.tolist(), "T": device.T.tolist()}
+
+
+def _device_from_dict(entry, where: str) -> DeviceModel:
+    if not isinstance(entry, dict):
+        raise ValueError(f"{where} must be a mapping with size, K, dist, R, T")
+    for key in ("size", "K", "dist", "R", "T"):
+        if key not in entry:
+            raise ValueError(f"{where}: missing key '{key}'")
+    try:
+        return DeviceModel(K=entry["K"], dist=entry["dist"], R=entry["R"], T=entry["T"], size=entry["size"])
+    except ValueError as exc:
+        raise ValueError(f"{where}: {exc}") from None
+
+
+def save_rig(rig: Rig, path) -> Path:
+    """Write ``rig`` as a ``dptpu-rig/1`` YAML file; returns the path."""
+    path = Path(path)
+    document = {"format": RIG_FORMAT, "units": rig.units, "camera": _device_to_dict(rig.camera),
+                "projector": _device_to_dict(rig.projector), "effects": list(rig.effects)}
+    path.write_text(yaml.safe_dump(document, sort_keys=False, default_flow_style=None))
+    return path
+
+
+def load_rig(path) -> Rig:
+    """Read a rig file: ``dptpu-rig/1`` YAML or an OpenCV FileStorage rig file (detected by content)."""
+    path = Path(path)
+    if not path.exists():
+        raise FileNotFoundError(f"{path}: no such rig file")
+    text = path.read_text(errors="replace")
+    if text.lstrip().startswith("%YAML:1.0") or "!!opencv-matrix" in text:
+        return load_opencv_rig(path)
+    try:
+        document = yaml.safe_load(text)
+    except yaml.YAMLError as exc:
+        raise ValueError(f"{path}: not valid YAML ({exc})") from None
+    if not isinstance(document, dict):
+        raise ValueError(f"{path}: a rig file must be a mapping with format: {RIG_FORMAT}")
+    if document.get("format") != RIG_FORMAT:
+        raise ValueError(f"{path}: format must be '{RIG_FORMAT}'; got {document.get('format')!r}")
+    for key in ("camera", "projector"):
+        if key not in document:
+            raise ValueError(f"{path}: missing key '{key}'")
+    effects = document.get("effects") or []
+    if not isinstance(effects, list):
+        raise ValueError(f"{path}: 'effects' must be a list; got {type(effects).__name__}")
+    rig = Rig(camera=_device_from_dict(document["camera"], f"{path}: camera"),
+              projector=_device_from_dict(document["projector"], f"{path}: projector"),
+              units=str(document.get("units", "mm")), effects=tuple(effects))
+    rig.scale_to_m  # validates units
+    return rig
+
+
+# --- OpenCV FileStorage --------------------------------------------------------------------------------
+
+def _read_node(storage, name, path, *, required=True):
+    import cv2
+
+    node = storage.getNode(name)
+    if node.empty():
+        if required:
+            raise ValueError(f"{path}: missing field '{name}'")
+        return None
+    if node.isMap() or node.isSeq():
+        if node.isSeq():
+            return np.array([node.at(i).real() for i in range(node.size())])
+        return node.mat()
+    if node.isString():
+        return node.string()
+    return node.real() if node.isReal() or node.isInt() else node.mat()
+
+
+def _open_storage(path):
+    import cv2
+
+    path = Path(path)
+    if not path.exists():
+        raise FileNotFoundError(f"{path}: no such file")
+    try:
+        storage = cv2.FileStorage(str(path), cv2.FILE_STORAGE_READ)
+    except cv2.error as exc:
+        raise ValueError(f"{path}: not an OpenCV FileStorage file ({exc.err})") from None
+    if not storage.isOpened():
+        raise ValueError(f"{path}: not an OpenCV FileStorage file")
+    return storage
+
+
+def load_opencv_rig(path, *, camera_size=None, projector_size=None, units=None) -> Rig:
+    """Read an OpenCV FileStorage rig file (``cam_K``, ``cam_kc``, ``proj_K``, ``proj_kc``, ``R``, ``T``).
+
+    ``R``, ``T`` map camera coordinates to projector coordinates. ``cam_R``/``cam_T`` (optional, identity and
+    zero by default) place the camera in the world. Sizes come from ``cam_size``/``proj_size`` or the
+    arguments.
+    """
+    storage = _open_storage(path)
+    try:
+        cam_K = _read_node(storage, "cam_K", path)
+        cam_kc = _read_node(storage, "cam_kc", path)
+        proj_K = _read_node(storage, "proj_K", path)
+        proj_kc = _read_node(storage, "proj_kc", path)
+        R_cp = _read_node(storage, "R", path)
+        T_cp = _read_node(storage, "T", path)
+        cam_R = _read_node(storage, "cam_R", path, required=False)
+        cam_T = _read_node(storage, "cam_T", path, required=False)
+        cam_size = _read_node(storage, "cam_size", path, required=False)
+        proj_size = _read_node(storage, "proj_size", path, required=False)
+        file_units = _read_node(storage, "units", path, required=False)
+    finally:
+        storage.release()
+    camera_size = camera_size or (None if cam_size is None else tuple(np.ravel(cam_size).astype(int)))
+    projector_size = projector_size or (None if proj_size is None else tuple(np.ravel(proj_size).astype(int)))
+    if camera_size is None or projector_size is None:
+        raise ValueError(f"{path}: no 'cam_size'/'proj_size' fields; give the camera and projector sizes")
+    cam_R = np.eye(3) if cam_R is None else cam_R
+    cam_T = np.zeros(3) if cam_T is None else np.ravel(cam_T)
+    try:
+        R_cp = _as_matrix(R_cp, (3, 3), "R")
+        T_cp = _as_matrix(T_cp, (3,), "T")
+        camera = DeviceModel(K=cam_K, dist=np.ravel(cam_kc), R=cam_R, T=cam_T, size=camera_size)
+        projector = DeviceModel(K=proj_K, dist=np.ravel(proj_kc), R=R_cp @ camera.R,
+                                T=R_cp @ camera.T + T_cp, size=projector_size)
+    except ValueError as exc:
+        raise ValueError(f"{path}: {exc}") from None
+    return Rig(camera=camera, projector=projector, units=units or file_units or "mm")
+
+
+def save_opencv_rig(rig: Rig, path) -> Path:
+    """Write ``rig`` as an OpenCV FileStorage YAML rig file (readable by :func:`load_opencv_rig`)."""
+    import cv2
+
+    path = Path(path)
+    R_cp = rig.projector.R @ rig.camera.R.T
+    T_cp = rig.projector.T - R_cp @ rig.camera.T
+    storage = cv2.FileStorage(str(path), cv2.FILE_STORAGE_WRITE)
+    try:
+        storage.write("units", rig.units)
+        for name, value in (("cam_K", rig.camera.K), ("cam_kc", rig.camera.dist[:, None]),
+                            ("proj_K", rig.projector.K), ("proj_kc", rig.projector.dist[:, None]),
+                            ("R", R_cp), ("T", T_cp[:, None]), ("cam_R", rig.camera.R),
+                            ("cam_T", rig.camera.T[:, None]),
+                            ("cam_size", np.array(rig.camera.size, dtype=np.float64)[:, None]),
+                            ("proj_size", np.array(rig.projector.size, dtype=np.float64)[:, None])):
+            storage.write(name, np.ascontiguousarray(value, dtype=np.float64))
+    finally:
+        storage.release()
+    return path
+
+
+def load_opencv_device(path, *, size=None) -> DeviceModel:
+    """Read one device from an OpenCV calibration file (``camera_matrix``, ``distortion_coefficients``,
+    ``image_width``, ``image_height``; optional world pose ``R`` or ``rvec``, and ``T``/``tvec``)."""
+    import cv2
+
+    storage = _open_storage(path)
+    try:
+        K = _read_node(storage, "camera_matrix", path)
+        dist = _read_node(storage, "distortion_coefficients", path)
+        width = _read_node(storage, "image_width", path, required=size is None)
+        height = _read_node(storage, "image_height", path, required=size is None)
+        R = _read_node(storage, "R", path, required=False)
+        rvec = _read_node(storage, "rvec", path, required=False)
+        T = _read_node(storage, "T", path, required=False)
+        if T is None:
+            T = _read_node(storage, "tvec", path, required=False)
+    finally:
+        storage.release()
+    if R is None:
+        R = np.eye(3) if rvec is None else cv2.Rodrigues(np.asarray(rvec, dtype=np.float64).reshape(3, 1))[0]
+    dist = np.ravel(dist)[:5]
+    try:
+        return DeviceModel(K=K, dist=dist, R=R, T=np.zeros(3) if T is None else np.ravel(T),
+                           size=size or (int(width), int(height)))
+    except ValueError as exc:
+        raise ValueError(f"{path}: {exc}") from None
+
+
+def load_device(path, *, size=None, pose=1) -> DeviceModel:
+    """One device from a Bouguet ``.mat`` or an OpenCV FileStorage file, by extension."""
+    path = Path(path)
+    if path.suffix.lower() == ".mat":
+        return load_bouguet(path, size, pose=pose)
+    return load_opencv_device(path, size=size)

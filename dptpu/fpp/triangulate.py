@@ -1,0 +1,161 @@
+"""Phase -> projector coordinate -> 3D points, with the lens distortion of camera and projector.
+
+A camera pixel defines a ray ``X(t) = C + t w`` (``C`` the camera centre, ``w`` its undistorted direction in
+world coordinates). The measured projector coordinate ``c`` along the fringe axis gives one plane through the
+projector centre, ``(a - c b) . [X, 1] = 0``, with ``a`` the projector projection matrix row of that axis and
+``b`` its third row (the paper's Eq. (10) for the projector as an inverse camera). Substituting the ray:
+
+    t = (c beta - alpha) / (gamma - c delta),   alpha = a.[C,1], beta = b.[C,1], gamma = a[:3].w, delta = b[:3].w
+
+``gamma`` and ``delta`` are per-pixel constants, so :class:`Triangulator` precomputes them once per rig and a
+scan costs a few vector operations. The projector measures only one coordinate of its distorted image, so
+its distortion is removed by fixed-point iteration: triangulate, project the point into the projector, move the
+ideal coordinate by the difference between the measured and the re-distorted coordinate, repeat.
+
+:func:`triangulate_reference` keeps the textbook per-pixel 3x3 linear solve as the reference for tests and
+benchmarks.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from .calibration import DeviceModel, Rig
+from .distortion import distort, normalized_to_pixels, pixels_to_normalized, undistort
+
+_AXES = {"x": 0, "y": 1}
+
+
+def projector_coordinate(absolute_phase: np.ndarray, frequency: float, extent: float) -> np.ndarray:
+    """Projector coordinate along the fringe axis from absolute phase, ``x_p = phi W / (2 pi f)``.
+
+    Inverse of the convention ``phi = 2 pi f x_p / W`` (ARCHITECTURE.md). NaN stays NaN.
+    """
+    if not np.isfinite(frequency) or frequency <= 0:
+        raise ValueError(f"frequency must be a positive number of periods; got {frequency}")
+    if not np.isfinite(extent) or extent <= 0:
+        raise ValueError(f"projector extent must be positive pixels; got {extent}")
+    return np.asarray(absolute_phase, dtype=np.float64) * (extent / (2.0 * np.pi * frequency))
+
+
+def _axis_index(axis: str) -> int:
+    if axis not in _AXES:
+        raise ValueError(f"fringe axis must be 'x' or 'y'; got {axis!r}")
+    return _AXES[axis]
+
+
+def camera_rays(camera: DeviceModel, *, distortion: bool = True) -> np.ndarray:
+    """Unit ray directions in world coordinates of every camera pixel, (H, W, 3).
+
+    Convention: pixel (u, v) = (column, row), 0-based centres.
+    """
+    width, height = camera.size
+    v, u = np.mgrid[0:height, 0:width].astype(np.float64)
+    xy = pixels_to_normalized(np.stack([u, v], axis=-1), camera.K)  # (H, W, 2), distorted
+    if distortion:
+        xy = undistort(xy, camera.dist)
+    rays_cam = np.concatenate([xy, np.ones((height, width, 1))], axis=-1)  # (H, W, 3)
+    rays_world = rays_cam @ camera.R  # R^T applied to each row vector
+    return rays_world / np.linalg.norm(rays_world, axis=-1, keepdims=True)
+
+
+class Triangulator:
+    """Precomputed triangulation of whole images for one rig and fringe axis.
+
+    Parameters
+    ----------
+    rig : Rig
+    axis : {"x", "y"}
+        Projector axis along which the phase varies ("x": vertical stripes, the column is measured).
+    distortion : bool
+        Correct camera and projector lens distortion (default). False gives the pinhole result of the paper's
+        reconstruction script.
+    projector_iterations : int
+        Fixed-point iterations for the projector distortion.
+    """
+
+    def __init__(self, rig: Rig, *, axis: str = "x", distortion: bool = True, projector_iterations: int = 6):
+        self.rig = rig
+        self.axis = _axis_index(axis)
+        self.distortion = distortion
+        self.projector_iterations = projector_iterations if distortion else 0
+        self.origin = rig.camera.center  # (3,)
+        self.rays = camera_rays(rig.camera, distortion=distortion)  # (H, W, 3)
+        P = rig.projector.projection_matrix  # (3, 4)
+        a, b = P[self.axis], P[2]
+        origin_h = np.append(self.origin, 1.0)
+        self._alpha = float(a @ origin_h)
+        self._beta = float(b @ origin_h)
+        self._gamma = self.rays @ a[:3]  # (H, W)
+        self._delta = self.rays @ b[:3]  # (H, W)
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        return self._gamma.shape
+
+    def _points_on_plane(self, coord: np.ndarray) -> np.ndarray:
+        """Points (H, W, 3) where each pixel's ray meets the projector plane of ideal coordinate ``coord``."""
+        with np.errstate(divide="ignore", invalid="ignore"):
+            t = (coord * self._beta - self._alpha) / (self._gamma - coord * self._delta)  # (H, W)
+        return self.origin + t[..., None] * self.rays
+
+    def points(self, projector_coord: np.ndarray) -> np.ndarray:
+        """3D points in world coordinates (rig units), (H, W, 3); NaN where the coordinate is NaN.
+
+        Parameters
+        ----------
+        projector_coord : ndarray (H, W)
+            Measured (distorted) projector coordinate along the fringe axis, pixels, NaN where invalid.
+        """
+        coord = np.asarray(projector_coord, dtype=np.float64)
+        if coord.shape != self.shape:
+            raise ValueError(f"projector_coord must have the camera's shape {self.shape}; got {coord.shape}")
+        ideal = coord
+        points = self._points_on_plane(ideal)
+        projector = self.rig.projector
+        for _ in range(self.projector_iterations):
+            X_prj = points @ projector.R.T + projector.T  # (H, W, 3)
+            xy = X_prj[..., :2] / X_prj[..., 2:3]
+            distorted = normalized_to_pixels(distort(xy, projector.dist), projector.K)[..., self.axis]
+            ideal = ideal + (coord - distorted)
+            points = self._points_on_plane(ideal)
+        return points
+
+    def depth(self, points: np.ndarray) -> np.ndarray:
+        """Z of ``points`` (H, W, 3) in the camera frame, rig units, (H, W)."""
+        return points @ self.rig.camera.R[2] + self.rig.camera.T[2]
+
+
+def triangulate_reference(rig: Rig, pixels: np.ndarray, projector_coord: np.ndarray, *, axis: str = "x",
+                          distortion: bool = True, projector_iterations: int = 6) -> np.ndarray:
+    """Reference triangulation by one 3x3 linear solve per pixel (the paper's reconstruction), (M, 3).
+
+    Parameters
+    ----------
+    pixels : ndarray (M, 2)
+        Camera pixel coordinates (u, v), distorted (as measured).
+    projector_coord : ndarray (M,)
+        Measured projector coordinate along ``axis``.
+
+    Rows of each system: ``P_c[0] - u' P_c[2]``, ``P_c[1] - v' P_c[2]``, ``P_p[i] - c' P_p[2]`` with ideal
+    (undistorted) ``u', v', c'``. Slow by design: the reference for :class:`Triangulator`.
+    """
+    index = _axis_index(axis)
+    pixels = np.asarray(pixels, dtype=np.float64)
+    coord = np.asarray(projector_coord, dtype=np.float64)
+    camera, projector = rig.camera, rig.projector
+    if distortion:
+        xy = undistort(pixels_to_normalized(pixels, camera.K), camera.dist)
+        pixels = normalized_to_pixels(xy, camera.K)
+    Pc, Pp = camera.projection_matrix, projector.projection_matrix
+    ideal = coord.copy()
+    points = np.empty((len(coord), 3))
+    for _ in range(1 + (projector_iterations if distortion else 0)):
+        for i in range(len(coord)):  # per pixel on purpose: this is the reference
+            rows = np.array([Pc[0] - pixels[i, 0] * Pc[2], Pc[1] - pixels[i, 1] * Pc[2],
+                             Pp[index] - ideal[i] * Pp[2]])
+            points[i] = np.linalg.solve(rows[:, :3], -rows[:, 3])
+        if distortion:
+            X_prj = points @ projector.R.T + projector.T
+            xy = X_prj[:, :2] / X_prj[:, 2:3]
+            ideal = ideal + (coord - normalized_to_pixels(distort(xy, projector.dist), projector.K)[:, index])
+    return points
