@@ -1,0 +1,218 @@
+"""Wrapped phase, modulation and background from an N-step phase-shifted image stack.
+
+The model (Eq. (1) of the paper, generalized to either shift sign and a constant offset) is
+
+    I_n = A + B cos(psi + delta_n),    delta_n = phase_offset + shift_sign * 2*pi*n/N,
+
+for ``n = 0..N-1``. The least-squares estimate (Eq. (2) of the paper) is
+
+    S = -sum_n I_n sin(delta_n) = (N/2) B sin(psi)
+    C =  sum_n I_n cos(delta_n) = (N/2) B cos(psi)
+    psi = atan2(S, C) mod 2*pi,  B = (2/N) sqrt(S^2 + C^2),  A = mean_n I_n,
+
+exact for any ``N >= 3`` because the ``delta_n`` are equally spaced over a full turn.
+
+Convention: wrapped phase is in ``[0, 2*pi)``, so ``phi = psi + 2*pi*k`` with
+``k = floor(phi / 2pi)`` (Eq. (3) of the paper); ``shift_sign = -1`` is the paper's Eq. (1).
+"""
+
+from __future__ import annotations
+
+import numbers
+from dataclasses import dataclass
+
+import numpy as np
+
+__all__ = ["PhaseMaps", "wrapped_phase", "quality_mask", "check_bit_depth"]
+
+_TWO_PI = 2.0 * np.pi
+
+
+@dataclass(frozen=True)
+class PhaseMaps:
+    """Per-pixel result of phase-shifting analysis.
+
+    Attributes
+    ----------
+    phase : ndarray (H, W) float64
+        Wrapped phase ``psi`` in radians, in ``[0, 2*pi)``.
+    modulation : ndarray (H, W) float64
+        Fringe modulation ``B`` in the images' intensity units (>= 0).
+    background : ndarray (H, W) float64
+        Background intensity ``A`` in the images' intensity units.
+    """
+
+    phase: np.ndarray
+    modulation: np.ndarray
+    background: np.ndarray
+
+
+def wrapped_phase(images, *, shift_sign=-1, phase_offset=0.0, bit_depth=None) -> PhaseMaps:
+    """Least-squares wrapped phase of an N-step sequence (Eq. (2) of the paper).
+
+    Parameters
+    ----------
+    images : ndarray (N, H, W)
+        Phase-shifted images, ``N >= 3``, step order ``n = 0..N-1``; uint8, uint16, other integer
+        or float dtype, finite.
+    shift_sign : {-1, +1}
+        Image ``n`` is ``A + B cos(psi + phase_offset + shift_sign*2*pi*n/N)``; -1 is Eq. (1).
+    phase_offset : float
+        Constant phase offset of the sequence in radians.
+    bit_depth : int, optional
+        If given, the images are checked against it first (see :func:`check_bit_depth`).
+
+    Returns
+    -------
+    PhaseMaps
+        ``phase`` (H, W) in ``[0, 2*pi)`` rad, ``modulation`` ``B`` and ``background`` ``A``
+        (H, W) in the images' intensity units, all float64.
+
+    Notes
+    -----
+    ``S = -sum_n I_n sin(delta_n)``, ``C = sum_n I_n cos(delta_n)`` with
+    ``delta_n = phase_offset + shift_sign*2*pi*n/N``; ``psi = atan2(S, C) mod 2*pi``,
+    ``B = (2/N) sqrt(S^2 + C^2)``, ``A = mean(I_n)``. For ``shift_sign = -1`` and no offset this is
+    Eq. (2) of the paper. With additive Gaussian intensity noise ``sigma`` the phase noise is
+    ``sqrt(2/N) * sigma / B`` rad.
+
+    Convention: phase in ``[0, 2*pi)``, so the fringe order is ``k = floor(phi / 2pi)``.
+    Computed in float64.
+    """
+    images = _image_stack(images)
+    if shift_sign not in (-1, 1):
+        raise ValueError(f"shift_sign must be -1 or +1; got {shift_sign!r}")
+    if (
+        isinstance(phase_offset, bool)
+        or not isinstance(phase_offset, numbers.Real)
+        or not np.isfinite(phase_offset)
+    ):
+        raise ValueError(
+            f"phase_offset must be a finite real number (radians); got {phase_offset!r}"
+        )
+    if bit_depth is not None:
+        check_bit_depth(images, bit_depth)
+
+    steps = images.shape[0]
+    delta = float(phase_offset) + shift_sign * _TWO_PI * np.arange(steps) / steps  # (N,)
+    stack = images.astype(np.float64, copy=False)  # (N, H, W)
+    numerator = -np.tensordot(np.sin(delta), stack, axes=(0, 0))  # S, (H, W)
+    denominator = np.tensordot(np.cos(delta), stack, axes=(0, 0))  # C, (H, W)
+    phase = np.mod(np.arctan2(numerator, denominator), _TWO_PI)
+    phase[phase >= _TWO_PI] = 0.0  # mod of a tiny negative angle rounds up to exactly 2*pi
+    modulation = (2.0 / steps) * np.hypot(numerator, denominator)
+    background = stack.mean(axis=0)
+    return PhaseMaps(phase=phase, modulation=modulation, background=background)
+
+
+def quality_mask(images, modulation, *, min_modulation, saturation_level=None) -> np.ndarray:
+    """Pixels whose phase can be trusted: enough modulation and no saturated frame.
+
+    Parameters
+    ----------
+    images : ndarray (N, H, W)
+        The phase-shifted images the modulation came from.
+    modulation : ndarray (H, W)
+        Modulation ``B`` in the images' intensity units (e.g. ``PhaseMaps.modulation``).
+    min_modulation : float
+        Smallest acceptable ``B``, >= 0, in the images' intensity units.
+    saturation_level : float, optional
+        A pixel is saturated when any frame reaches this level (``>=``). Default: the dtype's
+        maximum for integer images (255 for uint8, 65535 for uint16); no saturation check for
+        float images.
+
+    Returns
+    -------
+    ndarray (H, W) bool
+        True where ``modulation >= min_modulation`` and ``max_n I_n < saturation_level``;
+        NaN modulation is False.
+    """
+    images = _image_stack(images)
+    modulation = np.asarray(modulation)
+    if modulation.shape != images.shape[1:]:
+        raise ValueError(
+            f"modulation must have shape (H, W) = {images.shape[1:]} like the images; "
+            f"got {modulation.shape}"
+        )
+    if (
+        isinstance(min_modulation, bool)
+        or not isinstance(min_modulation, numbers.Real)
+        or not np.isfinite(min_modulation)
+        or min_modulation < 0
+    ):
+        raise ValueError(f"min_modulation must be a finite number >= 0; got {min_modulation!r}")
+    if saturation_level is None and np.issubdtype(images.dtype, np.integer):
+        saturation_level = np.iinfo(images.dtype).max
+    mask = modulation >= min_modulation  # (H, W); NaN compares False
+    if saturation_level is not None:
+        if isinstance(saturation_level, bool) or not isinstance(saturation_level, numbers.Real):
+            raise ValueError(f"saturation_level must be a real number; got {saturation_level!r}")
+        mask &= ~np.any(images >= saturation_level, axis=0)
+    return mask
+
+
+def check_bit_depth(images, bit_depth) -> None:
+    """Raise ValueError when images do not fit the declared bit depth.
+
+    Parameters
+    ----------
+    images : ndarray (..., H, W)
+        Images of any shape; integer or float dtype.
+    bit_depth : int
+        Declared bit depth, 1..16; values must lie in ``[0, 2**bit_depth - 1]``.
+
+    Raises
+    ------
+    ValueError
+        When ``bit_depth`` is invalid; when the dtype cannot hold the declared depth (e.g.
+        uint8 declared 16-bit: the high bits were lost); when values are NaN/inf, negative, or
+        exceed ``2**bit_depth - 1`` (e.g. "image values reach 4095 but bit_depth is 8").
+    """
+    if isinstance(bit_depth, bool) or not isinstance(bit_depth, numbers.Integral) or not (
+        1 <= bit_depth <= 16
+    ):
+        raise ValueError(f"bit_depth must be an integer in 1..16; got {bit_depth!r}")
+    images = np.asarray(images)
+    dtype = images.dtype
+    if not (np.issubdtype(dtype, np.integer) or np.issubdtype(dtype, np.floating)):
+        raise ValueError(f"images must have an integer or float dtype; got {dtype}")
+    if np.issubdtype(dtype, np.integer):
+        value_bits = np.iinfo(dtype).bits - (1 if np.issubdtype(dtype, np.signedinteger) else 0)
+        if value_bits < bit_depth:
+            raise ValueError(
+                f"images of dtype {dtype} cannot hold {bit_depth}-bit values "
+                f"(at most {value_bits} bits); expected uint16 for bit_depth {bit_depth}"
+            )
+    elif not np.all(np.isfinite(images)):
+        raise ValueError("images contain NaN or inf; cannot check bit_depth")
+    if images.size == 0:
+        return
+    full_scale = 2**bit_depth - 1
+    lowest = images.min()
+    highest = images.max()
+    if lowest < 0:
+        raise ValueError(f"image values reach {lowest} but must be >= 0 for bit_depth {bit_depth}")
+    if highest > full_scale:
+        raise ValueError(
+            f"image values reach {highest} but bit_depth is {bit_depth} (max {full_scale})"
+        )
+
+
+def _image_stack(images) -> np.ndarray:
+    """Validate an (N, H, W) stack with N >= 3, real dtype, finite values."""
+    images = np.asarray(images)
+    if images.ndim != 3 or images.shape[0] < 3:
+        raise ValueError(
+            f"images must have shape (N, H, W) with N >= 3; got {images.shape}"
+        )
+    dtype = images.dtype
+    if dtype == np.bool_ or not (
+        np.issubdtype(dtype, np.integer) or np.issubdtype(dtype, np.floating)
+    ):
+        raise ValueError(f"images must have an integer or float dtype; got {dtype}")
+    if np.issubdtype(dtype, np.floating):
+        if np.isnan(images).any():
+            raise ValueError("images contain NaN")
+        if np.isinf(images).any():
+            raise ValueError("images contain inf")
+    return images

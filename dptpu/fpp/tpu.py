@@ -1,0 +1,658 @@
+"""Temporal phase unwrapping (TPU): multi-frequency, multi-wavelength, heterodyne and number-theoretic.
+
+Every method turns the wrapped phase ``psi_h`` of a high-frequency fringe sequence into the absolute
+phase ``Psi_h = psi_h + 2*pi*k_h`` (Eq. (3) of the paper) by finding the fringe order ``k_h`` of each
+pixel from one or more lower-frequency wrapped phases:
+
+- ``unwrap_mf``: multi-frequency (MF), Eq. (5); needs ``f_l <= 1`` (so ``k_l = 0``).
+- ``unwrap_with_reference``: Eq. (5) against an already absolute ``Psi_l`` of any ``f_l``.
+- ``unwrap_mw``: multi-wavelength (MW), Eqs. (6)-(7); needs ``0 < f_h - f_l <= 1``.
+- ``unwrap_heterodyne``: Eqs. (6)-(7) as a beat tree over 2 or more frequencies; needs the final
+  beat in ``(0, 1]``.
+- ``unwrap_nt``: number-theoretic (NT), Eqs. (8)-(9); needs ``LCM(p_h, p_l) >= extent``
+  (:func:`nt_period_pair`).
+- ``unwrap``: the two-frequency methods by name (``"mf"``, ``"mw"``, ``"nt"``).
+
+Convention: wrapped phases lie in ``[0, 2*pi)`` and the absolute phase of projector coordinate
+``x_p`` (0-based, centre of the first projector pixel is 0) at frequency ``f`` is
+``phi = 2*pi*f*x_p/W``, so the fringe order is ``k = floor(phi / (2*pi))`` and ``phi = psi + 2*pi*k``.
+A phase in ``(-pi, pi]`` (raw ``arctan2``) must be mapped with ``np.mod(psi, 2*pi)`` first.
+
+Every method returns an :class:`Unwrapped`; its ``reliability`` is ``1 - 2*|q - Round(q)|`` of the
+real quantity ``q`` that the method rounds (1 = ``q`` is exactly an integer, 0 = exactly half way
+between two integers), a per-pixel margin against phase noise.
+
+References
+----------
+DP-TPU paper, section "Temporal phase unwrapping", Eqs. (3)-(9) (``shared/seed/dp-tpu-paper.md``).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from fractions import Fraction
+
+import numpy as np
+
+__all__ = [
+    "Unwrapped",
+    "NTLookupTable",
+    "unwrap",
+    "unwrap_mf",
+    "unwrap_with_reference",
+    "unwrap_mw",
+    "unwrap_heterodyne",
+    "nt_period_pair",
+    "nt_lookup_table",
+    "unwrap_nt",
+]
+
+TWO_PI = 2.0 * np.pi
+METHODS = ("mf", "mw", "nt")
+
+# A wrapped phase may exceed [0, 2*pi) by this much (radians) through float rounding of np.mod.
+_WRAP_TOLERANCE_RAD = 1e-6
+# nt_period_pair: frequencies must be within this relative distance of a fraction whose
+# denominator is at most _MAX_DENOMINATOR.
+_MAX_DENOMINATOR = 1000
+_RATIONAL_RELATIVE_TOLERANCE = 1e-9
+
+
+@dataclass(frozen=True, eq=False)
+class Unwrapped:
+    """Result of temporal phase unwrapping for the highest frequency.
+
+    Attributes
+    ----------
+    fringe_order : ndarray of int32, shape (H, W)
+        Fringe order ``k_h`` of every pixel; 0 at invalid pixels.
+    absolute_phase : ndarray of float64, shape (H, W)
+        Absolute phase ``Psi_h = psi_h + 2*pi*k_h`` in radians (Eq. (3) of the paper), in
+        ``[0, 2*pi*f_h)`` for a correct order; NaN at invalid pixels.
+    valid : ndarray of bool, shape (H, W)
+        True where the pixel was unwrapped: its inputs were finite (and marked valid by the caller's
+        mask, if any) and, for NT, its lookup key was in the table.
+    reliability : ndarray of float64, shape (H, W)
+        ``1 - 2*|q - Round(q)|`` in ``[0, 1]`` of the quantity ``q`` that was rounded to an integer
+        (MF/MW: the fringe order of Eqs. (5)/(7); NT: the key ``m`` of Eq. (9); heterodyne: the
+        minimum over the levels of the beat tree). 1 means ``q`` was exactly an integer, 0 exactly
+        half way between two. 0 at invalid pixels.
+    n_rejected : int
+        Pixels that were valid on input but that the method rejected (NT: rounded key ``m`` not in
+        the lookup table); 0 for the other methods.
+
+    Notes
+    -----
+    ``eq=False``: instances compare by identity (comparing arrays element-wise has no single truth
+    value).
+    """
+
+    fringe_order: np.ndarray
+    absolute_phase: np.ndarray
+    valid: np.ndarray
+    reliability: np.ndarray
+    n_rejected: int = 0
+
+
+@dataclass(frozen=True, eq=False)
+class NTLookupTable:
+    """Lookup table of Eq. (9): key ``m = p_h*k_h - p_l*k_l`` to the fringe-order pair ``(k_h, k_l)``.
+
+    Attributes
+    ----------
+    p_h, p_l : int
+        Coprime integer periods, ``lambda_h : lambda_l = p_h : p_l`` (see :func:`nt_period_pair`).
+    m_min : int
+        Smallest reachable key; entry ``i`` of the arrays belongs to ``m = m_min + i``.
+    k_h, k_l : ndarray of int32, shape (M,)
+        Fringe orders for key ``m_min + i``; -1 where that key is unreachable for
+        ``0 <= x_p < extent``. ``M = m_max - m_min + 1``.
+    """
+
+    p_h: int
+    p_l: int
+    m_min: int
+    k_h: np.ndarray
+    k_l: np.ndarray
+
+    def lookup(self, m):
+        """Fringe-order pairs of integer keys ``m`` (any shape), vectorized.
+
+        Returns
+        -------
+        k_h, k_l : ndarray of int32, same shape as ``m``
+            Orders; -1 where the key is unreachable.
+        found : ndarray of bool, same shape as ``m``
+            True where the key is in the table.
+        """
+        index = np.asarray(m, dtype=np.int64) - self.m_min
+        inside = (index >= 0) & (index < self.k_h.size)
+        index = np.clip(index, 0, self.k_h.size - 1)
+        k_h = np.where(inside, self.k_h[index], -1).astype(np.int32)
+        k_l = np.where(inside, self.k_l[index], -1).astype(np.int32)
+        return k_h, k_l, k_h >= 0
+
+
+# --------------------------------------------------------------------------------------------
+# Methods
+# --------------------------------------------------------------------------------------------
+
+
+def unwrap_mf(psi_h, psi_l, f_h, f_l=1.0, *, valid=None) -> Unwrapped:
+    """Multi-frequency (MF) temporal phase unwrapping, Eq. (5) of the paper.
+
+    Parameters
+    ----------
+    psi_h : ndarray, shape (H, W)
+        Wrapped phase of the high frequency in radians, ``[0, 2*pi)``; NaN marks an invalid pixel.
+    psi_l : ndarray, shape (H, W)
+        Wrapped phase of the low frequency in radians, ``[0, 2*pi)``; NaN marks an invalid pixel.
+    f_h : float
+        High frequency, periods across the projector extent, > 0.
+    f_l : float, optional
+        Low frequency, ``0 < f_l <= 1`` so that its wrapped phase is already absolute
+        (``k_l = 0``; the paper uses ``f_l = 1``). For ``f_l > 1`` unwrap the low phase first and
+        call :func:`unwrap_with_reference`.
+    valid : ndarray of bool, shape (H, W), optional
+        Pixels to unwrap; inputs must be finite where it is True.
+
+    Returns
+    -------
+    Unwrapped
+        Fringe order, absolute phase, validity and reliability of the high frequency.
+
+    Notes
+    -----
+    ``k_h = Round[(f_h*Psi_l - f_l*psi_h) / (2*pi*f_l)]`` with ``Psi_l = psi_l``. A phase error
+    ``d_h``, ``d_l`` moves the rounded quantity by ``(r*d_l - d_h)/(2*pi)``, ``r = f_h/f_l``, so the
+    order is right while ``|r*d_l - d_h| < pi``.
+    """
+    f_h = _check_frequency("f_h", f_h)
+    f_l = _check_frequency("f_l", f_l)
+    if f_l > 1.0:
+        raise ValueError(
+            f"unwrap_mf needs f_l <= 1 so the low wrapped phase is already absolute (k_l = 0); got "
+            f"f_l = {f_l:g}. Unwrap the low phase first and call unwrap_with_reference, or use "
+            "unwrap_heterodyne / unwrap_nt"
+        )
+    psi_h = _as_phase_map("psi_h", psi_h, wrapped=True)
+    psi_l = _as_phase_map("psi_l", psi_l, wrapped=True)
+    mask = _pixel_mask({"psi_h": psi_h, "psi_l": psi_l}, valid)
+    return _unwrap_on_mask(_fill(psi_h, mask), _fill(psi_l, mask), f_h, f_l, mask)
+
+
+def unwrap_with_reference(psi_h, Psi_l_abs, f_h, f_l, *, valid=None) -> Unwrapped:
+    """Unwrap ``psi_h`` against an already absolute lower-frequency phase, Eq. (5) of the paper.
+
+    Parameters
+    ----------
+    psi_h : ndarray, shape (H, W)
+        Wrapped phase of frequency ``f_h`` in radians, ``[0, 2*pi)``; NaN marks an invalid pixel.
+    Psi_l_abs : ndarray, shape (H, W)
+        Absolute phase of frequency ``f_l`` in radians (any finite value, ``2*pi*f_l*x_p/W``);
+        NaN marks an invalid pixel.
+    f_h, f_l : float
+        Frequencies in periods across the projector extent, > 0 (any ratio; the order is right while
+        the noise of ``(f_h/f_l)*Psi_l_abs - psi_h`` stays below ``pi``).
+    valid : ndarray of bool, shape (H, W), optional
+        Pixels to unwrap; inputs must be finite where it is True.
+
+    Returns
+    -------
+    Unwrapped
+        Fringe order and absolute phase of frequency ``f_h``.
+
+    Notes
+    -----
+    ``k_h = Round[(f_h*Psi_l - f_l*psi_h) / (2*pi*f_l)]``; the hierarchical methods call this once
+    per level.
+    """
+    f_h = _check_frequency("f_h", f_h)
+    f_l = _check_frequency("f_l", f_l)
+    psi_h = _as_phase_map("psi_h", psi_h, wrapped=True)
+    Psi_l_abs = _as_phase_map("Psi_l_abs", Psi_l_abs, wrapped=False)
+    mask = _pixel_mask({"psi_h": psi_h, "Psi_l_abs": Psi_l_abs}, valid)
+    return _unwrap_on_mask(_fill(psi_h, mask), _fill(Psi_l_abs, mask), f_h, f_l, mask)
+
+
+def unwrap_mw(psi_h, psi_l, f_h, f_l, *, valid=None) -> Unwrapped:
+    """Multi-wavelength (MW) temporal phase unwrapping, Eqs. (6)-(7) of the paper.
+
+    Parameters
+    ----------
+    psi_h, psi_l : ndarray, shape (H, W)
+        Wrapped phases of the high and low frequency in radians, ``[0, 2*pi)``; NaN marks an
+        invalid pixel.
+    f_h, f_l : float
+        Frequencies in periods across the projector extent, > 0, with equivalent frequency
+        ``f_eq = f_h - f_l`` in ``(0, 1]`` (the paper pairs ``f_l = f_h - 1``).
+    valid : ndarray of bool, shape (H, W), optional
+        Pixels to unwrap; inputs must be finite where it is True.
+
+    Returns
+    -------
+    Unwrapped
+        Fringe order and absolute phase of ``f_h``.
+
+    Notes
+    -----
+    Equivalent phase ``psi_eq = mod(psi_h - psi_l, 2*pi)`` of ``f_eq = f_h - f_l`` (Eq. (6)) is
+    absolute because ``f_eq <= 1``; then
+    ``k_h = Round[(f_h*psi_eq - f_eq*psi_h) / (2*pi*f_eq)]`` (Eq. (7)).
+    """
+    f_h = _check_frequency("f_h", f_h)
+    f_l = _check_frequency("f_l", f_l)
+    f_eq = _check_equivalent_frequency(f_h, f_l)
+    psi_h = _as_phase_map("psi_h", psi_h, wrapped=True)
+    psi_l = _as_phase_map("psi_l", psi_l, wrapped=True)
+    mask = _pixel_mask({"psi_h": psi_h, "psi_l": psi_l}, valid)
+    psi_h = _fill(psi_h, mask)
+    psi_eq = np.mod(psi_h - _fill(psi_l, mask), TWO_PI)  # Eq. (6), (H, W)
+    return _unwrap_on_mask(psi_h, psi_eq, f_h, f_eq, mask)
+
+
+def unwrap_heterodyne(phases, frequencies, *, valid=None) -> Unwrapped:
+    """Hierarchical multi-wavelength (heterodyne) unwrapping of two or more frequencies.
+
+    Parameters
+    ----------
+    phases : sequence of ndarray, each shape (H, W)
+        Wrapped phases in radians, ``[0, 2*pi)``, one per frequency; NaN marks an invalid pixel.
+    frequencies : sequence of float
+        Frequencies in periods across the projector extent, > 0, distinct, in any order: they are
+        sorted highest first internally (with their phases), and the result is for the highest.
+        Example, CFPE's projector periods 42, 45, 48 px over 1920 px:
+        ``[1920/42, 1920/45, 1920/48]``.
+    valid : ndarray of bool, shape (H, W), optional
+        Pixels to unwrap; inputs must be finite where it is True.
+
+    Returns
+    -------
+    Unwrapped
+        Fringe order and absolute phase of the highest frequency; ``reliability`` is the minimum
+        over the levels of the beat tree.
+
+    Notes
+    -----
+    Beat tree: level 0 holds the sorted frequencies ``f_1 > f_2 > ... > f_n``; each level beats
+    neighbours, ``f_(i,i+1) = |f_i - f_(i+1)|`` with phase ``mod(+-(psi_i - psi_(i+1)), 2*pi)``
+    (Eq. (6)), until one beat remains; it must lie in ``(0, 1]`` so its wrapped phase is absolute
+    (for 42/45/48 px: ``f12 = 3.048``, ``f23 = 2.667``, ``f123 = 0.381``). Unwrapping then walks
+    back down the first node of each level with the rounding of Eq. (5)/(7)
+    (``f123 -> f12 -> f1``). Each level multiplies the phase noise by its frequency ratio.
+    """
+    phases = list(phases)
+    frequencies = list(frequencies)
+    if len(frequencies) < 2 or len(phases) != len(frequencies):
+        raise ValueError(
+            "unwrap_heterodyne needs 2 or more frequencies and one phase per frequency; got "
+            f"{len(phases)} phases and {len(frequencies)} frequencies"
+        )
+    freqs = [_check_frequency(f"frequencies[{i}]", f) for i, f in enumerate(frequencies)]
+    order = sorted(range(len(freqs)), key=lambda i: -freqs[i])  # highest frequency first
+    levels_f = _beat_tree([freqs[i] for i in order])  # levels_f[L][i]: frequency of node (L, i)
+    maps = {
+        f"phases[{i}]": _as_phase_map(f"phases[{i}]", p, wrapped=True) for i, p in enumerate(phases)
+    }
+    mask = _pixel_mask(maps, valid)
+    levels_psi = [[_fill(maps[f"phases[{i}]"], mask) for i in order]]  # each (H, W)
+    for L in range(1, len(levels_f)):
+        f_prev, psi_prev = levels_f[L - 1], levels_psi[L - 1]
+        psi_next = []
+        for i in range(len(f_prev) - 1):
+            sign = 1.0 if f_prev[i] > f_prev[i + 1] else -1.0
+            psi_next.append(np.mod(sign * (psi_prev[i] - psi_prev[i + 1]), TWO_PI))  # Eq. (6)
+        levels_psi.append(psi_next)
+    absolute = levels_psi[-1][0]  # (H, W); absolute because final <= 1
+    reliability = np.ones(mask.shape)
+    result = None
+    for L in range(len(levels_f) - 2, -1, -1):
+        result = _unwrap_on_mask(levels_psi[L][0], absolute, levels_f[L][0], levels_f[L + 1][0], mask)
+        reliability = np.minimum(reliability, result.reliability)
+        absolute = np.where(mask, result.absolute_phase, 0.0)
+    return Unwrapped(
+        fringe_order=result.fringe_order,
+        absolute_phase=result.absolute_phase,
+        valid=result.valid,
+        reliability=np.where(mask, reliability, 0.0),
+    )
+
+
+def nt_period_pair(f_h, f_l, extent) -> tuple[int, int]:
+    """Coprime integer periods ``(p_h, p_l)`` of a number-theoretic (NT) frequency pair.
+
+    Parameters
+    ----------
+    f_h, f_l : float
+        Frequencies in periods across the projector extent, > 0, distinct, each within a relative
+        1e-9 of a fraction with denominator <= 1000 (e.g. 64 and 10.9).
+    extent : float
+        Projector extent ``W`` along the fringe axis in projector pixels, > 0.
+
+    Returns
+    -------
+    p_h, p_l : int
+        Coprime integers with ``lambda_h : lambda_l = p_h : p_l``, where ``lambda = extent / f`` is
+        the period in projector pixels. The common unit is ``u = lambda_h / p_h`` pixels, and the
+        extent is ``f_h * p_h`` units. Example: ``(64, 10.9, 912) -> (109, 640)``.
+
+    Raises
+    ------
+    ValueError
+        If a frequency is not > 0 and finite, the frequencies are equal or not close to small
+        rationals, or the pair is ambiguous: ``LCM(p_h, p_l) < f_h * p_h`` (the condition after
+        Eq. (8) of the paper, ``LCM(lambda_h, lambda_l) >= W``).
+    """
+    f_h = _check_frequency("f_h", f_h)
+    f_l = _check_frequency("f_l", f_l)
+    extent = _check_extent(extent)
+    if f_h == f_l:
+        raise ValueError(f"NT needs two different frequencies; got f_h = f_l = {f_h:g}")
+    p_h, p_l, extent_units = _nt_periods(f_h, f_l)
+    lcm = math.lcm(p_h, p_l)
+    if lcm < extent_units:
+        unit_px = extent / f_h / p_h
+        raise ValueError(
+            f"ambiguous NT pair: f_h = {f_h:g}, f_l = {f_l:g} over extent {extent:g} px give "
+            f"lambda_h : lambda_l = {p_h} : {p_l} (unit {unit_px:.6g} px); LCM({p_h}, {p_l}) = "
+            f"{lcm} < extent {_fmt_fraction(extent_units)} units, so fringe-order pairs repeat "
+            "within the projector (Eq. (8) needs LCM(lambda_h, lambda_l) >= W)"
+        )
+    return p_h, p_l
+
+
+def nt_lookup_table(f_h, f_l, extent) -> NTLookupTable:
+    """Lookup table of Eq. (9): every reachable key ``m = p_h*k_h - p_l*k_l`` to ``(k_h, k_l)``.
+
+    Parameters
+    ----------
+    f_h, f_l : float
+        Frequencies in periods across the projector extent (see :func:`nt_period_pair`).
+    extent : float
+        Projector extent ``W`` along the fringe axis in projector pixels, > 0.
+
+    Returns
+    -------
+    NTLookupTable
+        Arrays indexed by ``m - m_min``; -1 for keys that no projector coordinate
+        ``0 <= x_p < extent`` produces.
+
+    Notes
+    -----
+    In units of ``u = lambda_h/p_h`` a coordinate ``t`` in ``[0, f_h*p_h)`` has orders
+    ``k_h = floor(t/p_h)`` and ``k_l = floor(t/p_l)``; the pair only changes at multiples of
+    ``p_h`` or ``p_l``, so those breakpoints list every reachable pair. Since
+    ``m = (t - p_l*k_l) - (t - p_h*k_h)``, keys lie in ``(-p_h, p_l)``: the table has fewer than
+    ``p_h + p_l`` entries.
+    """
+    p_h, p_l = nt_period_pair(f_h, f_l, extent)
+    _, _, extent_units = _nt_periods(float(f_h), float(f_l))
+    n_h = math.ceil(extent_units / p_h)  # = ceil(f_h) periods of the high frequency
+    n_l = math.ceil(extent_units / p_l)
+    breakpoints = np.union1d(p_h * np.arange(n_h, dtype=np.int64), p_l * np.arange(n_l, dtype=np.int64))
+    k_h = breakpoints // p_h
+    k_l = breakpoints // p_l
+    m = p_h * k_h - p_l * k_l
+    if np.unique(m).size != m.size:  # guarded by nt_period_pair's LCM check
+        raise ValueError(f"ambiguous NT pair: keys m repeat for p_h = {p_h}, p_l = {p_l}")
+    m_min = int(m.min())
+    size = int(m.max()) - m_min + 1
+    table_h = np.full(size, -1, dtype=np.int32)
+    table_l = np.full(size, -1, dtype=np.int32)
+    table_h[m - m_min] = k_h
+    table_l[m - m_min] = k_l
+    return NTLookupTable(p_h=p_h, p_l=p_l, m_min=m_min, k_h=table_h, k_l=table_l)
+
+
+def unwrap_nt(psi_h, psi_l, f_h, f_l, extent, *, valid=None) -> Unwrapped:
+    """Number-theoretic (NT) temporal phase unwrapping, Eqs. (8)-(9) of the paper.
+
+    Parameters
+    ----------
+    psi_h, psi_l : ndarray, shape (H, W)
+        Wrapped phases of the two frequencies in radians, ``[0, 2*pi)``; NaN marks an invalid pixel.
+    f_h, f_l : float
+        Frequencies in periods across the projector extent, > 0, rational (e.g. 64 and 10.9),
+        forming an unambiguous pair (:func:`nt_period_pair`).
+    extent : float
+        Projector extent ``W`` along the fringe axis in projector pixels, > 0.
+    valid : ndarray of bool, shape (H, W), optional
+        Pixels to unwrap; inputs must be finite where it is True.
+
+    Returns
+    -------
+    Unwrapped
+        Fringe order and absolute phase of ``f_h``. A pixel whose rounded key is not in the lookup
+        table is invalid (not an exception) and counted in ``n_rejected``.
+
+    Notes
+    -----
+    ``m = Round[(p_l*psi_l - p_h*psi_h) / (2*pi)] = p_h*k_h - p_l*k_l`` (Eq. (8) with the coprime
+    periods ``p_h : p_l = lambda_h : lambda_l``), then ``(k_h, k_l) = LUT[m]`` (Eq. (9)). A phase
+    error moves the key by ``(p_l*d_l - p_h*d_h)/(2*pi)``, so NT tolerates noise only up to about
+    ``pi / sqrt(p_h**2 + p_l**2)`` (for 64 / 10.9: ``p = 109, 640``, a few milliradians).
+    """
+    table = nt_lookup_table(f_h, f_l, extent)
+    psi_h = _as_phase_map("psi_h", psi_h, wrapped=True)
+    psi_l = _as_phase_map("psi_l", psi_l, wrapped=True)
+    mask = _pixel_mask({"psi_h": psi_h, "psi_l": psi_l}, valid)
+    psi_h = _fill(psi_h, mask)
+    key = (table.p_l * _fill(psi_l, mask) - table.p_h * psi_h) / TWO_PI  # Eq. (8), (H, W)
+    m, reliability = _round_with_reliability(key)
+    k_h, _, found = table.lookup(m)  # Eq. (9)
+    ok = mask & found
+    k_h = np.where(ok, k_h, 0).astype(np.int32)
+    return Unwrapped(
+        fringe_order=k_h,
+        absolute_phase=np.where(ok, psi_h + TWO_PI * k_h, np.nan),
+        valid=ok,
+        reliability=np.where(ok, reliability, 0.0),
+        n_rejected=int(np.count_nonzero(mask & ~found)),
+    )
+
+
+def unwrap(method, psi_h, psi_l, f_h, f_l, *, extent=None, valid=None) -> Unwrapped:
+    """Two-frequency temporal phase unwrapping by method name.
+
+    Parameters
+    ----------
+    method : {"mf", "mw", "nt"}
+        :func:`unwrap_mf` (Eq. (5)), :func:`unwrap_mw` (Eqs. (6)-(7)) or :func:`unwrap_nt`
+        (Eqs. (8)-(9)).
+    psi_h, psi_l : ndarray, shape (H, W)
+        Wrapped phases in radians, ``[0, 2*pi)``; NaN marks an invalid pixel.
+    f_h, f_l : float
+        Frequencies in periods across the projector extent, > 0.
+    extent : float, optional
+        Projector extent in projector pixels; required for ``"nt"``, ignored otherwise.
+    valid : ndarray of bool, shape (H, W), optional
+        Pixels to unwrap.
+
+    Returns
+    -------
+    Unwrapped
+    """
+    if method not in METHODS:
+        raise ValueError(f"unknown TPU method {method!r}; expected one of {', '.join(METHODS)}")
+    if method == "mf":
+        return unwrap_mf(psi_h, psi_l, f_h, f_l, valid=valid)
+    if method == "mw":
+        return unwrap_mw(psi_h, psi_l, f_h, f_l, valid=valid)
+    if extent is None:
+        raise ValueError("method 'nt' needs extent (projector pixels along the fringe axis); got None")
+    return unwrap_nt(psi_h, psi_l, f_h, f_l, extent, valid=valid)
+
+
+# --------------------------------------------------------------------------------------------
+# Private kernels and checks
+# --------------------------------------------------------------------------------------------
+
+
+def _unwrap_on_mask(psi_h, Psi_l, f_h, f_l, mask) -> Unwrapped:
+    """Eq. (5) on finite (H, W) inputs: ``k_h = Round[(f_h*Psi_l - f_l*psi_h)/(2*pi*f_l)]``."""
+    q = ((f_h / f_l) * Psi_l - psi_h) / TWO_PI  # (H, W)
+    k, reliability = _round_with_reliability(q)
+    k = np.where(mask, k, 0).astype(np.int32)
+    return Unwrapped(
+        fringe_order=k,
+        absolute_phase=np.where(mask, psi_h + TWO_PI * k, np.nan),  # Eq. (3)
+        valid=mask.copy(),
+        reliability=np.where(mask, reliability, 0.0),
+    )
+
+
+def _round_with_reliability(q):
+    """Nearest integers of ``q`` (int64) and reliability ``1 - 2*|q - Round(q)|`` in [0, 1]."""
+    rounded = np.rint(q)
+    reliability = np.clip(1.0 - 2.0 * np.abs(q - rounded), 0.0, 1.0)
+    return rounded.astype(np.int64), reliability
+
+
+def _fill(values, mask):
+    """Copy of ``values`` with 0 where ``mask`` is False, so no NaN reaches the integer casts."""
+    return np.where(mask, values, 0.0)
+
+
+def _check_frequency(name, value) -> float:
+    try:
+        f = float(value)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name} must be a number of fringe periods > 0; got {value!r}") from None
+    if not math.isfinite(f) or f <= 0.0:
+        raise ValueError(
+            f"{name} must be a finite frequency > 0 (fringe periods across the projector); got {value!r}"
+        )
+    return f
+
+
+def _check_extent(value) -> float:
+    try:
+        extent = float(value)
+    except (TypeError, ValueError):
+        raise ValueError(f"extent must be a number of projector pixels > 0; got {value!r}") from None
+    if not math.isfinite(extent) or extent <= 0.0:
+        raise ValueError(f"extent must be a finite number of projector pixels > 0; got {value!r}")
+    return extent
+
+
+def _check_equivalent_frequency(f_h, f_l) -> float:
+    f_eq = f_h - f_l
+    if not 0.0 < f_eq <= 1.0:
+        raise ValueError(
+            "multi-wavelength unwrapping needs an equivalent frequency f_eq = f_h - f_l in (0, 1] so "
+            f"the equivalent phase is absolute (Eqs. (6)-(7)); got f_h = {f_h:g}, f_l = {f_l:g}, "
+            f"f_eq = {f_eq:g}"
+        )
+    return f_eq
+
+
+def _as_phase_map(name, values, *, wrapped) -> np.ndarray:
+    """``values`` as a float64 (H, W) array, NaN allowed; wrapped phases must lie in [0, 2*pi)."""
+    array = np.asarray(values)
+    if array.dtype.kind not in "fiu":
+        raise ValueError(f"{name} must be a real-valued array of radians; got dtype {array.dtype}")
+    array = array.astype(np.float64)
+    if array.ndim != 2 or array.size == 0:
+        raise ValueError(f"{name} must be a non-empty 2-D array (H, W); got shape {array.shape}")
+    nan = np.isnan(array)
+    if nan.all():
+        raise ValueError(f"{name} is all NaN; there is no pixel to unwrap")
+    finite_values = array[~nan]
+    if not np.isfinite(finite_values).all():
+        raise ValueError(f"{name} must not contain inf; mark invalid pixels with NaN instead")
+    if wrapped:
+        low, high = float(finite_values.min()), float(finite_values.max())
+        if low < -_WRAP_TOLERANCE_RAD or high >= TWO_PI + _WRAP_TOLERANCE_RAD:
+            raise ValueError(
+                f"{name} must be a wrapped phase in [0, 2*pi); got values in [{low:.6g}, {high:.6g}]"
+                " (map a phase in (-pi, pi] with np.mod(psi, 2*pi))"
+            )
+    return array
+
+
+def _pixel_mask(maps, valid) -> np.ndarray:
+    """(H, W) bool: pixels whose maps are all finite, restricted to the caller's ``valid`` mask."""
+    names = list(maps)
+    shape = maps[names[0]].shape
+    for name in names[1:]:
+        if maps[name].shape != shape:
+            raise ValueError(
+                f"{names[0]} and {name} must have the same shape; got {shape} and {maps[name].shape}"
+            )
+    finite = np.ones(shape, dtype=bool)
+    for array in maps.values():
+        finite &= ~np.isnan(array)
+    if valid is None:
+        return finite
+    valid = np.asarray(valid)
+    if valid.dtype != bool or valid.shape != shape:
+        raise ValueError(
+            f"valid must be a bool array of shape {shape} like {names[0]}; got dtype {valid.dtype}, "
+            f"shape {valid.shape}"
+        )
+    n_bad = int(np.count_nonzero(valid & ~finite))
+    if n_bad:
+        raise ValueError(
+            f"{n_bad} pixels are NaN in {', '.join(names)} where valid is True; mark them False "
+            "in valid or pass finite phases there"
+        )
+    return valid.copy()
+
+
+def _as_small_fraction(name, f) -> Fraction:
+    fraction = Fraction(str(f)).limit_denominator(_MAX_DENOMINATOR)
+    if abs(float(fraction) - f) > _RATIONAL_RELATIVE_TOLERANCE * f:
+        raise ValueError(
+            f"{name} = {f!r} is not close to a rational number with denominator <= "
+            f"{_MAX_DENOMINATOR} (nearest {fraction}); NT needs rational frequencies such as 10.9"
+        )
+    return fraction
+
+
+def _nt_periods(f_h, f_l):
+    """Coprime ``(p_h, p_l)`` with ``p_h/p_l = f_l/f_h`` and the extent ``f_h*p_h`` in those units."""
+    frac_h = _as_small_fraction("f_h", f_h)
+    frac_l = _as_small_fraction("f_l", f_l)
+    ratio = frac_l / frac_h  # lambda_h / lambda_l, exact and in lowest terms
+    return ratio.numerator, ratio.denominator, frac_h * ratio.numerator
+
+
+def _beat_tree(freqs):
+    """Frequencies of the heterodyne beat tree, level 0 = ``freqs`` (sorted highest first).
+
+    Level ``L`` holds ``|f_i - f_(i+1)|`` of neighbours of level ``L - 1``; the single node of the
+    last level must lie in (0, 1].
+    """
+    for a, b in zip(freqs[:-1], freqs[1:]):
+        if a == b:
+            raise ValueError(f"unwrap_heterodyne needs distinct frequencies; got {a:g} twice")
+    levels = [list(freqs)]
+    while len(levels[-1]) > 1:
+        prev = levels[-1]
+        beats = [abs(a - b) for a, b in zip(prev[:-1], prev[1:])]
+        if 0.0 in beats:
+            raise ValueError(
+                f"heterodyne beat tree level {len(levels)}: values {_fmt(prev)} contain two equal "
+                f"neighbours; their beat is 0, so the tree cannot reach a beat in (0, 1] from "
+                f"frequencies {_fmt(freqs)}"
+            )
+        levels.append(beats)
+    final = levels[-1][0]
+    if final > 1.0:
+        raise ValueError(
+            f"heterodyne final beat must be in (0, 1] so its phase needs no unwrapping; got "
+            f"{final:.6g} > 1, the beat of level-{len(levels) - 2} values {_fmt(levels[-2])} "
+            "(beat tree: "
+            + "; ".join(f"level {L}: {_fmt(fs)}" for L, fs in enumerate(levels))
+            + "). Choose frequencies whose final beat is <= 1"
+        )
+    return levels
+
+
+def _fmt(values) -> str:
+    return "[" + ", ".join(f"{v:.6g}" for v in values) + "]"
+
+
+def _fmt_fraction(value: Fraction) -> str:
+    return str(value.numerator) if value.denominator == 1 else f"{float(value):.6g}"
