@@ -32,7 +32,8 @@ case "$job" in
     exec .venv/bin/dptpu eval sphere "$@"
     ;;
   test)
-    pip install -e '.[test]'
+    # torch: training only; exactly 2.13.0, a CPU build pip takes from local disk (never an unpinned torch)
+    pip install -e '.[test]' torch==2.13.0
     shift || true
     exec .venv/bin/python -m pytest -q "$@"
     ;;
