@@ -1,0 +1,74 @@
+"""``dptpu triangulate``: point cloud (PLY) of a calibrated capture folder.
+
+    dptpu triangulate --capture DIR --method heterodyne --out cloud.ply
+
+Unwraps like ``dptpu unwrap``, turns the absolute phase into the projector coordinate
+``x_p = phi * W_p / (2 pi f)``, intersects each valid camera ray with the projector plane of that
+coordinate (:class:`dptpu.fpp.triangulate.Triangulator`, the capture's ``calibration`` rig file) and
+writes the valid points with open3d, in the rig's world frame and units.
+"""
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+import numpy as np
+
+from dptpu.cli.unwrap_cmd import add_unwrap_arguments
+from dptpu.fpp.calibration import load_rig
+from dptpu.fpp.capture import CAPTURE_FILE, read_capture
+from dptpu.fpp.reconstruct import unwrap_capture
+from dptpu.fpp.triangulate import Triangulator, projector_coordinate
+
+
+def register(subparsers) -> None:
+    parser = subparsers.add_parser(
+        "triangulate", help="point cloud (PLY) of a calibrated capture folder",
+        description="Unwrap a capture folder, triangulate every valid pixel with the capture's calibration "
+                    "(its 'calibration' rig file, dptpu-rig/1; required) and write the points as a PLY. "
+                    "Points are in the rig's world frame and in the rig's units (the 'units' of the rig "
+                    "file, e.g. mm), not metres.")
+    add_unwrap_arguments(parser)
+    parser.add_argument("--out", required=True, type=Path, metavar="cloud.ply",
+                        help="output point cloud (PLY; open3d picks the format from the suffix), rig units")
+    parser.add_argument("--no-distortion", action="store_true",
+                        help="ignore the lens distortion of camera and projector (pinhole triangulation)")
+    parser.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    capture = read_capture(args.capture)
+    if capture.calibration is None:
+        raise ValueError(f"{capture.root / CAPTURE_FILE}: no 'calibration' key; triangulate needs a rig file "
+                         f"(dptpu-rig/1, e.g. 'calibration: calibration.yaml') next to the frames")
+    rig = load_rig(capture.calibration)
+    for device, expected in (("camera", capture.camera_size), ("projector", capture.projector_size)):
+        actual = tuple(getattr(rig, device).size)
+        if actual != tuple(expected):
+            raise ValueError(f"{capture.calibration.name}: {device} size is {actual[0]}x{actual[1]} but "
+                             f"the capture's {device}.size is {expected[0]}x{expected[1]}")
+    if not args.out.parent.is_dir():
+        raise FileNotFoundError(f"{args.out.parent}: output folder does not exist")
+
+    result = unwrap_capture(capture, method=args.method, high=args.high, low=args.low,
+                            min_modulation=args.min_modulation)
+    x_p = projector_coordinate(np.where(result.valid, result.absolute_phase, np.nan), result.frequency,
+                               capture.fringe_extent_px)  # (H, W), NaN where invalid
+    triangulator = Triangulator(rig, axis=capture.fringe_axis, distortion=not args.no_distortion)
+    points = triangulator.points(x_p)  # (H, W, 3), rig units
+    keep = np.all(np.isfinite(points), axis=-1)  # (H, W)
+    cloud_points = points[keep]  # (M, 3)
+    if cloud_points.shape[0] == 0:
+        raise ValueError(f"no valid pixel to triangulate in {capture.root} ({args.method}); nothing written")
+    _write_point_cloud(args.out, cloud_points)
+    print(f"{args.method}: {cloud_points.shape[0]} points ({rig.units}) -> {args.out}")
+    return 0
+
+
+def _write_point_cloud(path: Path, points: np.ndarray) -> None:
+    """Write points (M, 3) with open3d (imported here: it is slow to import)."""
+    import open3d as o3d
+
+    cloud = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(np.ascontiguousarray(points, dtype=np.float64)))
+    if not o3d.io.write_point_cloud(str(path), cloud):
+        raise ValueError(f"{path}: open3d could not write the point cloud (is the suffix .ply/.pcd/.xyz?)")
