@@ -6,26 +6,15 @@ when they are absent.
 """
 from __future__ import annotations
 
-import os
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 import pytest
 
-REPO_ROOT = Path(__file__).resolve().parents[1]
+from dptpu.cli.data_paths import shared_data_dir
+
 _MISSING_REASON = "real data not found: set DPTPU_DATA or place ../shared/data"
-
-
-def shared_data_dir() -> Path:
-    """The folder holding the real data sets: ``$DPTPU_DATA`` or ``<repo>/../shared/data``.
-
-    The folder may not exist; the fixtures below check and skip.
-    """
-    configured = os.environ.get("DPTPU_DATA")
-    if configured:
-        return Path(configured).expanduser()
-    return REPO_ROOT.parent / "shared" / "data"
 
 
 def _data_set(name: str, probe: str) -> Path:
