@@ -1,0 +1,78 @@
+"""``dptpu bench fpp``: speed of ``dptpu.fpp`` against references, each pair in the same run (not a test).
+
+The benchmark code is ``benchmarks/fpp_bench.py`` of the source tree, next to the ``dptpu`` package folder;
+it is not part of the installed package, so this command loads it from there and says so when it is missing
+(``dptpu`` installed from a wheel instead of a source checkout). What is measured, and against what, is
+written in that file's docstring and in ``docs/benchmarks.md``.
+"""
+from __future__ import annotations
+
+import importlib.util
+import sys
+from pathlib import Path
+
+#: Name under which the benchmark file is registered in ``sys.modules`` once loaded.
+MODULE_NAME = "dptpu_benchmarks_fpp_bench"
+
+
+def benchmarks_dir() -> Path:
+    """The source tree's ``benchmarks`` folder: ``<repo>/benchmarks``, beside the ``dptpu`` package."""
+    import dptpu
+
+    return Path(dptpu.__file__).resolve().parents[1] / "benchmarks"
+
+
+def load_fpp_bench():
+    """Import ``benchmarks/fpp_bench.py`` as a module (once per process).
+
+    Raises
+    ------
+    FileNotFoundError
+        When the file is absent, naming the path looked at and what to do.
+    """
+    path = benchmarks_dir() / "fpp_bench.py"
+    loaded = sys.modules.get(MODULE_NAME)
+    if loaded is not None and Path(getattr(loaded, "__file__", "")) == path:
+        return loaded
+    if not path.is_file():
+        raise FileNotFoundError(
+            f"benchmark code not found at {path}: `dptpu bench` runs from a source checkout of dptpu "
+            "(the benchmarks/ folder is not installed with the package); clone the repository and "
+            "`pip install -e .` it, or run `python benchmarks/fpp_bench.py` there"
+        )
+    spec = importlib.util.spec_from_file_location(MODULE_NAME, path)
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[MODULE_NAME] = module  # before exec: dataclasses and pickling look modules up by name
+    try:
+        spec.loader.exec_module(module)
+    except BaseException:
+        del sys.modules[MODULE_NAME]
+        raise
+    return module
+
+
+def register(subparsers) -> None:
+    parser = subparsers.add_parser("bench", help="benchmarks against reference implementations (not tests)")
+    targets = parser.add_subparsers(dest="target", metavar="TARGET", required=True)
+    fpp = targets.add_parser(
+        "fpp",
+        help="phase (vs OpenCV PSP), MF/MW/NT unwrapping (vs bare numpy), triangulation (vs per-pixel solve)",
+        description="Times dptpu.fpp against reference implementations side by side on a synthetic "
+                    "scene and checks that each pair gives the same numbers. Ratios are reference / ours.",
+    )
+    fpp.add_argument("--json", action="store_true", help="print the report as one JSON object")
+    fpp.add_argument("--repeats", type=int, default=None, help="timed runs per measurement (default 5)")
+    fpp.add_argument("--size", default=None, help="camera image size WIDTHxHEIGHT, at least 96x64 (default 640x480)")
+    fpp.add_argument("--subset", type=int, default=None,
+                     help="pixels on which the per-pixel reference triangulation is timed (default 2000)")
+    fpp.set_defaults(func=run_fpp)
+
+
+def run_fpp(args) -> int:
+    """Load the benchmark from the source tree and run it; 0 if every pair agrees, 1 if not."""
+    bench = load_fpp_bench()
+    try:
+        return bench.run(args)
+    except RuntimeError as exc:  # OpenCV without the contrib structured_light module
+        print(f"dptpu bench: error: {exc}", file=sys.stderr)
+        return 2
