@@ -44,6 +44,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from dptpu.fpp.checks import check_image_stack, check_projector_size
 from dptpu.fpp.phase import PhaseMaps
 from dptpu.fpp.tpu import Unwrapped
 
@@ -123,7 +124,7 @@ def graycode_patterns(
     """
     bits = _bits(bits)
     period = _positive_float(period, "period")
-    width, height = _projector_size(projector_size)
+    width, height = check_projector_size(projector_size)
     if axis not in ("x", "y"):
         raise ValueError(f"axis must be 'x' or 'y'; got {axis!r}")
     if bit_depth not in (8, 16):
@@ -439,25 +440,6 @@ def _min_contrast(min_contrast, stack, inverse, white) -> float:
     return float(min_contrast)
 
 
-def _code_stack(images, name, *, min_frames=1) -> np.ndarray:
-    images = np.asarray(images)
-    if images.ndim != 3 or images.shape[0] < min_frames or images.shape[0] > 30:
-        raise ValueError(
-            f"{name} must have shape (bits, H, W) with 1 <= bits <= 30; got {images.shape}"
-        )
-    dtype = images.dtype
-    if dtype == np.bool_ or not (
-        np.issubdtype(dtype, np.integer) or np.issubdtype(dtype, np.floating)
-    ):
-        raise ValueError(f"{name} must have an integer or float dtype; got {dtype}")
-    if np.issubdtype(dtype, np.floating):
-        if np.isnan(images).any():
-            raise ValueError(f"{name} contain NaN")
-        if np.isinf(images).any():
-            raise ValueError(f"{name} contain inf")
-    return images
-
-
 def _wrapped(wrapped) -> np.ndarray:
     if isinstance(wrapped, PhaseMaps):
         wrapped = wrapped.phase
@@ -498,16 +480,5 @@ def _positive_float(value, name) -> float:
     return float(value)
 
 
-def _projector_size(projector_size) -> tuple[int, int]:
-    try:
-        width, height = projector_size
-    except (TypeError, ValueError):
-        raise ValueError(
-            f"projector_size must be (width, height); got {projector_size!r}"
-        ) from None
-    for name, value in (("width", width), ("height", height)):
-        if isinstance(value, bool) or not isinstance(value, numbers.Integral) or value < 1:
-            raise ValueError(
-                f"projector_size {name} must be a positive integer; got {value!r}"
-            )
-    return int(width), int(height)
+def _code_stack(images, name, *, min_frames=1) -> np.ndarray:
+    return check_image_stack(images, name, min_frames=min_frames, max_frames=30, what="bits")

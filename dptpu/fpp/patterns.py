@@ -19,6 +19,8 @@ import numbers
 
 import numpy as np
 
+from .checks import check_projector_size
+
 __all__ = ["frequency_from_period", "projector_phase", "fringe_patterns"]
 
 _AXES = ("x", "y")
@@ -66,7 +68,7 @@ def projector_phase(projector_size, frequency, *, axis="x") -> np.ndarray:
 
     Convention: pixel centres are at integer ``x_p``, the first pixel is ``x_p = 0`` with phase 0.
     """
-    width, height = _projector_size(projector_size)
+    width, height = check_projector_size(projector_size)
     frequency = _positive_float(frequency, "frequency")
     axis = _axis(axis)
     extent = width if axis == "x" else height
@@ -134,7 +136,7 @@ def fringe_patterns(
             "give exactly one of frequency and period; got "
             f"frequency={frequency!r}, period={period!r}"
         )
-    width, height = _projector_size(projector_size)
+    width, height = check_projector_size(projector_size)
     axis = _axis(axis)
     steps = _steps(steps)
     if bit_depth not in _BIT_DEPTHS:
@@ -182,22 +184,6 @@ def _finite_float(value, name) -> float:
     if not np.isfinite(value):
         raise ValueError(f"{name} must be finite; got {value}")
     return value
-
-
-def _projector_size(projector_size) -> tuple[int, int]:
-    try:
-        width, height = projector_size
-    except (TypeError, ValueError):
-        raise ValueError(
-            f"projector_size must be (width, height); got {projector_size!r}"
-        ) from None
-    for name, value in (("width", width), ("height", height)):
-        if isinstance(value, bool) or not isinstance(value, numbers.Integral) or value < 1:
-            raise ValueError(
-                f"projector_size {name} must be a positive integer; got {value!r} "
-                f"in projector_size={projector_size!r}"
-            )
-    return int(width), int(height)
 
 
 def _axis(axis) -> str:

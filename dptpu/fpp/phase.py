@@ -23,6 +23,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .checks import check_image_stack
+
 __all__ = ["PhaseMaps", "wrapped_phase", "quality_mask", "check_bit_depth"]
 
 _TWO_PI = 2.0 * np.pi
@@ -79,7 +81,7 @@ def wrapped_phase(images, *, shift_sign=-1, phase_offset=0.0, bit_depth=None) ->
     Convention: phase in ``[0, 2*pi)``, so the fringe order is ``k = floor(phi / 2pi)``.
     Computed in float64.
     """
-    images = _image_stack(images)
+    images = check_image_stack(images)
     if shift_sign not in (-1, 1):
         raise ValueError(f"shift_sign must be -1 or +1; got {shift_sign!r}")
     if (
@@ -127,7 +129,7 @@ def quality_mask(images, modulation, *, min_modulation, saturation_level=None) -
         True where ``modulation >= min_modulation`` and ``max_n I_n < saturation_level``;
         NaN modulation is False.
     """
-    images = _image_stack(images)
+    images = check_image_stack(images)
     modulation = np.asarray(modulation)
     if modulation.shape != images.shape[1:]:
         raise ValueError(
@@ -198,21 +200,3 @@ def check_bit_depth(images, bit_depth) -> None:
         )
 
 
-def _image_stack(images) -> np.ndarray:
-    """Validate an (N, H, W) stack with N >= 3, real dtype, finite values."""
-    images = np.asarray(images)
-    if images.ndim != 3 or images.shape[0] < 3:
-        raise ValueError(
-            f"images must have shape (N, H, W) with N >= 3; got {images.shape}"
-        )
-    dtype = images.dtype
-    if dtype == np.bool_ or not (
-        np.issubdtype(dtype, np.integer) or np.issubdtype(dtype, np.floating)
-    ):
-        raise ValueError(f"images must have an integer or float dtype; got {dtype}")
-    if np.issubdtype(dtype, np.floating):
-        if np.isnan(images).any():
-            raise ValueError("images contain NaN")
-        if np.isinf(images).any():
-            raise ValueError("images contain inf")
-    return images
