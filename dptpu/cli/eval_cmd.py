@@ -30,7 +30,7 @@ def run_sphere(args) -> int:
     for calibration, phase in real_sphere.COMBINATIONS:
         key = real_sphere.combination_key(calibration, phase)
         print(f"  {calibration:12s}{phase:8s}{report['paper'][key]:10.3f}{report['paper_figures_um'][key]:14.3f}")
-    print("Own reconstruction (0-based, camera + projector distortion, geometric fit):")
+    print("Own reconstruction (pose refined over all views, 0-based, camera + projector distortion, geometric fit):")
     print(f"  {'calibration':12s}{'phase':8s}{'RMS um':>9s}{'radius mm':>11s}{'points':>8s}"
           f"   edge band removed ({report['ours']['calib_real_phase_real']['edge_band_removed']['rule']})")
     for calibration, phase in real_sphere.COMBINATIONS:

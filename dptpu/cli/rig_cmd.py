@@ -22,6 +22,10 @@ def register(subparsers) -> None:
     convert.add_argument("--projector-size", default=None, help="WIDTHxHEIGHT (default: from the file)")
     convert.add_argument("--pose", type=int, default=1, help="Bouguet calibration pose that defines the world "
                                                              "frame (default 1)")
+    convert.add_argument("--relative-pose", choices=("view", "all-views"), default="view",
+                         help="Bouguet pair: take both extrinsics from --pose (view, the toolbox's choice) or refine "
+                              "the projector's pose relative to the camera over every calibration view "
+                              "(all-views; docs/real-sphere.md shows the gain)")
     convert.add_argument("--units", default="mm", help="unit of the translations (default mm)")
     convert.add_argument("--to", choices=("dptpu", "opencv"), default="dptpu",
                          help="output format: dptpu-rig/1 YAML (default) or OpenCV FileStorage YAML")
@@ -40,9 +44,17 @@ def run_convert(args) -> int:
     else:
         if not args.projector:
             raise ValueError("--camera needs --projector (the projector calibration file)")
-        rig = calibration.Rig(camera=calibration.load_device(args.camera, size=camera_size, pose=args.pose),
-                              projector=calibration.load_device(args.projector, size=projector_size, pose=args.pose),
-                              units=args.units)
+        bouguet = args.camera.lower().endswith(".mat") and args.projector.lower().endswith(".mat")
+        if bouguet:
+            rig = calibration.load_bouguet_pair(args.camera, args.projector, camera_size=camera_size,
+                                                projector_size=projector_size, pose=args.pose, units=args.units,
+                                                relative_pose=args.relative_pose)
+        elif args.relative_pose != "view":
+            raise ValueError("--relative-pose all-views needs a Bouguet pair (.mat files with every view's corners)")
+        else:
+            rig = calibration.Rig(camera=calibration.load_device(args.camera, size=camera_size, pose=args.pose),
+                                  projector=calibration.load_device(args.projector, size=projector_size, pose=args.pose),
+                                  units=args.units)
     if args.to == "opencv":
         calibration.save_opencv_rig(rig, args.out)
     else:

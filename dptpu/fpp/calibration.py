@@ -157,10 +157,56 @@ def load_bouguet(path, size, *, pose: int = 1) -> DeviceModel:
 
 
 def load_bouguet_pair(camera_path, projector_path, *, camera_size=None, projector_size=None, pose=1,
-                      units="mm") -> Rig:
-    """A rig from the Bouguet camera and projector files of one calibration (same world pose)."""
-    return Rig(camera=load_bouguet(camera_path, camera_size, pose=pose),
-               projector=load_bouguet(projector_path, projector_size, pose=pose), units=units)
+                      units="mm", relative_pose: str = "view") -> Rig:
+    """A rig from the Bouguet camera and projector files of one calibration.
+
+    Parameters
+    ----------
+    relative_pose : {"view", "all-views"}
+        "view": both devices take the extrinsics of calibration view ``pose`` (the toolbox's, and the DP-TPU
+        paper's, choice). "all-views": the camera keeps view ``pose`` as the world frame and the projector's pose
+        relative to the camera is refined over every active view of both files
+        (:func:`dptpu.fpp.stereo_calibration.refine_relative_pose`).
+    """
+    camera = load_bouguet(camera_path, camera_size, pose=pose)
+    projector = load_bouguet(projector_path, projector_size, pose=pose)
+    if relative_pose == "all-views":
+        projector = _projector_from_all_views(camera_path, projector_path, camera, projector)
+    elif relative_pose != "view":
+        raise ValueError(f"relative_pose must be 'view' or 'all-views'; got {relative_pose!r}")
+    return Rig(camera=camera, projector=projector, units=units)
+
+
+def _projector_from_all_views(camera_path, projector_path, camera: DeviceModel,
+                              projector: DeviceModel) -> DeviceModel:
+    from scipy.io import loadmat
+
+    from .stereo_calibration import CalibrationViews, refine_relative_pose
+
+    camera_data, projector_data = loadmat(str(camera_path)), loadmat(str(projector_path))
+    active = np.ravel(camera_data.get("active_images", np.ones((1, 0)))).astype(bool)
+    views = [k + 1 for k in np.flatnonzero(active)]
+    object_points, camera_points, projector_points, boards = [], [], [], []
+    for k in views:
+        for data, path in ((camera_data, camera_path), (projector_data, projector_path)):
+            for name in (f"X_{k}", f"x_{k}", f"Rc_{k}", f"Tc_{k}"):
+                if name not in data:
+                    raise ValueError(f"{path}: missing field '{name}' (needed for relative_pose='all-views')")
+        if not np.array_equal(camera_data[f"X_{k}"], projector_data[f"X_{k}"]):
+            raise ValueError(f"{camera_path} and {projector_path}: view {k} has different board points X_{k}")
+        object_points.append(np.asarray(camera_data[f"X_{k}"], dtype=np.float64).T)
+        camera_points.append(np.asarray(camera_data[f"x_{k}"], dtype=np.float64).T)
+        projector_points.append(np.asarray(projector_data[f"x_{k}"], dtype=np.float64).T)
+        boards.append((camera_data[f"Rc_{k}"], np.ravel(camera_data[f"Tc_{k}"])))
+    if not views:
+        raise ValueError(f"{camera_path}: no active calibration views")
+    R_start = projector.R @ camera.R.T
+    relative = refine_relative_pose(camera, projector, CalibrationViews(object_points, camera_points,
+                                                                        projector_points),
+                                    initial_board_poses=boards,
+                                    initial_relative=(R_start, projector.T - R_start @ camera.T))
+    return DeviceModel(K=projector.K, dist=projector.dist, R=relative.R @ camera.R,
+                       T=relative.R @ camera.T + relative.T, size=projector.size)
 
 
 # --- dptpu-rig/1 YAML ----------------------------------------------------------------------------------

@@ -37,6 +37,12 @@ def test_rig_convert_bouguet_pair(sphere_dir, tmp_path, capsys):
     again = tmp_path / "again.yaml"
     assert main(["rig", "convert", "--opencv-rig", str(opencv), "--out", str(again)]) == 0
     np.testing.assert_allclose(load_rig(again).projector.T, rig.projector.T, atol=1e-9)
+    refined = tmp_path / "refined.yaml"
+    assert main(["rig", "convert", "--camera", str(sphere_dir / "CamCalibResult_real.mat"),
+                 "--projector", str(sphere_dir / "PrjCalibResult_real.mat"), "--relative-pose", "all-views",
+                 "--out", str(refined)]) == 0
+    moved_mm = np.linalg.norm(load_rig(refined).projector.center - rig.projector.center)
+    assert 1.0 < moved_mm < 10.0
 
 
 def test_rig_convert_missing_projector_is_exit_2(tmp_path, capsys):
