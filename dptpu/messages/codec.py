@@ -1,0 +1,551 @@
+"""Wire codec: a message <-> one ZeroMQ multipart message of raw frames.
+
+Frame layout (``docs/messages.md`` has the full specification)::
+
+    frame 0      topic, UTF-8 bytes, e.g. b"/camera/image_raw"
+    frame 1      header, one msgpack map:
+                   {"wire": 1, "type": "sensor_msgs/msg/Image", "version": 1,
+                    "fields": {...scalars, nested maps, inline sequences; each bulk array replaced by
+                               msgpack ext type 1 holding its index, big-endian uint32...},
+                    "arrays": [[dtype, [dim0, dim1, ...]], ...]}
+    frame 2 + i  the raw bytes of array i, C order, little-endian
+
+:func:`encode` returns the arrays' own buffers (memoryviews, no copy): send them with
+``socket.send_multipart(frames, copy=False)`` and do not modify the arrays until ZeroMQ has sent them.
+:func:`decode` returns arrays that are read-only views of the received frames (no copy). Decoding
+trusts nothing: every limit of :class:`DecodeLimits`, the dtype allow-list, exact shapes and the
+schema of the declared type are checked, and anything wrong raises :class:`DecodeError` (a
+``ValueError``) naming the problem. The codec never uses pickle or eval.
+"""
+
+from __future__ import annotations
+
+import struct
+from dataclasses import dataclass, fields
+
+import msgpack
+import numpy as np
+
+from .registry import is_registered, lookup
+from .schema import (
+    ARRAY,
+    ARRAY_DTYPES,
+    INTEGER_RANGES,
+    MESSAGE,
+    MESSAGE_LIST,
+    SCALAR,
+    FieldSpec,
+    Message,
+)
+
+__all__ = ["encode", "decode", "DecodeError", "EncodeError", "DecodeLimits", "DEFAULT_LIMITS", "ALLOWED_DTYPES",
+           "WIRE_VERSION"]
+
+#: Version of the frame layout and header keys (not of any message type).
+WIRE_VERSION = 1
+#: The only msgpack extension type in a header: a reference to array frame ``2 + index``.
+ARRAY_REF_EXT_CODE = 1
+#: Wire dtype strings a decoder accepts (numpy ``dtype.str``), all little-endian or single-byte.
+ALLOWED_DTYPES: dict[str, np.dtype] = {dtype.str: dtype for dtype in ARRAY_DTYPES.values()}
+
+_HEADER_KEYS = ("wire", "type", "version", "fields", "arrays")
+# primitive -> (exact Python type on the wire, inclusive integer range or None).
+_SCALAR_CHECKS = {"string": (str, None, None), "float64": (float, None, None), "bool": (bool, None, None),
+                  **{name: (int, low, high) for name, (low, high) in INTEGER_RANGES.items()}}
+_INDEX = struct.Struct(">I")
+
+
+class DecodeError(ValueError):
+    """A received message is malformed, oversized, of an unexpected type or of another schema version."""
+
+
+class EncodeError(ValueError):
+    """A message cannot be encoded: a field has the wrong type, dtype, shape or range."""
+
+
+@dataclass(frozen=True)
+class DecodeLimits:
+    """Upper bounds a received message must respect; anything larger raises :class:`DecodeError`.
+
+    Attributes
+    ----------
+    max_frames : int
+        Frames in the multipart message (topic + header + arrays).
+    max_total_bytes : int
+        Bytes in all frames together.
+    max_array_bytes : int
+        Bytes of one array.
+    max_ndim : int
+        Dimensions of one array.
+    max_dims_product : int
+        Elements of one array (product of its shape).
+    max_header_bytes : int
+        Bytes of the msgpack header. Parsing it is the only allocation that grows with the input:
+        at most about 80 bytes of Python objects per header byte (a header of empty maps), i.e. about
+        5 MiB for the default 64 KiB. Arrays are never allocated, only viewed.
+    max_topic_bytes : int
+        Bytes of the topic name.
+    """
+
+    max_frames: int = 2 + 64
+    max_total_bytes: int = 1 << 30
+    max_array_bytes: int = 512 << 20
+    max_ndim: int = 8
+    max_dims_product: int = 1 << 29
+    max_header_bytes: int = 64 << 10
+    max_topic_bytes: int = 1024
+
+    def __post_init__(self):
+        for field in fields(self):
+            value = getattr(self, field.name)
+            if isinstance(value, bool) or not isinstance(value, int) or value < 1:
+                raise ValueError(f"DecodeLimits.{field.name} must be a positive int; got {value!r}")
+        if self.max_frames < 2:
+            raise ValueError(f"DecodeLimits.max_frames must be >= 2 (topic and header); got {self.max_frames}")
+
+
+DEFAULT_LIMITS = DecodeLimits()
+
+
+@dataclass(frozen=True)
+class _ArrayRef:
+    index: int
+
+
+# --------------------------------------------------------------------------------------------------
+# Encoding
+# --------------------------------------------------------------------------------------------------
+
+def encode(topic, msg: Message) -> list:
+    """Encode ``msg`` for ``topic`` as multipart frames ``[topic, header, *arrays]``.
+
+    Parameters
+    ----------
+    topic : str or bytes
+        Non-empty topic name, e.g. ``"/camera/image_raw"`` (UTF-8).
+    msg : Message
+        A registered message (any type made with :func:`dptpu.messages.schema.message`).
+
+    Returns
+    -------
+    list
+        ``[topic_bytes, header_bytes, memoryview, ...]``: one memoryview per bulk array, viewing the
+        array's own memory (zero-copy). An array that is not C-contiguous, or is big-endian, is made
+        contiguous little-endian once (one copy) and that copy is sent.
+
+    Raises
+    ------
+    EncodeError
+        A field of the wrong type, dtype, number of dimensions or range, or fields that contradict
+        each other (``check_consistency``); the message names the field, e.g. ``Image.height``.
+    """
+    topic_bytes = _topic_bytes(topic)
+    cls = type(msg)
+    if not isinstance(msg, Message) or not is_registered(getattr(cls, "TYPE_NAME", None)):
+        raise EncodeError(f"msg must be a registered message (e.g. sensor_msgs Image); got {cls.__name__}")
+    arrays: list[np.ndarray] = []
+    try:
+        encoded_fields = _encode_fields(msg, cls.__name__, arrays)
+    except EncodeError as error:
+        raise EncodeError(f"cannot encode {cls.TYPE_NAME}: {error}") from None
+    header = {
+        "wire": WIRE_VERSION,
+        "type": cls.TYPE_NAME,
+        "version": cls.SCHEMA_VERSION,
+        "fields": encoded_fields,
+        "arrays": [[array.dtype.str, list(array.shape)] for array in arrays],
+    }
+    frames = [topic_bytes, msgpack.packb(header, use_bin_type=True)]
+    frames.extend(memoryview(array.reshape(-1).view(np.uint8)) for array in arrays)
+    return frames
+
+
+def _topic_bytes(topic) -> bytes:
+    try:
+        encoded = topic.encode("utf-8") if isinstance(topic, str) else topic
+    except UnicodeEncodeError:
+        raise EncodeError(f"topic must be valid UTF-8; got {_short_repr(topic)}") from None
+    if not isinstance(encoded, bytes) or not encoded:
+        raise EncodeError(f"topic must be a non-empty str or bytes; got {_short_repr(topic)}")
+    return encoded
+
+
+def _encode_fields(msg: Message, path: str, arrays: list) -> dict:
+    out = {}
+    for spec in type(msg).FIELDS:
+        value = getattr(msg, spec.name)
+        kind = spec.kind
+        if kind == SCALAR:
+            python_type, low, high = _SCALAR_CHECKS[spec.primitive]
+            if type(value) is python_type and (low is None or low <= value <= high):
+                out[spec.name] = value  # fast path: a builtin of the right type and range
+            else:
+                out[spec.name] = _encode_scalar(spec.primitive, value, f"{path}.{spec.name}")
+            continue
+        where = f"{path}.{spec.name}"
+        if kind == ARRAY:
+            out[spec.name] = msgpack.ExtType(ARRAY_REF_EXT_CODE, _INDEX.pack(len(arrays)))
+            arrays.append(_encode_array(spec, value, where))
+        elif kind == MESSAGE:
+            _check_nested_type(spec, value, where)
+            out[spec.name] = _encode_fields(value, where, arrays)
+        elif kind == MESSAGE_LIST:
+            if not isinstance(value, (list, tuple)):
+                raise EncodeError(f"{where} must be a list of {spec.message_type.__name__}; got {type(value).__name__}")
+            items = []
+            for index, item in enumerate(value):
+                _check_nested_type(spec, item, f"{where}[{index}]")
+                items.append(_encode_fields(item, f"{where}[{index}]", arrays))
+            out[spec.name] = items
+        else:  # SEQUENCE
+            out[spec.name] = _encode_sequence(spec, value, where)
+    try:
+        msg.check_consistency()
+    except ValueError as error:  # the error names the class; add where it sits when nested
+        raise EncodeError(str(error) if path == type(msg).__name__ else f"{path}: {error}") from None
+    return out
+
+
+def _check_nested_type(spec: FieldSpec, value, where: str) -> None:
+    if type(value) is not spec.message_type:
+        raise EncodeError(f"{where} must be a {spec.message_type.__name__}; got {type(value).__name__}")
+
+
+def _encode_scalar(primitive: str, value, where: str):
+    if primitive == "string":
+        if isinstance(value, str):
+            return str(value)
+    elif primitive == "bool":
+        if isinstance(value, (bool, np.bool_)):
+            return bool(value)
+    elif isinstance(value, (bool, np.bool_)):
+        pass  # a bool is not a number here
+    elif primitive == "float64":
+        if isinstance(value, (float, int, np.floating, np.integer)):
+            try:
+                return float(value)
+            except OverflowError:
+                raise EncodeError(f"{where} is too large for float64; got {_short_repr(value)}") from None
+    elif isinstance(value, (int, np.integer)):
+        number = int(value)
+        low, high = INTEGER_RANGES[primitive]
+        if low <= number <= high:
+            return number
+        raise EncodeError(f"{where} must be {primitive} in [{low}, {high}]; got {number}")
+    raise EncodeError(f"{where} must be {primitive}; got {type(value).__name__} {_short_repr(value)}")
+
+
+def _encode_sequence(spec: FieldSpec, value, where: str) -> list:
+    try:
+        values = np.asarray(value)
+    except (ValueError, TypeError) as error:
+        raise EncodeError(f"{where} must be a 1-D sequence of {spec.primitive}; got {_short_repr(value)} "
+                          f"({error})") from None
+    expected = f"{spec.length}" if spec.length is not None else "n"
+    if values.ndim != 1 or (spec.length is not None and values.shape[0] != spec.length):
+        raise EncodeError(f"{where} must have shape ({expected},); got {values.shape}")
+    kind = values.dtype.kind
+    target = spec.dtype
+    if target.kind == "f":
+        ok = kind in "fiu"
+    elif target.kind == "b":
+        ok = kind == "b"
+    else:
+        ok = kind in "iu"
+        if ok and values.size:
+            low, high = INTEGER_RANGES[spec.primitive]
+            ok = low <= int(values.min()) and int(values.max()) <= high
+    if not ok:
+        raise EncodeError(f"{where} must hold {spec.primitive} values; got dtype {values.dtype} {_short_repr(value)}")
+    return values.astype(target, copy=False).tolist()
+
+
+def _encode_array(spec: FieldSpec, value, where: str) -> np.ndarray:
+    axes = f"({', '.join(spec.axes)})"
+    if not isinstance(value, np.ndarray):
+        raise EncodeError(f"{where} must be a numpy ndarray {axes} of {spec.primitive}; got {type(value).__name__}")
+    if value.ndim != len(spec.axes):
+        raise EncodeError(f"{where} must have {len(spec.axes)} dimension(s) {axes}; got shape {value.shape}")
+    target = spec.dtype
+    if value.dtype.newbyteorder("<") != target:
+        raise EncodeError(f"{where} must have dtype {spec.primitive} ({target.str}); got {value.dtype} "
+                          f"(convert with .astype(np.{target.name}))")
+    if value.dtype != target:  # big-endian: one copy into little-endian
+        return value.astype(target, order="C")
+    if not value.flags.c_contiguous:  # one copy into C order
+        return np.ascontiguousarray(value)
+    return value
+
+
+def _short_repr(value) -> str:
+    text = repr(value)
+    return text if len(text) <= 60 else text[:57] + "..."
+
+
+# --------------------------------------------------------------------------------------------------
+# Decoding
+# --------------------------------------------------------------------------------------------------
+
+def decode(frames, *, expected_type=None, limits: DecodeLimits = DEFAULT_LIMITS):
+    """Decode multipart frames ``[topic, header, *arrays]`` into ``(topic, message)``.
+
+    Parameters
+    ----------
+    frames : list or tuple
+        The received frames: ``bytes``, ``bytearray``, ``memoryview`` or ``zmq.Frame``-like objects with
+        a ``.buffer``. Array frames are viewed, not copied: the returned arrays keep them alive.
+    expected_type : type or str, optional
+        A message class or type name (``"sensor_msgs/msg/Image"``); another type raises DecodeError.
+    limits : DecodeLimits
+        Upper bounds on frames, bytes, dimensions and elements.
+
+    Returns
+    -------
+    topic : str
+    msg : Message
+        Bulk arrays are read-only numpy views of the array frames; inline sequences (e.g.
+        ``CameraInfo.k``) are new writable arrays.
+
+    Raises
+    ------
+    DecodeError
+        Too many frames or bytes, a malformed topic or header, an unknown type, a schema version
+        mismatch, a dtype outside :data:`ALLOWED_DTYPES`, a shape that does not match its frame's
+        length exactly, missing, unknown or mistyped fields, or inconsistent fields. The message
+        starts with the topic and type when they are known.
+    ValueError
+        ``expected_type`` or ``limits`` is not valid (a caller error, not a bad message).
+    """
+    if not isinstance(limits, DecodeLimits):
+        raise ValueError(f"limits must be a DecodeLimits; got {type(limits).__name__}")
+    expected = _expected_class(expected_type)
+    context = "cannot decode message"
+    try:
+        views = _frame_views(frames, limits)
+        topic = _decode_topic(views[0], limits)
+        context += f" on topic {topic!r}"
+        header = _unpack_header(views[1], limits)
+        cls = _header_class(header, expected, len(views) - 2)
+        context += f" of type {cls.TYPE_NAME}"
+        arrays = [_array_view(index, descriptor, view, limits)
+                  for index, (descriptor, view) in enumerate(zip(header["arrays"], views[2:]))]
+        used = [False] * len(arrays)
+        msg = _decode_fields(cls, header["fields"], arrays, used, cls.__name__)
+        if not all(used):
+            raise DecodeError(f"array frame(s) {[i for i, u in enumerate(used) if not u]} are not referenced by "
+                              "any field")
+    except DecodeError as error:
+        raise DecodeError(f"{context}: {error}") from None
+    return topic, msg
+
+
+def _expected_class(expected_type):
+    if expected_type is None:
+        return None
+    if isinstance(expected_type, str):
+        try:
+            return lookup(expected_type)
+        except KeyError as error:
+            raise ValueError(f"expected_type: {error.args[0]}") from None
+    if isinstance(expected_type, type) and issubclass(expected_type, Message) \
+            and is_registered(getattr(expected_type, "TYPE_NAME", None)):
+        return expected_type
+    raise ValueError(f"expected_type must be a message class or type name; got {expected_type!r}")
+
+
+def _frame_views(frames, limits: DecodeLimits) -> list[memoryview]:
+    if not isinstance(frames, (list, tuple)):
+        raise DecodeError(f"frames must be a list of frames; got {type(frames).__name__}")
+    if len(frames) < 2:
+        raise DecodeError(f"a message needs at least 2 frames (topic, header); got {len(frames)}")
+    if len(frames) > limits.max_frames:
+        raise DecodeError(f"too many frames: {len(frames)} > max_frames {limits.max_frames}")
+    views, total = [], 0
+    for index, frame in enumerate(frames):
+        view = _byte_view(frame, index)
+        total += view.nbytes
+        if total > limits.max_total_bytes:
+            raise DecodeError(f"frames hold more than max_total_bytes {limits.max_total_bytes} bytes")
+        views.append(view)
+    return views
+
+
+def _byte_view(frame, index: int) -> memoryview:
+    source = frame if isinstance(frame, (bytes, bytearray, memoryview)) else getattr(frame, "buffer", frame)
+    try:
+        view = memoryview(source)
+    except TypeError:
+        raise DecodeError(f"frame {index} is a {type(frame).__name__}; expected bytes, memoryview or a "
+                          "zmq.Frame") from None
+    if view.format in ("B", "b", "c") and view.ndim == 1:
+        return view if view.format == "B" else view.cast("B")
+    if not view.c_contiguous:
+        raise DecodeError(f"frame {index} is not a contiguous buffer")
+    try:
+        return view.cast("B")
+    except (TypeError, ValueError):
+        raise DecodeError(f"frame {index} cannot be read as bytes (buffer format {view.format!r})") from None
+
+
+def _decode_topic(view: memoryview, limits: DecodeLimits) -> str:
+    if view.nbytes > limits.max_topic_bytes:
+        raise DecodeError(f"topic frame has {view.nbytes} bytes > max_topic_bytes {limits.max_topic_bytes}")
+    if view.nbytes == 0:
+        raise DecodeError("topic frame is empty")
+    try:
+        return bytes(view).decode("utf-8")
+    except UnicodeDecodeError:
+        raise DecodeError("topic frame is not valid UTF-8") from None
+
+
+def _ext_hook(code: int, data: bytes):
+    if code != ARRAY_REF_EXT_CODE:
+        raise DecodeError(f"header holds msgpack extension type {code}; only {ARRAY_REF_EXT_CODE} (array "
+                          "reference) is allowed")
+    if len(data) != _INDEX.size:
+        raise DecodeError(f"array reference must hold a 4-byte index; got {len(data)} bytes")
+    return _ArrayRef(_INDEX.unpack(data)[0])
+
+
+def _unpack_header(view: memoryview, limits: DecodeLimits) -> dict:
+    if view.nbytes > limits.max_header_bytes:
+        raise DecodeError(f"header frame has {view.nbytes} bytes > max_header_bytes {limits.max_header_bytes}")
+    try:
+        header = msgpack.unpackb(view, raw=False, strict_map_key=True, use_list=True, ext_hook=_ext_hook)
+    except DecodeError:
+        raise
+    except (ValueError, TypeError, OverflowError, RecursionError, msgpack.UnpackException) as error:
+        detail = str(error) or "nested too deeply"
+        raise DecodeError(f"header is not valid msgpack ({type(error).__name__}: {detail})") from None
+    if type(header) is not dict:
+        raise DecodeError(f"header must be a msgpack map; got {type(header).__name__}")
+    missing = [key for key in _HEADER_KEYS if key not in header]
+    unknown = [key for key in header if key not in _HEADER_KEYS]
+    if missing or unknown:
+        raise DecodeError(f"header must have exactly the keys {', '.join(_HEADER_KEYS)}; "
+                          f"missing {missing}, unknown {[_short_repr(k) for k in unknown]}")
+    wire = header["wire"]
+    if type(wire) is not int or wire != WIRE_VERSION:
+        raise DecodeError(f"wire format version {_short_repr(wire)} is not supported; expected {WIRE_VERSION}")
+    return header
+
+
+def _header_class(header: dict, expected, array_frames: int) -> type:
+    type_name = header["type"]
+    if not is_registered(type_name):
+        raise DecodeError(f"unknown message type {_short_repr(type_name)}")
+    cls = lookup(type_name)
+    if expected is not None and cls is not expected:
+        raise DecodeError(f"expected a {expected.TYPE_NAME}; got a {type_name}")
+    version = header["version"]
+    if type(version) is not int or version != cls.SCHEMA_VERSION:
+        raise DecodeError(f"schema version mismatch for {type_name}: the message has version "
+                          f"{_short_repr(version)}, this build has {cls.SCHEMA_VERSION}")
+    descriptors = header["arrays"]
+    if type(descriptors) is not list:
+        raise DecodeError(f"header 'arrays' must be a list of [dtype, shape]; got {type(descriptors).__name__}")
+    if len(descriptors) != array_frames:
+        raise DecodeError(f"header declares {len(descriptors)} array(s) but {array_frames} array frame(s) came")
+    return cls
+
+
+def _array_view(index: int, descriptor, view: memoryview, limits: DecodeLimits) -> np.ndarray:
+    if type(descriptor) is not list or len(descriptor) != 2:
+        raise DecodeError(f"array {index}: descriptor must be [dtype, shape]; got {_short_repr(descriptor)}")
+    dtype_name, shape = descriptor
+    dtype = ALLOWED_DTYPES.get(dtype_name) if type(dtype_name) is str else None
+    if dtype is None:
+        raise DecodeError(f"array {index}: dtype {_short_repr(dtype_name)} is not allowed; allowed dtypes: "
+                          f"{', '.join(ALLOWED_DTYPES)}")
+    if type(shape) is not list or not all(type(size) is int and size >= 0 for size in shape):
+        raise DecodeError(f"array {index}: shape must be a list of non-negative ints; got {_short_repr(shape)}")
+    if len(shape) > limits.max_ndim:
+        raise DecodeError(f"array {index}: {len(shape)} dimensions > max_ndim {limits.max_ndim}")
+    elements = 1
+    for size in shape:  # every dimension is bounded, even when another one is 0
+        elements *= size
+        if size > limits.max_dims_product or elements > limits.max_dims_product:
+            raise DecodeError(f"array {index}: shape {_short_repr(shape)} has more than max_dims_product "
+                              f"{limits.max_dims_product} elements")
+    nbytes = elements * dtype.itemsize
+    if nbytes > limits.max_array_bytes:
+        raise DecodeError(f"array {index}: {nbytes} bytes > max_array_bytes {limits.max_array_bytes}")
+    if nbytes != view.nbytes:
+        raise DecodeError(f"array {index}: shape {shape} of {dtype_name} needs {nbytes} bytes; its frame has "
+                          f"{view.nbytes}")
+    values = np.frombuffer(view, dtype=dtype).reshape(shape)
+    values.flags.writeable = False
+    return values
+
+
+def _decode_fields(cls: type, raw, arrays: list, used: list, path: str) -> Message:
+    if type(raw) is not dict:
+        raise DecodeError(f"{path} must be a map of fields; got {type(raw).__name__}")
+    specs = cls.FIELDS
+    if raw.keys() != cls.FIELD_NAMES:
+        missing = [spec.name for spec in specs if spec.name not in raw]
+        unknown = [_short_repr(key) for key in raw if key not in cls.FIELD_NAMES]
+        raise DecodeError(f"{path}: fields do not match {cls.TYPE_NAME} version {cls.SCHEMA_VERSION}: "
+                          f"missing {missing}, unknown {unknown}")
+    values = {}
+    for spec in specs:
+        value = raw[spec.name]
+        kind = spec.kind
+        if kind == SCALAR:
+            values[spec.name] = _decode_scalar(spec.primitive, value, path, spec.name)
+            continue
+        where = f"{path}.{spec.name}"
+        if kind == ARRAY:
+            values[spec.name] = _decode_array_ref(spec, value, arrays, used, where)
+        elif kind == MESSAGE:
+            values[spec.name] = _decode_fields(spec.message_type, value, arrays, used, where)
+        elif kind == MESSAGE_LIST:
+            if type(value) is not list:
+                raise DecodeError(f"{where} must be a list; got {type(value).__name__}")
+            values[spec.name] = [_decode_fields(spec.message_type, item, arrays, used, f"{where}[{index}]")
+                                 for index, item in enumerate(value)]
+        else:  # SEQUENCE
+            values[spec.name] = _decode_sequence(spec, value, where)
+    msg = cls(**values)
+    try:
+        msg.check_consistency()
+    except ValueError as error:  # the error names the class; add where it sits when nested
+        raise DecodeError(str(error) if path == type(msg).__name__ else f"{path}: {error}") from None
+    return msg
+
+
+def _decode_scalar(primitive: str, value, path: str, name: str):
+    python_type, low, high = _SCALAR_CHECKS[primitive]
+    if type(value) is not python_type or (low is not None and not low <= value <= high):
+        raise DecodeError(f"{path}.{name} must be {primitive}; got {type(value).__name__} {_short_repr(value)}")
+    return value
+
+
+def _decode_sequence(spec: FieldSpec, value, where: str) -> np.ndarray:
+    if type(value) is not list or (spec.length is not None and len(value) != spec.length):
+        length = spec.length if spec.length is not None else "any number of"
+        raise DecodeError(f"{where} must be a list of {length} {spec.primitive}; got {_short_repr(value)}")
+    python_type, low, high = _SCALAR_CHECKS[spec.primitive]
+    for index, item in enumerate(value):
+        if type(item) is not python_type or (low is not None and not low <= item <= high):
+            raise DecodeError(f"{where}[{index}] must be {spec.primitive}; got {type(item).__name__} "
+                              f"{_short_repr(item)}")
+    return np.array(value, dtype=spec.dtype)
+
+
+def _decode_array_ref(spec: FieldSpec, value, arrays: list, used: list, where: str) -> np.ndarray:
+    if type(value) is not _ArrayRef:
+        raise DecodeError(f"{where} must be an array reference; got {type(value).__name__} {_short_repr(value)}")
+    index = value.index
+    if index >= len(arrays):
+        raise DecodeError(f"{where} refers to array {index}; the message has {len(arrays)} array(s)")
+    if used[index]:
+        raise DecodeError(f"{where} refers to array {index}, which another field already uses")
+    used[index] = True
+    values = arrays[index]
+    if values.dtype != spec.dtype:
+        raise DecodeError(f"{where} must have dtype {spec.primitive} ({spec.dtype.str}); got {values.dtype.str}")
+    if values.ndim != len(spec.axes):
+        raise DecodeError(f"{where} must have {len(spec.axes)} dimension(s) ({', '.join(spec.axes)}); "
+                          f"got shape {values.shape}")
+    return values
