@@ -24,7 +24,7 @@ def test_ros_arguments_follow_launch_ros_order():
 @pytest.mark.parametrize(("value", "text"), [
     (5.0, "5.0"), (1e-05, "1.0e-05"), (3, "3"), (True, "true"), (False, "false"), ("hello", "hello"),
     ("10", "'10'"), ("true", "'true'"), ("", "''"), ("a b", "a b"), ([1, 2, 3], "[1, 2, 3]"),
-    (["a", "10"], "[a, '10']"), ([], "[]"), (float("inf"), ".inf"), ("two\nlines", '"two\\nlines"'),
+    (["a", "10"], '["a", "10"]'), ([], "[]"), (float("inf"), ".inf"), ("two\nlines", '"two\\nlines"'),
 ])
 def test_encode_parameter_value_examples(value, text):
     assert encode_parameter_value(value) == text

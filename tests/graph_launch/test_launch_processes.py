@@ -88,7 +88,7 @@ def test_remaps_and_params_reach_the_child_argv_exactly(write_file):
         argv = json.loads(launch.wait_for(r"^\[cam\] pid=\d+ argv=(.*) domain=").group(1))
         assert argv == ["--verbose", "--ros-args", "-r", "__node:=cam", "-r", "__ns:=/scanner",
                         "-p", "min_modulation:=5.0", "-p", "rate:=25", "--params-file", str(params),
-                        "-p", "topics:=[a, b]",
+                        "-p", 'topics:=["a", "b"]',
                         "-r", "/camera/image_raw:=/sim/image", "-r", "points:=/out/points"]
         launch.process.send_signal(signal.SIGTERM)
         assert launch.finish(timeout_s=5.0) == 0

@@ -97,7 +97,9 @@ def _array_paths(msg, prefix=""):
 
 
 def test_samples_cover_every_registered_type():
-    assert {type(msg).TYPE_NAME for msg in sample_messages()} == set(registered_types())
+    # Types registered by dptpu.messages itself (the graph runtime registers its own interfaces too).
+    own = {name for name, cls in registered_types().items() if cls.__module__.startswith("dptpu.messages")}
+    assert {type(msg).TYPE_NAME for msg in sample_messages()} == own
 
 
 @pytest.mark.parametrize("msg", sample_messages(), ids=lambda m: type(m).__name__)

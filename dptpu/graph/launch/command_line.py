@@ -66,6 +66,11 @@ def _scalar_text(value) -> str:
     raise TypeError(f"not a parameter scalar: {type(value).__name__}")
 
 
+def _double_quoted(text: str) -> str:
+    dumped = yaml.safe_dump(text, default_style='"', width=2 ** 31 - 1, allow_unicode=True)
+    return dumped.removesuffix("\n...\n").removesuffix("\n")
+
+
 def encode_parameter_value(value) -> str:
     """The text after ``:=`` in ``-p NAME:=VALUE`` that YAML-decodes to ``value``, on one line.
 
@@ -77,7 +82,7 @@ def encode_parameter_value(value) -> str:
     Returns
     -------
     str
-        Flow-style YAML, e.g. ``5.0``, ``true``, ``hello``, ``'10'``, ``[1, 2, 3]``, ``[a, 'true']``.
+        Flow-style YAML, e.g. ``5.0``, ``true``, ``hello``, ``'10'``, ``[1, 2, 3]``, ``["a", "true"]``.
 
     Raises
     ------
@@ -87,7 +92,9 @@ def encode_parameter_value(value) -> str:
     if isinstance(value, list | tuple):
         if any(isinstance(item, list | tuple | dict) or item is None for item in value):
             raise ValueError(f"a parameter array holds bool, int, float or str items; got {list(value)!r}")
-        return "[" + ", ".join(encode_parameter_value(item) for item in value) + "]"
+        # Inside a flow sequence ',', '[', ']', '{', '}' end a plain scalar: strings there are double-quoted.
+        return "[" + ", ".join(_double_quoted(item) if isinstance(item, str) else encode_parameter_value(item)
+                               for item in value) + "]"
     if not isinstance(value, PARAMETER_SCALAR_TYPES):
         raise ValueError(f"a parameter value must be bool, int, float, str or a list of them; "
                          f"got {type(value).__name__} {value!r}")

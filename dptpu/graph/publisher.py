@@ -1,0 +1,169 @@
+"""Publishers: one ZeroMQ XPUB socket per publisher, sends that never block.
+
+``publish(msg)`` encodes with :func:`dptpu.messages.codec.encode`, appends the envelope and sends
+with ``copy=False``: the arrays' memory goes to ZeroMQ without a copy, so do not modify an array after
+publishing it (allocate a new one per message). The send never blocks: when a subscriber's pipe is
+full, ZeroMQ drops the message for that subscriber only (it sees the sequence gap and counts it).
+
+The socket is XPUB so the publisher sees each subscriber connect and leave: that gives
+``get_subscription_count()`` and, for TRANSIENT_LOCAL, the moment to replay the kept messages (with
+the HISTORY flag; subscribers drop what they already have by sequence number, and VOLATILE ones drop
+all replays). The runtime's I/O thread handles those events every few tens of milliseconds.
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+import uuid
+from collections import deque
+
+import zmq
+
+from ..messages.codec import encode
+from .qos import DurabilityPolicy, QoSProfile, pipe_high_water_mark, queue_limit
+from .transport import FLAG_HISTORY, bind_endpoints, configure_server, pack_envelope, remove_ipc_file
+
+__all__ = ["Publisher", "PUBLISHER_LINGER_MS"]
+
+#: How long closing a publisher waits for queued messages to leave, ms.
+PUBLISHER_LINGER_MS = 200
+
+
+class Publisher:
+    """Publishes messages of one type on one topic (create with ``node.create_publisher``).
+
+    Attributes
+    ----------
+    msg_type : type
+    topic_name : str
+        Fully qualified, after remapping.
+    qos_profile : QoSProfile
+    endpoints : list of str
+        Where subscribers connect (announced through discovery).
+    published_count : int
+        Messages published so far.
+    """
+
+    def __init__(self, node, msg_type, topic_name: str, qos_profile: QoSProfile, callback_group=None):
+        self._node = node
+        self.msg_type = msg_type
+        self.topic_name = topic_name
+        self.qos_profile = qos_profile
+        self.callback_group = callback_group
+        self.gid = uuid.uuid4().bytes
+        runtime = node.context._runtime()
+        self._runtime = runtime
+        self._lock = threading.Lock()
+        self._seq = 0
+        self.published_count = 0
+        self._subscriber_count = 0
+        resolved = qos_profile.resolved()
+        self._transient = resolved.durability == DurabilityPolicy.TRANSIENT_LOCAL
+        self._history = deque(maxlen=queue_limit(resolved)) if self._transient else None
+        sock = runtime.zmq_context.socket(zmq.XPUB)
+        try:
+            sock.setsockopt(zmq.SNDHWM, pipe_high_water_mark(resolved))
+            sock.setsockopt(zmq.RCVHWM, 1000)
+            sock.setsockopt(zmq.XPUB_VERBOSER, 1)
+            sock.setsockopt(zmq.LINGER, PUBLISHER_LINGER_MS)
+            configure_server(sock, runtime.transport)
+            self.endpoints = bind_endpoints(sock, runtime.transport, runtime.ipc_dir, "p" + self.gid.hex()[:15])
+        except BaseException:
+            sock.close(linger=0)
+            raise
+        self._socket = sock
+        runtime.add_publisher(self)
+
+    @property
+    def topic(self) -> str:
+        return self.topic_name
+
+    def publish(self, msg) -> None:
+        """Send ``msg`` to every matched subscription; never blocks.
+
+        Raises
+        ------
+        ValueError
+            ``msg`` is not a ``msg_type``, or a field is invalid (``EncodeError``, naming the field).
+        RuntimeError
+            The publisher was destroyed.
+        """
+        if not isinstance(msg, self.msg_type):
+            raise ValueError(f"publisher on {self.topic_name} expects {self.msg_type.__name__} "
+                             f"({self.msg_type.TYPE_NAME}); got {type(msg).__name__}")
+        frames = encode(self.topic_name, msg)
+        with self._lock:
+            if self._socket is None:
+                raise RuntimeError(f"publisher on {self.topic_name} was destroyed")
+            if self._history is not None:
+                self._handle_events_locked()  # replay to a newcomer before any newer message reaches it
+            self._seq += 1
+            stamp_ns = time.time_ns()
+            frames.append(pack_envelope(0, self._seq, stamp_ns, self.gid))
+            self._socket.send_multipart(frames, flags=zmq.NOBLOCK, copy=False)
+            self.published_count += 1
+            if self._history is not None:
+                self._history.append((self._seq, stamp_ns, frames[:-1]))
+
+    def get_subscription_count(self) -> int:
+        """Subscriptions connected now (seen by the socket, updated every few tens of ms)."""
+        return self._subscriber_count
+
+    def wait_for_subscriptions(self, count: int = 1, timeout_sec: float | None = None) -> bool:
+        """Block until at least ``count`` subscriptions are connected (not in rclpy); True when they are."""
+        deadline = None if timeout_sec is None else time.monotonic() + timeout_sec
+        while self._subscriber_count < count:
+            if deadline is not None and time.monotonic() >= deadline:
+                return False
+            time.sleep(0.005)
+        return True
+
+    def destroy(self) -> bool:
+        return self._node.destroy_publisher(self)
+
+    # -- runtime side (I/O thread) ------------------------------------------------------------------
+
+    def _service_events(self) -> None:
+        """Handle subscribe/unsubscribe events: count subscribers, replay history to newcomers."""
+        with self._lock:
+            self._handle_events_locked()
+
+    def _handle_events_locked(self) -> None:
+        sock = self._socket
+        if sock is None:
+            return
+        replay = False
+        while sock.getsockopt(zmq.EVENTS) & zmq.POLLIN:
+            try:
+                event = sock.recv(zmq.NOBLOCK)
+            except zmq.Again:
+                break
+            if event[:1] == b"\x01":
+                self._subscriber_count += 1
+                replay = True
+            elif event[:1] == b"\x00":
+                self._subscriber_count = max(0, self._subscriber_count - 1)
+        if replay and self._history:
+            for seq, stamp_ns, frames in self._history:
+                sock.send_multipart(list(frames) + [pack_envelope(FLAG_HISTORY, seq, stamp_ns, self.gid)],
+                                    flags=zmq.NOBLOCK, copy=False)
+
+    def _close(self) -> None:
+        with self._lock:
+            sock, self._socket = self._socket, None
+            if self._history is not None:
+                self._history.clear()
+        if sock is not None:
+            sock.close(linger=PUBLISHER_LINGER_MS)
+            for endpoint in self.endpoints:
+                remove_ipc_file(endpoint)  # libzmq leaves the socket file behind
+
+    def _announcement(self) -> dict:
+        return {"topic": self.topic_name, "type": self.msg_type.TYPE_NAME, "gid": self.gid.hex(),
+                "endpoints": list(self.endpoints), "qos": self.qos_profile.to_dict(),
+                "stats": {"published_count": self.published_count,
+                          "subscription_count": self._subscriber_count}}
+
+    def __repr__(self):
+        return f"<Publisher {self.topic_name} [{self.msg_type.TYPE_NAME}]>"

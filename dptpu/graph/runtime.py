@@ -1,0 +1,492 @@
+"""The per-context runtime: ZeroMQ context, discovery and the one I/O thread that moves messages.
+
+The I/O thread owns every receiving socket (SUB, the nodes' service ROUTERs, client DEALERs) and:
+
+- drains them as soon as data arrives into the subscriptions' and services' queues, then wakes the
+  executors of the nodes concerned (callbacks never run on this thread);
+- sends service responses and client requests handed to it by other threads;
+- every 25 ms lets each publisher handle its subscribe events (counts, TRANSIENT_LOCAL replays);
+- every :data:`~dptpu.graph.discovery.SCAN_INTERVAL_S` re-reads the discovery folder, writes this
+  process's announcements, and connects or disconnects subscriptions and clients to match the graph
+  (immediately, too, when a local entity is created or destroyed);
+- once a second rewrites announcements whose counters changed.
+
+Publishers send from the caller's thread (their socket is guarded by a lock), so publishing costs no
+thread hop. Any error inside the loop is logged and the loop goes on.
+"""
+
+from __future__ import annotations
+
+import os
+import queue
+import threading
+import time
+
+import zmq
+
+from .discovery import (FORMAT, SCAN_INTERVAL_S, DirectoryScanner, announcement_file_name, domain_directory,
+                        ensure_private_directory, host_identity, process_start_ticks, remove_announcement,
+                        write_announcement)
+from .logging import get_logger
+from .qos import QoSProfile, qos_compatibility
+from .transport import MAX_IPC_PATH_BYTES, TransportConfig, choose_endpoint, connect, remove_ipc_file
+
+__all__ = ["GraphRuntime", "EVENTS_INTERVAL_S", "STATS_INTERVAL_S"]
+
+#: Seconds between two passes over the publishers' subscribe events.
+EVENTS_INTERVAL_S = 0.025
+#: Seconds between two refreshes of the counters in the announcements.
+STATS_INTERVAL_S = 1.0
+_DRAIN_BATCH = 1000
+
+
+class GraphRuntime:
+    """Everything a context needs to take part in a domain (created with the context's first node)."""
+
+    def __init__(self, domain_id: int, *, peers=None):
+        from .peers import PeerExchange, peers_from_environment
+
+        self.domain_id = domain_id
+        self.logger = get_logger("dptpu.graph")
+        peer_config = peers if peers is not None else peers_from_environment()
+        self.transport = TransportConfig.from_environment(want_tcp=peer_config is not None)
+        self.directory = ensure_private_directory(domain_directory(domain_id))
+        self.ipc_dir = self._ipc_directory()
+        self.host, self.boot_id = host_identity()
+        self.pid = os.getpid()
+        self.pid_start = process_start_ticks(self.pid)
+        self.zmq_context = zmq.Context(io_threads=1)
+        self._authenticator = None
+        if self.transport.curve is not None:
+            from zmq.auth.thread import ThreadAuthenticator
+
+            self._authenticator = ThreadAuthenticator(self.zmq_context)
+            self._authenticator.start()
+            self._authenticator.configure_curve(domain="*", location=str(self.transport.curve.authorized_keys_dir))
+        self._scanner = DirectoryScanner(self.directory, host=self.host, boot_id=self.boot_id)
+        self._lock = threading.RLock()
+        self._nodes: dict[str, object] = {}
+        self._files: dict[str, str] = {}
+        self._written_stats: dict[str, object] = {}
+        self._dirty: set[str] = set()
+        self._publishers: set = set()
+        self._subscriptions: set = set()
+        self._clients: set = set()
+        self._hosts: dict[str, object] = {}
+        self._pending_clients: set = set()
+        self._handlers: dict = {}
+        self._commands: queue.SimpleQueue = queue.SimpleQueue()
+        self._wake_r, self._wake_w = os.pipe()
+        os.set_blocking(self._wake_r, False)
+        os.set_blocking(self._wake_w, False)
+        self._poller = zmq.Poller()
+        self._poller.register(self._wake_r, zmq.POLLIN)
+        self._rematch = True
+        self._running = True
+        self.entries: list[dict] = []  # the whole graph (others' and ours), refreshed by the I/O thread
+        self._peers = PeerExchange(self, peer_config) if peer_config is not None else None
+        self._thread = threading.Thread(target=self._run, name=f"dptpu-graph-io-{domain_id}", daemon=True)
+        self._thread.start()
+
+    def _ipc_directory(self):
+        folder = self.directory / "ep"
+        if len(str(folder / ("x" * 16)).encode()) > MAX_IPC_PATH_BYTES:
+            import hashlib
+            import tempfile
+
+            digest = hashlib.sha1(str(self.directory).encode()).hexdigest()[:12]
+            folder = type(self.directory)(tempfile.gettempdir()) / f"dptpu-{os.getuid()}-ep-{digest}"
+        return ensure_private_directory(folder)
+
+    # -- thread-safe API ----------------------------------------------------------------------------
+
+    def wake(self) -> None:
+        try:
+            os.write(self._wake_w, b"\0")
+        except (BlockingIOError, OSError):
+            pass  # already awake (pipe full) or closed
+
+    def call_soon(self, function) -> None:
+        """Run ``function()`` on the I/O thread."""
+        self._commands.put(function)
+        self.wake()
+
+    def add_node(self, node) -> None:
+        with self._lock:
+            self._nodes[node._gid] = node
+            self._dirty.add(node._gid)
+            self._rematch = True
+        self.wake()
+
+    def remove_node(self, node) -> None:
+        with self._lock:
+            self._nodes.pop(node._gid, None)
+            self._dirty.discard(node._gid)
+            name = self._files.pop(node._gid, None)
+            if name:
+                remove_announcement(self.directory, name)
+            self._rematch = True
+        self.call_soon(lambda: self._close_host(node._gid))
+
+    def mark_dirty(self, node) -> None:
+        with self._lock:
+            if node._gid in self._nodes:
+                self._dirty.add(node._gid)
+            self._rematch = True
+        self.wake()
+
+    def add_publisher(self, publisher) -> None:
+        with self._lock:
+            self._publishers.add(publisher)
+
+    def remove_publisher(self, publisher) -> None:
+        with self._lock:
+            self._publishers.discard(publisher)
+        publisher._close()
+
+    def add_subscription(self, subscription) -> None:
+        self.call_soon(lambda: self._open(subscription, self._subscriptions,
+                                          lambda: subscription._open(self.zmq_context, self.transport)))
+
+    def remove_subscription(self, subscription) -> None:
+        subscription._destroyed = True
+        self.call_soon(lambda: self._close(subscription, self._subscriptions))
+
+    def add_client(self, client) -> None:
+        self.call_soon(lambda: self._open(client, self._clients, lambda: client._open(self.zmq_context,
+                                                                                       self.transport)))
+
+    def remove_client(self, client) -> None:
+        client._destroyed = True
+        self.call_soon(lambda: self._close(client, self._clients))
+
+    def add_service(self, node, service) -> None:
+        def add():
+            host = self._host(node)
+            host.services[service.srv_name] = service
+        self.call_soon(add)
+
+    def remove_service(self, node, service) -> None:
+        service._destroyed = True
+
+        def remove():
+            host = self._hosts.get(node._gid)
+            if host is not None and host.services.get(service.srv_name) is service:
+                del host.services[service.srv_name]
+        self.call_soon(remove)
+
+    def send_service_response(self, node, identity: bytes, frames: list) -> None:
+        def send():
+            host = self._hosts.get(node._gid)
+            if host is not None:
+                host.send(identity, frames)
+        self.call_soon(send)
+
+    def flush_client(self, client) -> None:
+        self.call_soon(lambda: self._flush_client(client))
+
+    def service_endpoints(self, node) -> list[str]:
+        host = self._hosts.get(node._gid)
+        return list(host.endpoints) if host is not None else []
+
+    def stop(self) -> None:
+        """Stop the I/O thread, remove this process's announcements, close every socket."""
+        with self._lock:
+            for gid, name in list(self._files.items()):
+                remove_announcement(self.directory, name)
+            self._files.clear()
+            self._nodes.clear()
+            publishers = list(self._publishers)
+            self._publishers.clear()
+        self._running = False
+        self.wake()
+        if threading.current_thread() is not self._thread:
+            self._thread.join(timeout=2.0)
+        for publisher in publishers:
+            publisher._close()
+        for gid in list(self._hosts):
+            self._close_host(gid)
+        if self._peers is not None:
+            self._peers.close()
+        if self._authenticator is not None:
+            self._authenticator.stop()
+        self.zmq_context.destroy(linger=0)
+        for fd in (self._wake_r, self._wake_w):
+            try:
+                os.close(fd)
+            except OSError:
+                pass
+
+    # -- I/O thread ---------------------------------------------------------------------------------
+
+    def _run(self) -> None:
+        next_scan = next_events = next_stats = 0.0
+        while self._running:
+            now = time.monotonic()
+            timeout = min(next_scan, next_events, next_stats) - now
+            if self._pending_clients or self._rematch or self._dirty:
+                timeout = min(timeout, 0.005)
+            try:
+                ready = self._poller.poll(max(0.0, timeout) * 1000.0)
+            except zmq.ZMQError:
+                if not self._running:
+                    break
+                raise
+            woken = False
+            if ready:
+                notify = set()
+                for sock, _ in ready:
+                    if sock == self._wake_r:
+                        woken = True
+                        continue
+                    handler = self._handlers.get(sock)
+                    if handler is not None:
+                        self._guard(lambda: self._drain(sock, handler, notify))
+                for node in notify:  # first, so the executors start while the rest of the loop runs
+                    node._notify_executor()
+            if woken or not self._commands.empty():
+                self._guard(self._run_commands)
+            for client in list(self._pending_clients):
+                self._guard(lambda: self._flush_client(client))
+            now = time.monotonic()
+            if now >= next_events:
+                next_events = now + EVENTS_INTERVAL_S
+                for publisher in list(self._publishers):
+                    self._guard(publisher._service_events)
+            if now >= next_scan or self._rematch or self._dirty:
+                if now >= next_scan:
+                    next_scan = now + SCAN_INTERVAL_S
+                    self._guard(lambda: self._scan(now))
+                self._guard(self._write_announcements)
+                if self._rematch:
+                    self._rematch = False
+                    self._guard(self._match)
+            if now >= next_stats:
+                next_stats = now + STATS_INTERVAL_S
+                self._guard(self._refresh_stats)
+                if self._peers is not None:
+                    self._guard(self._peers.step)
+
+    def _guard(self, function) -> None:
+        try:
+            function()
+        except Exception as exc:  # noqa: BLE001 -- the I/O thread must survive anything
+            if self._running:
+                self.logger.error(f"graph I/O thread: {type(exc).__name__}: {exc}", exc_info=True,
+                                  throttle_duration_sec=1.0)
+
+    def _run_commands(self) -> None:
+        try:
+            while os.read(self._wake_r, 4096):
+                pass
+        except (BlockingIOError, OSError):
+            pass
+        while True:
+            try:
+                command = self._commands.get_nowait()
+            except queue.Empty:
+                return
+            self._guard(command)
+
+    def _drain(self, sock, handler, notify: set) -> None:
+        for _ in range(_DRAIN_BATCH):
+            if not sock.getsockopt(zmq.EVENTS) & zmq.POLLIN:
+                return
+            try:
+                frames = sock.recv_multipart(zmq.NOBLOCK, copy=False)
+            except zmq.Again:
+                return
+            node = handler(frames)
+            if node is not None:
+                notify.add(node)
+
+    def _open(self, entity, registry: set, opener) -> None:
+        if entity._destroyed:
+            return
+        sock = opener()
+        registry.add(entity)
+        if hasattr(entity, "_flush"):
+            handler = lambda frames, e=entity: e._on_message(frames)  # noqa: E731 -- clients notify nobody
+        else:
+            handler = lambda frames, e=entity: e._node if e._on_message(frames) else None  # noqa: E731
+        self._handlers[sock] = handler
+        self._poller.register(sock, zmq.POLLIN)
+        self._rematch = True
+
+    def _close(self, entity, registry: set) -> None:
+        registry.discard(entity)
+        self._pending_clients.discard(entity)
+        sock = entity._socket
+        if sock is not None:
+            self._handlers.pop(sock, None)
+            try:
+                self._poller.unregister(sock)
+            except KeyError:
+                pass
+            sock.close(linger=0)
+            entity._socket = None
+        entity._connected.clear()
+
+    def _host(self, node):
+        from .services import ServiceHost
+
+        host = self._hosts.get(node._gid)
+        if host is None:
+            host = ServiceHost(node)
+            sock = host._open(self)
+            self._hosts[node._gid] = host
+            self._handlers[sock] = lambda frames, h=host: h._node if h._on_message(frames) else None
+            self._poller.register(sock, zmq.POLLIN)
+            self.mark_dirty(node)
+        return host
+
+    def _close_host(self, node_gid: str) -> None:
+        host = self._hosts.pop(node_gid, None)
+        if host is not None and host._socket is not None:
+            self._handlers.pop(host._socket, None)
+            try:
+                self._poller.unregister(host._socket)
+            except KeyError:
+                pass
+            host._socket.close(linger=0)
+            host._socket = None
+            for endpoint in host.endpoints:
+                remove_ipc_file(endpoint)
+
+    def _flush_client(self, client) -> None:
+        if client._flush():
+            self._pending_clients.add(client)
+        else:
+            self._pending_clients.discard(client)
+
+    # -- discovery ----------------------------------------------------------------------------------
+
+    def _scan(self, now: float) -> None:
+        if self._scanner.scan(now):
+            self._rematch = True
+        if self._peers is not None and self._peers.changed():
+            self._rematch = True
+
+    def _own_entry(self, node) -> dict:
+        entry = node._announcement()
+        entry.update({"format": FORMAT, "pid": self.pid, "pid_start": self.pid_start, "host": self.host,
+                      "boot_id": self.boot_id, "domain_id": self.domain_id,
+                      "service_endpoints": self.service_endpoints(node),
+                      "curve_public_key": self.transport.curve.public.decode("ascii") if self.transport.curve
+                      else None, "updated": time.time()})
+        return entry
+
+    def _write_announcements(self) -> None:
+        with self._lock:
+            dirty, self._dirty = self._dirty, set()
+            for gid in dirty:
+                node = self._nodes.get(gid)
+                if node is None:
+                    continue
+                name = self._files.get(gid) or announcement_file_name(self.pid, gid)
+                self._scanner.own_files.add(name)
+                entry = self._own_entry(node)
+                write_announcement(self.directory, name, entry)
+                self._files[gid] = name
+                self._written_stats[gid] = node._stats_signature()
+
+    def _refresh_stats(self) -> None:
+        with self._lock:
+            for gid, node in list(self._nodes.items()):
+                if self._written_stats.get(gid) != node._stats_signature():
+                    self._dirty.add(gid)
+        self._write_announcements()
+
+    def _match(self) -> None:
+        with self._lock:
+            own = [self._own_entry(node) for node in self._nodes.values()]
+        foreign = list(self._scanner.entries)
+        if self._peers is not None:
+            foreign.extend(self._peers.entries())
+        entries = foreign + own
+        self.entries = entries
+        publishers: dict[str, list] = {}
+        servers: dict[str, list] = {}
+        for entry in entries:
+            for pub in entry.get("publishers", []):
+                if isinstance(pub, dict) and isinstance(pub.get("topic"), str):
+                    publishers.setdefault(pub["topic"], []).append((entry, pub))
+            for srv in entry.get("services", []):
+                if isinstance(srv, dict) and isinstance(srv.get("name"), str):
+                    servers.setdefault(srv["name"], []).append((entry, srv))
+        for sub in list(self._subscriptions):
+            self._guard(lambda: self._match_subscription(sub, publishers.get(sub.topic_name, [])))
+        for client in list(self._clients):
+            self._guard(lambda: self._match_client(client, servers.get(client.srv_name, [])))
+
+    def _same_host(self, entry: dict) -> bool:
+        return entry.get("host") == self.host and entry.get("boot_id") == self.boot_id
+
+    def _match_subscription(self, sub, candidates) -> None:
+        if sub._socket is None:
+            return
+        wanted: dict[str, tuple] = {}
+        for entry, pub in candidates:
+            gid = str(pub.get("gid", ""))
+            problem = None
+            if sub.msg_type is not None and pub.get("type") != sub.msg_type.TYPE_NAME:
+                problem = f"it publishes {pub.get('type')}, the subscription expects {sub.msg_type.TYPE_NAME}"
+            else:
+                try:
+                    problem = qos_compatibility(QoSProfile.from_dict(pub.get("qos")), sub.qos_profile)
+                except ValueError as exc:
+                    problem = f"its QoS is unreadable ({exc})"
+            if problem:
+                if gid not in sub._warned:
+                    sub._warned.add(gid)
+                    sub._node.get_logger().warning(
+                        f"not connecting subscription on {sub.topic_name} to the publisher of node "
+                        f"{entry.get('fqn')}: {problem}")
+                continue
+            endpoint = choose_endpoint(pub.get("endpoints"), same_host=self._same_host(entry), config=self.transport)
+            if endpoint is not None:
+                wanted[endpoint] = (gid, entry.get("curve_public_key"))
+        for endpoint in set(sub._connected) - set(wanted):
+            gid = sub._connected.pop(endpoint)
+            try:
+                sub._socket.disconnect(endpoint)
+            except zmq.ZMQError:
+                pass
+            try:
+                sub._forget_publisher(bytes.fromhex(gid))
+            except ValueError:
+                pass
+        for endpoint, (gid, key) in wanted.items():
+            if endpoint not in sub._connected:
+                connect(sub._socket, endpoint, self.transport, key)
+                sub._connected[endpoint] = gid
+
+    def _match_client(self, client, candidates) -> None:
+        if client._socket is None:
+            return
+        wanted: dict[str, tuple] = {}
+        for entry, srv in candidates:
+            if srv.get("type") != client.srv_type.TYPE_NAME:
+                gid = str(entry.get("gid"))
+                if ("type", gid) not in getattr(client, "_warned", set()):
+                    client._warned = getattr(client, "_warned", set()) | {("type", gid)}
+                    client._node.get_logger().warning(
+                        f"not connecting client of {client.srv_name} to node {entry.get('fqn')}: it serves type "
+                        f"{srv.get('type')}, the client expects {client.srv_type.TYPE_NAME}")
+                continue
+            endpoint = choose_endpoint(entry.get("service_endpoints"), same_host=self._same_host(entry),
+                                       config=self.transport)
+            if endpoint is not None:
+                wanted[endpoint] = (str(entry.get("gid")), entry.get("curve_public_key"))
+        for endpoint in set(client._connected) - set(wanted):
+            client._connected.pop(endpoint)
+            try:
+                client._socket.disconnect(endpoint)
+            except zmq.ZMQError:
+                pass
+        for endpoint, (gid, key) in wanted.items():
+            if endpoint not in client._connected:
+                connect(client._socket, endpoint, self.transport, key)
+                client._connected[endpoint] = gid
+        if client._outbox:
+            self._flush_client(client)
