@@ -1,4 +1,5 @@
 """``dptpu bench fpp``: speed of ``dptpu.fpp`` against references, each pair in the same run (not a test).
+``dptpu bench transport``: the graph runtime against raw pyzmq (``benchmarks/transport_bench.py``).
 
 The benchmark code is ``benchmarks/fpp_bench.py`` of the source tree, next to the ``dptpu`` package folder;
 it is not part of the installed package, so this command loads it from there and says so when it is missing
@@ -13,6 +14,8 @@ from pathlib import Path
 
 #: Name under which the benchmark file is registered in ``sys.modules`` once loaded.
 MODULE_NAME = "dptpu_benchmarks_fpp_bench"
+#: The same for ``benchmarks/transport_bench.py`` (``dptpu bench transport``).
+TRANSPORT_MODULE_NAME = "dptpu_benchmarks_transport_bench"
 
 
 def benchmarks_dir() -> Path:
@@ -23,30 +26,40 @@ def benchmarks_dir() -> Path:
 
 
 def load_fpp_bench():
-    """Import ``benchmarks/fpp_bench.py`` as a module (once per process).
+    """Import ``benchmarks/fpp_bench.py`` as a module (once per process); see :func:`load_bench`."""
+    return load_bench("fpp_bench.py", MODULE_NAME)
+
+
+def load_transport_bench():
+    """Import ``benchmarks/transport_bench.py`` as a module (once per process); see :func:`load_bench`."""
+    return load_bench("transport_bench.py", TRANSPORT_MODULE_NAME)
+
+
+def load_bench(file_name: str, module_name: str):
+    """Import ``benchmarks/<file_name>`` as module ``module_name`` (once per process).
 
     Raises
     ------
     FileNotFoundError
         When the file is absent, naming the path looked at and what to do.
     """
-    path = benchmarks_dir() / "fpp_bench.py"
-    loaded = sys.modules.get(MODULE_NAME)
+    path = benchmarks_dir() / file_name
+    loaded = sys.modules.get(module_name)
     if loaded is not None and Path(getattr(loaded, "__file__", "")) == path:
         return loaded
     if not path.is_file():
         raise FileNotFoundError(
             f"benchmark code not found at {path}: `dptpu bench` runs from a source checkout of dptpu "
             "(the benchmarks/ folder is not installed with the package); clone the repository and "
-            "`pip install -e .` it, or run `python benchmarks/fpp_bench.py` there"
+            f"`pip install -e .` it, or run `python benchmarks/{file_name}` there"
         )
-    spec = importlib.util.spec_from_file_location(MODULE_NAME, path)
+    spec = importlib.util.spec_from_file_location(module_name, path)
     module = importlib.util.module_from_spec(spec)
-    sys.modules[MODULE_NAME] = module  # before exec: dataclasses and pickling look modules up by name
+    sys.modules[module_name] = module  # before exec: dataclasses and pickling look modules up by name
     try:
         spec.loader.exec_module(module)
     except BaseException:
-        del sys.modules[MODULE_NAME]
+        del sys.modules[module_name]
         raise
     return module
 
@@ -66,6 +79,23 @@ def register(subparsers) -> None:
     fpp.add_argument("--subset", type=int, default=None,
                      help="pixels on which the per-pixel reference triangulation is timed (default 2000)")
     fpp.set_defaults(func=run_fpp)
+    transport = targets.add_parser(
+        "transport", help="graph runtime vs raw pyzmq: 7.4 MB throughput and 64-byte round-trip latency",
+        description="Two processes over ipc, ours (dptpu.graph publisher -> subscription) and raw pyzmq side by "
+                    "side: throughput of a 24x480x640 uint8 message and 64-byte round-trip p50/p99. Ratios are "
+                    "ours / raw (see docs/benchmarks.md).")
+    transport.add_argument("--json", action="store_true", help="print the report as one JSON object")
+    transport.add_argument("--size", choices=("full", "small"), default="full",
+                           help="full: 24x480x640 (default); small: 2x48x64 and few messages (for tests)")
+    transport.add_argument("--messages", type=int, default=None, help="timed messages per round (default 100)")
+    transport.add_argument("--rounds", type=int, default=None, help="rounds of each measurement (default 3)")
+    transport.add_argument("--round-trips", type=int, default=None,
+                           help="timed round trips per round (default 2000)")
+    transport.add_argument("--window", type=int, default=None, help="messages in flight (default 4)")
+    transport.add_argument("--no-pin", action="store_true",
+                           help="let the OS place the processes (default: senders on the first half of the CPUs, "
+                                "receivers on the second half)")
+    transport.set_defaults(func=run_transport)
 
 
 def run_fpp(args) -> int:
@@ -76,3 +106,8 @@ def run_fpp(args) -> int:
     except RuntimeError as exc:  # OpenCV without the contrib structured_light module
         print(f"dptpu bench: error: {exc}", file=sys.stderr)
         return 2
+
+
+def run_transport(args) -> int:
+    """Load ``benchmarks/transport_bench.py`` and run it; 0 if every message arrived intact, 1 if not."""
+    return load_transport_bench().run(args)

@@ -1,22 +1,22 @@
 """``dptpu node|topic|param|service``: look into a running graph, with the ``ros2`` CLI's verbs and output.
 
-==========================================  ========================================================
-``dptpu node list [-a] [-c]``               fully qualified node names, sorted
-``dptpu node info NODE``                    its subscribers, publishers, service servers and clients
-``dptpu topic list [-t] [-c] [-a]``         topic names; ``-t`` appends `` [type]``
-``dptpu topic info TOPIC [-v]``             type, publisher/subscription counts (``-v``: QoS, counters)
-``dptpu topic type TOPIC``                  its type
-``dptpu topic echo TOPIC [--once] [--json]`` messages as YAML (or JSON lines), arrays summarized
-``dptpu topic hz TOPIC [--window N]``       rate: average, min/max/std dev of the intervals
-``dptpu topic bw TOPIC [--window N]``       bandwidth: bytes/s and message size mean/min/max
-``dptpu param list [NODE] [--param-type]``  parameter names
-``dptpu param get NODE NAME``               ``Integer value is: 5``
-``dptpu param set NODE NAME VALUE``         VALUE is YAML: ``5`` int, ``5.0`` double, ``true``, ``[1, 2]``
-``dptpu param dump NODE``                   ROS 2 parameter YAML (``/node: ros__parameters: ...``)
-``dptpu service list [-t] [-c]``            served services
-``dptpu service type SERVICE``              its type
-``dptpu service call SERVICE TYPE [YAML]``  one request, e.g. ``'{data: true}'``; prints the response
-==========================================  ========================================================
+Verbs::
+
+    dptpu node list [-a] [-c]                      fully qualified node names, sorted
+    dptpu node info NODE                           its subscribers, publishers, service servers and clients
+    dptpu topic list [-t] [-c] [-a]                topic names; -t appends " [type]"
+    dptpu topic info TOPIC [-v]                    type, publisher/subscription counts (-v: QoS, counters)
+    dptpu topic type TOPIC                         its type
+    dptpu topic echo TOPIC [--once] [--json]       messages as YAML (or JSON lines), arrays summarized
+    dptpu topic hz TOPIC [--window N]              rate: average, min/max/std dev of the intervals
+    dptpu topic bw TOPIC [--window N]              bandwidth: bytes/s and message size mean/min/max
+    dptpu param list [NODE] [--param-type]         parameter names
+    dptpu param get NODE NAME                      "Integer value is: 5"
+    dptpu param set NODE NAME VALUE                VALUE is YAML: 5 int, 5.0 double, true, [1, 2], text
+    dptpu param dump NODE                          ROS 2 parameter YAML (/node: ros__parameters: ...)
+    dptpu service list [-t] [-c]                   served services
+    dptpu service type SERVICE                     its type
+    dptpu service call SERVICE TYPE [YAML]         one request, e.g. '{data: true}'; prints the response
 
 Every command takes ``--domain-id`` (default ``$DPTPU_DOMAIN_ID``, ``$ROS_DOMAIN_ID``, 0) and
 ``--spin-time S`` (how long to wait for a named node/topic/service to appear; default 0.5 s).
@@ -118,7 +118,8 @@ def register(subparsers) -> None:
     p = param.add_parser("list", help="parameter names of one node (or of every node)")
     p.add_argument("node", metavar="NODE", nargs="?", default=None)
     p.add_argument("--param-type", action="store_true", help="print each parameter's type too")
-    _timeout_option(p, DEFAULT_SERVICE_TIMEOUT_S, f"seconds to wait for each node (default {DEFAULT_SERVICE_TIMEOUT_S})")
+    _timeout_option(p, DEFAULT_SERVICE_TIMEOUT_S,
+                    f"seconds to wait for each node (default {DEFAULT_SERVICE_TIMEOUT_S})")
     _graph_options(p)
     p.set_defaults(func=run_param_list)
     p = param.add_parser("get", help="the value of one parameter")

@@ -24,9 +24,9 @@ import time
 
 import zmq
 
-from .discovery import (FORMAT, SCAN_INTERVAL_S, DirectoryScanner, announcement_file_name, domain_directory,
-                        ensure_private_directory, host_identity, process_start_ticks, remove_announcement,
-                        write_announcement)
+from .discovery import (FORMAT, SCAN_INTERVAL_S, DirectoryScanner, announcement_file_name, base_directory,
+                        domain_directory, ensure_private_directory, host_identity, process_start_ticks,
+                        remove_announcement, write_announcement)
 from .logging import get_logger
 from .qos import QoSProfile, qos_compatibility
 from .transport import MAX_IPC_PATH_BYTES, TransportConfig, choose_endpoint, connect, remove_ipc_file
@@ -50,6 +50,7 @@ class GraphRuntime:
         self.logger = get_logger("dptpu.graph")
         peer_config = peers if peers is not None else peers_from_environment()
         self.transport = TransportConfig.from_environment(want_tcp=peer_config is not None)
+        ensure_private_directory(base_directory())  # the base too: nobody else may swap what is inside
         self.directory = ensure_private_directory(domain_directory(domain_id))
         self.ipc_dir = self._ipc_directory()
         self.host, self.boot_id = host_identity()
@@ -164,6 +165,7 @@ class GraphRuntime:
         def add():
             host = self._host(node)
             host.services[service.srv_name] = service
+            self.mark_dirty(node)
         self.call_soon(add)
 
     def remove_service(self, node, service) -> None:
@@ -369,6 +371,9 @@ class GraphRuntime:
 
     def _own_entry(self, node) -> dict:
         entry = node._announcement()
+        host = self._hosts.get(node._gid)
+        # announce a service only once the node's ROUTER routes requests to it
+        entry["services"] = [s for s in entry["services"] if host is not None and s["name"] in host.services]
         entry.update({"format": FORMAT, "pid": self.pid, "pid_start": self.pid_start, "host": self.host,
                       "boot_id": self.boot_id, "domain_id": self.domain_id,
                       "service_endpoints": self.service_endpoints(node),

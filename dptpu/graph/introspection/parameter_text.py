@@ -2,6 +2,8 @@
 
 - :func:`parse_parameter_value`: the command line's value is YAML, so ``5`` is an INTEGER, ``5.0`` a
   DOUBLE, ``true`` a BOOL, ``[1, 2]`` an INTEGER_ARRAY and ``hello`` a STRING (``ros2 param set``).
+  One difference: PyYAML follows YAML 1.1, where ``1e-3`` (no dot) is a string; here an unquoted
+  number in exponent form is a DOUBLE, as YAML 1.2 says (``ros2 param set`` would send a STRING).
 - :func:`format_parameter_value`: ``ros2 param get``'s line, e.g. ``Integer value is: 5``.
 - :func:`parameters_yaml`: ``ros2 param dump``'s YAML, ``/node: {ros__parameters: {...}}``, dotted
   names nested (``nested.x`` -> ``nested: {x: ...}``), keys sorted.
@@ -9,11 +11,16 @@
 
 from __future__ import annotations
 
+import re
+
 import yaml
 
 from ..parameters import Parameter
 
 __all__ = ["parse_parameter_value", "format_parameter_value", "parameters_yaml"]
+
+# YAML 1.2 core-schema float without a dot, e.g. 1e-3 or -2E+5 (YAML 1.1 makes these strings).
+_EXPONENT_FLOAT = re.compile(r"^[-+]?[0-9]+[eE][-+]?[0-9]+$")
 
 _LABELS = {
     Parameter.Type.BOOL: "Boolean value is:",
@@ -48,6 +55,8 @@ def parse_parameter_value(text: str):
     except yaml.YAMLError:
         raise ValueError(f"parameter value is not valid YAML: {text!r}; quote strings that contain ':' or '#'") \
             from None
+    if isinstance(value, str) and _EXPONENT_FLOAT.match(text.strip()):
+        value = float(value)
     if value is None:
         raise ValueError(f"parameter value must not be empty or null; got {text!r} (write '\"\"' for an empty string)")
     if isinstance(value, dict):

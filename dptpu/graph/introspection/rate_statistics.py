@@ -93,7 +93,8 @@ class RateWindow:
 
 
 def format_rate(stats: RateStatistics) -> str:
-    """``ros2 topic hz``'s two lines: ``average rate: 20.001`` then ``\\tmin: ...s max: ...s std dev: ...s window: N``."""
+    """``ros2 topic hz``'s two lines: ``average rate: 20.001``, then
+    ``\\tmin: ...s max: ...s std dev: ...s window: N``."""
     return (f"average rate: {stats.average_rate_hz:.3f}\n"
             f"\tmin: {stats.min_s:.3f}s max: {stats.max_s:.3f}s std dev: {stats.std_dev_s:.5f}s "
             f"window: {stats.window}")

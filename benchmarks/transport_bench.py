@@ -1,0 +1,693 @@
+"""Speed of the node graph runtime's transport against raw pyzmq, side by side in one run (not a test).
+
+Run it as ``dptpu bench transport [--json] [--size full|small]`` or ``python benchmarks/transport_bench.py``.
+Every measurement uses two OS processes on this machine, talking over ipc (Unix sockets), and each
+pair is run twice, once through ``dptpu.graph`` ("ours") and once with bare pyzmq sockets ("raw"):
+
+(a) Throughput of a 24x480x640 uint8 message (7,372,800 bytes; ``--size small``: 2x48x64).
+
+    - ours: a node publishes a ``FrameStack`` message (this file's own type: ``seq``, ``phase``,
+      ``pool_index`` scalars and the ``(F, H, W)`` uint8 array as one raw frame) with
+      ``Publisher.publish``; a node in the other process receives it through
+      ``create_subscription`` and the executor's callback (decoded: a read-only numpy view).
+    - raw: a pyzmq PUB socket sends ``[topic, 10-byte header, array]`` with ``copy=False`` to a SUB
+      socket, which receives with ``copy=False``.
+
+    Both sides are flow-controlled the same way, so neither measures dropped messages: the receiver
+    acknowledges every message on a separate raw PUSH/PULL socket pair (8 bytes), and the sender keeps
+    at most ``--window`` (default 4) messages in flight. Throughput = messages x bytes / (time from the
+    first send to the last acknowledgement), in MB/s (10**6 bytes). The CPU time of the whole sender
+    process (every thread) during the timed rounds is reported per message. The messages cycle through a pool of
+    4 different random arrays; the receiver checks every warm-up message bit for bit and every timed
+    message on a fixed sample of ~1800 bytes, plus the sequence (no gap, no repeat).
+
+(b) Round-trip latency of a 64-byte payload.
+
+    - ours: a ping node publishes a ``Ping`` message (``seq``, ``phase`` and a 64-byte uint8 array);
+      a pong node's subscription callback publishes it back on another topic; the ping node's main
+      thread spins its executor until the pong's callback has run.
+    - raw: two sockets per process, PUB -> SUB one way and PUB -> SUB back; the ping process sends
+      ``[topic, header, 64 bytes]`` and blocks in ``recv``.
+
+    Each round trip is timed with ``time.perf_counter`` in the ping process; p50 and p99 over all
+    timed round trips (after a warm-up).
+
+By default each sender process runs on the first half of the CPUs this process may use and each
+receiver on the second half (``os.sched_setaffinity``, inherited by every thread), so the scheduler
+cannot move threads between the two sides; ``--no-pin`` lets the OS place threads freely (on a 2-CPU
+machine that makes the throughput figures swing by +-50 % from run to run; see docs/benchmarks.md).
+
+Reported ratios: ``throughput_ratio = ours / raw`` (goal >= 0.9) and ``latency_p50_ratio``,
+``latency_p99_ratio = ours / raw`` (goal <= 2). Both variants run in the same invocation, one after
+the other, on the same machine; compare ratios within one run only.
+
+The processes join a private graph (a fresh ``DPTPU_DISCOVERY_DIR`` under /tmp, domain 0), so the
+benchmark never sees or disturbs another graph.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import shutil
+import struct
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+FULL_SHAPE = (24, 480, 640)
+SMALL_SHAPE = (2, 48, 64)
+PAYLOAD_BYTES = 64
+POOL_SIZE = 4
+SAMPLE_STRIDE = 4093  # bytes between two sampled bytes of a timed message (prime: no alignment with rows)
+FRAMES_TOPIC = "/bench/frames"
+PING_TOPIC = "/bench/ping"
+PONG_TOPIC = "/bench/pong"
+WARMUP, TIMED, STOP = 0, 1, 2  # message phases
+PIPE_HWM = 100  # raw sockets get the same high-water mark as a RELIABLE subscription of the runtime
+THROUGHPUT_GOAL = 0.9
+LATENCY_GOAL = 2.0
+#: Defaults per --size: timed messages per round, rounds, timed round trips per round, warm-ups.
+SIZES = {
+    "full": {"shape": FULL_SHAPE, "messages": 100, "rounds": 3, "round_trips": 2000, "warmup_messages": 4,
+             "warmup_round_trips": 200},
+    "small": {"shape": SMALL_SHAPE, "messages": 20, "rounds": 1, "round_trips": 50, "warmup_messages": 4,
+              "warmup_round_trips": 20},
+}
+DEFAULT_WINDOW = 4
+CHILD_TIMEOUT_S = 300.0
+_HEADER = struct.Struct("<QBB")  # raw header: seq, phase, pool index
+_ACK = struct.Struct("<Q")
+_STARTED = time.monotonic()
+
+
+# --------------------------------------------------------------------------------------------------
+# Message types (registered once per process) and payloads
+# --------------------------------------------------------------------------------------------------
+
+def bench_types():
+    """``(FrameStack, Ping)``: this benchmark's message types, registered in this process on first use."""
+    from dptpu.messages.registry import is_registered, lookup
+    from dptpu.messages.schema import Message, array, message, scalar
+
+    if is_registered("dptpu_bench/msg/FrameStack"):
+        return lookup("dptpu_bench/msg/FrameStack"), lookup("dptpu_bench/msg/Ping")
+
+    @message("dptpu_bench/msg/FrameStack", version=1)
+    class FrameStack(Message):
+        seq: int = scalar("uint64")
+        phase: int = scalar("uint8")
+        pool_index: int = scalar("uint8")
+        frames: np.ndarray = array("uint8", ("F", "H", "W"))
+
+    @message("dptpu_bench/msg/Ping", version=1)
+    class Ping(Message):
+        seq: int = scalar("uint64")
+        phase: int = scalar("uint8")
+        data: np.ndarray = array("uint8", ("N",))
+
+    return FrameStack, Ping
+
+
+def make_pool(shape) -> list[np.ndarray]:
+    """``POOL_SIZE`` different seeded random uint8 arrays of ``shape`` (the same in every process)."""
+    return [np.random.default_rng(index).integers(0, 256, size=shape, dtype=np.uint8) for index in range(POOL_SIZE)]
+
+
+def _samples(pool) -> list[np.ndarray]:
+    return [array.reshape(-1)[::SAMPLE_STRIDE].copy() for array in pool]
+
+
+class IntegrityCheck:
+    """What a receiver verifies: warm-up messages bit for bit, timed ones on a sample, sequence order."""
+
+    def __init__(self, shape):
+        self.pool = make_pool(shape)
+        self.samples = _samples(self.pool)
+        self.shape = tuple(shape)
+        self.received = self.timed = self.full_checks = self.failures = self.gaps = 0
+        self.last_seq = None
+
+    def check(self, seq: int, phase: int, pool_index: int, frames: np.ndarray) -> None:
+        self.received += 1
+        if self.last_seq is not None and seq != self.last_seq + 1:
+            self.gaps += 1
+        self.last_seq = seq
+        if phase == STOP:
+            return
+        ok = frames.shape == self.shape and frames.dtype == np.uint8 and 0 <= pool_index < POOL_SIZE
+        if ok and phase == WARMUP:
+            self.full_checks += 1
+            ok = bool(np.array_equal(frames, self.pool[pool_index]))
+        elif ok:
+            self.timed += 1
+            ok = bool(np.array_equal(frames.reshape(-1)[::SAMPLE_STRIDE], self.samples[pool_index]))
+        self.failures += not ok
+
+    def report(self) -> dict:
+        return {"received": self.received, "timed": self.timed, "full_checks": self.full_checks,
+                "failures": self.failures, "sequence_gaps": self.gaps}
+
+
+def _emit(**fields) -> None:
+    print(json.dumps(fields), flush=True)
+
+
+# --------------------------------------------------------------------------------------------------
+# Throughput: senders and receivers
+# --------------------------------------------------------------------------------------------------
+
+def _run_sender(send, receive_ack, options) -> dict:
+    """Warm up until the link carries messages, then run the timed rounds; returns the sender's figures.
+
+    ``send(seq, phase, pool_index)`` sends one message; ``receive_ack(timeout_ms)`` returns an acked
+    sequence number or None.
+    """
+    seq = 0
+    while True:  # a subscriber joins late: send single warm-up messages until one is acknowledged
+        send(seq, WARMUP, seq % POOL_SIZE)
+        seq += 1
+        if receive_ack(200) is not None:
+            break
+    while receive_ack(50) is not None:  # late acks of the probes
+        pass
+    for _ in range(options.warmup_messages):
+        send(seq, WARMUP, seq % POOL_SIZE)
+        seq += 1
+        if receive_ack(10_000) is None:
+            raise RuntimeError("a warm-up message was not acknowledged within 10 s")
+    rounds_s = []
+    cpu_start = time.process_time()
+    for _ in range(options.rounds):
+        sent = acked = 0
+        start = time.perf_counter()
+        while acked < options.messages:
+            while sent < options.messages and sent - acked < options.window:
+                send(seq, TIMED, seq % POOL_SIZE)
+                seq += 1
+                sent += 1
+            if receive_ack(10_000) is None:
+                raise RuntimeError(f"no acknowledgement within 10 s ({acked} of {options.messages} acked)")
+            acked += 1
+        rounds_s.append(time.perf_counter() - start)
+    cpu_s = time.process_time() - cpu_start  # every thread of the sender process, timed rounds only
+    send(seq, STOP, 0)
+    receive_ack(5_000)
+    return {"rounds_s": rounds_s, "cpu_s_per_message": cpu_s / (options.rounds * options.messages)}
+
+
+def _data_context():
+    """The raw measured sockets' own ZeroMQ context (one I/O thread), apart from the acknowledgement
+    channel's ``zmq.Context.instance()``, as the runtime's sockets are in ``dptpu.graph``."""
+    import zmq
+
+    return zmq.Context(io_threads=1)
+
+
+def _ack_pull(endpoint: str):
+    import zmq
+
+    context = zmq.Context.instance()
+    pull = context.socket(zmq.PULL)
+    pull.setsockopt(zmq.LINGER, 0)
+    pull.bind(endpoint)
+
+    def receive_ack(timeout_ms: int):
+        if pull.poll(timeout_ms):
+            return _ACK.unpack(pull.recv())[0]
+        return None
+
+    return pull, receive_ack
+
+
+def _ack_push(endpoint: str):
+    import zmq
+
+    push = zmq.Context.instance().socket(zmq.PUSH)
+    push.setsockopt(zmq.LINGER, 1000)
+    push.connect(endpoint)
+    return push
+
+
+def role_ours_source(options) -> dict:
+    import dptpu.graph as rclpy
+    from dptpu.graph import QoSProfile
+
+    frame_stack, _ = bench_types()
+    pool = make_pool(options.shape)
+    _pull, receive_ack = _ack_pull(options.ack)
+    rclpy.init(args=[])
+    try:
+        node = rclpy.create_node("bench_source")
+        publisher = node.create_publisher(frame_stack, FRAMES_TOPIC, QoSProfile(depth=2 * options.window))
+
+        def send(seq, phase, pool_index):
+            publisher.publish(frame_stack(seq=seq, phase=phase, pool_index=pool_index, frames=pool[pool_index]))
+
+        return _run_sender(send, receive_ack, options)
+    finally:
+        rclpy.try_shutdown()
+
+
+def role_ours_sink(options) -> dict:
+    import dptpu.graph as rclpy
+    from dptpu.graph import QoSProfile, SingleThreadedExecutor
+
+    frame_stack, _ = bench_types()
+    check = IntegrityCheck(options.shape)
+    push = _ack_push(options.ack)
+    stopped = []
+    rclpy.init(args=[])
+    try:
+        node = rclpy.create_node("bench_sink")
+
+        def on_message(msg):
+            check.check(msg.seq, msg.phase, msg.pool_index, msg.frames)
+            push.send(_ACK.pack(msg.seq))
+            if msg.phase == STOP:
+                stopped.append(True)
+
+        subscription = node.create_subscription(frame_stack, FRAMES_TOPIC, on_message,
+                                                QoSProfile(depth=2 * options.window))
+        executor = SingleThreadedExecutor()
+        executor.add_node(node)
+        deadline = time.monotonic() + CHILD_TIMEOUT_S
+        while not stopped and time.monotonic() < deadline:
+            executor.spin_once(timeout_sec=0.5)
+        return {**check.report(), "dropped_count": subscription.dropped_count}
+    finally:
+        rclpy.try_shutdown()
+
+
+def role_raw_source(options) -> dict:
+    import zmq
+
+    pool = make_pool(options.shape)
+    _pull, receive_ack = _ack_pull(options.ack)
+    pub = _data_context().socket(zmq.PUB)
+    pub.setsockopt(zmq.SNDHWM, PIPE_HWM)
+    pub.setsockopt(zmq.LINGER, 1000)
+    pub.bind(options.data)
+    topic = FRAMES_TOPIC.encode()
+
+    def send(seq, phase, pool_index):
+        pub.send_multipart([topic, _HEADER.pack(seq, phase, pool_index), pool[pool_index]], copy=False)
+
+    return _run_sender(send, receive_ack, options)
+
+
+def role_raw_sink(options) -> dict:
+    import zmq
+
+    check = IntegrityCheck(options.shape)
+    push = _ack_push(options.ack)
+    sub = _data_context().socket(zmq.SUB)
+    sub.setsockopt(zmq.RCVHWM, PIPE_HWM)
+    sub.setsockopt(zmq.LINGER, 0)
+    sub.setsockopt(zmq.SUBSCRIBE, FRAMES_TOPIC.encode())
+    sub.connect(options.data)
+    deadline = time.monotonic() + CHILD_TIMEOUT_S
+    while time.monotonic() < deadline:
+        if not sub.poll(500):
+            continue
+        _topic, header, data = sub.recv_multipart(copy=False)
+        seq, phase, pool_index = _HEADER.unpack(header.bytes)
+        frames = np.frombuffer(data.buffer, dtype=np.uint8)
+        check.check(seq, phase, pool_index, frames.reshape(options.shape) if frames.size == np.prod(options.shape)
+                    else frames)
+        push.send(_ACK.pack(seq))
+        if phase == STOP:
+            break
+    return check.report()
+
+
+# --------------------------------------------------------------------------------------------------
+# Latency: ping and pong
+# --------------------------------------------------------------------------------------------------
+
+def _run_ping(round_trip, options) -> dict:
+    """``round_trip(seq, phase, timeout_s)`` -> True when the pong came back; returns the timings."""
+    seq = 0
+    while not round_trip(seq, WARMUP, 0.2):  # until both directions are connected
+        seq += 1
+    seq += 1
+    for _ in range(options.warmup_round_trips):
+        if not round_trip(seq, WARMUP, 10.0):
+            raise RuntimeError("a warm-up round trip got no answer within 10 s")
+        seq += 1
+    rounds_us = []
+    for _ in range(options.rounds):
+        times_us = []
+        for _ in range(options.round_trips):
+            start = time.perf_counter()
+            if not round_trip(seq, TIMED, 10.0):
+                raise RuntimeError(f"round trip {seq} got no answer within 10 s")
+            times_us.append((time.perf_counter() - start) * 1e6)
+            seq += 1
+        rounds_us.append(times_us)
+    round_trip(seq, STOP, 2.0)
+    return {"rounds_us": rounds_us}
+
+
+def role_ours_ping(options) -> dict:
+    import dptpu.graph as rclpy
+    from dptpu.graph import QoSProfile, SingleThreadedExecutor
+
+    _, ping_type = bench_types()
+    payload = np.arange(PAYLOAD_BYTES, dtype=np.uint8)
+    rclpy.init(args=[])
+    try:
+        node = rclpy.create_node("bench_ping")
+        publisher = node.create_publisher(ping_type, PING_TOPIC, QoSProfile(depth=10))
+        answered = {"seq": -1, "bad": 0}
+
+        def on_pong(msg):
+            answered["seq"] = msg.seq
+            answered["bad"] += not np.array_equal(msg.data, payload)
+
+        node.create_subscription(ping_type, PONG_TOPIC, on_pong, QoSProfile(depth=10))
+        executor = SingleThreadedExecutor()
+        executor.add_node(node)
+
+        def round_trip(seq, phase, timeout_s):
+            publisher.publish(ping_type(seq=seq, phase=phase, data=payload))
+            deadline = time.perf_counter() + timeout_s
+            while answered["seq"] != seq:
+                remaining = deadline - time.perf_counter()
+                if remaining <= 0:
+                    return False
+                executor.spin_once(timeout_sec=remaining)
+            return True
+
+        result = _run_ping(round_trip, options)
+        return {**result, "payload_mismatches": answered["bad"]}
+    finally:
+        rclpy.try_shutdown()
+
+
+def role_ours_pong(options) -> dict:
+    import dptpu.graph as rclpy
+    from dptpu.graph import QoSProfile, SingleThreadedExecutor
+
+    _, ping_type = bench_types()
+    rclpy.init(args=[])
+    try:
+        node = rclpy.create_node("bench_pong")
+        publisher = node.create_publisher(ping_type, PONG_TOPIC, QoSProfile(depth=10))
+        state = {"count": 0, "stop": False}
+
+        def on_ping(msg):
+            publisher.publish(ping_type(seq=msg.seq, phase=msg.phase, data=msg.data))
+            state["count"] += 1
+            state["stop"] = msg.phase == STOP
+
+        node.create_subscription(ping_type, PING_TOPIC, on_ping, QoSProfile(depth=10))
+        executor = SingleThreadedExecutor()
+        executor.add_node(node)
+        deadline = time.monotonic() + CHILD_TIMEOUT_S
+        while not state["stop"] and time.monotonic() < deadline:
+            executor.spin_once(timeout_sec=0.5)
+        time.sleep(0.2)  # let the last pong leave before the sockets close
+        return {"answered": state["count"]}
+    finally:
+        rclpy.try_shutdown()
+
+
+def _raw_pair(bind_endpoint: str, connect_endpoint: str):
+    import zmq
+
+    context = zmq.Context.instance()
+    pub = context.socket(zmq.PUB)
+    pub.setsockopt(zmq.SNDHWM, PIPE_HWM)
+    pub.setsockopt(zmq.LINGER, 1000)
+    pub.bind(bind_endpoint)
+    sub = context.socket(zmq.SUB)
+    sub.setsockopt(zmq.RCVHWM, PIPE_HWM)
+    sub.setsockopt(zmq.LINGER, 0)
+    sub.setsockopt(zmq.SUBSCRIBE, b"")
+    sub.connect(connect_endpoint)
+    return pub, sub
+
+
+def role_raw_ping(options) -> dict:
+    pub, sub = _raw_pair(options.data, options.ack)
+    payload = np.arange(PAYLOAD_BYTES, dtype=np.uint8).tobytes()
+    topic = PING_TOPIC.encode()
+    bad = [0]
+
+    def round_trip(seq, phase, timeout_s):
+        pub.send_multipart([topic, _HEADER.pack(seq, phase, 0), payload])
+        deadline = time.perf_counter() + timeout_s
+        while True:
+            remaining_ms = (deadline - time.perf_counter()) * 1000.0
+            if remaining_ms <= 0 or not sub.poll(remaining_ms):
+                return False
+            _topic, header, data = sub.recv_multipart()
+            bad[0] += data != payload
+            if _HEADER.unpack(header)[0] == seq:
+                return True
+
+    result = _run_ping(round_trip, options)
+    return {**result, "payload_mismatches": bad[0]}
+
+
+def role_raw_pong(options) -> dict:
+    pub, sub = _raw_pair(options.ack, options.data)
+    topic = PONG_TOPIC.encode()
+    count = 0
+    deadline = time.monotonic() + CHILD_TIMEOUT_S
+    while time.monotonic() < deadline:
+        if not sub.poll(500):
+            continue
+        _topic, header, data = sub.recv_multipart()
+        pub.send_multipart([topic, header, data])
+        count += 1
+        if _HEADER.unpack(header)[1] == STOP:
+            break
+    time.sleep(0.2)
+    return {"answered": count}
+
+
+ROLES = {"ours-source": role_ours_source, "ours-sink": role_ours_sink, "raw-source": role_raw_source,
+         "raw-sink": role_raw_sink, "ours-ping": role_ours_ping, "ours-pong": role_ours_pong,
+         "raw-ping": role_raw_ping, "raw-pong": role_raw_pong}
+
+
+# --------------------------------------------------------------------------------------------------
+# Coordinator
+# --------------------------------------------------------------------------------------------------
+
+def _resolve(args) -> argparse.Namespace:
+    size = getattr(args, "size", None) or "full"
+    if size not in SIZES:
+        raise ValueError(f"--size must be 'full' or 'small'; got {size!r}")
+    options = dict(SIZES[size])
+    for key in ("messages", "rounds", "round_trips", "window"):
+        value = getattr(args, key, None)
+        if value is not None:
+            if isinstance(value, bool) or not isinstance(value, int) or value < 1:
+                raise ValueError(f"--{key.replace('_', '-')} must be an integer >= 1; got {value!r}")
+            options[key] = value
+    options.setdefault("window", DEFAULT_WINDOW)
+    return argparse.Namespace(size=size, json=bool(getattr(args, "json", False)),
+                              pin=not bool(getattr(args, "no_pin", False)), **options)
+
+
+RECEIVER_ROLES = ("ours-sink", "raw-sink", "ours-pong", "raw-pong")
+
+
+def pinned_cpus(role: str) -> list[int] | None:
+    """The CPUs a ``--pin`` child runs on: senders the first half of the usable ones, receivers the rest."""
+    cpus = sorted(os.sched_getaffinity(0))
+    if len(cpus) < 2:
+        return None
+    half = len(cpus) // 2
+    return cpus[half:] if role in RECEIVER_ROLES else cpus[:half]
+
+
+def _child_command(role: str, options, ack: str, data: str) -> list[str]:
+    return [sys.executable, str(Path(__file__).resolve()), "--role", role, "--shape",
+            ",".join(str(n) for n in options.shape), "--messages", str(options.messages), "--rounds",
+            str(options.rounds), "--round-trips", str(options.round_trips), "--window", str(options.window),
+            "--warmup-messages", str(options.warmup_messages), "--warmup-round-trips",
+            str(options.warmup_round_trips), "--ack", ack, "--data", data, *(["--pin"] if options.pin else [])]
+
+
+def _run_pair(receiver: str, sender: str, options, env: dict, folder: Path, tag: str) -> tuple[dict, dict]:
+    """Start the receiver and the sender; return their JSON results (RuntimeError with stderr on failure)."""
+    ack, data = f"ipc://{folder}/{tag}-a", f"ipc://{folder}/{tag}-d"
+    processes = []
+    try:
+        for role in (receiver, sender):
+            processes.append(subprocess.Popen(_child_command(role, options, ack, data), stdout=subprocess.PIPE,
+                                              stderr=subprocess.PIPE, text=True, env=env))
+        results = {}
+        # The sender first: it fails within seconds when the receiver is missing, while a receiver
+        # waits for a sender that died until CHILD_TIMEOUT_S.
+        for role, process in ((sender, processes[1]), (receiver, processes[0])):
+            try:
+                out, err = process.communicate(timeout=CHILD_TIMEOUT_S)
+            except subprocess.TimeoutExpired:
+                raise RuntimeError(f"benchmark process {role} did not finish within {CHILD_TIMEOUT_S:g} s") from None
+            lines = [line for line in out.splitlines() if line.startswith("{")]
+            if process.returncode != 0 or not lines:
+                raise RuntimeError(f"benchmark process {role} failed (exit code {process.returncode}):\n{err[-3000:]}")
+            results[role] = json.loads(lines[-1])
+        return results[receiver], results[sender]
+    finally:
+        for process in processes:
+            if process.poll() is None:
+                process.kill()
+                process.wait()
+
+
+def _throughput_figures(sender: dict, receiver: dict, options) -> dict:
+    nbytes = int(np.prod(options.shape))
+    rates = [options.messages * nbytes / seconds / 1e6 for seconds in sender["rounds_s"]]
+    expected = options.rounds * options.messages
+    intact = (receiver["failures"] == 0 and receiver["sequence_gaps"] == 0 and receiver["timed"] == expected
+              and receiver["full_checks"] >= options.warmup_messages)
+    return {"mb_per_s": float(np.median(rates)), "rounds_mb_per_s": rates,
+            "messages_per_s": float(np.median(rates)) * 1e6 / nbytes,
+            "sender_cpu_us_per_message": sender["cpu_s_per_message"] * 1e6, "receiver": receiver,
+            "intact": bool(intact)}
+
+
+def _latency_figures(ping: dict, pong: dict, options) -> dict:
+    times_us = np.concatenate([np.asarray(r, dtype=np.float64) for r in ping["rounds_us"]])
+    return {"p50_us": float(np.percentile(times_us, 50)), "p99_us": float(np.percentile(times_us, 99)),
+            "mean_us": float(times_us.mean()), "min_us": float(times_us.min()), "round_trips": int(times_us.size),
+            "answered": pong["answered"], "intact": ping["payload_mismatches"] == 0}
+
+
+def machine() -> dict:
+    import zmq
+
+    cpu = ""
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name"):
+                cpu = line.split(":", 1)[1].strip()
+                break
+    except OSError:
+        pass
+    return {"cores": os.cpu_count(), "cpu": cpu, "python": platform.python_version(), "pyzmq": zmq.__version__,
+            "libzmq": zmq.zmq_version(), "platform": platform.platform()}
+
+
+def measure(args) -> dict:
+    """Run both measurements, ours and raw side by side; return the report (see the module docstring)."""
+    options = _resolve(args)
+    folder = Path(tempfile.mkdtemp(prefix="dtb", dir="/tmp"))
+    env = {key: value for key, value in os.environ.items()
+           if key not in ("DPTPU_TRANSPORT", "DPTPU_TCP_INTERFACE", "DPTPU_CURVE_SECRET_KEY",
+                          "DPTPU_CURVE_AUTHORIZED_KEYS", "DPTPU_PEERS", "ROS_DOMAIN_ID")}
+    repo_root = str(Path(__file__).resolve().parents[1])
+    env.update({"DPTPU_DISCOVERY_DIR": str(folder / "graph"), "DPTPU_DOMAIN_ID": "0",
+                "PYTHONPATH": repo_root + os.pathsep + env.get("PYTHONPATH", "")})
+    try:
+        raw_sink, raw_source = _run_pair("raw-sink", "raw-source", options, env, folder, "rt")
+        ours_sink, ours_source = _run_pair("ours-sink", "ours-source", options, env, folder, "ot")
+        raw_pong, raw_ping = _run_pair("raw-pong", "raw-ping", options, env, folder, "rl")
+        ours_pong, ours_ping = _run_pair("ours-pong", "ours-ping", options, env, folder, "ol")
+    finally:
+        shutil.rmtree(folder, ignore_errors=True)
+    throughput = {"ours": _throughput_figures(ours_source, ours_sink, options),
+                  "raw": _throughput_figures(raw_source, raw_sink, options)}
+    latency = {"ours": _latency_figures(ours_ping, ours_pong, options),
+               "raw": _latency_figures(raw_ping, raw_pong, options)}
+    throughput_ratio = throughput["ours"]["mb_per_s"] / throughput["raw"]["mb_per_s"]
+    p50_ratio = latency["ours"]["p50_us"] / latency["raw"]["p50_us"]
+    p99_ratio = latency["ours"]["p99_us"] / latency["raw"]["p99_us"]
+    intact = all(entry["intact"] for part in (throughput, latency) for entry in part.values())
+    return {
+        "machine": machine(), "transport": "ipc", "size": options.size,
+        "pinned": {"senders": pinned_cpus("ours-source"), "receivers": pinned_cpus("ours-sink")}
+        if options.pin and pinned_cpus("ours-source") is not None else None,
+        "throughput_ratio": throughput_ratio, "latency_p50_ratio": p50_ratio, "latency_p99_ratio": p99_ratio,
+        "raw_throughput_mb_per_s": throughput["raw"]["mb_per_s"],
+        "ours_throughput_mb_per_s": throughput["ours"]["mb_per_s"],
+        "raw_latency_p50_us": latency["raw"]["p50_us"], "raw_latency_p99_us": latency["raw"]["p99_us"],
+        "ours_latency_p50_us": latency["ours"]["p50_us"], "ours_latency_p99_us": latency["ours"]["p99_us"],
+        "goals": {"throughput_ratio_min": THROUGHPUT_GOAL, "latency_ratio_max": LATENCY_GOAL,
+                  "throughput_met": throughput_ratio >= THROUGHPUT_GOAL,
+                  "latency_met": max(p50_ratio, p99_ratio) <= LATENCY_GOAL},
+        "intact": intact,
+        "throughput": {"message_bytes": int(np.prod(options.shape)), "shape": list(options.shape),
+                       "messages_per_round": options.messages, "rounds": options.rounds, "window": options.window,
+                       "warmup_messages": options.warmup_messages, **throughput},
+        "latency": {"payload_bytes": PAYLOAD_BYTES, "round_trips_per_round": options.round_trips,
+                    "rounds": options.rounds, "warmup_round_trips": options.warmup_round_trips, **latency},
+    }
+
+
+def format_report(report: dict) -> str:
+    t, lat = report["throughput"], report["latency"]
+    pinned = report["pinned"]
+    placement = f"senders on CPUs {pinned['senders']}, receivers on CPUs {pinned['receivers']}, " if pinned else ""
+    shape = "x".join(str(n) for n in t["shape"])
+    lines = [
+        f"dptpu bench transport ({report['transport']}, {report['machine']['cores']} cores, "
+        f"{placement}"
+        f"pyzmq {report['machine']['pyzmq']}, libzmq {report['machine']['libzmq']})",
+        f"(a) throughput, {shape} uint8 = {t['message_bytes']} bytes, {t['messages_per_round']} messages x "
+        f"{t['rounds']} rounds, window {t['window']}",
+        f"    raw pyzmq PUB/SUB : {t['raw']['mb_per_s']:9.1f} MB/s  ({t['raw']['messages_per_s']:.1f} msg/s, "
+        f"sender CPU {t['raw']['sender_cpu_us_per_message']:.0f} us/msg)",
+        f"    ours (graph)      : {t['ours']['mb_per_s']:9.1f} MB/s  ({t['ours']['messages_per_s']:.1f} msg/s, "
+        f"sender CPU {t['ours']['sender_cpu_us_per_message']:.0f} us/msg)",
+        f"    throughput_ratio  : {report['throughput_ratio']:.3f}  (goal >= {THROUGHPUT_GOAL})",
+        f"(b) round trip, {lat['payload_bytes']}-byte payload, {lat['ours']['round_trips']} round trips each",
+        f"    raw pyzmq         : p50 {lat['raw']['p50_us']:8.1f} us  p99 {lat['raw']['p99_us']:8.1f} us",
+        f"    ours (graph)      : p50 {lat['ours']['p50_us']:8.1f} us  p99 {lat['ours']['p99_us']:8.1f} us",
+        f"    latency ratios    : p50 {report['latency_p50_ratio']:.2f}  p99 {report['latency_p99_ratio']:.2f}  "
+        f"(goal <= {LATENCY_GOAL})",
+        f"messages intact: {'yes' if report['intact'] else 'NO'}",
+    ]
+    return "\n".join(lines)
+
+
+def run(args) -> int:
+    """The ``dptpu bench transport`` entry: print the report; 0 when every message arrived intact, else 1."""
+    report = measure(args)
+    print(json.dumps(report, indent=2) if getattr(args, "json", False) else format_report(report))
+    return 0 if report["intact"] else 1
+
+
+def _child_main(options) -> int:
+    if options.pin:  # set by the coordinator unless --no-pin
+        cpus = pinned_cpus(options.role)
+        if cpus is not None:
+            os.sched_setaffinity(0, cpus)
+    options.shape = tuple(int(n) for n in options.shape.split(","))
+    result = ROLES[options.role](options)
+    _emit(**result, cpu_s=time.process_time(), wall_s=time.monotonic() - _STARTED)
+    return 0
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--json", action="store_true")
+    parser.add_argument("--size", choices=tuple(SIZES), default="full")
+    parser.add_argument("--messages", type=int, default=None)
+    parser.add_argument("--rounds", type=int, default=None)
+    parser.add_argument("--round-trips", type=int, default=None)
+    parser.add_argument("--window", type=int, default=None)
+    parser.add_argument("--no-pin", action="store_true")
+    parser.add_argument("--pin", action="store_true", help=argparse.SUPPRESS)  # a child's own pinning
+    parser.add_argument("--role", choices=tuple(ROLES), default=None, help=argparse.SUPPRESS)
+    for name in ("--shape", "--ack", "--data"):
+        parser.add_argument(name, default=None, help=argparse.SUPPRESS)
+    parser.add_argument("--warmup-messages", type=int, default=None, help=argparse.SUPPRESS)
+    parser.add_argument("--warmup-round-trips", type=int, default=None, help=argparse.SUPPRESS)
+    return parser
+
+
+if __name__ == "__main__":
+    parsed = build_parser().parse_args()
+    sys.exit(_child_main(parsed) if parsed.role else run(parsed))

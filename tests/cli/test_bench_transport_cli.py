@@ -1,0 +1,93 @@
+"""``dptpu bench transport``: the report's structure and that every message arrived intact (tiny size).
+
+The benchmark runs real process pairs over ipc (ours through ``dptpu.graph``, raw through bare pyzmq).
+Timings and ratios are never asserted against goals here, only checked for consistency.
+"""
+from __future__ import annotations
+
+import contextlib
+import io
+import json
+
+import pytest
+
+from dptpu.cli import bench_cmd
+from dptpu.cli.main import main
+
+SMALL = {"shape": [2, 48, 64], "messages": 20, "rounds": 1, "round_trips": 50, "warmup_messages": 4,
+         "warmup_round_trips": 20, "window": 4}
+
+
+@pytest.fixture(scope="module")
+def report():
+    """The JSON report of one ``--size small`` run, with its exit code."""
+    buffer = io.StringIO()
+    with contextlib.redirect_stdout(buffer):
+        code = main(["bench", "transport", "--json", "--size", "small"])
+    return code, json.loads(buffer.getvalue())
+
+
+def test_exit_0_and_the_headline_keys(report):
+    code, data = report
+    assert code == 0  # 0 means every message of both variants arrived intact
+    assert data["intact"] is True and data["transport"] == "ipc" and data["size"] == "small"
+    for key in ("throughput_ratio", "latency_p50_ratio", "latency_p99_ratio", "raw_throughput_mb_per_s",
+                "raw_latency_p50_us", "raw_latency_p99_us", "ours_throughput_mb_per_s", "ours_latency_p50_us",
+                "ours_latency_p99_us"):
+        assert data[key] > 0, key
+    assert data["throughput_ratio"] == pytest.approx(data["ours_throughput_mb_per_s"] / data["raw_throughput_mb_per_s"])
+    assert data["latency_p50_ratio"] == pytest.approx(data["ours_latency_p50_us"] / data["raw_latency_p50_us"])
+    assert data["latency_p99_ratio"] == pytest.approx(data["ours_latency_p99_us"] / data["raw_latency_p99_us"])
+    goals = data["goals"]
+    assert (goals["throughput_ratio_min"], goals["latency_ratio_max"]) == (0.9, 2.0)
+    assert goals["throughput_met"] == (data["throughput_ratio"] >= 0.9)
+    assert data["machine"]["cores"] >= 1
+    pinned = data["pinned"]  # default: senders and receivers on disjoint CPU halves (when there are >= 2)
+    if pinned is not None:
+        assert pinned["senders"] and pinned["receivers"]
+        assert not set(pinned["senders"]) & set(pinned["receivers"])
+
+
+@pytest.mark.parametrize("variant", ["ours", "raw"])
+def test_every_throughput_message_arrived_intact_and_in_order(report, variant):
+    throughput = report[1]["throughput"]
+    assert throughput["shape"] == SMALL["shape"] and throughput["message_bytes"] == 2 * 48 * 64
+    assert (throughput["messages_per_round"], throughput["rounds"], throughput["window"]) == (20, 1, 4)
+    entry = throughput[variant]
+    receiver = entry["receiver"]
+    assert receiver["timed"] == 20  # every timed message, each checked on its sample
+    assert receiver["full_checks"] >= 4  # warm-up messages compared bit for bit
+    assert (receiver["failures"], receiver["sequence_gaps"]) == (0, 0)
+    assert receiver["received"] == receiver["timed"] + receiver["full_checks"] + 1  # + the stop message
+    assert entry["intact"] is True
+    assert len(entry["rounds_mb_per_s"]) == 1 and entry["mb_per_s"] == entry["rounds_mb_per_s"][0]
+    assert entry["messages_per_s"] == pytest.approx(entry["mb_per_s"] * 1e6 / (2 * 48 * 64))
+    assert entry["sender_cpu_us_per_message"] >= 0
+    if variant == "ours":
+        assert receiver["dropped_count"] == 0
+
+
+@pytest.mark.parametrize("variant", ["ours", "raw"])
+def test_every_round_trip_came_back_with_its_payload(report, variant):
+    latency = report[1]["latency"]
+    assert latency["payload_bytes"] == 64 and latency["round_trips_per_round"] == 50
+    entry = latency[variant]
+    assert entry["round_trips"] == 50 and entry["intact"] is True
+    assert entry["answered"] >= 50 + 20 + 1  # timed + warm-up + the stop message (probes may add more)
+    assert 0 < entry["min_us"] <= entry["p50_us"] <= entry["p99_us"]
+
+
+def test_text_report_names_both_variants_and_the_ratios(report):
+    text = bench_cmd.load_transport_bench().format_report(report[1])
+    assert "raw pyzmq PUB/SUB" in text and "ours (graph)" in text
+    assert f"throughput_ratio  : {report[1]['throughput_ratio']:.3f}  (goal >= 0.9)" in text
+    assert text.endswith("messages intact: yes")
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["--messages", "0"], "--messages must be an integer >= 1; got 0"),
+    (["--round-trips", "-2"], "--round-trips must be an integer >= 1; got -2"),
+])
+def test_bad_options_exit_2_with_a_message(capsys, argv, message):
+    assert main(["bench", "transport", "--size", "small", *argv]) == 2
+    assert message in capsys.readouterr().err

@@ -1,0 +1,69 @@
+"""Announcement files: stale ones (dead pid, reused pid, expired peer entry) are ignored and cleaned."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+import time
+import uuid
+
+import pytest
+
+from dptpu.graph.discovery import (FORMAT, DirectoryScanner, ensure_private_directory, get_graph, host_identity,
+                                   process_start_ticks, resolve_domain_id, write_announcement)
+
+
+def _entry(name: str, pid: int, pid_start, **extra) -> dict:
+    host, boot_id = host_identity()
+    entry = {"format": FORMAT, "name": name, "namespace": "/", "fqn": f"/{name}", "gid": uuid.uuid4().hex,
+             "pid": pid, "pid_start": pid_start, "host": host, "boot_id": boot_id, "start_time": time.time(),
+             "publishers": [], "subscriptions": [], "services": [], "clients": [], "service_endpoints": []}
+    entry.update(extra)
+    return entry
+
+
+def _dead_pid() -> int:
+    process = subprocess.Popen([sys.executable, "-c", "pass"])
+    process.wait()
+    return process.pid
+
+
+def test_stale_announcements_are_ignored_then_deleted_with_their_socket_files(domain_dir):
+    ensure_private_directory(domain_dir / "ep")
+    me, my_start = os.getpid(), process_start_ticks(os.getpid())
+    socket_file = domain_dir / "ep" / "deadbeef"
+    socket_file.write_bytes(b"")
+    files = {
+        "alive": _entry("alive", me, my_start),
+        "dead_pid": _entry("dead_pid", _dead_pid(), 1,
+                           publishers=[{"topic": "/t", "type": "std_msgs/msg/String", "gid": "00",
+                                        "endpoints": [f"ipc://{socket_file}"], "qos": {}}]),
+        "reused_pid": _entry("reused_pid", me, my_start - 1),  # our pid, but a process that started earlier
+        "expired_peer": _entry("expired_peer", me, my_start, via="peer", expires=time.time() - 1),
+    }
+    for name, entry in files.items():
+        write_announcement(domain_dir, f"n-{entry['pid']}-{name}.json", entry)
+    (domain_dir / "n-1-garbage.json").write_text("{not json")
+
+    assert [n.name for n in get_graph(directory=domain_dir).nodes] == ["alive"]
+    assert len(list(domain_dir.glob("n-*.json"))) == 5  # get_graph only reads
+
+    host, boot_id = host_identity()
+    scanner = DirectoryScanner(domain_dir, host=host, boot_id=boot_id)
+    assert scanner.scan(now=0.0)
+    assert [e["name"] for e in scanner.entries] == ["alive"]
+    scanner.scan(now=10.0)  # the liveness pass deletes what is stale
+    assert sorted(p.name for p in domain_dir.glob("n-*.json")) == ["n-1-garbage.json", f"n-{me}-alive.json"]
+    assert not socket_file.exists()
+
+
+def test_domain_id_comes_from_argument_then_environment():
+    assert resolve_domain_id(5, env={"DPTPU_DOMAIN_ID": "9"}) == 5
+    assert resolve_domain_id(None, env={"DPTPU_DOMAIN_ID": "9", "ROS_DOMAIN_ID": "3"}) == 9
+    assert resolve_domain_id(None, env={"ROS_DOMAIN_ID": "3"}) == 3
+    assert resolve_domain_id(None, env={}) == 0
+    with pytest.raises(ValueError, match=r"\$ROS_DOMAIN_ID must be an integer in 0..232; got 'x'"):
+        resolve_domain_id(None, env={"ROS_DOMAIN_ID": "x"})
+    with pytest.raises(ValueError, match="domain_id must be an integer in 0..232; got 300"):
+        resolve_domain_id(300)
