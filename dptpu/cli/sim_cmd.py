@@ -1,0 +1,73 @@
+"""``dptpu sim ...``: the digital twin's commands.
+
+``dptpu sim render --rig RIG --scene SCENE --sequence 96x12,1x12 [--effects E.yaml] [--engine raycast|blender]
+[--size WxH] [--seed S] [--bit-depth 8|16] --out CAPTURE`` renders a ``dptpu-capture/1`` folder with
+``calibration.yaml`` and ``gt.npz`` (:func:`dptpu.sim.render.render_capture`).
+
+Other modules add sub-commands to the ``sim`` group when they are present: ``dptpu.cli.sim_blender_cmd``
+(``sim twin``, ``sim setup-blender``) and ``dptpu.cli.sim_dataset_cmd`` (``sim dataset``); each exposes
+``register(sim_subparsers)``.
+"""
+from __future__ import annotations
+
+import importlib
+
+#: Modules of ``dptpu.cli`` that add sub-commands to ``dptpu sim`` (absent ones are skipped).
+SIM_COMMAND_MODULES = ("sim_blender_cmd", "sim_dataset_cmd")
+
+
+def register(subparsers) -> None:
+    parser = subparsers.add_parser("sim", help="digital twin: render captures, datasets, Blender setup")
+    sim_subparsers = parser.add_subparsers(dest="sim_command", metavar="SIM_COMMAND", required=True)
+    render = sim_subparsers.add_parser(
+        "render", help="render a scene with the twin into a dptpu-capture/1 folder (frames, calibration, gt.npz)",
+        description="Render a scene in the digital twin of RIG and write a dptpu-capture/1 folder with the "
+                    "frames, calibration.yaml (the rig) and gt.npz (projector_x/y, depth, normals, valid, "
+                    "fringe_order_<f>). See docs/twin.md and docs/effects.md.")
+    render.add_argument("--rig", required=True,
+                        help="dptpu-rig/1 or OpenCV rig file, 'CAM.mat,PRJ.mat' (Bouguet), or 'nominal'")
+    render.add_argument("--scene", required=True,
+                        help="scene YAML file, a built-in scene (sphere, plane, board), or random:SEED")
+    render.add_argument("--sequence", default="96x12,1x12",
+                        help="phase sequences FREQxSTEPS[:AXIS], comma separated (default 96x12,1x12); "
+                             "'white' and 'black' add reference frames")
+    render.add_argument("--effects", default=None, help="effects YAML (replaces the rig's effects: list)")
+    render.add_argument("--engine", choices=("raycast", "blender"), default="raycast")
+    render.add_argument("--size", default=None, help="camera render size WIDTHxHEIGHT (K is rescaled)")
+    render.add_argument("--seed", type=int, default=0, help="seed of the noise and random scenes (default 0)")
+    render.add_argument("--bit-depth", type=int, choices=(8, 16), default=8)
+    render.add_argument("--meshes", default=None, help="folder of meshes for random scenes")
+    render.add_argument("--out", required=True, help="capture folder to write")
+    render.set_defaults(func=run_render)
+    for name in SIM_COMMAND_MODULES:
+        try:
+            module = importlib.import_module(f"dptpu.cli.{name}")
+        except ModuleNotFoundError as exc:
+            if exc.name != f"dptpu.cli.{name}":
+                raise
+            continue
+        module.register(sim_subparsers)
+
+
+def run_render(args) -> int:
+    from dptpu.sim.effects import load_effects
+    from dptpu.sim.image_formation import parse_sequences
+    from dptpu.sim.render import render_capture
+    from dptpu.sim.rig import load_twin_rig
+    from dptpu.sim.scenes import load_scene, random_scene
+
+    rig = load_twin_rig(args.rig, size=args.size)
+    if args.scene.startswith("random:"):
+        try:
+            scene_seed = int(args.scene.split(":", 1)[1])
+        except ValueError:
+            raise ValueError(f"--scene random:SEED needs an integer seed; got {args.scene!r}") from None
+        scene = random_scene(rig, scene_seed, meshes_dir=args.meshes)
+    else:
+        scene = load_scene(args.scene, rig)
+    effects = load_effects(args.effects) if args.effects else None
+    sequences = parse_sequences(args.sequence)
+    out = render_capture(rig, scene, sequences, args.out, engine=args.engine, effects=effects, seed=args.seed,
+                         bit_depth=args.bit_depth)
+    print(f"wrote {out}")
+    return 0

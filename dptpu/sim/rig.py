@@ -1,0 +1,167 @@
+"""The twin's rig: camera and projector models read from a calibration, resized for fast renders.
+
+The twin renders exactly the rig model of :mod:`dptpu.fpp.calibration` (``K``, Brown-Conrady ``dist``, world to
+device ``R``, ``T``, ``size``): the camera ray of each pixel goes through the camera model with its distortion,
+and each hit point goes through the projector model with its distortion (the paper's Eq. (10) with the lens
+model of Table 1). Sources:
+
+- a ``dptpu-rig/1`` YAML file or an OpenCV FileStorage rig file (:func:`dptpu.fpp.calibration.load_rig`);
+- a Bouguet toolbox pair ``"CAM.mat,PRJ.mat"`` (or a 2-tuple), camera 640x480 and projector 912x1140 by default
+  (the DP-TPU rig);
+- ``"nominal"``: :func:`nominal_rig`, a DP-TPU-like rig built from round numbers (no data needed).
+
+Convention: pixel centres are 0-based (ARCHITECTURE.md); resizing the camera keeps the image's outer edges
+fixed, so pixel ``u`` of the original maps to ``(u + 0.5) * s - 0.5`` of the resized image.
+"""
+from __future__ import annotations
+
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+
+from dptpu.fpp.calibration import DeviceModel, Rig, load_bouguet_pair, load_opencv_rig, load_rig
+
+__all__ = ["DEFAULT_CAMERA_SIZE", "DEFAULT_PROJECTOR_SIZE", "load_twin_rig", "nominal_rig", "resize_camera",
+           "parse_size", "working_point", "working_distance"]
+
+#: The DP-TPU rig: Basler acA640-750um camera and DLP4500 projector, (width, height) pixels.
+DEFAULT_CAMERA_SIZE = (640, 480)
+DEFAULT_PROJECTOR_SIZE = (912, 1140)
+
+
+def load_twin_rig(source, *, camera_size=None, projector_size=None, size=None) -> Rig:
+    """The twin's rig from a rig file, a Bouguet pair or ``"nominal"``.
+
+    Parameters
+    ----------
+    source : str, path-like, tuple of two paths, or Rig
+        ``dptpu-rig/1`` or OpenCV rig file; ``"CAM.mat,PRJ.mat"`` or ``(CAM.mat, PRJ.mat)`` (Bouguet toolbox, world
+        frame = calibration view 1); ``"nominal"`` (:func:`nominal_rig`); a :class:`Rig` is passed through.
+    camera_size, projector_size : (int, int), optional
+        ``(width, height)`` of the devices when the source does not hold them (Bouguet files, OpenCV rig files
+        without ``cam_size``/``proj_size``); default 640x480 and 912x1140.
+    size : (int, int) or str, optional
+        Render size ``(width, height)`` or ``"WxH"``: the camera ``K`` is rescaled (:func:`resize_camera`).
+
+    Returns
+    -------
+    Rig
+    """
+    camera_size = tuple(camera_size or DEFAULT_CAMERA_SIZE)
+    projector_size = tuple(projector_size or DEFAULT_PROJECTOR_SIZE)
+    if isinstance(source, Rig):
+        rig = source
+    elif isinstance(source, (tuple, list)):
+        if len(source) != 2:
+            raise ValueError(f"a Bouguet rig is a pair (CAM.mat, PRJ.mat); got {len(source)} paths")
+        rig = load_bouguet_pair(source[0], source[1], camera_size=camera_size, projector_size=projector_size)
+    else:
+        text = str(source)
+        if text == "nominal":
+            rig = nominal_rig()
+        elif "," in text:
+            parts = [p.strip() for p in text.split(",")]
+            if len(parts) != 2 or not all(parts):
+                raise ValueError(f"a Bouguet rig is given as 'CAM.mat,PRJ.mat'; got {text!r}")
+            rig = load_bouguet_pair(parts[0], parts[1], camera_size=camera_size, projector_size=projector_size)
+        else:
+            path = Path(text)
+            if not path.exists():
+                raise FileNotFoundError(f"{path}: no such rig file (give a dptpu-rig/1 or OpenCV rig file, "
+                                        "'CAM.mat,PRJ.mat', or 'nominal')")
+            if path.suffix.lower() == ".mat":
+                raise ValueError(f"{path}: a Bouguet calibration needs both files: 'CAM.mat,PRJ.mat'")
+            try:
+                rig = load_rig(path)
+            except ValueError as exc:
+                if "cam_size" not in str(exc):
+                    raise
+                rig = load_opencv_rig(path, camera_size=camera_size, projector_size=projector_size)
+    if size is not None:
+        rig = resize_camera(rig, size)
+    return rig
+
+
+def parse_size(size) -> tuple[int, int]:
+    """``"WxH"`` or ``(W, H)`` -> ``(W, H)``, positive integers."""
+    if isinstance(size, str):
+        parts = size.lower().split("x")
+        try:
+            values = tuple(int(p) for p in parts)
+        except ValueError:
+            values = ()
+    else:
+        values = tuple(int(v) for v in np.ravel(size))
+    if len(values) != 2 or min(values) < 8:
+        raise ValueError(f"size must be WIDTHxHEIGHT with both >= 8 pixels (e.g. 160x120); got {size!r}")
+    return values
+
+
+def resize_camera(rig: Rig, size) -> Rig:
+    """The rig with its camera resampled to ``size`` (width, height): same field of view, scaled ``K``.
+
+    ``fx, skew, cx`` scale by ``s_x = W'/W`` and ``fy, cy`` by ``s_y = H'/H`` about the image's outer edge:
+    ``c' = (c + 0.5) s - 0.5`` (0-based pixel centres). Distortion, acting on normalized coordinates, is kept.
+    """
+    width, height = parse_size(size)
+    camera = rig.camera
+    sx, sy = width / camera.size[0], height / camera.size[1]
+    K = camera.K.copy()
+    K[0, 0] *= sx
+    K[0, 1] *= sx
+    K[0, 2] = (K[0, 2] + 0.5) * sx - 0.5
+    K[1, 1] *= sy
+    K[1, 2] = (K[1, 2] + 0.5) * sy - 0.5
+    return replace(rig, camera=DeviceModel(K=K, dist=camera.dist, R=camera.R, T=camera.T, size=(width, height)))
+
+
+def nominal_rig(*, camera_size=DEFAULT_CAMERA_SIZE, distance_mm: float = 800.0, angle_deg: float = 6.21) -> Rig:
+    """A DP-TPU-like rig from round numbers: the world frame is the camera's, the projector sits to the camera's
+    left and is turned by ``angle_deg`` (the paper's 6.21 deg between the optical axes) so that both axes cross
+    at ``distance_mm`` on the camera axis.
+
+    Intrinsics are rounded from the published twin calibration (camera f = 2600 px for 640x480, projector
+    fx = 1736, fy = 3473 px for 912x1140, its principal point near the panel centre); distortion is a small
+    radial ``k1``.
+    """
+    baseline = distance_mm * np.tan(np.radians(angle_deg))
+    a = np.radians(angle_deg)
+    R_p = np.array([[np.cos(a), 0.0, -np.sin(a)], [0.0, 1.0, 0.0], [np.sin(a), 0.0, np.cos(a)]])  # axis +x turned
+    centre = np.array([-baseline, 0.0, 0.0])
+    camera = DeviceModel(K=[[2600.0, 0.0, 319.5], [0.0, 2600.0, 239.5], [0.0, 0.0, 1.0]],
+                         dist=[-0.06, 0.0, 0.0, 0.0, 0.0], R=np.eye(3), T=np.zeros(3), size=DEFAULT_CAMERA_SIZE)
+    projector = DeviceModel(K=[[1736.0, 0.0, 455.5], [0.0, 3473.0, 569.5], [0.0, 0.0, 1.0]],
+                            dist=[-0.05, 0.0, 0.0, 0.0, 0.0], R=R_p, T=-R_p @ centre, size=DEFAULT_PROJECTOR_SIZE)
+    rig = Rig(camera=camera, projector=projector, units="mm")
+    return rig if tuple(camera_size) == DEFAULT_CAMERA_SIZE else resize_camera(rig, camera_size)
+
+
+def _principal_ray(device: DeviceModel) -> tuple[np.ndarray, np.ndarray]:
+    """Centre (3,) and unit direction (3,) in world coordinates of the device's optical axis."""
+    direction = device.R.T @ np.array([0.0, 0.0, 1.0])
+    return device.center, direction / np.linalg.norm(direction)
+
+
+def working_point(rig: Rig) -> np.ndarray:
+    """The world point (3,) midway between the camera's and the projector's optical axes where they pass closest.
+
+    This is where both devices look: built-in scenes are placed there. When the axes are parallel, the point
+    on the camera axis at the distance of the projector's centre is returned.
+    """
+    c1, d1 = _principal_ray(rig.camera)
+    c2, d2 = _principal_ray(rig.projector)
+    w = c1 - c2
+    b = d1 @ d2
+    denominator = 1.0 - b * b
+    if denominator < 1e-10:
+        return c1 + d1 * max(abs(d1 @ (c2 - c1)), 1.0)
+    t1 = (b * (d2 @ w) - (d1 @ w)) / denominator
+    t2 = ((d2 @ w) - b * (d1 @ w)) / denominator
+    return 0.5 * ((c1 + t1 * d1) + (c2 + t2 * d2))
+
+
+def working_distance(rig: Rig) -> float:
+    """Depth along the camera z axis of :func:`working_point`, in the rig's units."""
+    point = working_point(rig)
+    return float((rig.camera.R @ point + rig.camera.T)[2])
