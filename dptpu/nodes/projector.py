@@ -1,0 +1,199 @@
+"""Projector node: drives the trigger box of a DLP LightCrafter 4500 over a serial port, one Trigger per pattern.
+
+The node loads the pattern sequence given by its parameters into the trigger box (line protocol
+``dptpu-trigger/1``, docs/projector-protocol.md), starts a scan on request, and publishes a
+:class:`~dptpu.messages.Trigger` the moment the box acknowledges each displayed pattern. Run it as
+``python -m dptpu.nodes.projector --ros-args -p port:=/dev/ttyACM0`` or from a launch file
+(``module: dptpu.nodes.projector``).
+
+Topics and services (defaults; remappable):
+
+=================================  ========================  ==============================================
+name                               type                      what
+=================================  ========================  ==============================================
+``/projector/trigger``             Trigger (pub)             one per displayed pattern; ``sequence_id``
+                                                             increases by one per scan, from 1
+``/projector/pattern_sequence``    PatternSequence (pub)     the loaded sequence; TRANSIENT_LOCAL, depth 1
+``/scanner/status``                ScanStatus (pub)          one per scan: ``done`` (OK) or ``failed``
+                                                             (ERROR, with the reason: partial sequence,
+                                                             port lost, box silent, box abort)
+``~/start_scan``                   std_srvs/Trigger (srv)    queue one scan; ``success`` false, with the
+                                                             reason, when the box is not connected or busy
+=================================  ========================  ==============================================
+
+Parameters:
+
+=======================  =================  ================================================================
+name                     default            meaning
+=======================  =================  ================================================================
+``port``                 ``/dev/ttyACM0``   device path, pty/symlink path, or pyserial URL; ``loop://`` =
+                                            no box: the node answers its own echoed commands with the
+                                            trigger-box EMULATOR (sim rigs; see ``projector_link``)
+``baudrate``             115200             serial speed
+``sequence``             ``"96x12,1x12"``   ``frequency x steps`` entries in projection order
+``fringe_axis``          ``"x"``            ``x`` (vertical stripes, extent = width) or ``y``
+``projector_size``       ``[912, 1140]``    width, height in projector pixels (LightCrafter 4500)
+``exposure_us``          8333               display time of one pattern, microseconds
+``shift_sign``           -1                 phase step sign of the patterns (-1: the paper's Eq. (1))
+``scans``                0                  scans started by the node itself: 0 none (service only),
+                                            N > 0 that many, -1 forever
+``period_s``             0.0                least time from one scan's start to the next (0: back to back)
+``frame_id``             ``"projector"``    ``header.frame_id`` of Trigger and PatternSequence
+``reply_timeout_s``      1.0                longest wait for a reply to a command
+``ack_timeout_s``        0.5                longest silence in a scan beyond one exposure
+``reconnect_initial_s``  0.5                first reconnection delay; doubles per failure
+``reconnect_max_s``      5.0                longest reconnection delay
+=======================  =================  ================================================================
+
+Convention: a Trigger's stamp is the host time at which the box's ``ACK`` line was read (the box sends it
+when the DLP's trigger output marks the pattern on screen; at 115200 baud the line takes about 1 ms).
+"""
+
+from __future__ import annotations
+
+import sys
+import threading
+import time
+
+import dptpu.graph as rclpy
+from dptpu.graph.interfaces import Trigger as TriggerService
+from dptpu.graph.node import Node
+from dptpu.graph.qos import DurabilityPolicy, QoSProfile
+from dptpu.messages import Header, PatternEntry, PatternSequence, ScanStatus, Trigger
+
+from .projector_link import ProjectorLink
+from .projector_protocol import SequenceSpec, parse_sequence_spec
+
+__all__ = ["ProjectorNode", "main"]
+
+
+class ProjectorNode(Node):
+    """Loads the sequence into the trigger box, runs scans, publishes one Trigger per displayed pattern."""
+
+    def __init__(self, node_name: str = "projector", **kwargs):
+        super().__init__(node_name, **kwargs)
+        port = self.declare_parameter("port", "/dev/ttyACM0").value
+        baudrate = self.declare_parameter("baudrate", 115200).value
+        sequence_text = self.declare_parameter("sequence", "96x12,1x12").value
+        fringe_axis = self.declare_parameter("fringe_axis", "x").value
+        projector_size = self.declare_parameter("projector_size", [912, 1140]).value
+        exposure_us = self.declare_parameter("exposure_us", 8333).value
+        self.shift_sign = self.declare_parameter("shift_sign", -1).value
+        self.scans = self.declare_parameter("scans", 0).value
+        self.period_s = self.declare_parameter("period_s", 0.0).value
+        self.frame_id = self.declare_parameter("frame_id", "projector").value
+        reply_timeout_s = self.declare_parameter("reply_timeout_s", 1.0).value
+        ack_timeout_s = self.declare_parameter("ack_timeout_s", 0.5).value
+        initial_s = self.declare_parameter("reconnect_initial_s", 0.5).value
+        max_s = self.declare_parameter("reconnect_max_s", 5.0).value
+        if self.shift_sign not in (-1, 1):
+            raise ValueError(f"parameter shift_sign must be -1 or +1; got {self.shift_sign}")
+        self.spec = SequenceSpec(fringe_axis, tuple(projector_size), exposure_us, parse_sequence_spec(sequence_text))
+
+        self.trigger_pub = self.create_publisher(Trigger, "/projector/trigger", 100)
+        self.sequence_pub = self.create_publisher(
+            PatternSequence, "/projector/pattern_sequence", QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL))
+        self.status_pub = self.create_publisher(ScanStatus, "/scanner/status", 20)
+        self.start_service = self.create_service(TriggerService, "~/start_scan", self.on_start_scan)
+        self.auto_timer = self.create_timer(max(self.period_s, 0.01), self.on_auto_timer) if self.scans else None
+
+        self._lock = threading.Lock()
+        self._next_sequence_id = 1
+        self._scan_started: dict[int, float] = {}   # sequence_id -> monotonic start, for ScanStatus.duration_s
+        self._auto_started = 0
+        self._last_auto_start = -float("inf")
+        self.sequence_pub.publish(self.pattern_sequence())
+        self.link = ProjectorLink(port, self.spec, logger=self.get_logger(), on_pattern=self.on_pattern,
+                                  on_scan_end=self.on_scan_end, baudrate=baudrate, reply_timeout_s=reply_timeout_s,
+                                  ack_timeout_s=ack_timeout_s, initial_s=initial_s, max_s=max_s)
+        self.link.start()
+
+    # --- callbacks ---------------------------------------------------------------------------------
+
+    def on_start_scan(self, request, response):
+        """``~/start_scan``: queue one scan."""
+        sequence_id, reason = self.start_scan()
+        response.success = not reason
+        response.message = reason or f"scan {sequence_id} queued"
+        return response
+
+    def on_auto_timer(self) -> None:
+        """Continuous mode: start the next of ``scans`` scans when the box is idle and ``period_s`` has passed."""
+        if 0 <= self.scans <= self._auto_started:
+            self.auto_timer.cancel()
+            self.get_logger().info(f"started the {self.scans} scan(s) asked for by the scans parameter")
+            return
+        if not self.link.connected or self.link.busy or time.monotonic() - self._last_auto_start < self.period_s:
+            return
+        _, reason = self.start_scan()
+        if not reason:
+            self._auto_started += 1
+            self._last_auto_start = time.monotonic()
+
+    def on_pattern(self, sequence_id: int, pattern_index: int) -> None:
+        """Link thread: the box acknowledged pattern ``pattern_index`` of scan ``sequence_id``."""
+        frequency, steps, step = self.spec.locate(pattern_index)
+        self.trigger_pub.publish(Trigger(header=self._header(), sequence_id=sequence_id, pattern_index=pattern_index,
+                                         pattern_count=self.spec.pattern_count, frequency=frequency, steps=steps,
+                                         step=step))
+
+    def on_scan_end(self, sequence_id: int, displayed: int, reason: str) -> None:
+        """Link thread: scan ``sequence_id`` ended after ``displayed`` patterns (``reason`` empty when complete)."""
+        with self._lock:
+            started = self._scan_started.pop(sequence_id, time.monotonic())
+        if reason:
+            self.get_logger().error(f"scan {sequence_id} failed: {reason}")
+        self.status_pub.publish(ScanStatus(
+            header=Header(stamp=self.get_clock().now().to_msg()), sequence_id=sequence_id,
+            level=ScanStatus.ERROR if reason else ScanStatus.OK, state="failed" if reason else "done",
+            reason=f"projector: {reason}" if reason else "", node=self.get_fully_qualified_name(),
+            frames_expected=self.spec.pattern_count, frames_received=displayed,
+            duration_s=time.monotonic() - started))
+
+    # --- helpers -----------------------------------------------------------------------------------
+
+    def start_scan(self) -> tuple[int, str]:
+        """Queue the next scan: ``(sequence_id, "")``, or ``(0, reason)`` when it cannot start."""
+        with self._lock:
+            sequence_id = self._next_sequence_id
+            reason = self.link.request_scan(sequence_id)
+            if not reason:
+                self._next_sequence_id = sequence_id + 1 if sequence_id < 2**32 - 1 else 1
+                self._scan_started[sequence_id] = time.monotonic()
+        return (0, reason) if reason else (sequence_id, "")
+
+    def pattern_sequence(self) -> PatternSequence:
+        width, height = self.spec.projector_size
+        return PatternSequence(header=self._header(), fringe_axis=self.spec.fringe_axis, projector_width=width,
+                               projector_height=height, shift_sign=self.shift_sign,
+                               entries=[PatternEntry(frequency=f, steps=n) for f, n in self.spec.entries])
+
+    def _header(self) -> Header:
+        return Header(stamp=self.get_clock().now().to_msg(), frame_id=self.frame_id)
+
+    def destroy_node(self):
+        self.link.close()
+        return super().destroy_node()
+
+
+def main(argv=None) -> int:
+    """``python -m dptpu.nodes.projector [--ros-args ...]``; returns the exit code (2 for bad parameters)."""
+    rclpy.init(args=sys.argv if argv is None else argv)
+    try:
+        node = ProjectorNode()
+    except ValueError as exc:
+        print(f"projector: {exc}", file=sys.stderr)
+        rclpy.try_shutdown()
+        return 2
+    try:
+        rclpy.spin(node)
+    except KeyboardInterrupt:
+        pass
+    finally:
+        node.destroy_node()
+        rclpy.try_shutdown()
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
