@@ -1,0 +1,275 @@
+"""Cloud node: triangulates each scan's absolute phase into an organized point cloud and a depth image.
+
+The absolute phase gives the projector coordinate ``x_p = Psi * W / (2*pi*f)``; each camera pixel's ray meets
+that projector plane (the paper's Eq. (10), both lens distortions corrected; :class:`dptpu.fpp.triangulate.
+Triangulator`). Points are moved from the rig's world frame into the camera optical frame with the camera's
+``R``, ``T`` (``X_cam = R X_world + T``) and scaled from the rig's units to metres (REP 103).
+
+Topics (defaults; remappable)
+
+=========================== ============= ===== ==================================================================
+topic                       type          dir   notes
+=========================== ============= ===== ==================================================================
+``/scanner/absolute_phase`` AbsolutePhase in    reliable, depth 10
+``/scanner/phase``          PhaseMaps     in    depth 4: the modulation of the same scan becomes ``intensity``
+``/camera/camera_info``     CameraInfo    in    transient local, only with ``use_camera_info``
+``/scanner/points``         PointCloud2   out   organized H x W; float32 x, y, z (m), intensity (DN), quality
+``/scanner/depth``          Image         out   32FC1, z in metres, NaN where invalid
+``/scanner/status``         ScanStatus    out   one per scan: ``done`` (OK, WARN) or ``failed``
+=========================== ============= ===== ==================================================================
+
+Parameters
+
+=================== ========================= ==========================================================================
+name                default                   meaning
+=================== ========================= ==========================================================================
+``rig``             "" (required)             a ``dptpu-rig/1`` (or OpenCV rig) file: camera and projector calibration
+``use_camera_info`` false                     take the camera's K, distortion and size from ``/camera/camera_info``
+                                              (R, T and the projector still from ``rig``)
+``frame_id``        "scanner_optical_frame"   ``header.frame_id`` of the cloud and the depth image
+``distortion``      true                      correct both lens distortions (false: the pinhole model)
+``ply_dir``         ""                        folder for PLY snapshots through open3d ("" = none)
+``ply_every``       0                         write scan 1, 1 + n, 1 + 2n, ... as PLY (0 = none)
+=================== ========================= ==========================================================================
+
+Fields of the cloud: ``x, y, z`` NaN where the pixel is invalid (``is_dense`` false); ``intensity`` the fringe
+modulation B of the unwrapped frequency in camera digital numbers (NaN when the scan's PhaseMaps was not
+seen); ``quality`` the unwrapping margin ``AbsolutePhase.reliability`` in [0, 1] (0 where invalid). Run:
+``python -m dptpu.nodes.cloud --ros-args -p rig:=calibration.yaml``; design: ``docs/nodes.md``.
+"""
+from __future__ import annotations
+
+import sys
+from collections import OrderedDict
+from pathlib import Path
+
+import numpy as np
+
+import dptpu.graph as rclpy
+from dptpu.fpp.calibration import DeviceModel, Rig, load_rig
+from dptpu.fpp.triangulate import Triangulator, projector_coordinate
+from dptpu.graph import ExternalShutdownException
+from dptpu.graph.node import Node
+from dptpu.graph.qos import DurabilityPolicy, QoSProfile
+from dptpu.messages import AbsolutePhase, CameraInfo, Header, Image, PhaseMaps, PointCloud2, ScanStatus
+
+from .sequence_assembler import same_frequency
+
+__all__ = ["CloudNode", "FIELDS", "camera_points_m", "write_ply", "main"]
+
+FIELDS = ("x", "y", "z", "intensity", "quality")
+DEFAULT_FRAME_ID = "scanner_optical_frame"
+STATUS_QOS = QoSProfile(depth=50)
+LATCHED_QOS = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+_PHASE_MAPS_KEPT = 4
+
+
+def camera_points_m(triangulator: Triangulator, absolute_phase: np.ndarray, frequency: float,
+                    extent_px: float) -> np.ndarray:
+    """Points of an absolute phase map in the camera optical frame, metres, (H, W, 3) float32.
+
+    Parameters
+    ----------
+    triangulator : Triangulator
+        For the rig and the fringe axis.
+    absolute_phase : ndarray (H, W)
+        ``Psi`` in radians (Eq. (3) of the paper), NaN where invalid.
+    frequency : float
+        Periods across the projector extent of ``Psi``.
+    extent_px : float
+        Projector pixels along the fringe axis (``W`` of ``phi = 2*pi*f*x_p/W``).
+
+    Returns
+    -------
+    ndarray (H, W, 3) float32
+        ``X_cam = (R X_world + T) * scale_to_m``; NaN where the phase is NaN or the point is not in front of
+        the camera (``z <= 0``).
+    """
+    rig = triangulator.rig
+    coord = projector_coordinate(absolute_phase, frequency, extent_px)  # (H, W) projector pixels
+    world = triangulator.points(coord)  # (H, W, 3) rig units
+    camera = (world @ rig.camera.R.T + rig.camera.T) * rig.scale_to_m  # (H, W, 3) metres
+    with np.errstate(invalid="ignore"):
+        camera[~(camera[..., 2] > 0)] = np.nan
+    return camera.astype(np.float32)
+
+
+def write_ply(path, points_m: np.ndarray, intensity: np.ndarray) -> int:
+    """Write the finite points of (H, W, 3) ``points_m`` as a binary PLY through open3d; returns their count.
+
+    Colours are grey levels of ``intensity`` (H, W) scaled to its 99th percentile.
+    """
+    import open3d as o3d  # imported on first use: it is slow to load and only PLY snapshots need it
+
+    finite = np.isfinite(points_m).all(axis=-1)
+    cloud = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(points_m[finite].astype(np.float64)))
+    grey = np.nan_to_num(intensity[finite].astype(np.float64))
+    scale = np.percentile(grey, 99) if grey.size else 1.0
+    grey = np.clip(grey / (scale if scale > 0 else 1.0), 0.0, 1.0)
+    cloud.colors = o3d.utility.Vector3dVector(np.repeat(grey[:, None], 3, axis=1))
+    if not o3d.io.write_point_cloud(str(path), cloud, write_ascii=False):
+        raise OSError(f"open3d could not write {path}")
+    return int(np.count_nonzero(finite))
+
+
+class CloudNode(Node):
+    """AbsolutePhase -> PointCloud2 + depth Image (see the module docstring).
+
+    Counters: ``scans_published``, ``scans_rejected``, ``ply_written``.
+    """
+
+    def __init__(self, node_name: str = "cloud", **node_options):
+        super().__init__(node_name, **node_options)
+        rig_path = self.declare_parameter("rig", "").value
+        self.use_camera_info = self.declare_parameter("use_camera_info", False).value
+        self.frame_id = self.declare_parameter("frame_id", DEFAULT_FRAME_ID).value
+        self.distortion = self.declare_parameter("distortion", True).value
+        self.ply_dir = self.declare_parameter("ply_dir", "").value
+        self.ply_every = self.declare_parameter("ply_every", 0).value
+        if not rig_path:
+            raise ValueError("parameter rig must name a dptpu-rig/1 calibration file (-p rig:=calibration.yaml)")
+        if self.ply_every < 0:
+            raise ValueError(f"parameter ply_every must be >= 0 (0 = no PLY); got {self.ply_every}")
+        self.rig = load_rig(rig_path)
+        self._triangulators: dict[str, Triangulator] = {}
+        self._phase_maps: OrderedDict[int, PhaseMaps] = OrderedDict()
+        self.scans_published = 0
+        self.scans_rejected = 0
+        self.ply_written = 0
+        self._decode_errors_reported = 0
+
+        self.points_publisher = self.create_publisher(PointCloud2, "/scanner/points", 10)
+        self.depth_publisher = self.create_publisher(Image, "/scanner/depth", 10)
+        self.status_publisher = self.create_publisher(ScanStatus, "/scanner/status", STATUS_QOS)
+
+        self._subscriptions_in = [
+            self.create_subscription(AbsolutePhase, "/scanner/absolute_phase", self.on_absolute_phase, 10),
+            self.create_subscription(PhaseMaps, "/scanner/phase", self.on_phase_maps, _PHASE_MAPS_KEPT),
+        ]
+        if self.use_camera_info:
+            self._subscriptions_in.append(
+                self.create_subscription(CameraInfo, "/camera/camera_info", self.on_camera_info, LATCHED_QOS))
+
+    # -- callbacks ------------------------------------------------------------------------------------------
+
+    def on_camera_info(self, msg: CameraInfo) -> None:
+        """Use the camera's intrinsics from now on (R, T from the rig)."""
+        try:
+            camera = DeviceModel(K=np.reshape(msg.k, (3, 3)), dist=np.asarray(msg.d)[:5], R=self.rig.camera.R,
+                                 T=self.rig.camera.T, size=(msg.width, msg.height))
+        except ValueError as exc:
+            self.get_logger().warning(f"ignoring CameraInfo: {exc}")
+            return
+        self.rig = Rig(camera=camera, projector=self.rig.projector, units=self.rig.units, effects=self.rig.effects)
+        self._triangulators.clear()
+        self.get_logger().info(f"camera intrinsics from CameraInfo: {msg.width}x{msg.height}")
+
+    def on_phase_maps(self, msg: PhaseMaps) -> None:
+        """Keep the last few scans' PhaseMaps for their modulation (the cloud's intensity)."""
+        self._phase_maps[msg.sequence_id] = msg
+        while len(self._phase_maps) > _PHASE_MAPS_KEPT:
+            self._phase_maps.popitem(last=False)
+
+    def on_absolute_phase(self, msg: AbsolutePhase) -> None:
+        """Triangulate one scan; publish its cloud, depth image and status."""
+        try:
+            points = camera_points_m(self._triangulator(msg.fringe_axis), self._checked_phase(msg), msg.frequency,
+                                     self._extent_px(msg))
+        except ValueError as exc:
+            self.scans_rejected += 1
+            reason = f"cannot triangulate scan {msg.sequence_id}: {exc}"
+            self.get_logger().warning(reason)
+            self._status(msg, ScanStatus.ERROR, "failed", reason)
+            return
+        header = Header(stamp=msg.header.stamp, frame_id=self.frame_id)
+        intensity = self._intensity(msg)
+        cloud = np.concatenate([points, intensity[..., None], msg.reliability[..., None]], axis=-1)  # (H, W, 5)
+        self.points_publisher.publish(PointCloud2.from_array(cloud, FIELDS, header=header, is_dense=False))
+        depth_m = np.ascontiguousarray(points[..., 2])  # (H, W)
+        self.depth_publisher.publish(Image.from_array(depth_m, "32FC1", header=header))
+        self.scans_published += 1
+        valid_points = int(np.count_nonzero(np.isfinite(depth_m)))
+        reasons = []
+        if not np.isfinite(intensity).any():
+            reasons.append(f"no PhaseMaps of scan {msg.sequence_id} seen: intensity NaN")
+        if self.ply_dir and self.ply_every and (self.scans_published - 1) % self.ply_every == 0:
+            reasons += self._snapshot(msg.sequence_id, points, intensity)
+        self._status(msg, ScanStatus.WARN if reasons else ScanStatus.OK, "done", "; ".join(reasons),
+                     valid_pixels=valid_points, total_pixels=int(depth_m.size))
+
+    # -- helpers ---------------------------------------------------------------------------------------------
+
+    def _triangulator(self, axis: str) -> Triangulator:
+        if axis not in self._triangulators:
+            self._triangulators[axis] = Triangulator(self.rig, axis=axis, distortion=self.distortion)
+        return self._triangulators[axis]
+
+    def _checked_phase(self, msg: AbsolutePhase) -> np.ndarray:
+        """The absolute phase with NaN where invalid; ValueError when it does not fit the rig's camera."""
+        width, height = self.rig.camera.size
+        if msg.absolute_phase.shape != (height, width):
+            raise ValueError(f"absolute_phase is {msg.absolute_phase.shape[1]}x{msg.absolute_phase.shape[0]} pixels; "
+                             f"the rig's camera is {width}x{height}")
+        with np.errstate(invalid="ignore"):
+            return np.where(msg.valid, msg.absolute_phase, np.nan)
+
+    def _extent_px(self, msg: AbsolutePhase) -> int:
+        """Projector pixels along the fringe axis: the rig's; ValueError when the message says otherwise."""
+        rig_size = tuple(self.rig.projector.size)
+        if msg.projector_width and msg.projector_height and (msg.projector_width, msg.projector_height) != rig_size:
+            raise ValueError(f"the scan's projector is {msg.projector_width}x{msg.projector_height}; the rig's is "
+                             f"{rig_size[0]}x{rig_size[1]}")
+        return rig_size[0] if msg.fringe_axis == "x" else rig_size[1]
+
+    def _intensity(self, msg: AbsolutePhase) -> np.ndarray:
+        """Modulation (H, W) float32 of the scan's unwrapped frequency, NaN when its PhaseMaps was not seen."""
+        maps = self._phase_maps.get(msg.sequence_id)
+        if maps is not None and maps.modulation.shape[1:] == msg.absolute_phase.shape:
+            for index, frequency in enumerate(maps.frequencies):
+                if same_frequency(float(frequency), msg.frequency):
+                    return maps.modulation[index]
+        return np.full(msg.absolute_phase.shape, np.nan, dtype=np.float32)
+
+    def _snapshot(self, sequence_id: int, points: np.ndarray, intensity: np.ndarray) -> list[str]:
+        path = Path(self.ply_dir) / f"scan_{sequence_id:08d}.ply"
+        try:
+            path.parent.mkdir(parents=True, exist_ok=True)
+            count = write_ply(path, points, intensity)
+        except (OSError, ImportError, RuntimeError) as exc:
+            self.get_logger().warning(f"PLY snapshot {path} failed: {exc}")
+            return [f"PLY snapshot failed: {exc}"]
+        self.ply_written += 1
+        self.get_logger().info(f"wrote {path} ({count} points)")
+        return []
+
+    def _status(self, msg, level, state, reason, **counts) -> None:
+        malformed = sum(s.malformed_count for s in self._subscriptions_in)
+        decode_errors, self._decode_errors_reported = malformed - self._decode_errors_reported, malformed
+        now = self.get_clock().now()
+        self.status_publisher.publish(ScanStatus(
+            header=Header(stamp=now.to_msg(), frame_id=""), sequence_id=msg.sequence_id, level=level, state=state,
+            reason=reason, node=self.get_fully_qualified_name(), decode_errors=decode_errors,
+            duration_s=max(0.0, (now.nanoseconds - msg.header.stamp.to_ns()) * 1e-9), **counts))
+
+
+def main(argv=None) -> int:
+    """``python -m dptpu.nodes.cloud --ros-args -p rig:=FILE``: run the node until Ctrl-C or SIGTERM."""
+    rclpy.init(args=sys.argv if argv is None else argv)
+    try:
+        node = CloudNode()
+    except (ValueError, OSError) as exc:
+        print(f"cloud: error: {exc}", file=sys.stderr)
+        rclpy.try_shutdown()
+        return 2
+    try:
+        rclpy.spin(node)
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    finally:
+        node.destroy_node()
+        rclpy.try_shutdown()
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

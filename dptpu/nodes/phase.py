@@ -1,0 +1,229 @@
+"""Phase node: assembles the fringe frames of each scan and publishes its wrapped phase maps.
+
+Frames are collected per ``sequence_id`` (:mod:`dptpu.nodes.sequence_assembler`); a complete scan gives one
+wrapped phase, modulation and quality mask per frequency by least squares (Eq. (2) of the paper,
+:func:`dptpu.fpp.phase.wrapped_phase` and :func:`dptpu.fpp.phase.quality_mask`). An incomplete scan is
+dropped ``timeout_s`` after its first frame, an inconsistent one at once; either way a ``ScanStatus``
+(ERROR, ``failed``) says why, and frames of two scans are never mixed.
+
+Topics (defaults; remappable)
+
+=============================== ================= ===== ==============================================
+topic                           type              dir   notes
+=============================== ================= ===== ==============================================
+``/camera/image_raw``           FringeFrame       in    best effort, depth ``frame_queue_depth``
+``/projector/pattern_sequence`` PatternSequence   in    transient local, depth 1: the scan layout (optional)
+``/scanner/phase``              PhaseMaps         out   reliable, depth 10
+``/scanner/status``             ScanStatus        out   one per scan: ``processing`` (OK) or ``failed``
+=============================== ================= ===== ==============================================
+
+Parameters
+
+======================= ======== ================================================================================
+name                    default  meaning
+======================= ======== ================================================================================
+``timeout_s``           2.0      seconds from a scan's first frame until it is dropped as incomplete
+``max_pending_scans``   4        scans assembled at once; a newer one drops the oldest ("superseded")
+``min_modulation``      5.0      smallest fringe modulation B of a valid pixel, camera digital numbers
+``saturation_level``    0.0      a pixel with any frame ``>=`` this is invalid; 0 = the image dtype's maximum
+``shift_sign``          -1       used until a PatternSequence arrives: image n is A + B cos(phi + sign*2*pi*n/N)
+``fringe_axis``         "x"      used until a PatternSequence arrives
+``projector_width``     0        used until a PatternSequence arrives (0 = unknown)
+``projector_height``    0        used until a PatternSequence arrives (0 = unknown)
+``frame_queue_depth``   100      frames the subscription may queue (at least the patterns of two scans)
+======================= ======== ================================================================================
+
+Run: ``python -m dptpu.nodes.phase --ros-args -p timeout_s:=1.0``, or ``module: dptpu.nodes.phase`` in a
+launch file. Conventions: ``docs/messages.md``; node design: ``docs/nodes.md``.
+"""
+from __future__ import annotations
+
+import sys
+import time
+
+import numpy as np
+
+import dptpu.graph as rclpy
+from dptpu.fpp import phase as fpp_phase
+from dptpu.graph import ExternalShutdownException
+from dptpu.graph.node import Node
+from dptpu.graph.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+from dptpu.messages import FringeFrame, Header, PatternSequence, PhaseMaps, ScanStatus, Time
+
+from .sequence_assembler import AssembledScan, DroppedScan, FrameInfo, RejectedFrame, ScanLayout, SequenceAssembler
+
+__all__ = ["PhaseNode", "scan_phase_maps", "main"]
+
+_TWO_PI = 2.0 * np.pi
+DEFAULT_FRAME_ID = "scanner_optical_frame"
+STATUS_QOS = QoSProfile(depth=50)
+LATCHED_QOS = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+
+
+def scan_phase_maps(scan: AssembledScan, *, min_modulation: float, saturation_level: float | None):
+    """Wrapped phase (F, H, W), modulation (F, H, W) and validity (H, W) of an assembled scan.
+
+    One :func:`dptpu.fpp.phase.wrapped_phase` per entry (Eq. (2) of the paper, with the scan's shift sign and
+    each entry's phase offset); a pixel is valid where every entry passes :func:`dptpu.fpp.phase.quality_mask`.
+    Phases are returned as float32 in ``[0, 2*pi)`` (a float64 phase just below 2*pi that rounds up to it in
+    float32 becomes 0, the same angle).
+    """
+    phases, modulations = [], []
+    valid = np.ones(scan.stacks[0].shape[1:], dtype=bool)
+    for stack, offset in zip(scan.stacks, scan.layout.phase_offsets):
+        maps = fpp_phase.wrapped_phase(stack, shift_sign=scan.layout.shift_sign, phase_offset=offset)
+        valid &= fpp_phase.quality_mask(stack, maps.modulation, min_modulation=min_modulation,
+                                        saturation_level=saturation_level)
+        phase32 = maps.phase.astype(np.float32)
+        phases.append(np.where(phase32 >= _TWO_PI, np.float32(0.0), phase32))
+        modulations.append(maps.modulation.astype(np.float32))
+    return np.stack(phases), np.stack(modulations), valid
+
+
+class PhaseNode(Node):
+    """Fringe frames -> PhaseMaps, one per complete scan (see the module docstring).
+
+    Counters (for tests and introspection): ``frames_received``, ``scans_published``, ``scans_dropped``,
+    ``frames_rejected``.
+    """
+
+    def __init__(self, node_name: str = "phase", **node_options):
+        super().__init__(node_name, **node_options)
+        self.timeout_s = self.declare_parameter("timeout_s", 2.0).value
+        self.max_pending_scans = self.declare_parameter("max_pending_scans", 4).value
+        self.min_modulation = self.declare_parameter("min_modulation", 5.0).value
+        self.saturation_level = self.declare_parameter("saturation_level", 0.0).value
+        shift_sign = self.declare_parameter("shift_sign", -1).value
+        fringe_axis = self.declare_parameter("fringe_axis", "x").value
+        projector_size = (self.declare_parameter("projector_width", 0).value,
+                          self.declare_parameter("projector_height", 0).value)
+        frame_queue_depth = self.declare_parameter("frame_queue_depth", 100).value
+        if self.min_modulation < 0 or self.saturation_level < 0:
+            raise ValueError(f"parameters min_modulation and saturation_level must be >= 0; got "
+                             f"{self.min_modulation}, {self.saturation_level}")
+        if frame_queue_depth < 1:
+            raise ValueError(f"parameter frame_queue_depth must be >= 1; got {frame_queue_depth}")
+        self.assembler = SequenceAssembler(timeout_s=self.timeout_s, max_pending_scans=self.max_pending_scans,
+                                           shift_sign=shift_sign, fringe_axis=fringe_axis,
+                                           projector_size=projector_size)
+        self.frames_received = 0
+        self.scans_published = 0
+        self.scans_dropped = 0
+        self.frames_rejected = 0
+        self._decode_errors_reported = 0
+
+        self.phase_publisher = self.create_publisher(PhaseMaps, "/scanner/phase", 10)
+        self.status_publisher = self.create_publisher(ScanStatus, "/scanner/status", STATUS_QOS)
+
+        frame_qos = QoSProfile(depth=frame_queue_depth, reliability=ReliabilityPolicy.BEST_EFFORT)
+        self.frame_subscription = self.create_subscription(FringeFrame, "/camera/image_raw", self.on_frame,
+                                                           frame_qos)
+        self.sequence_subscription = self.create_subscription(PatternSequence, "/projector/pattern_sequence",
+                                                              self.on_pattern_sequence, LATCHED_QOS)
+        self.expiry_timer = self.create_timer(min(0.25, self.timeout_s / 4), self.on_timer)
+
+    # -- callbacks ------------------------------------------------------------------------------------------
+
+    def on_pattern_sequence(self, msg: PatternSequence) -> None:
+        """Lay out the scans that start from now on by the projector's PatternSequence."""
+        try:
+            layout = ScanLayout.from_pattern_sequence(msg)
+        except ValueError as exc:
+            self.get_logger().warning(f"ignoring PatternSequence: {exc}")
+            return
+        self.assembler.set_layout(layout)
+        self.get_logger().info(f"scan layout: frequencies {list(layout.frequencies)}, steps {list(layout.steps)}, "
+                               f"shift_sign {layout.shift_sign}, fringe_axis {layout.fringe_axis}")
+
+    def on_frame(self, msg: FringeFrame) -> None:
+        """Add one frame; publish the PhaseMaps of a scan it completes, a ScanStatus for a scan it fails."""
+        self.frames_received += 1
+        now_s = time.monotonic()
+        trigger = msg.trigger
+        try:
+            image = msg.image.to_array()  # (H, W) view of the received frame
+            if msg.image.encoding not in ("mono8", "mono16"):
+                raise ValueError(f"image encoding must be mono8 or mono16; got {msg.image.encoding!r}")
+        except ValueError as exc:
+            self._report(self.assembler.fail(trigger.sequence_id,
+                                             f"frame of pattern {trigger.pattern_index} unreadable: {exc}", now_s))
+            return
+        frame = FrameInfo(sequence_id=trigger.sequence_id, pattern_index=trigger.pattern_index,
+                          pattern_count=trigger.pattern_count, frequency=trigger.frequency, steps=trigger.steps,
+                          step=trigger.step, image=image, stamp_ns=msg.image.header.stamp.to_ns())
+        self._frame_id = msg.image.header.frame_id or DEFAULT_FRAME_ID
+        for event in self.assembler.add(frame, now_s):
+            self._report(event)
+
+    def on_timer(self) -> None:
+        """Drop the scans that timed out."""
+        for event in self.assembler.expire(time.monotonic()):
+            self._report(event)
+
+    # -- helpers ---------------------------------------------------------------------------------------------
+
+    def _report(self, event) -> None:
+        if isinstance(event, AssembledScan):
+            self._publish_scan(event)
+        elif isinstance(event, DroppedScan):
+            self.scans_dropped += 1
+            self.get_logger().warning(f"scan {event.sequence_id} dropped: {event.reason}")
+            self._status(event.sequence_id, ScanStatus.ERROR, "failed", event.reason, event.first_arrival_s,
+                         frames_expected=event.frames_expected, frames_received=event.frames_received,
+                         frames_dropped=event.frames_received)
+        elif isinstance(event, RejectedFrame):
+            self.frames_rejected += 1
+            self.get_logger().warning(f"frame refused ({self.frames_rejected} so far): {event.reason}",
+                                      throttle_duration_sec=1.0)
+
+    def _publish_scan(self, scan: AssembledScan) -> None:
+        saturation = self.saturation_level if self.saturation_level > 0 else None
+        try:
+            phases, modulation, valid = scan_phase_maps(scan, min_modulation=self.min_modulation,
+                                                        saturation_level=saturation)
+        except ValueError as exc:
+            self._report(DroppedScan(scan.sequence_id, f"phase computation refused the frames: {exc}",
+                                     scan.frame_count, scan.frame_count, scan.first_arrival_s))
+            return
+        layout = scan.layout
+        header = Header(stamp=Time.from_ns(scan.last_stamp_ns), frame_id=getattr(self, "_frame_id", DEFAULT_FRAME_ID))
+        self.phase_publisher.publish(PhaseMaps(
+            header=header, sequence_id=scan.sequence_id, fringe_axis=layout.fringe_axis,
+            projector_width=layout.projector_size[0], projector_height=layout.projector_size[1],
+            frequencies=np.asarray(layout.frequencies, dtype=np.float64), phases=phases, modulation=modulation,
+            valid=valid))
+        self.scans_published += 1
+        self._status(scan.sequence_id, ScanStatus.OK, "processing", "", scan.first_arrival_s,
+                     frames_expected=scan.frame_count, frames_received=scan.frame_count,
+                     valid_pixels=int(np.count_nonzero(valid)), total_pixels=int(valid.size))
+
+    def _status(self, sequence_id, level, state, reason, first_arrival_s, **counts) -> None:
+        malformed = self.frame_subscription.malformed_count + self.sequence_subscription.malformed_count
+        decode_errors, self._decode_errors_reported = malformed - self._decode_errors_reported, malformed
+        self.status_publisher.publish(ScanStatus(
+            header=Header(stamp=self.get_clock().now().to_msg(), frame_id=""), sequence_id=sequence_id,
+            level=level, state=state, reason=reason, node=self.get_fully_qualified_name(),
+            decode_errors=decode_errors, duration_s=max(0.0, time.monotonic() - first_arrival_s), **counts))
+
+
+def main(argv=None) -> int:
+    """``python -m dptpu.nodes.phase [--ros-args ...]``: run the node until Ctrl-C or SIGTERM."""
+    rclpy.init(args=sys.argv if argv is None else argv)
+    try:
+        node = PhaseNode()
+    except ValueError as exc:
+        print(f"phase: error: {exc}", file=sys.stderr)
+        rclpy.try_shutdown()
+        return 2
+    try:
+        rclpy.spin(node)
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    finally:
+        node.destroy_node()
+        rclpy.try_shutdown()
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

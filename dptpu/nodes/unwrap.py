@@ -1,0 +1,262 @@
+"""Unwrap node: temporal phase unwrapping of each scan's wrapped phase maps into an absolute phase.
+
+Classical methods from :mod:`dptpu.fpp.tpu` (the paper's Eqs. (3)-(9)); optionally the fringe order is then
+refined by the DP-TPU network (``model``, run by :mod:`dptpu.models.inference` with onnxruntime).
+
+Topics (defaults; remappable)
+
+=========================== ============= ===== ===============================================
+topic                       type          dir   notes
+=========================== ============= ===== ===============================================
+``/scanner/phase``          PhaseMaps     in    reliable, depth 10
+``/scanner/absolute_phase`` AbsolutePhase out   reliable, depth 10; the highest (or ``high_frequency``)
+``/scanner/status``         ScanStatus    out   one per scan: ``processing`` (OK) or ``failed``
+=========================== ============= ===== ===============================================
+
+Parameters
+
+=================== ========= ===================================================================================
+name                default   meaning
+=================== ========= ===================================================================================
+``method``          "mf"      ``mf`` (Eq. (5), needs a frequency <= 1), ``mw`` (Eqs. (6)-(7), needs
+                              ``0 < f_h - f_l <= 1``), ``nt`` (Eqs. (8)-(9)) or ``heterodyne`` (beat tree of all)
+``model``           "none"    path of a DP-TPU ``.onnx`` model refining the classical fringe order, or ``none``
+``high_frequency``  0.0       frequency to unwrap (periods across the projector); 0 = the highest of the scan
+``low_frequency``   0.0       the auxiliary frequency of mf/mw/nt; 0 = chosen as ``dptpu unwrap`` does
+``min_reliability`` 0.0       pixels whose rounding margin (``AbsolutePhase.reliability``) is lower are invalid
+=================== ========= ===================================================================================
+
+Valid pixels: valid in the PhaseMaps, accepted by the method, at least ``min_reliability`` and on the
+projector (``0 <= Psi < 2*pi*f``, as :func:`dptpu.fpp.reconstruct.unwrap_capture` requires). Run:
+``python -m dptpu.nodes.unwrap --ros-args -p method:=nt``; design: ``docs/nodes.md``.
+"""
+from __future__ import annotations
+
+import sys
+import time
+
+import numpy as np
+
+import dptpu.graph as rclpy
+from dptpu.fpp import tpu
+from dptpu.graph import ExternalShutdownException
+from dptpu.graph.node import Node
+from dptpu.graph.qos import QoSProfile
+from dptpu.messages import AbsolutePhase, Header, PhaseMaps, ScanStatus
+
+from .sequence_assembler import same_frequency
+
+__all__ = ["UnwrapNode", "select_frequencies", "load_model", "METHODS", "main"]
+
+METHODS = ("mf", "mw", "nt", "heterodyne")
+STATUS_QOS = QoSProfile(depth=50)
+_TWO_PI = 2.0 * np.pi
+
+
+def select_frequencies(method: str, frequencies, *, high: float = 0.0, low: float = 0.0) -> list[int]:
+    """Indices into ``frequencies`` of the maps a method uses, the unwrapped (high) one first.
+
+    Parameters
+    ----------
+    method : {"mf", "mw", "nt", "heterodyne"}
+    frequencies : sequence of float
+        Frequencies of a scan's phase maps (periods across the projector extent).
+    high, low : float
+        Requested frequencies, 0 = default: high = the highest; low = for ``mf`` the lowest (must be
+        <= 1), for ``mw`` the one with ``0 < f_h - f_l <= 1`` farthest from ``f_h``, for ``nt`` the only
+        other one. ``heterodyne`` uses every map, highest first, and takes no ``low``.
+
+    Raises
+    ------
+    ValueError
+        A requested frequency the scan lacks ("unknown frequency"), duplicates, or a scan that does not
+        have what the method needs; the message lists the scan's frequencies.
+    """
+    freqs = [float(f) for f in frequencies]
+    listed = ", ".join(f"{f:g}" for f in freqs)
+
+    def find(value, role):
+        matches = [i for i, f in enumerate(freqs) if same_frequency(f, value)]
+        if not matches:
+            raise ValueError(f"unknown frequency {value:g} ({role}_frequency); the scan has frequencies {listed}")
+        return matches[0]
+
+    if len(freqs) < 2:
+        raise ValueError(f"{method} needs phase maps of 2 or more frequencies; the scan has {listed or 'none'}")
+    if any(same_frequency(a, b) for i, a in enumerate(freqs) for b in freqs[i + 1:]):
+        raise ValueError(f"the scan's frequencies must be distinct; got {listed}")
+    if method == "heterodyne":
+        if low:
+            raise ValueError("heterodyne unwraps with every frequency of the scan; low_frequency does not apply")
+        order = sorted(range(len(freqs)), key=lambda i: -freqs[i])
+        if high:
+            order.remove(h := find(high, "high"))
+            order.insert(0, h)
+        return order
+    h = find(high, "high") if high else max(range(len(freqs)), key=lambda i: freqs[i])
+    if low:
+        return [h, find(low, "low")]
+    others = [i for i in range(len(freqs)) if i != h]
+    if method == "mf":
+        lowest = min(others, key=lambda i: freqs[i])
+        if freqs[lowest] > 1.0 + 1e-9:
+            raise ValueError(f"mf needs a frequency <= 1 (one fringe across the projector, Eq. (5)); the scan has "
+                             f"{listed}: use heterodyne or nt")
+        return [h, lowest]
+    if method == "mw":
+        candidates = [i for i in others if 0 < freqs[h] - freqs[i] <= 1.0 + 1e-9]
+        if not candidates:
+            raise ValueError(f"mw needs a frequency f_l with 0 < f_h - f_l <= 1 for f_h = {freqs[h]:g}; the scan has "
+                             f"{listed}")
+        return [h, max(candidates, key=lambda i: freqs[h] - freqs[i])]
+    if len(others) != 1:
+        raise ValueError(f"nt takes the one other frequency by default, but the scan has {listed}: set low_frequency")
+    return [h, others[0]]
+
+
+class UnwrapNode(Node):
+    """PhaseMaps -> AbsolutePhase (see the module docstring).
+
+    Counters: ``scans_published``, ``scans_rejected``, ``pixels_nan`` (pixels marked valid whose phase was NaN).
+    """
+
+    def __init__(self, node_name: str = "unwrap", **node_options):
+        super().__init__(node_name, **node_options)
+        self.method = self.declare_parameter("method", "mf").value
+        self.model_path = self.declare_parameter("model", "none").value
+        self.high_frequency = self.declare_parameter("high_frequency", 0.0).value
+        self.low_frequency = self.declare_parameter("low_frequency", 0.0).value
+        self.min_reliability = self.declare_parameter("min_reliability", 0.0).value
+        if self.method not in METHODS:
+            raise ValueError(f"parameter method must be one of {', '.join(METHODS)}; got {self.method!r}")
+        if self.high_frequency < 0 or self.low_frequency < 0:
+            raise ValueError("parameters high_frequency and low_frequency must be >= 0 (0 = default); got "
+                             f"{self.high_frequency}, {self.low_frequency}")
+        if not 0.0 <= self.min_reliability <= 1.0:
+            raise ValueError(f"parameter min_reliability must be in [0, 1]; got {self.min_reliability}")
+        self.model = load_model(self.model_path)
+        self.scans_published = 0
+        self.scans_rejected = 0
+        self.pixels_nan = 0
+        self._decode_errors_reported = 0
+
+        self.absolute_publisher = self.create_publisher(AbsolutePhase, "/scanner/absolute_phase", 10)
+        self.status_publisher = self.create_publisher(ScanStatus, "/scanner/status", STATUS_QOS)
+
+        self.phase_subscription = self.create_subscription(PhaseMaps, "/scanner/phase", self.on_phase_maps, 10)
+
+    # -- callbacks ------------------------------------------------------------------------------------------
+
+    def on_phase_maps(self, msg: PhaseMaps) -> None:
+        """Unwrap one scan; a scan the method cannot unwrap is reported, and the node goes on."""
+        started_s = time.monotonic()
+        try:
+            result, high, nan_pixels = self._unwrap(msg)
+        except ValueError as exc:
+            self.scans_rejected += 1
+            reason = f"cannot unwrap scan {msg.sequence_id} ({self.method}): {exc}"
+            self.get_logger().warning(reason)
+            self._status(msg, ScanStatus.ERROR, "failed", reason, started_s)
+            return
+        f_h = float(msg.frequencies[high])
+        with np.errstate(invalid="ignore"):
+            on_projector = (result.absolute_phase >= 0.0) & (result.absolute_phase < _TWO_PI * f_h)
+        valid = result.valid & msg.valid & on_projector & (result.reliability >= self.min_reliability)
+        absolute = AbsolutePhase(
+            header=msg.header, sequence_id=msg.sequence_id, frequency=f_h, fringe_axis=msg.fringe_axis,
+            projector_width=msg.projector_width, projector_height=msg.projector_height,
+            absolute_phase=np.where(valid, result.absolute_phase, np.nan).astype(np.float32),
+            fringe_order=np.where(valid, result.fringe_order, 0).astype(np.int32), valid=valid,
+            reliability=np.where(valid, result.reliability, 0.0).astype(np.float32),
+            method="dptpu" if self.model is not None else self.method)
+        self.absolute_publisher.publish(absolute)
+        self.scans_published += 1
+        level, reason = ScanStatus.OK, ""
+        if nan_pixels:
+            self.pixels_nan += nan_pixels
+            level, reason = ScanStatus.WARN, f"{nan_pixels} pixels marked valid had NaN phase; treated as invalid"
+            self.get_logger().warning(f"scan {msg.sequence_id}: {reason}")
+        self._status(msg, level, "processing", reason, started_s, valid_pixels=int(np.count_nonzero(valid)),
+                     total_pixels=int(valid.size))
+
+    # -- helpers ---------------------------------------------------------------------------------------------
+
+    def _unwrap(self, msg: PhaseMaps):
+        """``(Unwrapped, index of the high frequency, NaN pixels marked valid)``; ValueError for unusable maps."""
+        indices = select_frequencies(self.method, msg.frequencies, high=self.high_frequency, low=self.low_frequency)
+        phases = [msg.phases[i] for i in indices]  # (H, W) float32 each
+        frequencies = [float(msg.frequencies[i]) for i in indices]
+        valid = _finite(msg.valid, phases)
+        nan_pixels = int(np.count_nonzero(msg.valid & ~valid))
+        if self.method == "heterodyne":
+            result = tpu.unwrap_heterodyne(phases, frequencies, valid=valid)
+        else:
+            extent = msg.extent_px if self.method == "nt" else None
+            if self.method == "nt" and not extent:
+                raise ValueError("nt needs the projector extent; the PhaseMaps has projector size 0 (unknown)")
+            result = tpu.unwrap(self.method, phases[0], phases[1], frequencies[0], frequencies[1], extent=extent,
+                                valid=valid)
+        if self.model is not None:
+            result = self.model.refine(phases[0], phases[1], result, frequencies[0], frequencies[1])
+        return result, indices[0], nan_pixels
+
+    def _status(self, msg, level, state, reason, started_s, **counts) -> None:
+        malformed = self.phase_subscription.malformed_count
+        decode_errors, self._decode_errors_reported = malformed - self._decode_errors_reported, malformed
+        self.status_publisher.publish(ScanStatus(
+            header=Header(stamp=self.get_clock().now().to_msg(), frame_id=""), sequence_id=msg.sequence_id,
+            level=level, state=state, reason=reason, node=self.get_fully_qualified_name(),
+            decode_errors=decode_errors, duration_s=time.monotonic() - started_s, **counts))
+
+
+def _finite(valid, phases) -> np.ndarray:
+    """``valid`` restricted to pixels whose phases are all finite: a NaN is an invalid pixel, never an error."""
+    mask = np.array(valid, dtype=bool)
+    for phase in phases:
+        mask &= np.isfinite(phase)
+    return mask
+
+
+def load_model(path: str):
+    """The DP-TPU refiner for ``path`` (None for ``"none"``).
+
+    Raises
+    ------
+    ImportError
+        When :mod:`dptpu.models.inference` (the onnxruntime runner of the DP-TPU network) is not in this build.
+    ValueError, FileNotFoundError
+        For a model file that cannot be used.
+    """
+    if path in ("", "none"):
+        return None
+    try:
+        from dptpu.models import inference  # noqa: F401 -- onnxruntime only, never torch
+    except ImportError as exc:
+        raise ImportError(f"parameter model={path!r} needs the module dptpu.models.inference (the DP-TPU network "
+                          f"run by onnxruntime), which this build lacks ({exc}); set model:=none for classical "
+                          "unwrapping") from exc
+    raise ImportError(f"parameter model={path!r}: dptpu.models.inference has no refiner the unwrap node knows; "
+                      "set model:=none for classical unwrapping")
+
+
+def main(argv=None) -> int:
+    """``python -m dptpu.nodes.unwrap [--ros-args ...]``: run the node until Ctrl-C or SIGTERM."""
+    rclpy.init(args=sys.argv if argv is None else argv)
+    try:
+        node = UnwrapNode()
+    except (ValueError, ImportError, OSError) as exc:
+        print(f"unwrap: error: {exc}", file=sys.stderr)
+        rclpy.try_shutdown()
+        return 2
+    try:
+        rclpy.spin(node)
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    finally:
+        node.destroy_node()
+        rclpy.try_shutdown()
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
