@@ -684,6 +684,7 @@ def write_capture(
     calibration=None,
     ground_truth: Mapping[str, np.ndarray] | None = None,
     extras: Mapping[str, Any] | None = None,
+    ground_truth_name: str = "ground_truth.npz",
 ) -> Capture:
     """Write frames as a ``dptpu-capture/1`` folder and return it as :func:`read_capture` reads it.
 
@@ -706,7 +707,8 @@ def write_capture(
     calibration : path-like, optional
         A rig file, copied into the folder as ``calibration<suffix>``.
     ground_truth : dict, optional
-        ``{"projector_x": (H, W) float, "valid": (H, W) bool}``, written as ``ground_truth.npz``.
+        ``{"projector_x": (H, W) float, "valid": (H, W) bool}`` (more keys are kept), written as
+        ``ground_truth_name`` (default ``ground_truth.npz``; the twin writes ``gt.npz``).
     extras : dict, optional
         More top-level keys for ``capture.yaml``.
 
@@ -756,7 +758,7 @@ def write_capture(
             shutil.copyfile(source, target)
         document["calibration"] = target.name
     if ground_truth is not None:
-        document["ground_truth"] = _write_ground_truth(folder, ground_truth, shape)
+        document["ground_truth"] = _write_ground_truth(folder, ground_truth, shape, ground_truth_name)
     for key, value in (extras or {}).items():
         if key in _TOP_LEVEL_KEYS:
             raise ValueError(f"extras must not redefine the format key {key!r}")
@@ -903,7 +905,10 @@ def _write_png(folder: Path, name: str, image: np.ndarray) -> str:
     return name
 
 
-def _write_ground_truth(folder: Path, ground_truth: Mapping[str, np.ndarray], shape) -> str:
+def _write_ground_truth(folder: Path, ground_truth: Mapping[str, np.ndarray], shape,
+                        name: str = "ground_truth.npz") -> str:
+    if not name.endswith(".npz") or "/" in name or "\\" in name:
+        raise ValueError(f"ground_truth_name must be a file name ending in .npz; got {name!r}")
     missing = [k for k in _GROUND_TRUTH_KEYS if k not in ground_truth]
     if missing:
         raise ValueError(f"ground_truth needs keys {list(_GROUND_TRUTH_KEYS)}; missing {missing}")
@@ -914,5 +919,5 @@ def _write_ground_truth(folder: Path, ground_truth: Mapping[str, np.ndarray], sh
                              f"got {arrays[key].shape}")
     arrays["projector_x"] = arrays["projector_x"].astype(np.float32)
     arrays["valid"] = arrays["valid"].astype(bool)
-    np.savez_compressed(folder / "ground_truth.npz", **arrays)
-    return "ground_truth.npz"
+    np.savez_compressed(folder / name, **arrays)
+    return name

@@ -1,0 +1,175 @@
+"""Render a scene in the twin into a ``dptpu-capture/1`` folder: frames, ``calibration.yaml``, ``gt.npz``.
+
+Engines: ``raycast`` (:mod:`dptpu.sim.raycast` + :mod:`dptpu.sim.image_formation`, the default) and ``blender``
+(``dptpu.sim.blender.render_frames``, Cycles in a worker process; its float frames go through the same
+camera-stage effects and quantization). Ground truth comes from the raycast trace in both cases.
+
+``gt.npz`` keys (docs/capture-format.md, "Ground truth of twin renders"):
+
+==================== ================== ===================================================================
+key                  shape, dtype       meaning
+==================== ================== ===================================================================
+projector_x          (H, W) float32     projector column seen by each camera pixel (0-based), NaN invalid
+projector_y          (H, W) float32     projector row, NaN invalid
+depth                (H, W) float32     depth along the camera z axis, rig units, NaN where no surface
+normals              (H, W, 3) float32  unit surface normals in world coordinates (towards the camera)
+valid                (H, W) bool        surface hit AND lit by the projector (on its panel, not shadowed)
+hit                  (H, W) bool        the camera ray hits a surface
+fringe_order_<f>     (H, W) int32       ``floor(f * x_p / W_p)`` per phase-sequence frequency, -1 invalid
+==================== ================== ===================================================================
+
+``<f>`` is the frequency written with ``%g`` (``fringe_order_96``, ``fringe_order_10.9``), ``x_p`` the
+coordinate along the sequence's fringe axis and ``W_p`` the projector extent along it.
+"""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from dptpu.fpp.calibration import Rig, save_rig
+from dptpu.fpp.capture import PatternLevels, PhaseFrames, write_capture
+
+from .effects import effects_to_yaml, parse_effects
+from .effects.camera import apply_camera_effects
+from .effects.geometry import render_rig
+from .image_formation import (DEFAULT_AMPLITUDE, DEFAULT_OFFSET, SequenceSpec, _as_sequences, quantize,
+                              render_frames_float)
+from .raycast import SurfaceSamples, trace
+
+__all__ = ["ENGINES", "ground_truth", "render_capture", "fringe_order_key"]
+
+ENGINES = ("raycast", "blender")
+
+
+def fringe_order_key(frequency: float) -> str:
+    """``fringe_order_<f>`` with ``f`` written by ``%g``."""
+    return f"fringe_order_{frequency:g}"
+
+
+def ground_truth(rig: Rig, samples: SurfaceSamples, sequences) -> dict:
+    """The ``gt.npz`` arrays (module docstring) of a trace."""
+    valid = samples.lit.copy()
+    projector_x = np.where(valid, samples.projector_xy[..., 0], np.nan).astype(np.float32)
+    projector_y = np.where(valid, samples.projector_xy[..., 1], np.nan).astype(np.float32)
+    gt = {"projector_x": projector_x, "projector_y": projector_y,
+          "depth": np.where(samples.hit, samples.depth, np.nan).astype(np.float32),
+          "normals": np.nan_to_num(samples.normals, nan=0.0).astype(np.float32),
+          "valid": valid, "hit": samples.hit.copy()}
+    for sequence in _as_sequences(sequences):
+        if sequence.kind != "phase":
+            continue
+        axis = 0 if sequence.axis == "x" else 1
+        extent = rig.projector.size[axis]
+        coord = samples.projector_xy[..., axis]
+        with np.errstate(invalid="ignore"):
+            order = np.floor(sequence.frequency * coord / extent)
+        gt[fringe_order_key(sequence.frequency)] = np.where(valid, order, -1).astype(np.int32)
+    return gt
+
+
+def _blender_frames(rig: Rig, meshes, sequences, effects, *, seed, bit_depth, exposure, samples_per_pixel, albedo,
+                    hit):
+    try:
+        from dptpu.sim import blender
+    except ModuleNotFoundError as exc:
+        if exc.name != "dptpu.sim.blender":
+            raise
+        raise ValueError("engine 'blender' needs dptpu.sim.blender, which this installation lacks; "
+                         "use engine='raycast'") from None
+    from dptpu.fpp.patterns import fringe_patterns
+
+    rng = np.random.default_rng(seed)
+    full_scale = float(2 ** bit_depth - 1)
+    out = []
+    for sequence in sequences:
+        width, height = rig.projector.size
+        if sequence.kind == "phase":
+            patterns = fringe_patterns(frequency=sequence.frequency, steps=sequence.steps,
+                                       projector_size=rig.projector.size, axis=sequence.axis,
+                                       offset=DEFAULT_OFFSET, amplitude=DEFAULT_AMPLITUDE,
+                                       shift_sign=sequence.shift_sign, phase_offset=sequence.phase_offset,
+                                       dtype=np.float64) / 255.0
+        else:
+            patterns = np.full((1, height, width), 1.0 if sequence.kind == "white" else 0.0)
+        linear = blender.render_frames(rig, meshes, patterns.astype(np.float32), samples=samples_per_pixel,
+                                       seed=seed)
+        frames = full_scale * exposure * np.asarray(linear, dtype=np.float64)
+        out.append(apply_camera_effects(frames, effects=effects, albedo=albedo, hit=hit, full_scale=full_scale,
+                                        exposure=exposure, rng=rng))
+    return out
+
+
+def render_capture(rig: Rig, scene, sequences, out_dir, *, engine: str = "raycast", effects=None, seed: int = 0,
+                   bit_depth: int = 8, exposure: float = 1.0, blender_samples: int = 16) -> Path:
+    """Render ``scene`` in the twin of ``rig`` and write a ``dptpu-capture/1`` folder.
+
+    Parameters
+    ----------
+    rig : Rig
+        The twin's rig; written as ``calibration.yaml`` (with the effects used in its ``effects:`` list).
+    scene : Scene or list of SceneMesh
+    sequences : list of SequenceSpec
+        Phase sequences (all on one fringe axis, one shift sign) and optional ``white``/``black`` frames, which
+        become the capture's ``references``.
+    out_dir : path-like
+        Folder to write (created).
+    engine : {"raycast", "blender"}
+    effects : list, optional
+        Effects (entries or parsed); default ``rig.effects``.
+    seed : int
+        Seed of noise and random effects.
+    bit_depth : {8, 16}
+    exposure : float
+        See :func:`dptpu.sim.image_formation.render_frames_float`.
+    blender_samples : int
+        Cycles samples per pixel (engine ``blender``).
+
+    Returns
+    -------
+    Path
+        The capture folder.
+    """
+    if engine not in ENGINES:
+        raise ValueError(f"engine must be one of {', '.join(ENGINES)}; got {engine!r}")
+    sequences = _as_sequences(sequences)
+    phase_sequences = [s for s in sequences if s.kind == "phase"]
+    if not phase_sequences:
+        raise ValueError("render_capture needs at least one phase sequence (e.g. 96x12)")
+    axes = {s.axis for s in phase_sequences}
+    signs = {s.shift_sign for s in phase_sequences}
+    if len(axes) > 1 or len(signs) > 1:
+        raise ValueError("a capture has one fringe_axis and one phase_shift_sign; render x and y sequences as "
+                         f"separate captures (got axes {sorted(axes)}, signs {sorted(signs)})")
+    kinds = [s.kind for s in sequences if s.kind != "phase"]
+    if len(set(kinds)) != len(kinds):
+        raise ValueError("at most one white and one black reference frame per capture")
+    effects = parse_effects(rig.effects if effects is None else effects)
+    meshes = scene.meshes if hasattr(scene, "meshes") else list(scene)
+    traced_rig = render_rig(rig, effects)
+    samples = trace(traced_rig, meshes)
+    if engine == "raycast":
+        frames = render_frames_float(traced_rig, samples, sequences, effects=effects, seed=seed,
+                                     bit_depth=bit_depth, exposure=exposure)
+    else:
+        frames = _blender_frames(traced_rig, meshes, sequences, effects, seed=seed, bit_depth=bit_depth,
+                                 exposure=exposure, samples_per_pixel=blender_samples,
+                                 albedo=samples.albedo.astype(np.float64), hit=samples.hit)
+    frames = [quantize(f, bit_depth) for f in frames]
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    from dataclasses import replace
+
+    calibration = save_rig(replace(rig, effects=tuple(effects_to_yaml(effects))), out_dir / "calibration.yaml")
+    phase_frames = [PhaseFrames(images=f, frequency=s.frequency, phase_offset=s.phase_offset)
+                    for s, f in zip(sequences, frames) if s.kind == "phase"]
+    references = {s.kind: f[0] for s, f in zip(sequences, frames) if s.kind != "phase"}
+    extras = {"twin": {"engine": engine, "seed": int(seed), "exposure": float(exposure),
+                       "scene": getattr(scene, "name", "meshes"), "scene_source": getattr(scene, "source", ""),
+                       "effects": effects_to_yaml(effects)}}
+    write_capture(out_dir, sequences=phase_frames, projector_size=rig.projector.size,
+                  fringe_axis=phase_sequences[0].axis, phase_shift_sign=phase_sequences[0].shift_sign,
+                  pattern=PatternLevels(DEFAULT_OFFSET, DEFAULT_AMPLITUDE), references=references or None,
+                  calibration=calibration, ground_truth=ground_truth(traced_rig, samples, sequences),
+                  ground_truth_name="gt.npz", extras=extras)
+    return out_dir
