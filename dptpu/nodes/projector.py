@@ -38,6 +38,8 @@ name                     default            meaning
 ``scans``                0                  scans started by the node itself: 0 none (service only),
                                             N > 0 that many, -1 forever
 ``period_s``             0.0                least time from one scan's start to the next (0: back to back)
+``min_subscribers``      1                  the node's own scans start only once ``/projector/trigger``
+                                            has this many subscriptions (a scan nobody hears is lost)
 ``frame_id``             ``"projector"``    ``header.frame_id`` of Trigger and PatternSequence
 ``reply_timeout_s``      1.0                longest wait for a reply to a command
 ``ack_timeout_s``        0.5                longest silence in a scan beyond one exposure
@@ -81,6 +83,7 @@ class ProjectorNode(Node):
         self.shift_sign = self.declare_parameter("shift_sign", -1).value
         self.scans = self.declare_parameter("scans", 0).value
         self.period_s = self.declare_parameter("period_s", 0.0).value
+        self.min_subscribers = self.declare_parameter("min_subscribers", 1).value
         self.frame_id = self.declare_parameter("frame_id", "projector").value
         reply_timeout_s = self.declare_parameter("reply_timeout_s", 1.0).value
         ack_timeout_s = self.declare_parameter("ack_timeout_s", 0.5).value
@@ -123,7 +126,8 @@ class ProjectorNode(Node):
             self.auto_timer.cancel()
             self.get_logger().info(f"started the {self.scans} scan(s) asked for by the scans parameter")
             return
-        if not self.link.connected or self.link.busy or time.monotonic() - self._last_auto_start < self.period_s:
+        if not self.link.connected or self.link.busy or time.monotonic() - self._last_auto_start < self.period_s \
+                or self.trigger_pub.get_subscription_count() < self.min_subscribers:
             return
         _, reason = self.start_scan()
         if not reason:

@@ -240,6 +240,8 @@ def parse_reply(line) -> Reply:
     tokens = text.split(" ")
     kind = tokens[0]
     if kind == "HELLO":
+        if len(tokens) == 1:
+            raise ProtocolError(f"{text!r} is a command, not a reply (an echo: is this a loopback port?)")
         _arity(text, tokens, 3)
         if tokens[1] != PROTOCOL:
             raise ProtocolError(f"the box speaks {tokens[1]!r}, this node speaks {PROTOCOL!r} (line {text!r})")

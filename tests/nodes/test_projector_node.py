@@ -1,0 +1,161 @@
+"""The projector node as a real process, over real ZeroMQ to a probe node in the test process.
+
+The trigger box is the EMULATOR (``dptpu.nodes.projector_emulator``) on a real pseudo-terminal, run as
+its own process and reached through a symlink, so that killing it unplugs the port and restarting it
+plugs it back at the same path; or the node's own ``loop://`` mode.
+"""
+
+from __future__ import annotations
+
+import signal
+import time
+
+from dptpu.graph.interfaces import Trigger as TriggerService
+from dptpu.graph.qos import DurabilityPolicy, QoSProfile
+from dptpu.messages import PatternSequence, ScanStatus, Trigger
+
+NODE = "dptpu.nodes.projector"
+EMULATOR = "dptpu.nodes.projector_emulator"
+FAST = ["-p", "reconnect_initial_s:=0.1", "-p", "reconnect_max_s:=0.4", "-p", "reply_timeout_s:=0.5",
+        "-p", "ack_timeout_s:=0.3"]
+
+
+def start_projector(spawn_node, port, *params):
+    return spawn_node(NODE, "--ros-args", "-p", f"port:={port}", "-p", "sequence:=8x4,1x3", "-p",
+                      "exposure_us:=2000", *FAST, *params)
+
+
+def call_start_scan(probe, timeout=10.0):
+    client = probe.client(TriggerService, "/projector/start_scan")
+    assert client.wait_for_service(timeout_sec=timeout)
+    return client.call(TriggerService.Request(), timeout_sec=5.0)
+
+
+def wait_until(condition, timeout):
+    """True as soon as ``condition()`` is, polled every 0.1 s; False after ``timeout`` s."""
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        if condition():
+            return True
+        time.sleep(0.1)
+    return condition()
+
+
+def triggers_of(inbox, sequence_id):
+    return [(t.pattern_index, t.frequency, t.steps, t.step) for t in inbox.messages if t.sequence_id == sequence_id]
+
+
+EXPECTED = [(0, 8.0, 4, 0), (1, 8.0, 4, 1), (2, 8.0, 4, 2), (3, 8.0, 4, 3), (4, 1.0, 3, 0), (5, 1.0, 3, 1),
+            (6, 1.0, 3, 2)]
+
+
+def test_loop_port_emulates_the_box_service_starts_scans_with_increasing_sequence_ids(spawn_node, probe):
+    triggers = probe.subscribe(Trigger, "/projector/trigger")
+    status = probe.subscribe(ScanStatus, "/scanner/status")
+    node = start_projector(spawn_node, "loop://")
+    assert node.wait_for_stderr("7 patterns loaded (loop://: EMULATED box", timeout=15)
+    for expected_id in (1, 2):
+        response = call_start_scan(probe)
+        assert (response.success, response.message) == (True, f"scan {expected_id} queued")
+        done = status.wait_for(lambda s, i=expected_id: s.sequence_id == i)
+        assert (done.level, done.state, done.frames_expected, done.frames_received) == (ScanStatus.OK, "done", 7, 7)
+        assert done.node == "/projector" and done.reason == ""
+        assert triggers_of(triggers, expected_id) == EXPECTED
+    assert all(t.pattern_count == 7 and t.header.frame_id == "projector" for t in triggers.messages)
+    # the sequence is TRANSIENT_LOCAL: a subscriber that comes late still gets it
+    sequences = probe.subscribe(PatternSequence, "/projector/pattern_sequence",
+                                QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL))
+    sequence = sequences.wait(1)[0]
+    assert [(e.frequency, e.steps) for e in sequence.entries] == [(8.0, 4), (1.0, 3)]
+    assert (sequence.fringe_axis, sequence.projector_size, sequence.shift_sign) == ("x", (912, 1140), -1)
+
+
+def test_pty_emulator_continuous_scans_survive_garbage_on_the_line(spawn_node, probe, tmp_path):
+    triggers = probe.subscribe(Trigger, "/projector/trigger")
+    status = probe.subscribe(ScanStatus, "/scanner/status")
+    box = spawn_node(EMULATOR, "--link", str(tmp_path / "ttyBOX"), "--garbage-every", "3")
+    assert box.wait_event("ready")["device"].startswith("/dev/pts/")
+    node = start_projector(spawn_node, tmp_path / "ttyBOX", "-p", "scans:=3")
+    finished = status.wait(3, timeout=20)
+    assert [(s.sequence_id, s.state, s.frames_received) for s in finished] == [(1, "done", 7), (2, "done", 7),
+                                                                               (3, "done", 7)]
+    for sequence_id in (1, 2, 3):
+        assert triggers_of(triggers, sequence_id) == EXPECTED
+    assert node.wait_for_stderr("ignored line (")  # the garbage was seen, logged, and skipped
+    lines = [box.wait_event("command")["line"] for _ in range(3)]
+    assert lines == ["HELLO", "LOAD x 912 1140 2000 8x4,1x3", "START 1"]
+    assert node.proc.poll() is None
+
+
+def test_port_missing_then_plugged_then_unplugged_mid_scan_then_back(spawn_node, probe, tmp_path):
+    link = tmp_path / "ttyBOX"
+    triggers = probe.subscribe(Trigger, "/projector/trigger")
+    status = probe.subscribe(ScanStatus, "/scanner/status")
+    node = start_projector(spawn_node, link, "-p", "exposure_us:=200000")  # 0.2 s a pattern: 1.4 s a scan
+    # no port: clear log lines with a growing delay; the node stays up and says why it cannot scan
+    assert node.wait_for_stderr("retrying in 0.40 s (attempt 3)", timeout=15)
+    assert "cannot open the port" in node.stderr and "retrying in 0.10 s (attempt 1)" in node.stderr
+    response = call_start_scan(probe)
+    assert not response.success and "is not connected" in response.message
+    # plugged in: the node connects by itself
+    box = spawn_node(EMULATOR, "--link", str(link))
+    box.wait_event("ready")
+    assert node.wait_for_stderr("7 patterns loaded", timeout=10)
+    assert call_start_scan(probe).success
+    triggers.wait(2, timeout=10)
+    box.proc.send_signal(signal.SIGKILL)  # unplugged mid-scan
+    failed = status.wait(1, timeout=10)[0]
+    assert (failed.sequence_id, failed.level, failed.state) == (1, ScanStatus.ERROR, "failed")
+    assert 2 <= failed.frames_received < 7 and failed.frames_expected == 7
+    assert "patterns displayed; port lost" in failed.reason and failed.reason.startswith("projector: ")
+    # back again at the same path: reconnected, and the next scan is complete
+    box = spawn_node(EMULATOR, "--link", str(link))
+    box.wait_event("ready")
+    assert wait_until(lambda: node.stderr.count("7 patterns loaded") == 2, timeout=10)
+    assert wait_until(lambda: call_start_scan(probe).success, timeout=10)
+    done = status.wait_for(lambda s: s.sequence_id == 2, timeout=15)
+    assert (done.state, done.frames_received) == ("done", 7)
+    assert triggers_of(triggers, 2) == EXPECTED
+    assert node.proc.poll() is None
+
+
+def test_silent_box_and_partial_sequences_are_reported(spawn_node, probe, tmp_path):
+    status = probe.subscribe(ScanStatus, "/scanner/status")
+    triggers = probe.subscribe(Trigger, "/projector/trigger")  # the node's own scans wait for a subscriber
+    silent = spawn_node(EMULATOR, "--link", str(tmp_path / "silent"), "--silent")
+    silent.wait_event("ready")
+    quiet = start_projector(spawn_node, tmp_path / "silent", "-r", "__node:=quiet", "-r",
+                            "/projector/start_scan:=/quiet/start_scan")
+    assert quiet.wait_for_stderr("no HELLO reply to HELLO within 0.50 s; is the box powered, and on this port?",
+                                 timeout=15)
+    assert quiet.wait_for_stderr("(attempt 2)", timeout=10) and quiet.proc.poll() is None
+
+    aborting = spawn_node(EMULATOR, "--link", str(tmp_path / "abort"), "--abort-after", "5")
+    aborting.wait_event("ready")
+    start_projector(spawn_node, tmp_path / "abort", "-p", "scans:=1")
+    aborted = status.wait(1, timeout=15)[0]
+    assert (aborted.state, aborted.level, aborted.frames_received) == ("failed", ScanStatus.ERROR, 5)
+    assert triggers_of(triggers, 1) == EXPECTED[:5]
+    assert aborted.reason == ("projector: the box aborted after 5 of 7 patterns: DLP_FAULT pattern 5 not "
+                              "confirmed by the DLP")
+
+
+def test_box_falling_silent_mid_scan_fails_the_scan_and_reconnects(spawn_node, probe, tmp_path):
+    status = probe.subscribe(ScanStatus, "/scanner/status")
+    probe.subscribe(Trigger, "/projector/trigger")
+    hanging = spawn_node(EMULATOR, "--link", str(tmp_path / "hang"), "--hang-after", "3")
+    hanging.wait_event("ready")
+    node = start_projector(spawn_node, tmp_path / "hang", "-p", "scans:=1")
+    failed = status.wait(1, timeout=15)[0]
+    assert (failed.sequence_id, failed.state, failed.frames_received) == (1, "failed", 3)
+    assert "3 of 7 patterns displayed; no acknowledgement within 0.302 s after 3 of 7 patterns (box silent)" \
+        in failed.reason
+    assert node.wait_for_stderr("retrying in 0.10 s (attempt 1)", timeout=10)
+    assert node.wait_for_stderr("7 patterns loaded", timeout=10)  # the same box answers HELLO again
+    assert node.proc.poll() is None
+
+
+def test_bad_sequence_parameter_exits_with_code_2_naming_it(spawn_node):
+    node = spawn_node(NODE, "--ros-args", "-p", "port:=loop://", "-p", "sequence:=96x2")
+    assert node.wait(timeout=20) == 2
+    assert "sequence entry '96x2' needs frequency > 0 and steps >= 3" in node.stderr
