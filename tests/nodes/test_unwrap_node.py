@@ -1,0 +1,127 @@
+"""The unwrap node in the in-process harness: PhaseMaps of the analytic plane in, AbsolutePhase out."""
+from __future__ import annotations
+
+import importlib.util
+
+import numpy as np
+import pytest
+
+from dptpu.messages import AbsolutePhase, Header, PhaseMaps, ScanStatus, Time
+from dptpu.nodes.harness import NodeHarness
+from dptpu.nodes.unwrap import UnwrapNode, load_model, select_frequencies
+from tests.nodes.test_cloud_scene import plane_scene
+
+NOISE_RAD = 0.005  # the phase node's measured RMS phase noise on this scene (test_phase_node.py)
+
+
+@pytest.fixture(scope="module")
+def scene():
+    return plane_scene()
+
+
+@pytest.fixture
+def harness():
+    with NodeHarness() as harness:
+        yield harness
+
+
+def phase_maps(scene, frequencies, *, sequence_id=1, seed=0, valid=None):
+    """PhaseMaps of the plane: analytic wrapped phases + Gaussian noise of NOISE_RAD, re-wrapped."""
+    rng = np.random.default_rng(seed)
+    phases = np.stack([np.mod(scene.absolute_phase(f) + rng.normal(0, NOISE_RAD, scene.lit.shape), 2 * np.pi)
+                       for f in frequencies]).astype(np.float32)
+    phases[phases >= 2 * np.pi] = 0.0
+    return PhaseMaps(header=Header(stamp=Time.from_ns(1_700_000_000_000_000_000), frame_id="scanner_optical_frame"),
+                     sequence_id=sequence_id, fringe_axis="x", projector_width=912, projector_height=1140,
+                     frequencies=np.asarray(frequencies, dtype=np.float64), phases=phases,
+                     modulation=np.full(phases.shape, 80.0, np.float32),
+                     valid=np.ones(scene.lit.shape, bool) if valid is None else valid)
+
+
+def start(harness, **parameters):
+    node = harness.start(UnwrapNode, **parameters)
+    source = harness.publisher(PhaseMaps, "/scanner/phase")
+    absolute = harness.collect(AbsolutePhase, "/scanner/absolute_phase")
+    status = harness.collect(ScanStatus, "/scanner/status")
+    harness.connect()
+    return node, source, absolute, status
+
+
+@pytest.mark.parametrize("method, frequencies", [
+    ("mf", (16.0, 1.0)),
+    ("mw", (16.0, 15.0)),
+    ("nt", (16.0, 15.0)),
+    ("heterodyne", (16.0, 15.0, 13.0)),   # beats 1, 2 -> 1
+])
+def test_every_method_recovers_the_absolute_phase_of_the_plane(harness, scene, method, frequencies):
+    node, source, absolute, status = start(harness, method=method)
+    source.publish(phase_maps(scene, frequencies, sequence_id=5))
+    (result,) = harness.wait(absolute, 1)
+    assert (result.sequence_id, result.method, result.frequency) == (5, method, 16.0)
+    assert result.valid.all()
+    truth = scene.absolute_phase(16.0)
+    assert np.abs(result.absolute_phase - truth).max() < 6 * NOISE_RAD  # the right order at every pixel
+    expected_order = np.floor(result.absolute_phase / (2 * np.pi)).astype(np.int32)
+    assert np.array_equal(result.fringe_order, expected_order)
+    assert result.reliability.min() > 0.5
+    (ok,) = harness.wait(status, 1)
+    assert (ok.level, ok.state, ok.valid_pixels, ok.total_pixels) == (ScanStatus.OK, "processing", 19200, 19200)
+
+
+def test_invalid_pixels_stay_invalid_and_nan_pixels_marked_valid_are_counted(harness, scene):
+    node, source, absolute, status = start(harness, method="mf")
+    valid = np.ones(scene.lit.shape, bool)
+    valid[:10] = False
+    maps = phase_maps(scene, (16.0, 1.0), valid=valid)
+    maps.phases[0, 50, :7] = np.nan
+    source.publish(maps)
+    (result,) = harness.wait(absolute, 1)
+    assert not result.valid[:10].any() and np.isnan(result.absolute_phase[:10]).all()
+    assert not result.valid[50, :7].any() and result.valid[50, 7:].all()
+    (warn,) = harness.wait(status, 1)
+    assert warn.level == ScanStatus.WARN and warn.reason == "7 pixels marked valid had NaN phase; treated as invalid"
+    assert node.pixels_nan == 7 and warn.valid_pixels == 19200 - 1600 - 7
+
+
+def test_scans_the_method_cannot_use_are_reported_and_the_node_goes_on(harness, scene):
+    node, source, absolute, status = start(harness, method="mf", high_frequency=32.0)
+    source.publish(phase_maps(scene, (16.0, 1.0), sequence_id=1))
+    (failed,) = harness.wait(status, 1)
+    assert (failed.level, failed.state) == (ScanStatus.ERROR, "failed")
+    assert failed.reason == ("cannot unwrap scan 1 (mf): unknown frequency 32 (high_frequency); the scan has "
+                             "frequencies 16, 1")
+    maps = phase_maps(scene, (32.0, 1.0), sequence_id=2)
+    maps.phases[1] = 7.0  # not a wrapped phase
+    source.publish(maps)
+    failed = harness.wait(status, 2)[1]
+    assert "psi_l must be a wrapped phase in [0, 2*pi)" in failed.reason
+    source.publish(phase_maps(scene, (32.0, 1.0), sequence_id=3))
+    (result,) = harness.wait(absolute, 1)
+    assert result.sequence_id == 3 and node.scans_rejected == 2 and node.scans_published == 1
+
+
+def test_frequency_selection_follows_dptpu_unwrap():
+    assert select_frequencies("mf", [1.0, 16.0, 15.0]) == [1, 0]
+    assert select_frequencies("mw", [16.0, 1.0, 15.0]) == [0, 2]
+    assert select_frequencies("nt", [16.0, 15.0]) == [0, 1]
+    assert select_frequencies("heterodyne", [13.0, 16.0, 15.0]) == [1, 2, 0]
+    assert select_frequencies("mf", [16.0, 1.0, 8.0], high=8.0) == [2, 1]
+    with pytest.raises(ValueError, match="mf needs a frequency <= 1 .* the scan has 16, 15: use heterodyne or nt"):
+        select_frequencies("mf", [16.0, 15.0])
+    with pytest.raises(ValueError, match="nt takes the one other frequency by default, but the scan has 16, 15, 1"):
+        select_frequencies("nt", [16.0, 15.0, 1.0])
+    with pytest.raises(ValueError, match="frequencies must be distinct"):
+        select_frequencies("mw", [16.0, 16.0])
+
+
+def test_bad_method_is_refused_with_the_choices(harness):
+    with pytest.raises(ValueError, match="parameter method must be one of mf, mw, nt, heterodyne; got 'gray'"):
+        harness.start(UnwrapNode, method="gray")
+
+
+@pytest.mark.skipif(importlib.util.find_spec("dptpu.models.inference") is not None,
+                    reason="dptpu.models.inference exists: the model path is tested with a real model")
+def test_model_without_the_inference_module_names_the_missing_module(tmp_path):
+    with pytest.raises(ImportError, match=r"needs the module dptpu\.models\.inference .* set model:=none"):
+        load_model(str(tmp_path / "dptpu.onnx"))
+    assert load_model("none") is None
