@@ -1,0 +1,146 @@
+"""The cloud node in the in-process harness: AbsolutePhase of the analytic plane in, PointCloud2 and depth out."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from dptpu.fpp.calibration import DeviceModel, Rig, save_rig
+from dptpu.graph.qos import DurabilityPolicy, QoSProfile
+from dptpu.messages import AbsolutePhase, CameraInfo, Header, Image, PhaseMaps, PointCloud2, ScanStatus, Time
+from dptpu.nodes.cloud import FIELDS, CloudNode
+from dptpu.nodes.harness import NodeHarness
+from tests.nodes.test_cloud_scene import plane_scene
+
+STAMP = Time.from_ns(1_700_000_000_000_000_000)
+# Exact phase in, float32 on the wire: 2*pi*16 rad in float32 is good to 3e-5 rad = 4e-4 projector px,
+# about 1.5 um of depth at 850 mm; the camera-frame transform and float32 points add < 1e-4 mm.
+MAX_POINT_ERROR_M = 1e-5
+
+
+@pytest.fixture(scope="module")
+def scene():
+    return plane_scene()
+
+
+@pytest.fixture
+def harness():
+    with NodeHarness() as harness:
+        yield harness
+
+
+def absolute_phase(scene, *, frequency=16.0, sequence_id=1, shape=None, projector=(912, 1140)):
+    psi = scene.absolute_phase(frequency).astype(np.float32)
+    if shape is not None:
+        psi = np.zeros(shape, np.float32)
+    valid = np.ones(psi.shape, bool)
+    return AbsolutePhase(header=Header(stamp=STAMP, frame_id="camera"), sequence_id=sequence_id, frequency=frequency,
+                         fringe_axis="x", projector_width=projector[0], projector_height=projector[1],
+                         absolute_phase=psi, fringe_order=np.floor(psi / (2 * np.pi)).astype(np.int32), valid=valid,
+                         reliability=np.full(psi.shape, 0.9, np.float32), method="mf")
+
+
+def start(harness, rig_path, **parameters):
+    node = harness.start(CloudNode, rig=str(rig_path), **parameters)
+    source = harness.publisher(AbsolutePhase, "/scanner/absolute_phase")
+    maps = harness.publisher(PhaseMaps, "/scanner/phase")
+    points = harness.collect(PointCloud2, "/scanner/points")
+    depth = harness.collect(Image, "/scanner/depth")
+    status = harness.collect(ScanStatus, "/scanner/status")
+    harness.connect()
+    return node, source, maps, points, depth, status
+
+
+@pytest.mark.parametrize("world_pose", [False, True], ids=["world=camera", "world elsewhere"])
+def test_cloud_of_the_plane_is_in_the_camera_optical_frame_in_metres(harness, tmp_path, world_pose):
+    scene = plane_scene(world_pose=world_pose)
+    node, source, maps, points, depth, status = start(harness, save_rig(scene.rig, tmp_path / "rig.yaml"))
+    modulation = np.linspace(10, 100, 2 * 120 * 160, dtype=np.float32).reshape(2, 120, 160)
+    maps.publish(PhaseMaps(sequence_id=1, frequencies=np.array([16.0, 1.0]), modulation=modulation,
+                           phases=np.zeros((2, 120, 160), np.float32), valid=np.ones((120, 160), bool)))
+    harness.spin_for(0.1)
+    source.publish(absolute_phase(scene))
+    (cloud,) = harness.wait(points, 1)
+    assert (cloud.height, cloud.width, cloud.is_dense) == (120, 160, False)
+    assert [f.name for f in cloud.fields] == list(FIELDS) and cloud.point_step == 20
+    assert (cloud.header.frame_id, cloud.header.stamp) == ("scanner_optical_frame", STAMP)
+    xyz = cloud.to_array(["x", "y", "z"])  # (H, W, 3) float32
+    assert xyz.dtype == np.float32
+    assert np.abs(xyz - scene.points_mm * 1e-3).max() < MAX_POINT_ERROR_M
+    assert np.array_equal(cloud.to_array(["intensity"])[..., 0], modulation[0])
+    assert np.all(cloud.to_array(["quality"]) == np.float32(0.9))
+    (image,) = harness.wait(depth, 1)
+    assert image.encoding == "32FC1" and image.header.frame_id == "scanner_optical_frame"
+    assert np.array_equal(image.to_array(), xyz[..., 2])
+    (ok,) = harness.wait(status, 1)
+    assert (ok.level, ok.state, ok.valid_pixels, ok.total_pixels) == (ScanStatus.OK, "done", 19200, 19200)
+
+
+def test_invalid_pixels_are_nan_and_the_frame_id_is_a_parameter(harness, tmp_path, scene):
+    node, source, maps, points, depth, status = start(harness, save_rig(scene.rig, tmp_path / "rig.yaml"),
+                                                      frame_id="tool0_scanner")
+    msg = absolute_phase(scene)
+    msg.valid[:, :40] = False
+    source.publish(msg)
+    (cloud,) = harness.wait(points, 1)
+    xyz = cloud.to_array(["x", "y", "z"])
+    assert np.isnan(xyz[:, :40]).all() and np.isfinite(xyz[:, 40:]).all()
+    assert np.isnan(cloud.to_array(["intensity"])).all()  # no PhaseMaps of scan 1 was seen
+    assert cloud.header.frame_id == "tool0_scanner"
+    (warn,) = harness.wait(status, 1)
+    assert warn.level == ScanStatus.WARN and warn.reason == "no PhaseMaps of scan 1 seen: intensity NaN"
+    assert warn.valid_pixels == 120 * 120
+
+
+def test_inconsistent_scans_are_reported_and_the_node_goes_on(harness, tmp_path, scene):
+    node, source, maps, points, depth, status = start(harness, save_rig(scene.rig, tmp_path / "rig.yaml"))
+    source.publish(absolute_phase(scene, sequence_id=1, shape=(60, 80)))
+    source.publish(absolute_phase(scene, sequence_id=2, projector=(1280, 800)))
+    source.publish(absolute_phase(scene, sequence_id=3))
+    (cloud,) = harness.wait(points, 1)
+    failed = [s for s in harness.wait(status, 3) if s.state == "failed"]
+    assert [s.reason for s in failed] == [
+        "cannot triangulate scan 1: absolute_phase is 80x60 pixels; the rig's camera is 160x120",
+        "cannot triangulate scan 2: the scan's projector is 1280x800; the rig's is 912x1140"]
+    assert node.scans_rejected == 2 and node.scans_published == 1
+
+
+def test_camera_info_supplies_the_camera_intrinsics(harness, tmp_path, scene):
+    true_camera = scene.rig.camera
+    wrong = DeviceModel(K=true_camera.K * [[1.1], [1.1], [1]], dist=np.zeros(5), R=true_camera.R, T=true_camera.T,
+                        size=(320, 240))
+    rig_path = save_rig(Rig(camera=wrong, projector=scene.rig.projector, units="mm"), tmp_path / "rig.yaml")
+    node = harness.start(CloudNode, rig=str(rig_path), use_camera_info=True)
+    info = harness.publisher(CameraInfo, "/camera/camera_info",
+                             QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL))
+    source = harness.publisher(AbsolutePhase, "/scanner/absolute_phase")
+    points = harness.collect(PointCloud2, "/scanner/points")
+    harness.connect()
+    info.publish(CameraInfo.from_intrinsics(true_camera.K, true_camera.dist, 160, 120))
+    assert harness.spin_until(lambda: node.rig.camera.size == (160, 120))
+    source.publish(absolute_phase(scene))
+    (cloud,) = harness.wait(points, 1)
+    assert np.abs(cloud.to_array(["x", "y", "z"]) - scene.points_mm * 1e-3).max() < MAX_POINT_ERROR_M
+
+
+def test_ply_snapshots_every_nth_scan_through_open3d(harness, tmp_path, scene):
+    import open3d as o3d
+
+    node, source, maps, points, depth, status = start(harness, save_rig(scene.rig, tmp_path / "rig.yaml"),
+                                                      ply_dir=str(tmp_path / "ply"), ply_every=2)
+    for sequence_id in (1, 2, 3):
+        msg = absolute_phase(scene, sequence_id=sequence_id)
+        msg.valid[:20] = False
+        source.publish(msg)
+    harness.wait(points, 3)
+    assert sorted(p.name for p in (tmp_path / "ply").iterdir()) == ["scan_00000001.ply", "scan_00000003.ply"]
+    cloud = o3d.io.read_point_cloud(str(tmp_path / "ply" / "scan_00000003.ply"))
+    read = np.asarray(cloud.points)
+    assert read.shape == (100 * 160, 3) and node.ply_written == 2
+    assert np.abs(read - scene.points_mm[20:].reshape(-1, 3) * 1e-3).max() < MAX_POINT_ERROR_M
+
+
+def test_missing_rig_is_refused_with_what_to_do(harness, tmp_path):
+    with pytest.raises(ValueError, match="parameter rig must name a dptpu-rig/1 calibration file"):
+        harness.start(CloudNode)
+    with pytest.raises(FileNotFoundError, match="no such rig file"):
+        harness.start(CloudNode, rig=str(tmp_path / "absent.yaml"))
