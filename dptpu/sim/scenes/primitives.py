@@ -50,8 +50,8 @@ def icosphere(subdivisions: int) -> tuple[np.ndarray, np.ndarray]:
 def sphere(radius: float, subdivisions: int = 5):
     """Sphere of ``radius``: an icosphere with vertices on the exact sphere.
 
-    The flat facets lie inside the sphere by at most the sagitta ``~ e^2 / (8 r)`` of an edge ``e ~ 1.1 r /
-    2**subdivisions``: 1.0 um for r = 25.4 mm at 6 subdivisions, 0.25 um at 7.
+    The flat facets lie inside the sphere by at most (measured, r = 25.4041 mm): 28.9 um at 4 subdivisions
+    (5120 triangles), 7.2 um at 5, 1.81 um at 6, 0.45 um at 7 (327680 triangles); it scales with r.
     """
     vertices, triangles = icosphere(subdivisions)
     return vertices * radius, triangles
