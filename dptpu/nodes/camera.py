@@ -1,0 +1,189 @@
+"""Camera node: acquires frames through GenICam GenTL (harvesters) and pairs each with its projector Trigger.
+
+Run it as ``python -m dptpu.nodes.camera --ros-args -p cti:=/opt/pylon/lib/gentlproducer/gtl/ProducerU3V.cti
+-p serial:=22334455`` or from a launch file (``module: dptpu.nodes.camera``). Without a ``cti`` it uses
+the ``viky.cti`` simulated producer shipped in the genicam wheel (docs/camera.md). How frames are paired
+with Triggers in each trigger mode: ``dptpu.nodes.genicam_acquisition``.
+
+Topics (defaults; remappable):
+
+=========================  ======================  ==================================================
+name                       type                    what
+=========================  ======================  ==================================================
+``/projector/trigger``     Trigger (sub)           the pattern on screen; one frame is paired with each
+``/camera/image_raw``      FringeFrame (pub)       the frame (``mono8``/``mono16``, DN) + its Trigger
+``/camera/camera_info``    CameraInfo (pub)        from the ``rig`` file; TRANSIENT_LOCAL, depth 1
+``/scanner/status``        ScanStatus (pub)        ERROR ``failed`` when a Trigger got no frame (once
+                                                   per scan), with the reason
+=========================  ======================  ==================================================
+
+Parameters:
+
+=======================  ==========================  ===================================================
+name                     default                     meaning
+=======================  ==========================  ===================================================
+``cti``                  ``""``                      GenTL producer file(s), ``:``-separated; ``""`` =
+                                                     the genicam wheel's ``viky.cti`` (simulated)
+``serial``               ``""``                      device serial number; ``""`` = use ``device_index``
+``device_index``         0                           index among the devices the producers list
+``pixel_format``         ``"Mono8"``                 ``Mono8`` (mono8) or ``Mono10/12/16`` (mono16, DN)
+``width``, ``height``    0                           image size, pixels; 0 = as the device is set
+``exposure_us``          0.0                         exposure, microseconds; 0 = as the device is set
+``trigger_mode``         ``"hardware"``              ``hardware`` (TriggerSource line), ``software``
+                                                     (TriggerSoftware per Trigger), ``free-running``
+``trigger_source``       ``"Line1"``                 hardware mode's input line
+``frame_rate_hz``        0.0                         free-running rate; 0 = as the device is set
+``frame_timeout_s``      1.0                         longest wait for a Trigger's frame
+``publish_unpaired``     false                       free-running: also publish frames no Trigger claimed
+                                                     (with an empty Trigger: sequence_id 0, count 0)
+``rig``                  ``""``                      ``dptpu-rig/1`` file for CameraInfo; ``""`` = none
+``frame_id``             ``"scanner_optical_frame"``  ``header.frame_id`` of images and CameraInfo
+``reconnect_initial_s``  0.5                         first reconnection delay; doubles per failure
+``reconnect_max_s``      5.0                         longest reconnection delay
+=======================  ==========================  ===================================================
+
+Convention: an image's stamp is the host time at which its buffer was received (producers such as
+``viky.cti`` give no device timestamps); the exposure started up to one exposure plus the transfer
+time earlier.
+"""
+
+from __future__ import annotations
+
+import sys
+from collections import deque
+
+import dptpu.graph as rclpy
+from dptpu.fpp.calibration import load_rig
+from dptpu.graph.node import Node
+from dptpu.graph.qos import DurabilityPolicy, QoSProfile
+from dptpu.messages import CameraInfo, FringeFrame, Header, Image, ScanStatus, Time, Trigger
+
+from .genicam_acquisition import Acquisition
+from .genicam_device import CameraSettings
+from .genicam_producers import split_cti_paths
+
+__all__ = ["CameraNode", "main"]
+
+
+class CameraNode(Node):
+    """Opens the camera, pairs frames with Triggers, publishes FringeFrames and the rig's CameraInfo."""
+
+    def __init__(self, node_name: str = "camera", **kwargs):
+        super().__init__(node_name, **kwargs)
+        self.settings = CameraSettings(
+            cti_paths=tuple(split_cti_paths(self.declare_parameter("cti", "").value)),
+            serial=str(self.declare_parameter("serial", "").value),
+            device_index=self.declare_parameter("device_index", 0).value,
+            pixel_format=self.declare_parameter("pixel_format", "Mono8").value,
+            width=self.declare_parameter("width", 0).value,
+            height=self.declare_parameter("height", 0).value,
+            exposure_us=self.declare_parameter("exposure_us", 0.0).value,
+            trigger_mode=self.declare_parameter("trigger_mode", "hardware").value,
+            trigger_source=self.declare_parameter("trigger_source", "Line1").value,
+            frame_rate_hz=self.declare_parameter("frame_rate_hz", 0.0).value)
+        frame_timeout_s = self.declare_parameter("frame_timeout_s", 1.0).value
+        publish_unpaired = self.declare_parameter("publish_unpaired", False).value
+        rig_path = self.declare_parameter("rig", "").value
+        self.frame_id = self.declare_parameter("frame_id", "scanner_optical_frame").value
+        initial_s = self.declare_parameter("reconnect_initial_s", 0.5).value
+        max_s = self.declare_parameter("reconnect_max_s", 5.0).value
+        self.camera_info = self.rig_camera_info(rig_path) if rig_path else None
+
+        self.image_pub = self.create_publisher(FringeFrame, "/camera/image_raw", 30)
+        self.info_pub = self.create_publisher(
+            CameraInfo, "/camera/camera_info", QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL))
+        self.status_pub = self.create_publisher(ScanStatus, "/scanner/status", 20)
+        self.trigger_sub = self.create_subscription(Trigger, "/projector/trigger", self.on_trigger, 100)
+
+        self.frames_published = 0
+        self.timeouts = 0
+        self._failed_scans: deque = deque(maxlen=64)  # scans already reported failed (one ScanStatus each)
+        if self.camera_info is not None:
+            self.info_pub.publish(self.camera_info)
+        else:
+            self.get_logger().info("no rig parameter: no CameraInfo is published")
+        self.acquisition = Acquisition(self.settings, logger=self.get_logger(), on_frame=self.on_frame,
+                                       on_timeout=self.on_timeout, on_connected=self.on_connected,
+                                       frame_timeout_s=frame_timeout_s, publish_unpaired=publish_unpaired,
+                                       initial_s=initial_s, max_s=max_s)
+        self.acquisition.start()
+
+    # --- callbacks ---------------------------------------------------------------------------------
+
+    def on_trigger(self, trigger: Trigger) -> None:
+        """A pattern is on screen: hand it to the acquisition thread to be paired with a frame."""
+        self.acquisition.add_trigger(trigger)
+
+    def on_frame(self, frame, stamp_ns: int, trigger: Trigger | None) -> None:
+        """Acquisition thread: publish ``frame`` (H, W) with the Trigger it belongs to."""
+        header = Header(stamp=Time(sec=stamp_ns // 1_000_000_000, nanosec=stamp_ns % 1_000_000_000),
+                        frame_id=self.frame_id)
+        self.image_pub.publish(FringeFrame(image=Image.from_array(frame, header=header),
+                                           trigger=trigger if trigger is not None else Trigger()))
+        self.frames_published += 1
+
+    def on_timeout(self, trigger: Trigger, reason: str) -> None:
+        """Acquisition thread: ``trigger`` got no frame; log it, and report its scan failed once."""
+        self.timeouts += 1
+        where = f"pattern {trigger.pattern_index} of scan {trigger.sequence_id}"
+        self.get_logger().warning(f"camera timeout: {where}: {reason} ({self.timeouts} so far)",
+                                  throttle_duration_sec=1.0)
+        if trigger.sequence_id in self._failed_scans:
+            return
+        self._failed_scans.append(trigger.sequence_id)
+        self.status_pub.publish(ScanStatus(
+            header=Header(stamp=self.get_clock().now().to_msg()), sequence_id=trigger.sequence_id,
+            level=ScanStatus.ERROR, state="failed", reason=f"camera: {where}: {reason}",
+            node=self.get_fully_qualified_name(), frames_expected=trigger.pattern_count, frames_dropped=1))
+
+    def on_connected(self, device) -> None:
+        """Acquisition thread: the camera is open and acquiring."""
+        info = device.info
+        self.get_logger().info(f"camera {info['vendor']} {info['model']} serial {info['serial']}: "
+                               f"{device.width}x{device.height} {self.settings.pixel_format}, trigger mode "
+                               f"{self.settings.trigger_mode}")
+        for note in device.notes:
+            self.get_logger().warning(f"camera: {note}")
+        if self.camera_info is not None and (self.camera_info.width, self.camera_info.height) != \
+                (device.width, device.height):
+            self.get_logger().warning(f"camera: images are {device.width}x{device.height} but the rig's camera is "
+                                      f"{self.camera_info.width}x{self.camera_info.height}: CameraInfo does not fit")
+
+    # --- helpers -----------------------------------------------------------------------------------
+
+    def rig_camera_info(self, rig_path: str) -> CameraInfo:
+        """CameraInfo of the rig file's camera (``K``, ``dist``, ``size``); ValueError naming the file."""
+        try:
+            camera = load_rig(rig_path).camera
+        except FileNotFoundError as exc:
+            raise ValueError(f"parameter rig: {exc}") from None
+        width, height = camera.size
+        return CameraInfo.from_intrinsics(camera.K, camera.dist, width, height,
+                                          header=Header(stamp=self.get_clock().now().to_msg(), frame_id=self.frame_id))
+
+    def destroy_node(self):
+        self.acquisition.close()
+        return super().destroy_node()
+
+
+def main(argv=None) -> int:
+    """``python -m dptpu.nodes.camera [--ros-args ...]``; returns the exit code (2 for bad parameters)."""
+    rclpy.init(args=sys.argv if argv is None else argv)
+    try:
+        node = CameraNode()
+    except ValueError as exc:
+        print(f"camera: {exc}", file=sys.stderr)
+        rclpy.try_shutdown()
+        return 2
+    try:
+        rclpy.spin(node)
+    except KeyboardInterrupt:
+        pass
+    finally:
+        node.destroy_node()
+        rclpy.try_shutdown()
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
