@@ -67,7 +67,7 @@ class Effect:
 
 _SPECS = [
     EffectSpec("phase_shift_error", "pattern", {"scale": ("num", 1.0), "errors_rad": ("list", []),
-                                                 "sigma_rad": ("nonneg", 0.0)},
+                                                 "sigma_rad": ("nonneg", 0.02)},
                "step n is shifted by scale*2*pi*n/N + errors_rad[n] + a seeded N(0, sigma_rad) error"),
     EffectSpec("projector_pixelation", "pattern", {"quantize_bits": ("int0", 8)},
                "the pattern is held constant over each micromirror (evaluated at the nearest projector pixel "
