@@ -24,7 +24,8 @@ name                     default                     meaning
 =======================  ==========================  ===================================================
 ``cti``                  ``""``                      GenTL producer file(s), ``:``-separated; ``""`` =
                                                      the genicam wheel's ``viky.cti`` (simulated)
-``serial``               ``""``                      device serial number; ``""`` = use ``device_index``
+``serial``               ``""``                      device serial number (text, or an unquoted integer);
+                                                     ``""`` = use ``device_index``
 ``device_index``         0                           index among the devices the producers list
 ``pixel_format``         ``"Mono8"``                 ``Mono8`` (mono8) or ``Mono10/12/16`` (mono16, DN)
 ``width``, ``height``    0                           image size, pixels; 0 = as the device is set
@@ -56,6 +57,7 @@ import dptpu.graph as rclpy
 from dptpu.fpp.calibration import load_rig
 from dptpu.graph.node import Node
 from dptpu.graph.qos import DurabilityPolicy, QoSProfile
+from dptpu.graph.rcl_interfaces import ParameterDescriptor
 from dptpu.messages import CameraInfo, FringeFrame, Header, Image, ScanStatus, Time, Trigger
 
 from .genicam_acquisition import Acquisition
@@ -72,7 +74,7 @@ class CameraNode(Node):
         super().__init__(node_name, **kwargs)
         self.settings = CameraSettings(
             cti_paths=tuple(split_cti_paths(self.declare_parameter("cti", "").value)),
-            serial=str(self.declare_parameter("serial", "").value),
+            serial=_serial_text(self.declare_parameter("serial", "", ParameterDescriptor(dynamic_typing=True)).value),
             device_index=self.declare_parameter("device_index", 0).value,
             pixel_format=self.declare_parameter("pixel_format", "Mono8").value,
             width=self.declare_parameter("width", 0).value,
@@ -164,6 +166,13 @@ class CameraNode(Node):
     def destroy_node(self):
         self.acquisition.close()
         return super().destroy_node()
+
+
+def _serial_text(value) -> str:
+    """A serial number given as text or, unquoted on the command line (``serial:=22334455``), as an integer."""
+    if isinstance(value, bool) or not isinstance(value, (str, int)):
+        raise ValueError(f"parameter serial must be a serial number (text or integer); got {value!r}")
+    return str(value)
 
 
 def main(argv=None) -> int:
