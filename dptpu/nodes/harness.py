@@ -149,7 +149,7 @@ class NodeHarness:
         self._collectors.append(collector)
         return collector
 
-    def connect(self, timeout_s: float = 5.0) -> None:
+    def connect(self, timeout_s: float = 15.0) -> None:
         """Wait until every probe publisher has a subscriber and every collector a publisher.
 
         Raises
@@ -180,7 +180,7 @@ class NodeHarness:
         """Run callbacks (messages, timers) for ``seconds``."""
         self.spin_until(lambda: False, seconds)
 
-    def wait(self, collector: Collector, count: int = 1, timeout_s: float = 10.0) -> list:
+    def wait(self, collector: Collector, count: int = 1, timeout_s: float = 30.0) -> list:
         """The first ``count`` messages of ``collector``, spinning until they arrived.
 
         Raises

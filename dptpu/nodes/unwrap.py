@@ -20,7 +20,8 @@ name                default   meaning
 =================== ========= ===================================================================================
 ``method``          "mf"      ``mf`` (Eq. (5), needs a frequency <= 1), ``mw`` (Eqs. (6)-(7), needs
                               ``0 < f_h - f_l <= 1``), ``nt`` (Eqs. (8)-(9)) or ``heterodyne`` (beat tree of all)
-``model``           "none"    path of a DP-TPU ``.onnx`` model refining the classical fringe order, or ``none``
+``model``           "none"    a DP-TPU ``.onnx`` model refining the classical fringe order (mf/mw/nt), ``shipped``
+                              (the packaged model) or ``none``
 ``high_frequency``  0.0       frequency to unwrap (periods across the projector); 0 = the highest of the scan
 ``low_frequency``   0.0       the auxiliary frequency of mf/mw/nt; 0 = chosen as ``dptpu unwrap`` does
 ``min_reliability`` 0.0       pixels whose rounding margin (``AbsolutePhase.reliability``) is lower are invalid
@@ -46,7 +47,7 @@ from dptpu.messages import AbsolutePhase, Header, PhaseMaps, ScanStatus
 
 from .sequence_assembler import same_frequency
 
-__all__ = ["UnwrapNode", "select_frequencies", "load_model", "METHODS", "main"]
+__all__ = ["UnwrapNode", "select_frequencies", "load_model", "refined", "METHODS", "main"]
 
 METHODS = ("mf", "mw", "nt", "heterodyne")
 STATUS_QOS = QoSProfile(depth=50)
@@ -134,6 +135,9 @@ class UnwrapNode(Node):
                              f"{self.high_frequency}, {self.low_frequency}")
         if not 0.0 <= self.min_reliability <= 1.0:
             raise ValueError(f"parameter min_reliability must be in [0, 1]; got {self.min_reliability}")
+        if self.model_path not in ("", "none") and self.method == "heterodyne":
+            raise ValueError("parameter model refines a two-frequency method (mf, mw or nt), as the network was "
+                             "trained; got method heterodyne")
         self.model = load_model(self.model_path)
         self.scans_published = 0
         self.scans_rejected = 0
@@ -196,8 +200,9 @@ class UnwrapNode(Node):
                 raise ValueError("nt needs the projector extent; the PhaseMaps has projector size 0 (unknown)")
             result = tpu.unwrap(self.method, phases[0], phases[1], frequencies[0], frequencies[1], extent=extent,
                                 valid=valid)
-        if self.model is not None:
-            result = self.model.refine(phases[0], phases[1], result, frequencies[0], frequencies[1])
+        if self.model is not None:  # DP-TPU: the network refines the classical order (the paper's Fig. 8b)
+            order = self.model.refine(phases[0], phases[1], result.fringe_order, frequencies[0], valid=result.valid)
+            result = refined(result, phases[0].astype(np.float64), order)
         return result, indices[0], nan_pixels
 
     def _status(self, msg, level, state, reason, started_s, **counts) -> None:
@@ -218,25 +223,40 @@ def _finite(valid, phases) -> np.ndarray:
 
 
 def load_model(path: str):
-    """The DP-TPU refiner for ``path`` (None for ``"none"``).
+    """The DP-TPU fringe-order model of ``path`` (None for ``"none"``; ``"shipped"``: the packaged model).
+
+    Returns
+    -------
+    dptpu.models.inference.FringeOrderModel or None
 
     Raises
     ------
     ImportError
         When :mod:`dptpu.models.inference` (the onnxruntime runner of the DP-TPU network) is not in this build.
-    ValueError, FileNotFoundError
-        For a model file that cannot be used.
+    ValueError
+        For a model file that is missing or not a dptpu model (``ModelLoadError``), or no shipped model.
     """
     if path in ("", "none"):
         return None
     try:
-        from dptpu.models import inference  # noqa: F401 -- onnxruntime only, never torch
+        from dptpu.models import inference  # onnxruntime only, never torch
     except ImportError as exc:
         raise ImportError(f"parameter model={path!r} needs the module dptpu.models.inference (the DP-TPU network "
                           f"run by onnxruntime), which this build lacks ({exc}); set model:=none for classical "
                           "unwrapping") from exc
-    raise ImportError(f"parameter model={path!r}: dptpu.models.inference has no refiner the unwrap node knows; "
-                      "set model:=none for classical unwrapping")
+    if path == "shipped":
+        shipped = inference.shipped_model_path()
+        if shipped is None:
+            raise ValueError(f"parameter model='shipped': this build has no shipped model ({inference.SHIPPED_MODEL}); "
+                             "pass a model file or model:=none")
+        path = shipped
+    return inference.FringeOrderModel.load(path, threads=1)
+
+
+def refined(result: tpu.Unwrapped, psi_h: np.ndarray, order: np.ndarray) -> tpu.Unwrapped:
+    """``result`` with the network's fringe order ``order`` (H, W): ``Psi = psi_h + 2*pi*k`` (Eq. (3))."""
+    return tpu.Unwrapped(fringe_order=order, absolute_phase=np.where(result.valid, psi_h + _TWO_PI * order, np.nan),
+                         valid=result.valid, reliability=result.reliability, n_rejected=result.n_rejected)
 
 
 def main(argv=None) -> int:

@@ -6,6 +6,7 @@ import importlib.util
 import numpy as np
 import pytest
 
+from dptpu.fpp.tpu import unwrap_mf
 from dptpu.messages import AbsolutePhase, Header, PhaseMaps, ScanStatus, Time
 from dptpu.nodes.harness import NodeHarness
 from dptpu.nodes.unwrap import UnwrapNode, load_model, select_frequencies
@@ -119,9 +120,60 @@ def test_bad_method_is_refused_with_the_choices(harness):
         harness.start(UnwrapNode, method="gray")
 
 
-@pytest.mark.skipif(importlib.util.find_spec("dptpu.models.inference") is not None,
-                    reason="dptpu.models.inference exists: the model path is tested with a real model")
+HAS_INFERENCE = importlib.util.find_spec("dptpu.models.inference") is not None
+
+
+@pytest.mark.skipif(HAS_INFERENCE, reason="dptpu.models.inference exists: the model path is tested with a real model")
 def test_model_without_the_inference_module_names_the_missing_module(tmp_path):
     with pytest.raises(ImportError, match=r"needs the module dptpu\.models\.inference .* set model:=none"):
         load_model(str(tmp_path / "dptpu.onnx"))
     assert load_model("none") is None
+
+
+@pytest.mark.skipif(not HAS_INFERENCE, reason="dptpu.models.inference is not in this build")
+def test_missing_model_file_is_refused_at_start_naming_the_file(harness, tmp_path):
+    with pytest.raises(ValueError, match=r"absent\.onnx: model file not found"):
+        harness.start(UnwrapNode, model=str(tmp_path / "absent.onnx"))
+    with pytest.raises(ValueError, match="model refines a two-frequency method"):
+        harness.start(UnwrapNode, method="heterodyne", model=str(tmp_path / "absent.onnx"))
+
+
+@pytest.fixture(scope="module")
+def shifted_model(tmp_path_factory):
+    """A real ONNX model with the DP-TPU interface whose output is ``coarse_order + 1``, so the test can see the
+    network's order in the result (built with onnx.helper: no torch, a second to make and load)."""
+    if not HAS_INFERENCE:
+        pytest.skip("dptpu.models.inference is not in this build")
+    onnx = pytest.importorskip("onnx")
+    from onnx import TensorProto, helper
+
+    from dptpu.models.inference import MODEL_FORMAT
+
+    def image(name):
+        return helper.make_tensor_value_info(name, TensorProto.FLOAT, ["B", 1, "H", "W"])
+
+    graph = helper.make_graph(
+        [helper.make_node("Add", ["coarse_order", "one"], ["fringe_order"])], "shifted_order",
+        [image("wrapped_high"), image("wrapped_low"), image("coarse_order"),
+         helper.make_tensor_value_info("frequency_high", TensorProto.FLOAT, ["B"])],
+        [image("fringe_order")], initializer=[helper.make_tensor("one", TensorProto.FLOAT, [], [1.0])])
+    model = helper.make_model(graph, opset_imports=[helper.make_opsetid("", 18)])
+    helper.set_model_props(model, {"dptpu_format": MODEL_FORMAT, "kind": "dptpu", "config": "{}", "training": "{}"})
+    path = tmp_path_factory.mktemp("model") / "shifted.onnx"
+    onnx.save(model, str(path))
+    return path
+
+
+def test_model_refines_the_classical_order_with_the_network(harness, scene, shifted_model):
+    node, source, absolute, status = start(harness, method="mf", model=str(shifted_model))
+    maps = phase_maps(scene, (16.0, 1.0), sequence_id=9)
+    source.publish(maps)
+    (result,) = harness.wait(absolute, 1)
+    assert result.method == "dptpu"
+    classical = unwrap_mf(maps.phases[0], maps.phases[1], 16.0, 1.0).fringe_order  # right at every pixel
+    on_projector = classical + 1 < 16  # an order off the projector is invalid
+    assert np.array_equal(result.valid, on_projector)
+    assert np.array_equal(result.fringe_order[on_projector], classical[on_projector] + 1)
+    psi_h = maps.phases[0].astype(np.float64)
+    assert np.allclose(result.absolute_phase[on_projector], (psi_h + 2 * np.pi * (classical + 1))[on_projector],
+                       atol=1e-4)
