@@ -210,17 +210,18 @@ class Acquisition:
     def _acquire_streaming(self, device: GenICamDevice) -> None:
         pairer = FramePairer(self.settings.trigger_mode, self.frame_timeout_s)
         while not self._stop.is_set():
+            got = device.fetch(_FETCH_SLICE_S)
+            arrived = time.monotonic()
             pairs = []
-            while True:
+            while True:  # Triggers that came while fetch waited; a frame pairs only with earlier ones
                 try:
                     trigger, received = self._triggers.get_nowait()
                 except queue.Empty:
                     break
                 pairs += pairer.add_trigger(trigger, received)
-            got = device.fetch(_FETCH_SLICE_S)
             if got is not None:
                 frame, stamp_ns = got
-                paired, unpaired = pairer.add_frame((frame, stamp_ns), time.monotonic())
+                paired, unpaired = pairer.add_frame((frame, stamp_ns), arrived)
                 pairs += paired
                 if unpaired and self.publish_unpaired:
                     self.on_frame(frame, stamp_ns, None)
