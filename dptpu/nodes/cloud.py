@@ -20,17 +20,19 @@ topic                       type          dir   notes
 
 Parameters
 
-=================== ========================= ==========================================================================
-name                default                   meaning
-=================== ========================= ==========================================================================
-``rig``             "" (required)             a ``dptpu-rig/1`` (or OpenCV rig) file: camera and projector calibration
-``use_camera_info`` false                     take the camera's K, distortion and size from ``/camera/camera_info``
-                                              (R, T and the projector still from ``rig``)
-``frame_id``        "scanner_optical_frame"   ``header.frame_id`` of the cloud and the depth image
-``distortion``      true                      correct both lens distortions (false: the pinhole model)
-``ply_dir``         ""                        folder for PLY snapshots through open3d ("" = none)
-``ply_every``       0                         write scan 1, 1 + n, 1 + 2n, ... as PLY (0 = none)
-=================== ========================= ==========================================================================
+====================== ========================= ============================================================================
+name                   default                   meaning
+====================== ========================= ============================================================================
+``rig``                "" (required)             a ``dptpu-rig/1`` (or OpenCV rig) file: camera and projector calibration
+``use_camera_info``    false                     take the camera's K, distortion and size from ``/camera/camera_info``
+                                                 (R, T and the projector still from ``rig``)
+``frame_id``           "scanner_optical_frame"   ``header.frame_id`` of the cloud and the depth image
+``distortion``         true                      correct both lens distortions (false: the pinhole model)
+``ply_dir``            ""                        folder for PLY snapshots through open3d ("" = none)
+``ply_every``          0                         write scan 1, 1 + n, 1 + 2n, ... as PLY (0 = none)
+``intensity_wait_s``   0.2                       how long a scan may wait for its PhaseMaps (published first, but the two
+                                                 topics race); only while a PhaseMaps publisher is connected
+====================== ========================= ============================================================================
 
 Fields of the cloud: ``x, y, z`` NaN where the pixel is invalid (``is_dense`` false); ``intensity`` the fringe
 modulation B of the unwrapped frequency in camera digital numbers (NaN when the scan's PhaseMaps was not
@@ -40,6 +42,7 @@ seen); ``quality`` the unwrapping margin ``AbsolutePhase.reliability`` in [0, 1]
 from __future__ import annotations
 
 import sys
+import time
 from collections import OrderedDict
 from pathlib import Path
 
@@ -126,13 +129,17 @@ class CloudNode(Node):
         self.distortion = self.declare_parameter("distortion", True).value
         self.ply_dir = self.declare_parameter("ply_dir", "").value
         self.ply_every = self.declare_parameter("ply_every", 0).value
+        self.intensity_wait_s = self.declare_parameter("intensity_wait_s", 0.2).value
         if not rig_path:
             raise ValueError("parameter rig must name a dptpu-rig/1 calibration file (-p rig:=calibration.yaml)")
         if self.ply_every < 0:
             raise ValueError(f"parameter ply_every must be >= 0 (0 = no PLY); got {self.ply_every}")
+        if not self.intensity_wait_s > 0:
+            raise ValueError(f"parameter intensity_wait_s must be > 0 seconds; got {self.intensity_wait_s}")
         self.rig = load_rig(rig_path)
         self._triangulators: dict[str, Triangulator] = {}
         self._phase_maps: OrderedDict[int, PhaseMaps] = OrderedDict()
+        self._waiting: dict[int, tuple[AbsolutePhase, float]] = {}  # sequence_id -> (scan, deadline), monotonic s
         self.scans_published = 0
         self.scans_rejected = 0
         self.ply_written = 0
@@ -149,6 +156,7 @@ class CloudNode(Node):
         if self.use_camera_info:
             self._subscriptions_in.append(
                 self.create_subscription(CameraInfo, "/camera/camera_info", self.on_camera_info, LATCHED_QOS))
+        self.wait_timer = self.create_timer(self.intensity_wait_s / 4, self.on_timer)
 
     # -- callbacks ------------------------------------------------------------------------------------------
 
@@ -169,8 +177,23 @@ class CloudNode(Node):
         self._phase_maps[msg.sequence_id] = msg
         while len(self._phase_maps) > _PHASE_MAPS_KEPT:
             self._phase_maps.popitem(last=False)
+        if msg.sequence_id in self._waiting:
+            self._triangulate(self._waiting.pop(msg.sequence_id)[0])
 
     def on_absolute_phase(self, msg: AbsolutePhase) -> None:
+        """Triangulate one scan now, or once its PhaseMaps arrived (at most ``intensity_wait_s`` later)."""
+        if msg.sequence_id in self._phase_maps or self._subscriptions_in[1].get_publisher_count() == 0:
+            self._triangulate(msg)
+        else:
+            self._waiting[msg.sequence_id] = (msg, time.monotonic() + self.intensity_wait_s)
+
+    def on_timer(self) -> None:
+        """Triangulate the scans whose PhaseMaps did not come in time (intensity NaN)."""
+        now_s = time.monotonic()
+        for sequence_id in [i for i, (_, deadline) in self._waiting.items() if deadline <= now_s]:
+            self._triangulate(self._waiting.pop(sequence_id)[0])
+
+    def _triangulate(self, msg: AbsolutePhase) -> None:
         """Triangulate one scan; publish its cloud, depth image and status."""
         try:
             points = camera_points_m(self._triangulator(msg.fringe_axis), self._checked_phase(msg), msg.frequency,
