@@ -1,0 +1,100 @@
+"""Fringe-order accuracy of solvers on a held-out dataset, per method, frequency and noise (no torch).
+
+Solvers side by side: ``classical`` (the dataset's coarse order: Eq. (5), (7) or (9)), ``classical+median``
+(3x3 median filter of the classical order over valid pixels, the cheap fix users try first), and every
+ONNX model given (``dptpu`` / ``unet`` by their metadata kind, or the file stem if two share a kind).
+
+Accuracy = share of valid pixels whose fringe order equals the label exactly.
+"""
+from __future__ import annotations
+
+import csv
+from collections import defaultdict
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from .inference import FringeOrderModel
+from .samples import list_samples, read_sample
+
+__all__ = ["Row", "median_order", "evaluate_dataset", "write_table", "format_summary"]
+
+
+@dataclass(frozen=True)
+class Row:
+    """Accuracy of one solver on the samples of one (method, frequency, noise) group."""
+
+    method: str
+    frequency: float
+    noise: float
+    solver: str
+    accuracy: float
+    pixels: int
+
+
+def median_order(order: np.ndarray, valid: np.ndarray) -> np.ndarray:
+    """3x3 median of an integer order map, ``(H, W)`` int32; invalid pixels keep their value.
+
+    Invalid neighbours are replaced by the pixel's own order before filtering (so they do not pull it).
+    """
+    order = np.asarray(order, dtype=np.float64)
+    filled = np.where(valid, order, np.nan)
+    stack = np.stack([np.roll(np.roll(np.pad(filled, 1, mode="edge"), dy, 0), dx, 1)[1:-1, 1:-1]
+                      for dy in (-1, 0, 1) for dx in (-1, 0, 1)])  # (9, H, W)
+    stack = np.where(np.isnan(stack), order[None], stack)
+    return np.where(valid, np.rint(np.median(stack, axis=0)), order).astype(np.int32)
+
+
+def evaluate_dataset(data_dir, models=(), *, threads: int | None = None) -> list[Row]:
+    """Accuracy rows for every (method, frequency, noise) group of ``data_dir`` and every solver."""
+    loaded = [FringeOrderModel.load(p, threads=threads) for p in models]
+    names = [m.kind for m in loaded]
+    names = [n if names.count(n) == 1 else Path(m.path).stem for n, m in zip(names, loaded)]
+    correct: dict = defaultdict(int)
+    pixels: dict = defaultdict(int)
+    for path in list_samples(data_dir):
+        sample = read_sample(path)
+        valid = sample.valid
+        n_valid = int(valid.sum())
+        if n_valid == 0:
+            continue
+        group = (sample.method, round(sample.frequency_high, 6), round(sample.noise_sigma, 6))
+        label = sample.label_order.astype(np.int32)
+        coarse = np.rint(sample.coarse_order).astype(np.int32)
+        solvers = {"classical": coarse, "classical+median": median_order(coarse, valid)}
+        for name, model in zip(names, loaded):
+            solvers[name] = model.refine(sample.wrapped_high, sample.wrapped_low, sample.coarse_order,
+                                         sample.frequency_high, valid=valid)
+        for name, order in solvers.items():
+            correct[group + (name,)] += int(np.count_nonzero((order == label) & valid))
+            pixels[group + (name,)] += n_valid
+    return [Row(method=k[0], frequency=k[1], noise=k[2], solver=k[3], accuracy=correct[k] / pixels[k],
+                pixels=pixels[k]) for k in sorted(pixels)]
+
+
+def write_table(rows: list[Row], path) -> Path:
+    """``table.csv`` with columns method, frequency, noise, solver, accuracy, pixels."""
+    path = Path(path)
+    with path.open("w", newline="") as handle:
+        writer = csv.writer(handle)
+        writer.writerow(["method", "frequency", "noise", "solver", "accuracy", "pixels"])
+        for r in rows:
+            writer.writerow([r.method, f"{r.frequency:g}", f"{r.noise:g}", r.solver, f"{r.accuracy:.6f}", r.pixels])
+    return path
+
+
+def format_summary(rows: list[Row]) -> str:
+    """A Markdown table: one line per (method, frequency, noise), one column per solver (accuracy in %)."""
+    solvers = list(dict.fromkeys(r.solver for r in rows))
+    groups: dict = defaultdict(dict)
+    for r in rows:
+        groups[(r.method, r.frequency, r.noise)][r.solver] = r.accuracy
+    lines = ["| method | f_h | noise | " + " | ".join(solvers) + " |",
+             "|---|---|---|" + "---|" * len(solvers)]
+    for (method, frequency, noise), values in sorted(groups.items()):
+        cells = [f"{100 * values[s]:.2f}" if s in values else "" for s in solvers]
+        lines.append(f"| {method} | {frequency:g} | {noise:g} | " + " | ".join(cells) + " |")
+    means = [np.mean([v[s] for v in groups.values() if s in v]) for s in solvers]
+    lines.append("| mean | | | " + " | ".join(f"{100 * m:.2f}" for m in means) + " |")
+    return "\n".join(lines) + "\n"

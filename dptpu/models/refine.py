@@ -1,0 +1,74 @@
+"""DP-TPU refinement of a classical capture result (:func:`dptpu.fpp.reconstruct.unwrap_capture`), no torch.
+
+``dptpu unwrap --model PATH`` and the library call :func:`refine_capture_result`: the two-frequency result
+of MF, MW or NT gives the network its inputs (the wrapped phases of the high and the low sequence and the
+classical fringe order); the network's rounded order replaces the classical one on every pixel that
+passes the capture's quality mask (so NT pixels whose lookup key was rejected get an order too), and the
+absolute phase and validity are recomputed as ``unwrap_capture`` does: ``psi + 2*pi*k`` (Eq. (3)), valid
+where the quality mask holds and the phase lies on the projector, ``0 <= phi < 2*pi*f``. ``reliability``
+stays the classical method's margin (0 where the classical method rejected the pixel).
+"""
+from __future__ import annotations
+
+import dataclasses
+from pathlib import Path
+
+import numpy as np
+
+from .inference import FringeOrderModel, shipped_model_path
+
+__all__ = ["REFINABLE_METHODS", "resolve_model", "refine_capture_result"]
+
+#: Classical methods whose result the network refines (the paper's three two-frequency methods).
+REFINABLE_METHODS = ("mf", "mw", "nt")
+
+
+def resolve_model(value, method: str) -> FringeOrderModel | None:
+    """The model named by ``--model``: a path, ``"none"``, or None for the shipped default.
+
+    Returns None (classical result) for ``"none"``, or by default when there is no shipped model or
+    ``method`` is not one of :data:`REFINABLE_METHODS`. An explicit path with another method is a
+    ValueError; a missing or corrupt file is a :class:`~dptpu.models.inference.ModelLoadError`.
+    """
+    if value is not None and str(value).lower() == "none":
+        return None
+    if value is None:
+        path = shipped_model_path()
+        if path is None or method not in REFINABLE_METHODS:
+            return None
+        return FringeOrderModel.load(path)
+    if method not in REFINABLE_METHODS:
+        raise ValueError(f"--model refines the orders of {', '.join(REFINABLE_METHODS)}; method {method!r} "
+                         "is not one of them (pass --model none)")
+    return FringeOrderModel.load(Path(value))
+
+
+def refine_capture_result(result, model: FringeOrderModel):
+    """A copy of a two-frequency ``CaptureResult`` with the network's fringe order.
+
+    Parameters
+    ----------
+    result : dptpu.fpp.reconstruct.CaptureResult
+        From ``unwrap_capture(..., method="mf" | "mw" | "nt")``; carries ``wrapped_phases`` (high, low)
+        and ``quality``.
+    model : FringeOrderModel
+
+    Returns
+    -------
+    CaptureResult
+        ``fringe_order`` (H, W) int32 refined, ``absolute_phase`` (H, W) float64, NaN where invalid,
+        ``valid`` recomputed; ``method`` unchanged (the caller records the model).
+    """
+    if result.method not in REFINABLE_METHODS or len(result.wrapped_phases) != 2 or result.quality is None:
+        raise ValueError(f"the network refines a two-frequency {'/'.join(REFINABLE_METHODS)} result with its "
+                         f"wrapped phases; got method {result.method!r}")
+    psi_h, psi_l = result.wrapped_phases
+    quality = np.asarray(result.quality, dtype=bool)
+    order = model.refine(psi_h, psi_l, result.fringe_order.astype(np.float64), result.frequency, valid=quality)
+    absolute = psi_h + 2.0 * np.pi * order  # Eq. (3), (H, W)
+    with np.errstate(invalid="ignore"):
+        valid = quality & (absolute >= 0.0) & (absolute < 2.0 * np.pi * result.frequency)
+    return dataclasses.replace(
+        result, fringe_order=np.where(valid, order, 0).astype(np.int32),
+        absolute_phase=np.where(valid, absolute, np.nan), valid=valid,
+        reliability=np.where(valid, result.reliability, 0.0))
