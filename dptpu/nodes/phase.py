@@ -111,6 +111,7 @@ class PhaseNode(Node):
         self.scans_dropped = 0
         self.frames_rejected = 0
         self._decode_errors_reported = 0
+        self._frame_id = DEFAULT_FRAME_ID  # the camera's, from its latest frame
 
         self.phase_publisher = self.create_publisher(PhaseMaps, "/scanner/phase", 10)
         self.status_publisher = self.create_publisher(ScanStatus, "/scanner/status", STATUS_QOS)
@@ -186,7 +187,7 @@ class PhaseNode(Node):
                                      scan.frame_count, scan.frame_count, scan.first_arrival_s))
             return
         layout = scan.layout
-        header = Header(stamp=Time.from_ns(scan.last_stamp_ns), frame_id=getattr(self, "_frame_id", DEFAULT_FRAME_ID))
+        header = Header(stamp=Time.from_ns(scan.last_stamp_ns), frame_id=self._frame_id)
         self.phase_publisher.publish(PhaseMaps(
             header=header, sequence_id=scan.sequence_id, fringe_axis=layout.fringe_axis,
             projector_width=layout.projector_size[0], projector_height=layout.projector_size[1],

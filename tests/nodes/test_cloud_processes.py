@@ -86,3 +86,21 @@ def test_a_node_with_bad_parameters_exits_2_with_the_reason(spawn_node):
     cloud = spawn_node("dptpu.nodes.cloud")
     assert cloud.wait(timeout=30.0) == 2
     assert "cloud: error: parameter rig must name a dptpu-rig/1 calibration file" in cloud.stderr
+
+
+def test_the_three_nodes_validate_in_a_launch_file(tmp_path):
+    from dptpu.graph.launch import load_launch_file
+
+    launch = tmp_path / "scanner.yaml"
+    launch.write_text(
+        "launch:\n"
+        "  - group:\n"
+        "      namespace: /scanner\n"
+        "      children:\n"
+        "        - node: {module: dptpu.nodes.phase, name: phase, param: [{name: timeout_s, value: 1.0}]}\n"
+        "        - node: {module: dptpu.nodes.unwrap, name: unwrap, param: [{name: method, value: nt}]}\n"
+        "        - node: {module: dptpu.nodes.cloud, name: cloud, param: [{name: rig, value: rig.yaml}]}\n")
+    plan = load_launch_file(str(launch), {})
+    commands = {node.label: node.command for node in plan.nodes}
+    assert set(commands) == {"phase", "unwrap", "cloud"}
+    assert commands["unwrap"][1:3] == ["-m", "dptpu.nodes.unwrap"] and "method:=nt" in commands["unwrap"]
