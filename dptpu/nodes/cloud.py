@@ -118,7 +118,8 @@ def write_ply(path, points_m: np.ndarray, intensity: np.ndarray) -> int:
 class CloudNode(Node):
     """AbsolutePhase -> PointCloud2 + depth Image (see the module docstring).
 
-    Counters: ``scans_published``, ``scans_rejected``, ``ply_written``.
+    Counters: ``scans_published``, ``scans_rejected``, ``ply_written``, ``pixels_nan`` (pixels marked valid whose
+    absolute phase was NaN or inf).
     """
 
     def __init__(self, node_name: str = "cloud", **node_options):
@@ -143,6 +144,7 @@ class CloudNode(Node):
         self.scans_published = 0
         self.scans_rejected = 0
         self.ply_written = 0
+        self.pixels_nan = 0
         self._decode_errors_reported = 0
 
         self.points_publisher = self.create_publisher(PointCloud2, "/scanner/points", 10)
@@ -196,8 +198,8 @@ class CloudNode(Node):
     def _triangulate(self, msg: AbsolutePhase) -> None:
         """Triangulate one scan; publish its cloud, depth image and status."""
         try:
-            points = camera_points_m(self._triangulator(msg.fringe_axis), self._checked_phase(msg), msg.frequency,
-                                     self._extent_px(msg))
+            phase, nan_pixels = self._checked_phase(msg)
+            points = camera_points_m(self._triangulator(msg.fringe_axis), phase, msg.frequency, self._extent_px(msg))
         except ValueError as exc:
             self.scans_rejected += 1
             reason = f"cannot triangulate scan {msg.sequence_id}: {exc}"
@@ -213,10 +215,15 @@ class CloudNode(Node):
         self.scans_published += 1
         valid_points = int(np.count_nonzero(np.isfinite(depth_m)))
         reasons = []
+        if nan_pixels:
+            self.pixels_nan += nan_pixels
+            reasons.append(f"{nan_pixels} pixels marked valid had a non-finite absolute phase; treated as invalid")
         if not np.isfinite(intensity).any():
             reasons.append(f"no PhaseMaps of scan {msg.sequence_id} seen: intensity NaN")
         if self.ply_dir and self.ply_every and (self.scans_published - 1) % self.ply_every == 0:
             reasons += self._snapshot(msg.sequence_id, points, intensity)
+        if reasons:
+            self.get_logger().warning(f"scan {msg.sequence_id}: {'; '.join(reasons)}", throttle_duration_sec=1.0)
         self._status(msg, ScanStatus.WARN if reasons else ScanStatus.OK, "done", "; ".join(reasons),
                      valid_pixels=valid_points, total_pixels=int(depth_m.size))
 
@@ -227,14 +234,15 @@ class CloudNode(Node):
             self._triangulators[axis] = Triangulator(self.rig, axis=axis, distortion=self.distortion)
         return self._triangulators[axis]
 
-    def _checked_phase(self, msg: AbsolutePhase) -> np.ndarray:
-        """The absolute phase with NaN where invalid; ValueError when it does not fit the rig's camera."""
+    def _checked_phase(self, msg: AbsolutePhase) -> tuple[np.ndarray, int]:
+        """The absolute phase with NaN where invalid or not finite, and how many pixels marked valid were not
+        finite; ValueError when it does not fit the rig's camera."""
         width, height = self.rig.camera.size
         if msg.absolute_phase.shape != (height, width):
             raise ValueError(f"absolute_phase is {msg.absolute_phase.shape[1]}x{msg.absolute_phase.shape[0]} pixels; "
                              f"the rig's camera is {width}x{height}")
-        with np.errstate(invalid="ignore"):
-            return np.where(msg.valid, msg.absolute_phase, np.nan)
+        usable = msg.valid & np.isfinite(msg.absolute_phase)
+        return np.where(usable, msg.absolute_phase, np.nan), int(np.count_nonzero(msg.valid & ~usable))
 
     def _extent_px(self, msg: AbsolutePhase) -> int:
         """Projector pixels along the fringe axis: the rig's; ValueError when the message says otherwise."""

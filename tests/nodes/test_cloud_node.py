@@ -80,15 +80,19 @@ def test_invalid_pixels_are_nan_and_the_frame_id_is_a_parameter(harness, tmp_pat
                                                       frame_id="tool0_scanner")
     msg = absolute_phase(scene)
     msg.valid[:, :40] = False
+    msg.absolute_phase[7, 50:53] = [np.nan, np.inf, -np.inf]  # marked valid: made invalid and counted
     source.publish(msg)
     (cloud,) = harness.wait(points, 1)
     xyz = cloud.to_array(["x", "y", "z"])
-    assert np.isnan(xyz[:, :40]).all() and np.isfinite(xyz[:, 40:]).all()
+    assert np.isnan(xyz[:, :40]).all() and np.isnan(xyz[7, 50:53]).all()
+    assert np.isfinite(xyz[:, 40:]).sum() == 3 * (120 * 120 - 3)
     assert np.isnan(cloud.to_array(["intensity"])).all()  # no PhaseMaps of scan 1 was seen
     assert cloud.header.frame_id == "tool0_scanner"
     (warn,) = harness.wait(status, 1)
-    assert warn.level == ScanStatus.WARN and warn.reason == "no PhaseMaps of scan 1 seen: intensity NaN"
-    assert warn.valid_pixels == 120 * 120
+    assert warn.level == ScanStatus.WARN and warn.reason == (
+        "3 pixels marked valid had a non-finite absolute phase; treated as invalid; "
+        "no PhaseMaps of scan 1 seen: intensity NaN")
+    assert warn.valid_pixels == 120 * 120 - 3 and node.pixels_nan == 3
 
 
 def test_inconsistent_scans_are_reported_and_the_node_goes_on(harness, tmp_path, scene):
