@@ -34,6 +34,8 @@ case "$job" in
   test)
     # torch: training only; exactly 2.13.0, a CPU build pip takes from local disk (never an unpinned torch)
     pip install -e '.[test]' torch==2.13.0
+    # the Blender renderer's own venv (bpy 4.5 pins numpy < 2): .blender-venv/ or $DPTPU_BLENDER_ENV; idempotent
+    .venv/bin/python -m dptpu.sim.blender
     shift || true
     exec .venv/bin/python -m pytest -q "$@"
     ;;

@@ -120,4 +120,8 @@ def format_text(document: dict) -> str:
 
 
 def _vector(values, spec: str) -> str:
-    return "[" + ", ".join(format(float(v), spec) for v in values) + "]"
+    def number(value) -> str:
+        text = format(float(value), spec)
+        return format(0.0, spec) if float(text) == 0.0 else text  # no "-0.0000"
+
+    return "[" + ", ".join(number(v) for v in values) + "]"

@@ -92,9 +92,13 @@ def render(rig: Rig, meshes, patterns, *, samples: int = 16, seed: int = 0, ambi
     patterns : ndarray (N, Hp, Wp)
         Projector images in [0, 1] at the projector's resolution (``rig.projector.size``), linear levels.
     samples : int
-        Cycles samples per pixel (>= 1); the same seed for every frame, so each frame samples the same points.
+        Cycles samples per pixel (>= 1). The pixel filter is a 1-pixel box (the sensor integrates over its pixel),
+        so few samples leave noise in the projector coordinate: about 0.08 projector pixels (std) at 4 samples and
+        160x120 on the nominal rig with 8 steps, 0.05 at 16.
     seed : int
-        Cycles' seed.
+        Frame ``n`` renders with Cycles seed ``seed + n``: independent sampling noise per frame, as a camera's
+        (reusing one seed for every frame gives every frame the same sample points, which makes the decoded phase
+        2x noisier and biased); the same ``seed`` gives the same frames.
     ambient : float
         Ambient level: a Lambertian pixel of albedo ``a`` in the open reads ``a * ambient`` (a uniform world light).
     timeout_s : float, optional

@@ -281,6 +281,7 @@ def main(job_dir):
         tick = time.perf_counter()
         image = _new_image(bpy, "pattern_%04d" % index, np.asarray(patterns[index], dtype=np.float32))
         texture.image = image  # a new datablock per pattern: rewriting one image's pixels is ignored
+        scene.cycles.seed = int(job["render"]["seed"]) + index  # independent sampling noise per frame
         if previous is not None:
             bpy.data.images.remove(previous)
         previous = image
