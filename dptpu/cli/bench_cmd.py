@@ -1,5 +1,6 @@
 """``dptpu bench fpp``: speed of ``dptpu.fpp`` against references, each pair in the same run (not a test).
 ``dptpu bench transport``: the graph runtime against raw pyzmq (``benchmarks/transport_bench.py``).
+``dptpu bench twin``: the digital twin's raycast (and Blender) renderer (``benchmarks/twin_bench.py``).
 
 The benchmark code is ``benchmarks/fpp_bench.py`` of the source tree, next to the ``dptpu`` package folder;
 it is not part of the installed package, so this command loads it from there and says so when it is missing
@@ -16,6 +17,8 @@ from pathlib import Path
 MODULE_NAME = "dptpu_benchmarks_fpp_bench"
 #: The same for ``benchmarks/transport_bench.py`` (``dptpu bench transport``).
 TRANSPORT_MODULE_NAME = "dptpu_benchmarks_transport_bench"
+#: The same for ``benchmarks/twin_bench.py`` (``dptpu bench twin``).
+TWIN_MODULE_NAME = "dptpu_benchmarks_twin_bench"
 
 
 def benchmarks_dir() -> Path:
@@ -96,6 +99,18 @@ def register(subparsers) -> None:
                            help="let the OS place the processes (default: senders on the first half of the CPUs, "
                                 "receivers on the second half)")
     transport.set_defaults(func=run_transport)
+    twin = targets.add_parser(
+        "twin", help="digital twin: raycast render of a 640x480 24-frame capture, dataset scenes per minute, Blender",
+        description="Times the twin's raycast renderer (trace + image formation of 96x12,1x12) on a random scene and "
+                    "the standard sphere, dataset scenes per minute through dptpu.sim, and with --blender the "
+                    "Blender seconds per frame and the raycast/Blender ratio (benchmarks/twin_bench.py).")
+    twin.add_argument("--json", action="store_true", help="print the report as one JSON object")
+    twin.add_argument("--repeats", type=int, default=None, help="timed runs (default 3)")
+    twin.add_argument("--size", default=None, help="camera size WIDTHxHEIGHT (default 640x480)")
+    twin.add_argument("--scenes", type=int, default=None, help="dataset scenes timed (default 5)")
+    twin.add_argument("--blender", action="store_true", help="also time dptpu.sim.blender (needs setup-blender)")
+    twin.add_argument("--blender-samples", type=int, default=16, help="Cycles samples per pixel (default 16)")
+    twin.set_defaults(func=run_twin)
 
 
 def run_fpp(args) -> int:
@@ -111,3 +126,8 @@ def run_fpp(args) -> int:
 def run_transport(args) -> int:
     """Load ``benchmarks/transport_bench.py`` and run it; 0 if every message arrived intact, 1 if not."""
     return load_transport_bench().run(args)
+
+
+def run_twin(args) -> int:
+    """Load ``benchmarks/twin_bench.py`` and run it (``dptpu bench twin``); 0."""
+    return load_bench("twin_bench.py", TWIN_MODULE_NAME).run(args)
