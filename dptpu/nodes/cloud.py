@@ -138,6 +138,8 @@ class CloudNode(Node):
         if not self.intensity_wait_s > 0:
             raise ValueError(f"parameter intensity_wait_s must be > 0 seconds; got {self.intensity_wait_s}")
         self.rig = load_rig(rig_path)
+        if self.ply_dir and self.ply_every:
+            import open3d  # noqa: F401 -- loaded now (seconds), not in the first scan's callback
         self._triangulators: dict[str, Triangulator] = {}
         self._phase_maps: OrderedDict[int, PhaseMaps] = OrderedDict()
         self._waiting: dict[int, tuple[AbsolutePhase, float]] = {}  # sequence_id -> (scan, deadline), monotonic s

@@ -1,4 +1,5 @@
-"""phase -> unwrap -> cloud in one harness: fringe frames of the analytic plane in, its points out.
+"""phase -> unwrap -> cloud in one harness: fringe frames of the analytic plane in, its points out; a shadowed
+rectangle (no fringe modulation) comes out as NaN holes exactly.
 
 Bound, from the phase noise of this scene (RMS 0.005 rad at f = 16, test_phase_node.py): the projector
 coordinate is off by 0.005 * 912 / (2*pi*16) = 0.045 px RMS, and at 850 mm with a 170 mm baseline one
@@ -34,7 +35,9 @@ def test_frames_of_the_plane_become_its_points(tmp_path, method, frequencies):
         points = harness.collect(PointCloud2, "/scanner/points")
         status = harness.collect(ScanStatus, "/scanner/status")
         harness.connect()
-        stacks = [scene.frames(f, seed=index) for index, f in enumerate(frequencies)]
+        shadow = np.zeros(scene.lit.shape, bool)
+        shadow[30:50, 100:140] = True  # the projector does not reach there: no fringes, no points
+        stacks = [scene.frames(f, seed=index, shadow=shadow) for index, f in enumerate(frequencies)]
         for sequence_id in (1, 2):
             for frame in fringe_frames(stacks, frequencies, sequence_id=sequence_id):
                 camera.publish(frame)
@@ -42,8 +45,8 @@ def test_frames_of_the_plane_become_its_points(tmp_path, method, frequencies):
         assert [c.sequence_id for c in harness.wait(status, 6) if c.node == "/cloud"] == [1, 2]
     assert cloud_node.scans_published == 2
     xyz = clouds[1].to_array(["x", "y", "z"])  # (H, W, 3) metres, camera optical frame
-    assert np.isfinite(xyz).all()
-    truth = scene.points_mm * 1e-3
+    assert np.array_equal(np.isnan(xyz).any(axis=-1), shadow)  # holes exactly where the shadow is
+    xyz, truth = xyz[~shadow], scene.points_mm[~shadow] * 1e-3  # (M, 3)
     depth_error = xyz[..., 2] - truth[..., 2]
     assert np.sqrt(np.mean(depth_error**2)) < DEPTH_RMS_BOUND_M
     assert np.abs(depth_error).max() < DEPTH_MAX_BOUND_M

@@ -44,10 +44,15 @@ class PlaneScene:
     def wrapped_phase(self, frequency: float) -> np.ndarray:
         return np.mod(self.absolute_phase(frequency), 2.0 * np.pi)
 
-    def frames(self, frequency: float, *, steps: int = 4, seed: int = 0, noise_dn: float = 0.5) -> np.ndarray:
-        """(steps, H, W) uint8 camera frames of the fringe sequence of ``frequency``."""
-        scene = SyntheticScene(projector_x=np.where(self.lit, self.projector_x, 0.0),
-                               albedo=np.where(self.lit, 0.8, 0.01), lit=self.lit)
+    def frames(self, frequency: float, *, steps: int = 4, seed: int = 0, noise_dn: float = 0.5,
+               shadow=None) -> np.ndarray:
+        """(steps, H, W) uint8 camera frames of the fringe sequence of ``frequency``.
+
+        ``shadow`` (H, W) bool: pixels the projector does not reach (albedo 0.01: modulation ~1 DN).
+        """
+        lit = self.lit if shadow is None else self.lit & ~shadow
+        scene = SyntheticScene(projector_x=np.where(lit, self.projector_x, 0.0),
+                               albedo=np.where(lit, 0.8, 0.01), lit=lit)
         return render_phase_frames(scene, frequency=frequency, steps=steps, noise_dn=noise_dn,
                                    rng=np.random.default_rng(seed)).images
 
