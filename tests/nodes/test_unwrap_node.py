@@ -177,3 +177,13 @@ def test_model_refines_the_classical_order_with_the_network(harness, scene, shif
     psi_h = maps.phases[0].astype(np.float64)
     assert np.allclose(result.absolute_phase[on_projector], (psi_h + 2 * np.pi * (classical + 1))[on_projector],
                        atol=1e-4)
+
+
+def test_nt_without_the_projector_size_is_reported(harness, scene):
+    node, source, absolute, status = start(harness, method="nt")
+    maps = phase_maps(scene, (16.0, 15.0), sequence_id=4)
+    maps.projector_width = maps.projector_height = 0
+    source.publish(maps)
+    (failed,) = harness.wait(status, 1)
+    assert failed.reason == ("cannot unwrap scan 4 (nt): nt needs the projector extent; the PhaseMaps has "
+                             "projector size 0 (unknown)")
