@@ -90,6 +90,24 @@ def project_to_projector(rig: Rig, points: np.ndarray) -> tuple[np.ndarray, np.n
     return normalized_to_pixels(distort(xy, projector.dist), projector.K), z
 
 
+_RAY_CACHE: dict = {}
+_RAY_CACHE_SIZE = 4
+
+
+def _camera_rays(camera) -> np.ndarray:
+    """Unit world ray directions (H*W, 3) of the camera's pixel centres, cached per camera model (a dataset renders
+    many scenes with one rig; undistorting the pixel grid is a third of a trace)."""
+    key = (camera.K.tobytes(), camera.dist.tobytes(), camera.R.tobytes(), camera.T.tobytes(), tuple(camera.size))
+    rays = _RAY_CACHE.get(key)
+    if rays is None:
+        rays = camera_rays(camera).reshape(-1, 3)
+        rays.setflags(write=False)
+        if len(_RAY_CACHE) >= _RAY_CACHE_SIZE:
+            _RAY_CACHE.pop(next(iter(_RAY_CACHE)))
+        _RAY_CACHE[key] = rays
+    return rays
+
+
 def _vertex_normals(vertices: np.ndarray, triangles: np.ndarray) -> np.ndarray:
     """Area-weighted vertex normals (V, 3) and face normals (T, 3), unit length."""
     v0, v1, v2 = (vertices[triangles[:, i]] for i in range(3))
@@ -139,7 +157,7 @@ def trace(rig: Rig, meshes) -> SurfaceSamples:
     camera = rig.camera
     width, height = camera.size
     origin = camera.center  # (3,) open3d works in float32: trace relative to the camera centre
-    directions = camera_rays(camera).reshape(-1, 3)  # (P, 3) unit, world
+    directions = _camera_rays(camera)  # (P, 3) unit, world (read-only, cached)
     scene = o3d.t.geometry.RaycastingScene()
     geometry_to_mesh = {}
     prepared = []
