@@ -137,7 +137,8 @@ def _text(report) -> str:
         lines.append(f"{key}: {r['triangles']} triangles; trace {r['trace']['best_s']:.3f} s + frames "
                      f"{r['frames']['best_s']:.3f} s = {r['total_best_s']:.3f} s ({r['frames_per_second']} frames/s)")
     d = report["dataset"]
-    lines.append(f"dataset: {d['scenes_per_minute']} scenes/min ({d['scenes']} scenes in {d['seconds']} s; {d['what']})")
+    lines.append(f"dataset: {d['scenes_per_minute']} scenes/min ({d['scenes']} scenes in {d['seconds']} s; "
+                 f"{d['what']})")
     b = report["blender"]
     lines.append(f"blender: {b['seconds_per_frame']} s/frame, raycast/Blender ratio {b['raycast_blender_ratio']}"
                  + (f" ({b['reason']})" if b.get("reason") else ""))

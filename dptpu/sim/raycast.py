@@ -255,5 +255,6 @@ def trace(rig: Rig, meshes) -> SurfaceSamples:
                           depth=depth.reshape(shape), projector_xy=projector_xy.reshape(*shape, 2),
                           lit=lit.reshape(shape), hit=hit.reshape(shape), albedo=albedo.reshape(shape),
                           roughness=roughness.reshape(shape), specular=specular.reshape(shape),
-                          ior=ior.reshape(shape), mesh_index=np.where(hit, mesh_index, -1).astype(np.int32).reshape(shape),
+                          ior=ior.reshape(shape),
+                          mesh_index=np.where(hit, mesh_index, -1).astype(np.int32).reshape(shape),
                           rig=rig, meshes=meshes)

@@ -23,6 +23,7 @@ coordinate along the sequence's fringe axis and ``W_p`` the projector extent alo
 """
 from __future__ import annotations
 
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -33,8 +34,7 @@ from dptpu.fpp.capture import PatternLevels, PhaseFrames, write_capture
 from .effects import effects_to_yaml, parse_effects
 from .effects.camera import apply_camera_effects
 from .effects.geometry import render_rig
-from .image_formation import (DEFAULT_AMPLITUDE, DEFAULT_OFFSET, SequenceSpec, _as_sequences, quantize,
-                              render_frames_float)
+from .image_formation import DEFAULT_AMPLITUDE, DEFAULT_OFFSET, _as_sequences, quantize, render_frames_float
 from .raycast import SurfaceSamples, trace
 
 __all__ = ["ENGINES", "ground_truth", "render_capture", "fringe_order_key"]
@@ -158,8 +158,6 @@ def render_capture(rig: Rig, scene, sequences, out_dir, *, engine: str = "raycas
     frames = [quantize(f, bit_depth) for f in frames]
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
-    from dataclasses import replace
-
     calibration = save_rig(replace(rig, effects=tuple(effects_to_yaml(effects))), out_dir / "calibration.yaml")
     phase_frames = [PhaseFrames(images=f, frequency=s.frequency, phase_offset=s.phase_offset)
                     for s, f in zip(sequences, frames) if s.kind == "phase"]

@@ -77,7 +77,8 @@ def test_projector_defocus_attenuates_modulation_by_the_gaussian_factor(small_ri
 
 def test_phase_shift_error_shifts_each_step(small_rig, plane_samples):
     errors = [0.1 * ((-1) ** n) for n in range(12)]
-    frames = _render(small_rig, plane_samples, [{"phase_shift_error": {"scale": 1.02, "errors_rad": errors, "sigma_rad": 0.0}}])
+    effect = {"phase_shift_error": {"scale": 1.02, "errors_rad": errors, "sigma_rad": 0.0}}
+    frames = _render(small_rig, plane_samples, [effect])
     theta = 2 * np.pi * 96 * plane_samples.projector_xy[..., 0] / W
     factor = reflectance_factor(small_rig, plane_samples)
     for n in (0, 3, 7):

@@ -119,7 +119,8 @@ def _parse_object(where: _Where, entry, key: str, rig: Rig, root: Path):
     allowed = set(_COMMON_KEYS) | set(SHAPE_PARAMETERS[shape])
     unknown = sorted(set(entry) - allowed)
     if unknown:
-        where.fail(f"{key}.{unknown[0]}", f"unknown key for shape {shape}; expected one of {', '.join(sorted(allowed))}")
+        where.fail(f"{key}.{unknown[0]}",
+                   f"unknown key for shape {shape}; expected one of {', '.join(sorted(allowed))}")
     name = entry.get("name", f"object{key[8:-1]}")
     if not isinstance(name, str) or not name:
         where.fail(f"{key}.name", f"must be a non-empty string; got {name!r}")
