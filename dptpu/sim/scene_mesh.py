@@ -60,7 +60,8 @@ class SceneMesh:
         Vertex indices, counter-clockwise seen from outside.
     material : Material
     albedo_texture : ndarray (Ht, Wt) float32 or None
-        Optional grey texture in [0, 1] (a calibration board's squares), mapped through ``uv``.
+        Optional grey texture in [0, 1] (a calibration board's squares), mapped through ``uv``; the diffuse
+        reflectance is ``material.albedo * texture`` (texel centres at ``(i + 0.5) / Wt``, bilinear).
     uv : ndarray (V, 2) float64 or None
         Texture coordinates in [0, 1] per vertex (u right, v down in the texture image), when textured.
     """
