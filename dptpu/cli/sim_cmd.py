@@ -11,6 +11,7 @@ Other modules add sub-commands to the ``sim`` group when they are present: ``dpt
 from __future__ import annotations
 
 import importlib
+import sys
 
 #: Modules of ``dptpu.cli`` that add sub-commands to ``dptpu sim`` (absent ones are skipped).
 SIM_COMMAND_MODULES = ("sim_blender_cmd", "sim_dataset_cmd")
@@ -67,7 +68,13 @@ def run_render(args) -> int:
         scene = load_scene(args.scene, rig)
     effects = load_effects(args.effects) if args.effects else None
     sequences = parse_sequences(args.sequence)
-    out = render_capture(rig, scene, sequences, args.out, engine=args.engine, effects=effects, seed=args.seed,
-                         bit_depth=args.bit_depth)
+    try:
+        out = render_capture(rig, scene, sequences, args.out, engine=args.engine, effects=effects, seed=args.seed,
+                             bit_depth=args.bit_depth)
+    except RuntimeError as exc:  # the Blender worker: not installed (dptpu sim setup-blender), failed, timed out
+        if args.engine != "blender":
+            raise
+        print(f"dptpu sim render: error: {exc}", file=sys.stderr)
+        return 2
     print(f"wrote {out}")
     return 0
