@@ -1,0 +1,406 @@
+"""Scan monitor: one status line per scan (points, fringe-order accuracy and depth RMS against the twin's ground
+truth, latency), PLY files of the first clouds, and the end of the launch after ``scans`` scans.
+
+The monitor is the sim rig's robot: it subscribes to the clouds and to the sim node's ground truth, reports each
+scan once, when its cloud arrived (``ok``), when a node reported it failed (``FAILED``, with the node and the
+reason), or when nothing more came for ``scan_timeout_s`` (``LOST``). Figures:
+:mod:`dptpu.nodes.scan_metrics`. With ``scans:=N`` it prints a summary after N scans and exits with code 0; in a
+launch file as ``required: true`` that stops the whole graph cleanly (docs/launch.md). Run it as
+``python -m dptpu.nodes.scan_monitor --ros-args -p scans:=10`` or from ``launch/sim_rig.yaml``. Design:
+``docs/scanner.md``.
+
+A line looks like::
+
+    scan 3 sphere: ok, 1,327 points, fringe orders 100.00 %, depth RMS 0.052 mm, latency 184 ms
+
+Latency is from the scan's last Trigger (the stamp its frames and cloud carry) to the cloud's arrival here.
+
+Topics (defaults; remappable)
+
+============================= ================= ===== ============================================================
+topic                         type              dir   notes
+============================= ================= ===== ============================================================
+``/scanner/points``           PointCloud2       in    the clouds (x, y, z in metres)
+``/scanner/absolute_phase``   AbsolutePhase     in    for the fringe-order accuracy
+``/sim/ground_truth``         AbsolutePhase     in    the sim node's truth (``ground_truth`` true)
+``/sim/ground_truth_depth``   Image 32FC1       in    the sim node's true depth, metres
+``/scanner/status``           ScanStatus        in    failures of every node
+``/projector/trigger``        Trigger           in    subscribed once clouds, absolute phase (and truth) have
+                                                      publishers, so a projector with ``min_subscribers: 2`` waits
+                                                      for the monitor too; gives each scan's first Trigger
+============================= ================= ===== ============================================================
+
+Parameters
+
+==================== ======== ==================================================================================
+name                 default  meaning
+==================== ======== ==================================================================================
+``scans``            0        exit (code 0) after this many scans were reported; 0 = run until Ctrl-C
+``scan_timeout_s``   5.0      a scan with no cloud and no failure this long after its last message is LOST
+``ground_truth``     true     compare with ``/sim/ground_truth``; false: points and latency only (a real rig)
+``ply_dir``          ""       folder for PLY files of the first ``ply_count`` clouds ("" = none)
+``ply_count``        3        clouds written as ``scan_<sequence_id>.ply``
+``summary``          ""       JSON file written at exit (and every 50 scans): every scan's figures and totals
+``start_scans``      0        keep this many scans in flight by calling ``start_service`` (scan on demand: the
+                              next scan starts when one was reported, so a slow machine is never overrun);
+                              0 = start none (the projector runs its own scans)
+``start_service``    ``/projector/start_scan``  the projector's std_srvs/Trigger service
+==================== ======== ==================================================================================
+"""
+from __future__ import annotations
+
+import json
+import math
+import sys
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+import dptpu.graph as rclpy
+from dptpu.graph import ExternalShutdownException
+from dptpu.graph.interfaces import Trigger as TriggerService
+from dptpu.graph.node import Node
+from dptpu.graph.qos import QoSProfile
+from dptpu.messages import AbsolutePhase, Image, PointCloud2, ScanStatus, Trigger
+
+from .scan_metrics import scan_metrics
+
+__all__ = ["ScanMonitorNode", "main"]
+
+_GRACE_S = 1.0  # how long a scan whose cloud arrived waits for its absolute phase and ground truth
+_KEPT_RECORDS = 10_000
+
+
+@dataclass
+class _Scan:
+    """What arrived of one scan so far."""
+
+    sequence_id: int
+    last_message_s: float
+    first_trigger_ns: int = 0
+    cloud: PointCloud2 | None = None
+    cloud_arrival_ns: int = 0
+    cloud_arrival_s: float = 0.0
+    absolute_phase: AbsolutePhase | None = None
+    truth: AbsolutePhase | None = None
+    truth_depth: Image | None = None
+    seen: dict = field(default_factory=dict)  # node -> state of its OK statuses
+    failure: str = ""
+
+
+class ScanMonitorNode(Node):
+    """Reports every scan once (see the module docstring). ``records``: the reported scans' figures."""
+
+    def __init__(self, node_name: str = "scan_monitor", **node_options):
+        super().__init__(node_name, **node_options)
+        self.scans = self.declare_parameter("scans", 0).value
+        self.scan_timeout_s = self.declare_parameter("scan_timeout_s", 5.0).value
+        self.use_truth = self.declare_parameter("ground_truth", True).value
+        self.ply_dir = self.declare_parameter("ply_dir", "").value
+        self.ply_count = self.declare_parameter("ply_count", 3).value
+        self.summary_path = self.declare_parameter("summary", "").value
+        self.start_scans = self.declare_parameter("start_scans", 0).value
+        start_service = self.declare_parameter("start_service", "/projector/start_scan").value
+        if self.scans < 0 or self.start_scans < 0:
+            raise ValueError(f"parameters scans (0 = run until Ctrl-C) and start_scans (0 = none) must be >= 0; "
+                             f"got {self.scans}, {self.start_scans}")
+        if not self.scan_timeout_s > 0:
+            raise ValueError(f"parameter scan_timeout_s must be > 0 seconds; got {self.scan_timeout_s}")
+        self.records: list[dict] = []
+        self.reported = 0
+        self.counts = {"ok": 0, "failed": 0, "lost": 0}
+        self.ply_written = 0
+        self.finished = False
+        self._pending: dict[int, _Scan] = {}
+        self._done_ids: dict[int, float] = {}  # reported sequence_id -> when (late messages are ignored)
+        self._truths: dict[int, AbsolutePhase] = {}
+        self._truth_depths: dict[int, Image] = {}  # stamp ns -> depth image
+        self._orphan_clouds: list = []  # (cloud, arrival ns, arrival s) whose AbsolutePhase has not come yet
+
+        self.cloud_sub = self.create_subscription(PointCloud2, "/scanner/points", self.on_cloud, 10)
+        self.phase_sub = self.create_subscription(AbsolutePhase, "/scanner/absolute_phase", self.on_absolute_phase, 10)
+        self.status_sub = self.create_subscription(ScanStatus, "/scanner/status", self.on_status, QoSProfile(depth=200))
+        self.truth_sub = self.truth_depth_sub = None
+        if self.use_truth:
+            self.truth_sub = self.create_subscription(AbsolutePhase, "/sim/ground_truth", self.on_truth, 10)
+            self.truth_depth_sub = self.create_subscription(Image, "/sim/ground_truth_depth", self.on_truth_depth, 10)
+        self.trigger_sub = None
+        self.start_client = self.create_client(TriggerService, start_service) if self.start_scans else None
+        self.scans_started = 0
+        self._start_call = None
+        self._progress_s = time.monotonic()
+        self.timer = self.create_timer(0.1, self.on_timer)
+
+    # -- callbacks ------------------------------------------------------------------------------------------
+
+    def on_trigger(self, msg: Trigger) -> None:
+        scan = self._scan(msg.sequence_id)
+        if scan is not None and not scan.first_trigger_ns:
+            scan.first_trigger_ns = msg.header.stamp.to_ns()
+
+    def on_cloud(self, msg: PointCloud2) -> None:
+        # a cloud carries its scan's stamp, not its sequence_id: match it to the AbsolutePhase or truth of that stamp
+        stamp_ns = msg.header.stamp.to_ns()
+        arrival_ns, arrival_s = time.time_ns(), time.monotonic()
+        scan = next((s for s in self._pending.values()
+                     if s.absolute_phase is not None and s.absolute_phase.header.stamp.to_ns() == stamp_ns), None)
+        if scan is None:
+            self._orphan_clouds.append((msg, arrival_ns, arrival_s))
+            del self._orphan_clouds[:-8]
+            return
+        scan.cloud, scan.cloud_arrival_ns, scan.cloud_arrival_s = msg, arrival_ns, arrival_s
+        scan.last_message_s = arrival_s
+        self._try_report(scan)
+
+    def on_absolute_phase(self, msg: AbsolutePhase) -> None:
+        scan = self._scan(msg.sequence_id)
+        if scan is None:
+            return
+        scan.absolute_phase = msg
+        stamp_ns = msg.header.stamp.to_ns()
+        for entry in list(self._orphan_clouds):
+            if entry[0].header.stamp.to_ns() == stamp_ns:
+                self._orphan_clouds.remove(entry)
+                scan.cloud, scan.cloud_arrival_ns, scan.cloud_arrival_s = entry
+        self._try_report(scan)
+
+    def on_truth(self, msg: AbsolutePhase) -> None:
+        self._truths[msg.sequence_id] = msg
+        while len(self._truths) > 16:
+            self._truths.pop(next(iter(self._truths)))
+        scan = self._pending.get(msg.sequence_id)
+        if scan is not None:
+            self._try_report(scan)
+
+    def on_truth_depth(self, msg: Image) -> None:
+        self._truth_depths[msg.header.stamp.to_ns()] = msg
+        while len(self._truth_depths) > 16:
+            self._truth_depths.pop(next(iter(self._truth_depths)))
+
+    def on_status(self, msg: ScanStatus) -> None:
+        scan = self._scan(msg.sequence_id)
+        if scan is None:
+            return
+        if msg.level == ScanStatus.ERROR or msg.state == "failed":
+            if not scan.failure:
+                scan.failure = f"{msg.node}: {msg.reason}"
+            self._report(scan)
+        else:
+            scan.seen[msg.node] = msg.state
+
+    def on_timer(self) -> None:
+        """Report the scans that waited too long; take Triggers once the pipeline's outputs are there."""
+        if self.trigger_sub is None and self.cloud_sub.get_publisher_count() and self.phase_sub.get_publisher_count() \
+                and (self.truth_sub is None or self.truth_sub.get_publisher_count()):
+            self.trigger_sub = self.create_subscription(Trigger, "/projector/trigger", self.on_trigger, 200)
+            self.get_logger().info("clouds, absolute phase and ground truth have publishers: taking Triggers")
+        now_s = time.monotonic()
+        for scan in list(self._pending.values()):
+            if scan.cloud is not None and now_s - scan.cloud_arrival_s > _GRACE_S:
+                self._report(scan)
+            elif now_s - scan.last_message_s > self.scan_timeout_s:
+                self._report(scan)
+        for sequence_id in [i for i, when in self._done_ids.items() if now_s - when > 4 * self.scan_timeout_s]:
+            del self._done_ids[sequence_id]
+        self._start_more()
+
+    # -- scans on demand -------------------------------------------------------------------------------------
+
+    def _start_more(self) -> None:
+        """Call ``start_service`` while fewer than ``start_scans`` scans are in flight."""
+        if self.start_client is None or self.trigger_sub is None or self.finished or self._start_call is not None:
+            return
+        if self.count_subscribers(self.trigger_sub.topic_name) < 2:  # the camera (sim) must hear the Triggers too
+            return
+        now_s = time.monotonic()
+        if self.scans_started > self.reported and now_s - self._progress_s > 2 * self.scan_timeout_s:
+            self.get_logger().warning(f"{self.scans_started - self.reported} started scan(s) never showed up; "
+                                      "starting new ones")
+            self.scans_started = self.reported
+        if self.scans_started - self.reported >= self.start_scans or not self.start_client.service_is_ready():
+            return
+        self._start_call = self.start_client.call_async(TriggerService.Request())
+        self._start_call.add_done_callback(self._on_started)
+
+    def _on_started(self, future) -> None:
+        self._start_call = None
+        try:
+            response = future.result()
+        except Exception as exc:  # noqa: BLE001 - a failed call is retried on the next tick
+            self.get_logger().warning(f"start_scan failed: {exc}", throttle_duration_sec=5.0)
+            return
+        if response is not None and response.success:
+            self.scans_started += 1
+            self._progress_s = time.monotonic()
+            self._start_more()
+
+    # -- reporting -------------------------------------------------------------------------------------------
+
+    def _scan(self, sequence_id: int) -> _Scan | None:
+        """The pending record of ``sequence_id`` (made on first sight); None once it was reported."""
+        if self.finished or sequence_id in self._done_ids:
+            return None
+        scan = self._pending.get(sequence_id)
+        if scan is None:
+            scan = self._pending[sequence_id] = _Scan(sequence_id, time.monotonic())
+        scan.last_message_s = time.monotonic()
+        return scan
+
+    def _try_report(self, scan: _Scan) -> None:
+        if scan.cloud is None or scan.absolute_phase is None:
+            return
+        if self.use_truth and (self._truth_of(scan) is None or scan.truth_depth is None):
+            return
+        self._report(scan)
+
+    def _truth_of(self, scan: _Scan):
+        truth = self._truths.get(scan.sequence_id)
+        if truth is not None:
+            scan.truth = truth
+            scan.truth_depth = self._truth_depths.get(truth.header.stamp.to_ns())
+        return scan.truth
+
+    def _report(self, scan: _Scan) -> None:
+        self._pending.pop(scan.sequence_id, None)
+        self._done_ids[scan.sequence_id] = time.monotonic()
+        record = {"sequence_id": int(scan.sequence_id), "scene": "", "outcome": ""}
+        truth = self._truth_of(scan) if self.use_truth else None
+        if truth is not None:
+            record["scene"] = truth.method.partition(":")[2]
+        if scan.cloud is not None:
+            record.update(self._figures(scan, truth))
+            record["outcome"] = "ok"
+        elif scan.failure:
+            record.update(outcome="failed", reason=scan.failure)
+        else:
+            arrived = ", ".join(f"{node} {state}" for node, state in scan.seen.items()) or "no status"
+            record.update(outcome="lost", reason=f"no cloud within {self.scan_timeout_s:g} s ({arrived})")
+        self.counts[record["outcome"]] += 1
+        self.reported += 1
+        self._progress_s = time.monotonic()
+        self.records.append(record)
+        del self.records[:-_KEPT_RECORDS]
+        print(self._line(record), flush=True)
+        if record["outcome"] == "ok" and self.ply_dir and self.ply_written < self.ply_count:
+            self._write_ply(scan)
+        if self.summary_path and self.reported % 50 == 0:
+            self.write_summary()
+        if self.scans and self.reported >= self.scans:
+            self.finished = True
+            print(self.summary_line(), flush=True)
+            if self.summary_path:
+                self.write_summary()
+        self._start_more()
+
+    def _figures(self, scan: _Scan, truth) -> dict:
+        xyz = scan.cloud.to_array(["x", "y", "z"])  # (H, W, 3) metres
+        figures = {"latency_ms": (scan.cloud_arrival_ns - scan.cloud.header.stamp.to_ns()) * 1e-6}
+        if scan.first_trigger_ns:
+            figures["latency_from_first_trigger_ms"] = (scan.cloud_arrival_ns - scan.first_trigger_ns) * 1e-6
+        phase = scan.absolute_phase
+        if truth is not None and scan.truth_depth is not None and phase is not None \
+                and phase.absolute_phase.shape == truth.absolute_phase.shape == xyz.shape[:2]:
+            same_frequency = math.isclose(phase.frequency, truth.frequency, rel_tol=1e-9)
+            metrics = scan_metrics(xyz[..., 2], phase.absolute_phase if same_frequency else np.full_like(
+                phase.absolute_phase, np.nan), phase.valid, truth.absolute_phase, truth.valid,
+                scan.truth_depth.to_array())
+            figures.update(metrics.as_dict())
+            figures["method"] = phase.method
+        else:
+            figures["valid_points"] = int(np.count_nonzero(np.isfinite(xyz[..., 2])))
+            figures["total_pixels"] = int(xyz.shape[0] * xyz.shape[1])
+        return figures
+
+    @staticmethod
+    def _line(record: dict) -> str:
+        head = f"scan {record['sequence_id']}" + (f" {record['scene']}" if record["scene"] else "")
+        if record["outcome"] != "ok":
+            return f"{head}: {record['outcome'].upper()}: {record['reason']}"
+        text = f"{head}: ok, {record['valid_points']:,} points"
+        if "order_accuracy" in record:
+            text += (f", fringe orders {100.0 * record['order_accuracy']:.2f} %, depth RMS "
+                     f"{record['depth_rms_mm']:.3f} mm ({record['depth_rms_right_order_mm']:.3f} mm where the order "
+                     f"is right)")
+        return text + f", latency {record['latency_ms']:.0f} ms"
+
+    def totals(self) -> dict:
+        """Counts and figures over the reported scans (accuracy and RMS pooled over pixels)."""
+        ok = [r for r in self.records if r["outcome"] == "ok"]
+        totals = dict(self.counts, scans=self.reported)
+        latencies = [r["latency_ms"] for r in ok]
+        if latencies:
+            totals["latency_ms_p50"] = float(np.percentile(latencies, 50))
+            totals["latency_ms_p99"] = float(np.percentile(latencies, 99))
+        graded = [r for r in ok if "order_accuracy" in r and r["compared_pixels"]]
+        if graded:
+            compared = sum(r["compared_pixels"] for r in graded)
+            totals["order_accuracy"] = 1.0 - sum(r["order_errors"] for r in graded) / compared
+            depth = [r for r in graded if r["depth_pixels"]]
+            if depth:
+                squares = sum(r["depth_rms_mm"] ** 2 * r["depth_pixels"] for r in depth)
+                totals["depth_rms_mm"] = math.sqrt(squares / sum(r["depth_pixels"] for r in depth))
+        return totals
+
+    def summary_line(self) -> str:
+        t = self.totals()
+        text = f"{t['scans']} scans: {t['ok']} ok, {t['failed']} failed, {t['lost']} lost"
+        if "order_accuracy" in t:
+            text += f"; fringe orders {100.0 * t['order_accuracy']:.3f} %"
+        if "depth_rms_mm" in t:
+            text += f", depth RMS {t['depth_rms_mm']:.3f} mm"
+        if "latency_ms_p50" in t:
+            text += f", latency p50 {t['latency_ms_p50']:.0f} ms, p99 {t['latency_ms_p99']:.0f} ms"
+        return text
+
+    def write_summary(self) -> None:
+        path = Path(self.summary_path)
+        try:
+            path.parent.mkdir(parents=True, exist_ok=True)
+            tmp = path.with_name(path.name + ".tmp")
+            tmp.write_text(json.dumps({"totals": self.totals(), "scans": self.records}, indent=1))
+            tmp.replace(path)
+        except OSError as exc:
+            self.get_logger().warning(f"cannot write the summary {path}: {exc}")
+
+    def _write_ply(self, scan: _Scan) -> None:
+        from .cloud import write_ply
+
+        path = Path(self.ply_dir) / f"scan_{scan.sequence_id:08d}.ply"
+        try:
+            path.parent.mkdir(parents=True, exist_ok=True)
+            count = write_ply(path, scan.cloud.to_array(["x", "y", "z"]), scan.cloud.to_array(["intensity"])[..., 0])
+        except (OSError, ImportError, RuntimeError) as exc:
+            self.get_logger().warning(f"PLY {path} failed: {exc}")
+            return
+        self.ply_written += 1
+        print(f"wrote {path} ({count:,} points)", flush=True)
+
+
+def main(argv=None) -> int:
+    """``python -m dptpu.nodes.scan_monitor [--ros-args ...]``: run until ``scans`` were reported (0) or Ctrl-C."""
+    rclpy.init(args=sys.argv if argv is None else argv)
+    try:
+        node = ScanMonitorNode()
+    except ValueError as exc:
+        print(f"scan_monitor: error: {exc}", file=sys.stderr)
+        rclpy.try_shutdown()
+        return 2
+    try:
+        while rclpy.ok() and not node.finished:
+            rclpy.spin_once(node, timeout_sec=0.1)
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    finally:
+        if node.summary_path:
+            node.write_summary()
+        if not node.finished and node.reported:
+            print(node.summary_line(), flush=True)
+        node.destroy_node()
+        rclpy.try_shutdown()
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
