@@ -179,6 +179,16 @@ def _check_patterns(patterns, projector: DeviceModel) -> np.ndarray:
     return patterns
 
 
+def _compact(patterns: np.ndarray) -> np.ndarray:
+    """Patterns (N, Hp, Wp) as one row (N, 1, Wp) when every row is the same (vertical fringes), one column
+    (N, Hp, 1) when every column is, else unchanged: the worker extends them over the panel."""
+    if np.array_equal(patterns, np.broadcast_to(patterns[:, :1, :], patterns.shape)):
+        return np.ascontiguousarray(patterns[:, :1, :])
+    if np.array_equal(patterns, np.broadcast_to(patterns[:, :, :1], patterns.shape)):
+        return np.ascontiguousarray(patterns[:, :, :1])
+    return patterns
+
+
 def _pose(entry, scale_to_m: float) -> dict:
     return {"location_m": [float(v) * scale_to_m for v in entry.location],
             "rotation_euler_rad": [float(a) for a in entry.rotation_euler]}
@@ -190,7 +200,7 @@ def _write_job(job_dir: Path, rig: Rig, meshes, patterns, pinhole: RenderCamera,
     camera = camera_parameters(pinhole.device(rig.camera), sensor_width_mm=_SENSOR_WIDTH_MM)
     projector = projector_parameters(rig.projector)
     d_ref_m = reference_distance(rig) * scale
-    np.save(job_dir / "patterns.npy", patterns)
+    np.save(job_dir / "patterns.npy", _compact(patterns))
     mesh_entries = []
     for index, mesh in enumerate(meshes):
         names = {"vertices": f"mesh{index:03d}_vertices.npy", "triangles": f"mesh{index:03d}_triangles.npy"}
