@@ -1,0 +1,82 @@
+"""``dptpu calibrate``: a rig file from checkerboard calibration poses (real captures or the twin's).
+
+    dptpu calibrate POSE_DIRS... --board COLSxROWS:SQUARE_MM --out rig.yaml
+    dptpu calibrate --twin RIG [--poses N] [--size WxH] --board ... --out rig.yaml [--keep DIR]
+
+A pose folder holds the captures ``x/`` and ``y/`` (docs/calibration.md); a folder of pose folders stands for all
+of them. With ``--twin`` the poses are rendered in the twin of ``RIG`` first and the result is compared with it
+(the round trip of :mod:`dptpu.sim.calibrate`). Prints the reprojection error of each device (overall and per
+pose) and writes a ``dptpu-rig/1`` file (world = camera frame, mm).
+"""
+from __future__ import annotations
+
+import sys
+import tempfile
+
+
+def register(subparsers) -> None:
+    parser = subparsers.add_parser(
+        "calibrate", help="calibrate camera + projector from checkerboard poses -> dptpu-rig/1",
+        description="Zhang's method for the camera, the projector as an inverse camera from the absolute phase of "
+                    "vertical and horizontal fringes at the board corners, then the pair (docs/calibration.md).")
+    parser.add_argument("pose_dirs", nargs="*", metavar="POSE_DIR",
+                        help="calibration pose folders (each with x/ and y/ dptpu-capture/1 folders), or folders of them")
+    parser.add_argument("--board", required=True, help="COLSxROWS:SQUARE_MM: inner corners and square edge, e.g. 10x8:13")
+    parser.add_argument("--out", required=True, help="rig file to write (dptpu-rig/1 YAML)")
+    parser.add_argument("--window", type=int, default=6,
+                        help="half-size in camera pixels of the local homography around each corner (default 6)")
+    twin = parser.add_argument_group("twin round trip (instead of POSE_DIRs)")
+    twin.add_argument("--twin", metavar="RIG", help="render the poses in the twin of RIG (rig file, "
+                                                    "'CAM.mat,PRJ.mat' or 'nominal') and compare the result with it")
+    twin.add_argument("--poses", type=int, default=10, help="board poses to render (default 10)")
+    twin.add_argument("--size", default=None, help="camera size WIDTHxHEIGHT for the render (default: the rig's)")
+    twin.add_argument("--frequency", type=float, default=16.0, help="fringe frequency of both directions (default 16)")
+    twin.add_argument("--supersample", type=int, default=2, help="rays per pixel along each axis (default 2)")
+    twin.add_argument("--seed", type=int, default=0, help="seed of the board poses (default 0)")
+    twin.add_argument("--keep", metavar="DIR", help="write the rendered pose folders here (default: a temporary folder)")
+    parser.set_defaults(func=run)
+
+
+def run(args) -> int:
+    from dptpu.fpp.calibration import save_rig
+    from dptpu.fpp.rig_calibration import calibrate_from_folders, parse_board
+
+    board = parse_board(args.board)
+    if args.twin:
+        if args.pose_dirs:
+            raise ValueError("give either POSE_DIRs or --twin RIG, not both")
+        return _run_twin(args, board)
+    if not args.pose_dirs:
+        raise ValueError("give calibration pose folders (POSE_DIR...) or --twin RIG")
+    result = calibrate_from_folders(args.pose_dirs, board, window_px=args.window)
+    _print_errors(result)
+    save_rig(result.rig, args.out)
+    print(f"wrote {args.out}: baseline {result.baseline_mm:.3f} mm")
+    return 0
+
+
+def _run_twin(args, board) -> int:
+    from dptpu.fpp.calibration import save_rig
+    from dptpu.sim.calibrate import format_report, round_trip
+    from dptpu.sim.rig import load_twin_rig
+
+    rig = load_twin_rig(args.twin, size=args.size)
+    with tempfile.TemporaryDirectory(prefix="dptpu-calibrate-") as scratch:
+        out_dir = args.keep or scratch
+        print(f"rendering {args.poses} board poses in the twin ({rig.camera.size[0]}x{rig.camera.size[1]}) -> {out_dir}",
+              file=sys.stderr)
+        result, report = round_trip(rig, out_dir, board=board, count=args.poses, frequency=args.frequency,
+                                    supersample=args.supersample, seed=args.seed)
+    _print_errors(result)
+    print(format_report(report))
+    save_rig(result.rig, args.out)
+    print(f"wrote {args.out}")
+    return 0
+
+
+def _print_errors(result) -> None:
+    print(f"reprojection RMS: camera {result.camera.rms_px:.4f} px, projector {result.projector.rms_px:.4f} px "
+          f"(joint fit: camera {result.relative.rms_camera_px:.4f} px, projector "
+          f"{result.relative.rms_projector_px:.4f} px), {len(result.names)} poses")
+    for name, camera_rms, projector_rms in zip(result.names, result.camera.view_rms_px, result.projector.view_rms_px):
+        print(f"  {name}: camera {camera_rms:.4f} px, projector {projector_rms:.4f} px")
