@@ -1,8 +1,11 @@
 """``dptpu unwrap``: absolute phase of a capture folder, saved as ``.npz``.
 
-    dptpu unwrap --capture DIR --method mf|mw|nt|heterodyne|graycode [--high F --low F] --out OUT.npz
+    dptpu unwrap --capture DIR --method mf|mw|nt|heterodyne|graycode [--high F --low F] [--model PATH|none]
+                 --out OUT.npz
 
-Thin shell over :func:`dptpu.fpp.capture.read_capture` and :func:`dptpu.fpp.reconstruct.unwrap_capture`.
+Thin shell over :func:`dptpu.fpp.capture.read_capture` and :func:`dptpu.fpp.reconstruct.unwrap_capture`;
+for mf/mw/nt the DP-TPU network (:mod:`dptpu.models.refine`, onnxruntime) refines the fringe order, by
+default with the shipped model when the package has one (``--model none``: the classical result).
 """
 from __future__ import annotations
 
@@ -16,7 +19,7 @@ from dptpu.fpp.reconstruct import DEFAULT_MIN_MODULATION_FRACTION, METHODS, Capt
 
 #: Keys of the written ``.npz``.
 NPZ_KEYS = ("fringe_order", "absolute_phase", "valid", "modulation", "reliability", "frequency",
-            "fringe_axis", "projector_size", "method")
+            "fringe_axis", "projector_size", "method", "model")
 
 
 def add_unwrap_arguments(parser: argparse.ArgumentParser) -> None:
@@ -52,12 +55,20 @@ def register(subparsers) -> None:
                     "valid (bool), modulation (camera DN), reliability, frequency, fringe_axis, "
                     "projector_size and method. Arrays are (H, W).")
     add_unwrap_arguments(parser)
+    parser.add_argument("--model", metavar="PATH|none",
+                        help="DP-TPU network (.onnx) that refines the mf/mw/nt fringe order; 'none' = classical; "
+                             "default: the shipped model (dptpu/models/dptpu.onnx) when present")
     parser.add_argument("--out", required=True, type=Path, metavar="OUT.npz", help="output .npz file")
     parser.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:
+    from dptpu.models.refine import refine_capture_result, resolve_model
+
+    model = resolve_model(args.model, args.method)  # before the work: a bad model file fails fast
     result = unwrap_from_args(args)
+    if model is not None:
+        result = refine_capture_result(result, model)
     out = args.out if args.out.suffix == ".npz" else args.out.with_name(args.out.name + ".npz")
     if not out.parent.is_dir():
         raise FileNotFoundError(f"{out.parent}: output folder does not exist")
@@ -72,6 +83,7 @@ def run(args: argparse.Namespace) -> int:
         fringe_axis=np.str_(result.fringe_axis),
         projector_size=np.asarray(result.projector_size, dtype=np.int64),
         method=np.str_(result.method),
+        model=np.str_(str(model.path) if model is not None else "none"),
     )
     total = result.valid.size
     print(f"{result.method}: {result.valid_count} of {total} pixels valid "

@@ -84,6 +84,11 @@ class CaptureResult:
         ``"x"`` or ``"y"``, from the capture.
     projector_size : (int, int)
         Projector ``(width, height)``, from the capture.
+    wrapped_phases : tuple of ndarray (H, W) float64
+        Wrapped phase ``psi`` in ``[0, 2*pi)`` of each sequence in ``frequencies`` (so a fringe-order
+        refinement, e.g. the DP-TPU network in ``dptpu.models``, can start from this result).
+    quality : ndarray (H, W) bool or None
+        Quality mask of the sequences used (modulation, saturation), before unwrapping.
     """
 
     fringe_order: np.ndarray
@@ -96,6 +101,8 @@ class CaptureResult:
     frequencies: tuple[float, ...]
     fringe_axis: str
     projector_size: tuple[int, int]
+    wrapped_phases: tuple[np.ndarray, ...] = ()
+    quality: np.ndarray | None = None
 
     @property
     def fringe_extent_px(self) -> int:
@@ -207,6 +214,8 @@ def unwrap_capture(
         frequencies=tuple(float(f) for f in frequencies),
         fringe_axis=capture.fringe_axis,
         projector_size=tuple(capture.projector_size),
+        wrapped_phases=tuple(psi),
+        quality=quality,
     )
 
 

@@ -146,5 +146,6 @@ class FringeOrderModel:
         clean = [np.where(mask, a, 0.0) for a in arrays]
         continuous = self.predict(*clean, float(frequency_high))
         rounded = np.rint(continuous).astype(np.int32)
-        classical = np.where(finite, np.rint(clean[2]), 0).astype(np.int32)
+        coarse_finite = np.isfinite(arrays[2])
+        classical = np.where(coarse_finite, np.rint(np.where(coarse_finite, arrays[2], 0.0)), 0).astype(np.int32)
         return np.where(mask, rounded, classical)

@@ -210,6 +210,10 @@ def train(options: TrainOptions) -> TrainResult:
             totals["fourier"] += terms.fourier
             progress.update(epoch + 1, options.epochs, step + 1, steps, totals["loss"] / (step + 1),
                             (time.perf_counter() - epoch_start) / (step + 1))
+        if world > 1:  # the mean over processes (each process's loss is the mean over its own batch)
+            summed = torch.tensor([totals[k] for k in ("loss", "mse", "fourier")], dtype=torch.float64)
+            dist.all_reduce(summed)
+            totals = dict(zip(("loss", "mse", "fourier"), (summed / world).tolist()))
         record = {"epoch": epoch + 1, **{k: v / steps for k, v in totals.items()},
                   "seconds": round(time.perf_counter() - epoch_start, 3)}
         history.append(record)

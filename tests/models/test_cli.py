@@ -1,0 +1,113 @@
+"""``dptpu train``, ``dptpu model export|eval|toy-data`` and ``dptpu unwrap --model`` in-process."""
+import csv
+import json
+
+import numpy as np
+import pytest
+
+from dptpu.cli.main import main
+from dptpu.models.samples import list_samples, read_sample
+
+from .conftest import TINY_DPTPU
+
+MF = [{"frequency": 64}, {"frequency": 1}]
+
+
+def _run(capsys, argv):
+    code = main([str(a) for a in argv])
+    captured = capsys.readouterr()
+    return code, captured.out, captured.err
+
+
+def test_train_then_export_then_eval(tiny_dataset, tmp_path, capsys):
+    out = tmp_path / "m.onnx"
+    code, stdout, stderr = _run(capsys, ["train", "--data", tiny_dataset, "--out", out, "--epochs", 1, "--batch", 4,
+                                         "--crop", "32x48", "--config", json.dumps(TINY_DPTPU), "--threads", 1])
+    assert code == 0, stderr
+    assert stdout.startswith("dptpu: 1 epochs,") and f"-> {out}" in stdout
+    assert "epoch 1/1" in stderr  # the progress bar
+    assert out.is_file() and (tmp_path / "m.ckpt").is_file()
+
+    code, stdout, _ = _run(capsys, ["model", "export", "--checkpoint", tmp_path / "m.ckpt", "--out", tmp_path / "e.onnx"])
+    assert code == 0 and stdout.strip() == f"dptpu (epoch 1) -> {tmp_path / 'e.onnx'}"
+
+    code, stdout, _ = _run(capsys, ["model", "eval", "--data", tiny_dataset, "--model", out, "--out", tmp_path / "ev"])
+    assert code == 0 and "| method | f_h | noise | classical | classical+median | dptpu |" in stdout
+    with open(tmp_path / "ev" / "table.csv") as handle:
+        rows = list(csv.DictReader(handle))
+    assert {r["solver"] for r in rows} == {"classical", "classical+median", "dptpu"}
+    assert len(rows) == 3 * 4  # (mf, nt) x (32, 80) groups, three solvers
+    # the classical accuracy is the share of valid pixels whose coarse order equals the label
+    samples = [read_sample(p) for p in list_samples(tiny_dataset)]
+    mf32 = [s for s in samples if s.method == "mf" and s.frequency_high == 32]
+    correct = sum(int(((s.coarse_order == s.label_order) & s.valid).sum()) for s in mf32)
+    total = sum(int(s.valid.sum()) for s in mf32)
+    row = next(r for r in rows if r["method"] == "mf" and r["frequency"] == "32" and r["solver"] == "classical")
+    assert float(row["accuracy"]) == pytest.approx(correct / total, abs=1e-6) and int(row["pixels"]) == total
+
+
+def test_train_rejects_bad_arguments(tiny_dataset, tmp_path, capsys):
+    code, _, stderr = _run(capsys, ["train", "--data", tiny_dataset, "--out", tmp_path / "m.onnx", "--crop", "99x32",
+                                    "--config", json.dumps(TINY_DPTPU)])
+    assert code == 2 and stderr.strip().endswith("(smallest 64x64)") and stderr.count("\n") == 1
+    code, _, stderr = _run(capsys, ["train", "--data", tmp_path, "--out", tmp_path / "m.onnx"])
+    assert code == 2 and "no dataset.yaml" in stderr
+    with pytest.raises(SystemExit) as exit_info:
+        main(["train", "--data", str(tiny_dataset), "--out", "m.onnx", "--crop", "64by64"])
+    assert exit_info.value.code == 2
+
+
+def test_toy_data_writes_a_dataset(tmp_path, capsys):
+    code, stdout, _ = _run(capsys, ["model", "toy-data", "--out", tmp_path / "d", "--scenes", 1, "--frequencies", "96",
+                                    "--methods", "mw", "--shape", "40x48", "--noise", "1.5693,3.1386"])
+    assert code == 0
+    samples = [read_sample(p) for p in list_samples(tmp_path / "d")]
+    assert [(s.method, s.frequency_high, s.frequency_low, s.noise_sigma) for s in samples] == [
+        ("mw", 96.0, 95.0, 1.5693), ("mw", 96.0, 95.0, 3.1386)]
+    assert samples[0].valid.shape == (40, 48)
+
+
+def test_unwrap_with_a_model_records_it_and_none_gives_the_classical_result(synthetic_capture, tiny_onnx, tmp_path,
+                                                                            capsys):
+    folder, scene = synthetic_capture(MF)
+    code, _, stderr = _run(capsys, ["unwrap", "--capture", folder, "--method", "mf", "--model", "none",
+                                    "--out", tmp_path / "classical.npz"])
+    assert code == 0, stderr
+    code, stdout, stderr = _run(capsys, ["unwrap", "--capture", folder, "--method", "mf", "--model", tiny_onnx[0],
+                                         "--out", tmp_path / "model.npz"])
+    assert code == 0, stderr
+    with np.load(tmp_path / "classical.npz") as classical, np.load(tmp_path / "model.npz") as refined:
+        assert str(classical["model"]) == "none" and str(refined["model"]) == str(tiny_onnx[0])
+        assert str(refined["method"]) == "mf"
+        # the synthetic capture is noise-free enough for MF to be exact on every lit pixel
+        assert classical["valid"].sum() == scene.lit.sum()
+        # the untrained random-head model changes orders; absolute phase stays psi + 2 pi k on valid pixels
+        valid = refined["valid"]
+        assert not np.array_equal(refined["fringe_order"][valid], classical["fringe_order"][valid])
+        psi = np.mod(classical["absolute_phase"], 2 * np.pi)
+        np.testing.assert_allclose(refined["absolute_phase"][valid],
+                                   psi[valid] + 2 * np.pi * refined["fringe_order"][valid], atol=1e-9)
+
+
+def test_unwrap_with_a_bad_model_exits_2_and_the_classical_result_stays_available(synthetic_capture, tmp_path,
+                                                                                 capsys):
+    folder, _ = synthetic_capture(MF)
+    corrupt = tmp_path / "corrupt.onnx"
+    corrupt.write_bytes(b"\x08\x07garbage")
+    code, stdout, stderr = _run(capsys, ["unwrap", "--capture", folder, "--method", "mf", "--model", corrupt,
+                                         "--out", tmp_path / "x.npz"])
+    assert code == 2 and stdout == ""
+    assert stderr.startswith("dptpu unwrap: error: ") and "corrupt.onnx: not a loadable ONNX model" in stderr
+    code, _, stderr = _run(capsys, ["unwrap", "--capture", folder, "--method", "mf", "--model", tmp_path / "no.onnx",
+                                    "--out", tmp_path / "x.npz"])
+    assert code == 2 and "no.onnx: model file not found (pass --model none for the classical result)" in stderr
+    code, _, _ = _run(capsys, ["unwrap", "--capture", folder, "--method", "mf", "--model", "none",
+                               "--out", tmp_path / "x.npz"])
+    assert code == 0
+
+
+def test_unwrap_model_only_refines_two_frequency_methods(synthetic_capture, tiny_onnx, tmp_path, capsys):
+    folder, _ = synthetic_capture([{"period": 16}, {"period": 17}, {"period": 18}])
+    code, _, stderr = _run(capsys, ["unwrap", "--capture", folder, "--method", "heterodyne", "--model", tiny_onnx[0],
+                                    "--out", tmp_path / "x.npz"])
+    assert code == 2 and "--model refines the orders of mf, mw, nt; method 'heterodyne'" in stderr
