@@ -1,8 +1,10 @@
 """Render a scene in the twin into a ``dptpu-capture/1`` folder: frames, ``calibration.yaml``, ``gt.npz``.
 
 Engines: ``raycast`` (:mod:`dptpu.sim.raycast` + :mod:`dptpu.sim.image_formation`, the default) and ``blender``
-(``dptpu.sim.blender.render_frames``, Cycles in a worker process; its float frames go through the same
-camera-stage effects and quantization). Ground truth comes from the raycast trace in both cases.
+(``dptpu.sim.blender.render_frames``, Cycles in a worker process): for Blender the pattern-stage effects act on
+the projector images (:func:`dptpu.sim.effects.pattern.projector_images`), ``lens_distortion`` on the rig it
+renders, and the camera-stage effects and the quantization on its float frames; ``motion`` and depth-dependent
+projector defocus are raycast-only. Ground truth comes from the raycast trace in both cases.
 
 ``gt.npz`` keys (docs/capture-format.md, "Ground truth of twin renders"):
 
@@ -77,23 +79,28 @@ def _blender_frames(rig: Rig, meshes, sequences, effects, *, seed, bit_depth, ex
             raise
         raise ValueError("engine 'blender' needs dptpu.sim.blender, which this installation lacks; "
                          "use engine='raycast'") from None
-    from dptpu.fpp.patterns import fringe_patterns
+    from .effects.geometry import has_motion
+    from .effects.pattern import projector_images
 
+    if has_motion(effects):
+        raise ValueError("the motion effect is raycast-only; use engine='raycast'")
     rng = np.random.default_rng(seed)
     full_scale = float(2 ** bit_depth - 1)
     out = []
+    first_frame = 0
     for sequence in sequences:
         width, height = rig.projector.size
         if sequence.kind == "phase":
-            patterns = fringe_patterns(frequency=sequence.frequency, steps=sequence.steps,
-                                       projector_size=rig.projector.size, axis=sequence.axis,
-                                       offset=DEFAULT_OFFSET, amplitude=DEFAULT_AMPLITUDE,
-                                       shift_sign=sequence.shift_sign, phase_offset=sequence.phase_offset,
-                                       dtype=np.float64) / 255.0
+            patterns = projector_images(frequency=sequence.frequency, steps=sequence.steps, axis=sequence.axis,
+                                        shift_sign=sequence.shift_sign, projector_size=rig.projector.size,
+                                        offset=DEFAULT_OFFSET, amplitude=DEFAULT_AMPLITUDE,
+                                        phase_offset=sequence.phase_offset, effects=effects, rng=rng)
         else:
             patterns = np.full((1, height, width), 1.0 if sequence.kind == "white" else 0.0)
+        # frame n of the capture renders with Cycles seed seed + n: independent sampling noise in every frame
         linear = blender.render_frames(rig, meshes, patterns.astype(np.float32), samples=samples_per_pixel,
-                                       seed=seed)
+                                       seed=seed + first_frame)
+        first_frame += len(patterns)
         frames = full_scale * exposure * np.asarray(linear, dtype=np.float64)
         out.append(apply_camera_effects(frames, effects=effects, albedo=albedo, hit=hit, full_scale=full_scale,
                                         exposure=exposure, rng=rng))

@@ -214,3 +214,17 @@ def test_bad_effects_yaml_names_file_key_and_expected_value(tmp_path, entries, m
 def test_effects_are_applied_in_canonical_stage_order():
     names = [e.name for e in parse_effects(["sensor_noise", "phase_filter", "projector_gamma", "motion"])]
     assert names == ["projector_gamma", "motion", "sensor_noise", "phase_filter"]
+
+
+def test_projector_images_for_blender_follow_the_pattern_conventions_and_effects():
+    from dptpu.fpp.patterns import fringe_patterns
+    from dptpu.sim.effects.pattern import projector_images
+
+    kwargs = dict(frequency=10.9, steps=4, axis="y", shift_sign=-1, projector_size=(64, 48), offset=O, amplitude=A)
+    ideal = projector_images(**kwargs)
+    reference = fringe_patterns(frequency=10.9, steps=4, projector_size=(64, 48), axis="y", dtype=float) / 255
+    np.testing.assert_allclose(ideal, reference, atol=1e-12)
+    gamma = projector_images(**kwargs, effects=parse_effects([{"projector_gamma": {"gamma": 2.2}}]))
+    np.testing.assert_allclose(gamma, reference ** 2.2, atol=1e-12)
+    with pytest.raises(ValueError, match="raycast-only"):
+        projector_images(**kwargs, effects=parse_effects([{"projector_defocus": {"focus_distance": 800.0}}]))

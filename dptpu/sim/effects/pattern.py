@@ -20,7 +20,7 @@ import numpy as np
 
 from .registry import find_effect
 
-__all__ = ["step_shifts", "pattern_levels", "defocus_attenuation", "FOURIER_SAMPLES"]
+__all__ = ["step_shifts", "pattern_levels", "defocus_attenuation", "projector_images", "FOURIER_SAMPLES"]
 
 #: Samples of one period used for the Fourier series of a pointwise pattern chain.
 FOURIER_SAMPLES = 1024
@@ -114,3 +114,29 @@ def pattern_levels(coord, *, frequency: float, extent: float, shift: float, offs
             continue
         result += cosine[k] * attenuation * np.cos(k * theta)
     return result
+
+
+def projector_images(*, frequency: float, steps: int, axis: str, shift_sign: int, projector_size, offset: float,
+                     amplitude: float, phase_offset: float = 0.0, effects=(), rng=None) -> np.ndarray:
+    """The projector's images (N, Hp, Wp) in [0, 1] with the pattern-stage effects, for a renderer that projects
+    pixel images (Blender): each micromirror shows the level at its centre, so ``projector_pixelation``'s rounding
+    is built in; ``projector_defocus`` blurs along the fringe axis with its constant ``sigma_px`` (a depth-dependent
+    focus needs the raycast engine)."""
+    from .registry import find_effect as _find
+
+    defocus = _find(effects, "projector_defocus")
+    if defocus is not None and defocus["focus_distance"] > 0:
+        raise ValueError("projector_defocus with focus_distance > 0 (depth-dependent blur) is raycast-only; "
+                         "use engine='raycast' or a constant sigma_px")
+    width, height = projector_size
+    extent = width if axis == "x" else height
+    coord = np.arange(extent, dtype=np.float64)
+    sigma = None if defocus is None else np.full(extent, defocus["sigma_px"])
+    shifts = step_shifts(steps, shift_sign, effects, rng if rng is not None else np.random.default_rng(0))
+    images = np.empty((steps, height, width))
+    for n in range(steps):
+        profile = pattern_levels(coord, frequency=frequency, extent=extent, shift=shifts[n], offset=offset,
+                                 amplitude=amplitude, phase_offset=phase_offset, effects=effects, sigma_px=sigma)
+        images[n] = profile[None, :] if axis == "x" else profile[:, None]
+    return images
+
