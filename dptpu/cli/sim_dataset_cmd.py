@@ -1,0 +1,61 @@
+"""``dptpu sim dataset``: a training dataset (``dptpu-dataset/1``) rendered by the twin (docs/dataset.md).
+
+    dptpu sim dataset --rig RIG --frequencies 32,48,64,80 --methods mf,mw,nt --scenes N --input-steps 3
+        --label-steps 12 --noise SIGMA... --out DIR [--shard I/N] [--workers K] [--size WxH] [--seed S]
+        [--meshes DIR] [--quiet]
+"""
+from __future__ import annotations
+
+
+def _numbers(text: str, what: str) -> list[float]:
+    try:
+        values = [float(v) for v in str(text).split(",") if v.strip()]
+    except ValueError:
+        raise ValueError(f"--{what} must be comma-separated numbers, e.g. 32,48,64,80; got {text!r}") from None
+    if not values:
+        raise ValueError(f"--{what} must list at least one number; got {text!r}")
+    return values
+
+
+def register(sim_subparsers) -> None:
+    parser = sim_subparsers.add_parser(
+        "dataset", help="render a training dataset (dptpu-dataset/1) with the twin",
+        description="Random scenes x frequencies x methods x noise levels; per sample the wrapped phases and the "
+                    "classical coarse order from noisy few-step frames, and the label fringe order from 12-step "
+                    "frames checked against the ray cast (docs/dataset.md).")
+    parser.add_argument("--rig", required=True,
+                        help="dptpu-rig/1 or OpenCV rig file, 'CAM.mat,PRJ.mat' (Bouguet), or 'nominal'")
+    parser.add_argument("--frequencies", default="32,48,64,80",
+                        help="high frequencies, periods across the projector width (default 32,48,64,80: S4)")
+    parser.add_argument("--methods", default="mf,mw,nt", help="TPU methods, comma separated (default mf,mw,nt)")
+    parser.add_argument("--scenes", type=int, required=True, help="number of random scenes")
+    parser.add_argument("--input-steps", type=int, default=3, help="phase steps of the noisy inputs (default 3)")
+    parser.add_argument("--label-steps", type=int, default=12, help="phase steps of the labels (default 12)")
+    parser.add_argument("--noise", type=float, nargs="+", default=[1.5693], metavar="SIGMA",
+                        help="camera noise levels in gray levels, each rendered for every scene (default 1.5693)")
+    parser.add_argument("--size", default=None, help="camera size WIDTHxHEIGHT (default: the rig's; K is rescaled)")
+    parser.add_argument("--seed", type=int, default=0, help="root of the scene seeds (default 0)")
+    parser.add_argument("--meshes", default=None, help="folder of meshes (e.g. Thingi10K) for the random scenes")
+    parser.add_argument("--shard", default="0/1", help="I/N: render only the scenes i with i %% N == I (default 0/1)")
+    parser.add_argument("--workers", type=int, default=1, help="processes rendering scenes in parallel (default 1)")
+    parser.add_argument("--quiet", action="store_true", help="no progress bar")
+    parser.add_argument("--out", required=True, help="dataset folder")
+    parser.set_defaults(func=run)
+
+
+def run(args) -> int:
+    from dptpu.sim.dataset import DatasetSpec, open_dataset, parse_shard, write_dataset
+    from dptpu.sim.rig import load_twin_rig, parse_size
+
+    shard = parse_shard(args.shard)
+    rig = load_twin_rig(args.rig)
+    size = parse_size(args.size) if args.size else tuple(rig.camera.size)
+    methods = [m.strip() for m in args.methods.split(",") if m.strip()]
+    spec = DatasetSpec(frequencies=tuple(_numbers(args.frequencies, "frequencies")), methods=tuple(methods),
+                       scenes=args.scenes, input_steps=args.input_steps, label_steps=args.label_steps,
+                       noise=tuple(args.noise), size=size, seed=args.seed, meshes=args.meshes)
+    out = write_dataset(rig, spec, args.out, shard=shard, workers=args.workers, progress=not args.quiet)
+    dataset = open_dataset(out)
+    print(f"{out}: {len(dataset)} of {spec.count} samples on disk (shard {shard[0]}/{shard[1]}; "
+          f"{spec.per_scene} per scene, {size[0]}x{size[1]})")
+    return 0

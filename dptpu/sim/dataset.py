@@ -1,0 +1,404 @@
+"""Training datasets of the twin, format ``dptpu-dataset/1``: write them (sharded, in processes) and read them lazily.
+
+A dataset is ``scenes`` random scenes (:func:`dptpu.sim.scenes.random_scene`) times every combination of high
+frequency, method and noise level; each combination of each scene is one sample file
+(:mod:`dptpu.sim.dataset_samples` computes them). docs/dataset.md is the format's specification::
+
+    DIR/dataset.yaml                    format: dptpu-dataset/1, how the set was made, count, shards
+    DIR/rig.yaml                        the rig rendered (dptpu-rig/1, camera at the dataset's size)
+    DIR/samples/<shard>-<index>.npz     one sample: <shard> = the shard that wrote it, <index> = global index
+
+Sample ``index = scene_index * per_scene + combination`` with combinations ordered frequency, method, noise
+(innermost); scene ``i`` has the seed ``scene_seed(seed, i)``. Shard ``I`` of ``N`` renders the scenes
+``i % N == I``, so the shards' samples together are exactly the unsharded set (same indices, same arrays); only
+the ``<shard>`` prefix of the file names differs. Shards may write into one folder (each writes the same
+``dataset.yaml``) or into separate folders whose ``samples/`` are merged later.
+"""
+from __future__ import annotations
+
+import os
+import re
+import sys
+import time
+from collections.abc import Sequence
+from concurrent.futures import ProcessPoolExecutor
+from dataclasses import asdict, dataclass, field
+from multiprocessing import get_context
+from pathlib import Path
+
+import numpy as np
+import yaml
+
+from dptpu.fpp.calibration import Rig, load_rig, save_rig
+
+from .dataset_samples import METHODS, check_combination, low_frequency, scene_samples
+
+__all__ = ["DATASET_FORMAT", "DatasetSpec", "Dataset", "open_dataset", "write_dataset", "scene_seed",
+           "parse_shard", "sample_name", "SAMPLE_ARRAYS", "SAMPLE_SCALARS"]
+
+DATASET_FORMAT = "dptpu-dataset/1"
+#: Array keys of a sample file, each (H, W).
+SAMPLE_ARRAYS = ("wrapped_high", "wrapped_low", "coarse_order", "label_order", "valid")
+#: Scalar keys of a sample file.
+SAMPLE_SCALARS = ("frequency_high", "frequency_low", "method", "noise_sigma", "scene_seed", "label_rejected")
+_NAME = re.compile(r"^(\d+)-(\d{6,})\.npz$")
+
+
+@dataclass(frozen=True)
+class DatasetSpec:
+    """How a dataset is made (the ``dataset.yaml`` keys besides format, rig, count, shards).
+
+    Attributes
+    ----------
+    frequencies : tuple of float
+        High frequencies, periods across the projector width (the paper's S4: 32, 48, 64, 80).
+    methods : tuple of str
+        ``mf``, ``mw``, ``nt`` (low frequencies 1, ``f_h - 1``, 10.9).
+    scenes : int
+        Number of random scenes (>= 1).
+    input_steps, label_steps : int
+        Phase steps of the noisy inputs and of the labels (>= 3 each; the paper: 3 and 12).
+    noise : tuple of float
+        Camera noise levels, gray levels (>= 0); every level is rendered for every scene (the paper's 1 and 2
+        sigma: 1.5693, 3.1386).
+    size : (int, int)
+        Camera ``(width, height)`` of the samples.
+    seed : int
+        Root of the scene seeds.
+    meshes : str or None
+        Folder of user meshes for the random scenes.
+    """
+
+    frequencies: tuple = (32.0, 48.0, 64.0, 80.0)
+    methods: tuple = METHODS
+    scenes: int = 1
+    input_steps: int = 3
+    label_steps: int = 12
+    noise: tuple = (1.5693,)
+    size: tuple = (640, 480)
+    seed: int = 0
+    meshes: str | None = None
+
+    def __post_init__(self):
+        frequencies = tuple(float(f) for f in self.frequencies)
+        if not frequencies or len(set(frequencies)) != len(frequencies):
+            raise ValueError(f"--frequencies must list distinct frequencies; got {list(self.frequencies)}")
+        methods = tuple(str(m) for m in self.methods)
+        unknown = [m for m in methods if m not in METHODS]
+        if not methods or unknown or len(set(methods)) != len(methods):
+            raise ValueError(f"--methods must list distinct methods among {', '.join(METHODS)}; got {list(methods)}")
+        noise = tuple(float(s) for s in self.noise)
+        if not noise or any(not np.isfinite(s) or s < 0 for s in noise):
+            raise ValueError(f"--noise must list one or more sigmas >= 0 (gray levels); got {list(self.noise)}")
+        for name in ("input_steps", "label_steps"):
+            if int(getattr(self, name)) < 3:
+                raise ValueError(f"--{name.replace('_', '-')} must be >= 3; got {getattr(self, name)}")
+        if int(self.scenes) < 1:
+            raise ValueError(f"--scenes must be >= 1; got {self.scenes}")
+        size = tuple(int(v) for v in self.size)
+        if len(size) != 2 or min(size) < 8:
+            raise ValueError(f"--size must be WIDTHxHEIGHT >= 8x8; got {self.size}")
+        for key, value in (("frequencies", frequencies), ("methods", methods), ("noise", noise), ("size", size),
+                           ("scenes", int(self.scenes)), ("input_steps", int(self.input_steps)),
+                           ("label_steps", int(self.label_steps)), ("seed", int(self.seed))):
+            object.__setattr__(self, key, value)
+
+    @property
+    def combinations(self) -> list[tuple[float, str, float]]:
+        """``(f_h, method, sigma)`` of each sample of a scene, in file order."""
+        return [(f, m, s) for f in self.frequencies for m in self.methods for s in self.noise]
+
+    @property
+    def per_scene(self) -> int:
+        return len(self.combinations)
+
+    @property
+    def count(self) -> int:
+        """Samples in the whole (unsharded) dataset."""
+        return self.scenes * self.per_scene
+
+
+def scene_seed(seed: int, scene_index: int) -> int:
+    """Seed of scene ``scene_index`` of a dataset of seed ``seed`` (independent streams, no overlap between seeds)."""
+    return int(np.random.SeedSequence([int(seed), int(scene_index)]).generate_state(1)[0])
+
+
+def parse_shard(text) -> tuple[int, int]:
+    """``"I/N"`` -> ``(I, N)`` with ``0 <= I < N``."""
+    match = re.fullmatch(r"\s*(\d+)\s*/\s*(\d+)\s*", str(text))
+    if not match or not int(match.group(1)) < int(match.group(2)):
+        raise ValueError(f"--shard must be I/N with 0 <= I < N (e.g. 0/4); got {text!r}")
+    return int(match.group(1)), int(match.group(2))
+
+
+def sample_name(shard: int, index: int) -> str:
+    """``<shard>-<index:06d>.npz``."""
+    return f"{int(shard)}-{int(index):06d}.npz"
+
+
+# --------------------------------------------------------------------------------------------------
+# Writing
+# --------------------------------------------------------------------------------------------------
+
+def _document(spec: DatasetSpec, shards: int) -> dict:
+    low = {m: {f"{f:g}": low_frequency(m, f) for f in spec.frequencies} for m in spec.methods}
+    return {"format": DATASET_FORMAT, "rig": "rig.yaml", "frequencies": list(spec.frequencies),
+            "methods": list(spec.methods), "low_frequencies": low, "input_steps": spec.input_steps,
+            "label_steps": spec.label_steps, "noise": list(spec.noise), "size": list(spec.size), "seed": spec.seed,
+            "scenes": spec.scenes, "meshes": spec.meshes, "count": spec.count, "per_scene": spec.per_scene,
+            "shards": shards, "fringe_axis": "x", "samples": "samples/<shard>-<index:06d>.npz",
+            "order": "index = scene_index * per_scene + combination; combinations: frequency, method, noise"}
+
+
+_SAME_KEYS = ("frequencies", "methods", "input_steps", "label_steps", "noise", "size", "seed", "scenes", "meshes",
+              "shards")
+
+
+def _write_text_atomic(path: Path, text: str) -> None:
+    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+    tmp.write_text(text)
+    os.replace(tmp, path)
+
+
+def _prepare_folder(out: Path, spec: DatasetSpec, rig: Rig, shards: int) -> None:
+    out.mkdir(parents=True, exist_ok=True)
+    (out / "samples").mkdir(exist_ok=True)
+    document = _document(spec, shards)
+    existing = out / "dataset.yaml"
+    if existing.is_file():
+        try:
+            old = yaml.safe_load(existing.read_text()) or {}
+        except yaml.YAMLError:
+            old = {}
+        if old.get("format") != DATASET_FORMAT:
+            raise ValueError(f"{existing}: exists and is not a {DATASET_FORMAT} file; choose another --out")
+        for key in _SAME_KEYS:
+            if old.get(key) != document[key]:
+                raise ValueError(f"{existing}: {key} is {old.get(key)!r} but this run has {document[key]!r}; one "
+                                 f"folder holds one dataset (choose another --out)")
+    tmp = out / f".rig.{os.getpid()}.yaml"
+    save_rig(rig, tmp)
+    os.replace(tmp, out / "rig.yaml")
+    _write_text_atomic(existing, yaml.safe_dump(document, sort_keys=False, default_flow_style=None))
+
+
+def _save_sample(path: Path, sample: dict) -> None:
+    tmp = path.with_name(f".{path.stem}.{os.getpid()}.tmp.npz")
+    with open(tmp, "wb") as handle:
+        np.savez_compressed(handle, **sample)
+    os.replace(tmp, path)
+
+
+def _render_scene(job) -> int:
+    """Worker: render scene ``scene_index`` and write its samples; returns the number written."""
+    rig_path, spec_dict, scene_index, shard, samples_dir = job
+    from .scenes import random_scene
+
+    spec = DatasetSpec(**spec_dict)
+    rig = load_rig(rig_path)
+    seed = scene_seed(spec.seed, scene_index)
+    scene = random_scene(rig, seed, meshes_dir=spec.meshes)
+    samples = scene_samples(rig, scene, scene_seed=seed, frequencies=spec.frequencies, methods=spec.methods,
+                            noise_sigmas=spec.noise, input_steps=spec.input_steps, label_steps=spec.label_steps)
+    for j, sample in enumerate(samples):
+        _save_sample(Path(samples_dir) / sample_name(shard, scene_index * spec.per_scene + j), sample)
+    return len(samples)
+
+
+class _Progress:
+    """A one-line progress bar on stderr: ``dataset [#####.....] 12/40 scenes, 3.1 scenes/min, ETA 9m02s``."""
+
+    def __init__(self, total: int, *, enabled: bool = True, stream=None):
+        self.total, self.done, self.enabled = total, 0, enabled
+        self.stream = stream or sys.stderr
+        self.start = time.perf_counter()
+        self._draw()
+
+    def step(self, count: int = 1) -> None:
+        self.done += count
+        self._draw()
+
+    def close(self) -> None:
+        if self.enabled:
+            self.stream.write("\n")
+            self.stream.flush()
+
+    def _draw(self) -> None:
+        if not self.enabled:
+            return
+        width = 30
+        filled = int(width * self.done / max(self.total, 1))
+        elapsed = time.perf_counter() - self.start
+        rate = self.done / elapsed * 60.0 if elapsed > 0 and self.done else 0.0
+        eta = (self.total - self.done) / rate * 60.0 if rate > 0 else float("nan")
+        eta_text = f"{int(eta // 60)}m{int(eta % 60):02d}s" if np.isfinite(eta) else "--"
+        self.stream.write(f"\rdataset [{'#' * filled}{'.' * (width - filled)}] {self.done}/{self.total} scenes, "
+                          f"{rate:.1f} scenes/min, ETA {eta_text}")
+        self.stream.flush()
+
+
+def write_dataset(rig: Rig, spec: DatasetSpec, out_dir, *, shard=(0, 1), workers: int = 1,
+                  progress: bool = True) -> Path:
+    """Render the samples of shard ``shard`` of the dataset ``spec`` into ``out_dir``.
+
+    Parameters
+    ----------
+    rig : Rig
+        The twin's rig; its camera is resized to ``spec.size`` (``K`` scaled) and written as ``rig.yaml``.
+    spec : DatasetSpec
+    out_dir : path-like
+        The dataset folder (created). A folder holding another dataset (a different ``dataset.yaml``) is refused;
+        samples already written are kept and not rendered again (a stopped run resumes).
+    shard : (int, int)
+        ``(I, N)``: render the scenes ``i`` with ``i % N == I``.
+    workers : int
+        Processes rendering scenes in parallel (1 = in this process).
+    progress : bool
+        Draw a progress bar on stderr.
+
+    Returns
+    -------
+    Path
+        ``out_dir``.
+
+    Raises
+    ------
+    ValueError
+        A frequency a method cannot unwrap (e.g. an ambiguous NT pair), a bad shard or worker count, or a folder
+        holding another dataset.
+    """
+    from .rig import resize_camera
+
+    index, total = shard
+    if not (0 <= int(index) < int(total)):
+        raise ValueError(f"shard must be (I, N) with 0 <= I < N; got {shard}")
+    if int(workers) < 1:
+        raise ValueError(f"--workers must be >= 1; got {workers}")
+    for f in spec.frequencies:
+        for method in spec.methods:
+            check_combination(method, f, rig.projector.size[0])
+    if spec.meshes is not None and not Path(spec.meshes).is_dir():
+        raise FileNotFoundError(f"{spec.meshes}: no such meshes folder")
+    rig = resize_camera(rig, spec.size) if tuple(rig.camera.size) != tuple(spec.size) else rig
+    out = Path(out_dir)
+    _prepare_folder(out, spec, rig, int(total))
+    samples_dir = out / "samples"
+    spec_dict = asdict(spec)
+    jobs = []
+    for scene_index in range(int(index), spec.scenes, int(total)):
+        names = [samples_dir / sample_name(index, scene_index * spec.per_scene + j) for j in range(spec.per_scene)]
+        if not all(p.is_file() for p in names):
+            jobs.append((str(out / "rig.yaml"), spec_dict, scene_index, int(index), str(samples_dir)))
+    bar = _Progress(len(jobs), enabled=progress)
+    try:
+        if int(workers) == 1 or len(jobs) <= 1:
+            for job in jobs:
+                _render_scene(job)
+                bar.step()
+        else:
+            with ProcessPoolExecutor(max_workers=int(workers), mp_context=get_context("spawn")) as pool:
+                for _ in pool.map(_render_scene, jobs):
+                    bar.step()
+    finally:
+        bar.close()
+    return out
+
+
+# --------------------------------------------------------------------------------------------------
+# Reading
+# --------------------------------------------------------------------------------------------------
+
+@dataclass(frozen=True, eq=False)
+class Dataset(Sequence):
+    """A ``dptpu-dataset/1`` folder as a lazy sequence: ``len(dataset)``, ``dataset[i]`` reads one file.
+
+    Attributes
+    ----------
+    root : Path
+    meta : dict
+        The parsed ``dataset.yaml``.
+    paths : tuple of Path
+        Sample files in global-index order.
+    """
+
+    root: Path
+    meta: dict
+    paths: tuple = field(default_factory=tuple)
+
+    def __len__(self) -> int:
+        return len(self.paths)
+
+    def __getitem__(self, index):
+        if isinstance(index, slice):
+            return [self[i] for i in range(*index.indices(len(self)))]
+        if not isinstance(index, (int, np.integer)):
+            raise TypeError(f"dataset indices must be integers or slices; got {type(index).__name__}")
+        if not -len(self) <= index < len(self):
+            raise IndexError(f"sample {index} out of range for {len(self)} samples")
+        return read_sample(self.paths[index])
+
+    @property
+    def missing(self) -> int:
+        """Samples ``dataset.yaml`` announces that are not (yet) on disk (e.g. shards still running)."""
+        return int(self.meta.get("count", len(self))) - len(self)
+
+    @property
+    def rig(self) -> Rig:
+        """The rig the samples were rendered with."""
+        return load_rig(self.root / str(self.meta.get("rig", "rig.yaml")))
+
+
+def read_sample(path) -> dict:
+    """One sample file as a dict: arrays ``(H, W)`` (SAMPLE_ARRAYS) and Python scalars (SAMPLE_SCALARS)."""
+    path = Path(path)
+    try:
+        archive = np.load(path, allow_pickle=False)
+    except (OSError, ValueError) as exc:
+        raise ValueError(f"{path}: not a readable .npz sample ({exc})") from None
+    with archive:
+        missing = [k for k in SAMPLE_ARRAYS + SAMPLE_SCALARS if k not in archive.files]
+        if missing:
+            raise ValueError(f"{path}: missing keys {missing} ({DATASET_FORMAT} samples hold "
+                             f"{', '.join(SAMPLE_ARRAYS + SAMPLE_SCALARS)})")
+        sample = {k: archive[k] for k in SAMPLE_ARRAYS}
+        sample["method"] = str(archive["method"])
+        for key in ("frequency_high", "frequency_low", "noise_sigma"):
+            sample[key] = float(archive[key])
+        for key in ("scene_seed", "label_rejected"):
+            sample[key] = int(archive[key])
+    return sample
+
+
+def open_dataset(path) -> Dataset:
+    """Open a dataset folder for reading (no sample is read until indexed).
+
+    Raises
+    ------
+    FileNotFoundError
+        No ``dataset.yaml``.
+    ValueError
+        ``dataset.yaml`` is not ``dptpu-dataset/1``, or ``samples/`` holds files not named
+        ``<shard>-<index:06d>.npz`` or two files of the same index.
+    """
+    root = Path(path)
+    yaml_path = root / "dataset.yaml"
+    if not yaml_path.is_file():
+        raise FileNotFoundError(f"{yaml_path}: no such file (a {DATASET_FORMAT} folder, from 'dptpu sim dataset')")
+    try:
+        meta = yaml.safe_load(yaml_path.read_text())
+    except yaml.YAMLError as exc:
+        raise ValueError(f"{yaml_path}: not valid YAML ({exc})") from None
+    if not isinstance(meta, dict) or meta.get("format") != DATASET_FORMAT:
+        found = meta.get("format") if isinstance(meta, dict) else meta
+        raise ValueError(f"{yaml_path}: format must be {DATASET_FORMAT!r}; got {found!r}")
+    indexed = {}
+    for file in sorted((root / "samples").glob("*.npz")) if (root / "samples").is_dir() else []:
+        match = _NAME.match(file.name)
+        if not match:
+            raise ValueError(f"{file}: sample files must be named <shard>-<index:06d>.npz")
+        sample_index = int(match.group(2))
+        if sample_index in indexed:
+            raise ValueError(f"{file}: index {sample_index} is also in {indexed[sample_index].name} "
+                             f"(shards of two different runs in one folder?)")
+        indexed[sample_index] = file
+    return Dataset(root=root, meta=meta, paths=tuple(indexed[i] for i in sorted(indexed)))
