@@ -34,7 +34,7 @@ from .environment import blender_python
 __all__ = ["BlenderRender", "BlenderWorkerError", "render", "render_frames"]
 
 _WORKER = Path(__file__).with_name("worker.py")
-_INTERPOLATIONS = ("Linear", "Closest", "Cubic")
+_INTERPOLATIONS = ("Linear", "Closest")
 #: Sensor width of the rendered camera; only lens / sensor matters, and Blender clamps widths below 1 mm.
 _SENSOR_WIDTH_MM = 36.0
 
@@ -59,6 +59,9 @@ class BlenderRender:
         Worker start-up: import bpy, build the scene.
     wall_s : float
         The whole call, job writing and resampling included.
+    cpu_s : float
+        CPU time (user + system, all threads) of the worker process: a measure of the work that does not depend
+        on what else the machine runs.
     stats : dict
         The worker's ``stats.json``.
     """
@@ -68,6 +71,7 @@ class BlenderRender:
     seconds_per_frame: list = field(default_factory=list)
     setup_s: float = 0.0
     wall_s: float = 0.0
+    cpu_s: float = 0.0
     stats: dict = field(default_factory=dict)
 
 
@@ -107,8 +111,9 @@ def render(rig: Rig, meshes, patterns, *, samples: int = 16, seed: int = 0, ambi
         Cycles' light-path bounces (0 = direct light only).
     threads : int, optional
         Render threads (default: all cores).
-    interpolation : {"Linear", "Closest", "Cubic"}
-        How the pattern is sampled between projector pixel centres ("Closest" = the micromirror grid).
+    interpolation : {"Linear", "Closest"}
+        How the pattern is sampled between projector pixel centres: "Linear" (a continuous pattern, as the raycast
+        twin's analytic one) or "Closest" (each micromirror a flat square).
     env_dir : path-like, optional
         The Blender environment (default :func:`dptpu.sim.blender.environment.blender_env_dir`).
     keep_job : path-like, optional
@@ -139,7 +144,7 @@ def render(rig: Rig, meshes, patterns, *, samples: int = 16, seed: int = 0, ambi
         job = _write_job(job_dir, rig, meshes, patterns, pinhole, samples=int(samples), seed=int(seed),
                          ambient=float(ambient), max_bounces=int(max_bounces), threads=threads,
                          interpolation=interpolation)
-        _run_worker(python, job_dir, timeout_s)
+        cpu_s = _run_worker(python, job_dir, timeout_s)
         raw = np.load(job_dir / job["output"])  # (N, H_r, W_r) radiance
         stats = json.loads((job_dir / "stats.json").read_text())
     finally:
@@ -148,7 +153,7 @@ def render(rig: Rig, meshes, patterns, *, samples: int = 16, seed: int = 0, ambi
     frames = warp_to_device(np.pi * raw, pinhole, rig.camera)
     return BlenderRender(frames=frames.astype(np.float32), render_camera=pinhole,
                          seconds_per_frame=list(stats["seconds_per_frame"]), setup_s=float(stats["setup_s"]),
-                         wall_s=time.perf_counter() - started, stats=stats)
+                         wall_s=time.perf_counter() - started, cpu_s=cpu_s, stats=stats)
 
 
 def reference_distance(rig: Rig) -> float:
@@ -235,7 +240,11 @@ def _write_job(job_dir: Path, rig: Rig, meshes, patterns, pinhole: RenderCamera,
     return job
 
 
-def _run_worker(python: Path, job_dir: Path, timeout_s: float | None) -> None:
+def _run_worker(python: Path, job_dir: Path, timeout_s: float | None) -> float:
+    """Run the worker on ``job_dir``; returns its CPU time (user + system, seconds)."""
+    import resource
+
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
     log_path = job_dir / "worker.log"
     with open(log_path, "w") as log:
         try:
@@ -247,6 +256,8 @@ def _run_worker(python: Path, job_dir: Path, timeout_s: float | None) -> None:
     if result.returncode != 0:
         raise BlenderWorkerError(f"Blender worker failed (exit code {result.returncode}); log tail:\n"
                                  + _tail(log_path))
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
 
 
 def _worker_env() -> dict:

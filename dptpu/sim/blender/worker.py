@@ -158,6 +158,7 @@ def _add_mesh(bpy, scene, job_dir, entry):
         node = material.node_tree.nodes.new("ShaderNodeTexImage")
         node.image = _new_image(bpy, entry["name"] + "_albedo", np.clip(texture, 0.0, 1.0))
         node.interpolation = "Linear"  # bilinear, texel centres at (i + 0.5) / W
+        node.extension = "EXTEND"  # clamped at the edge, as the raycast twin
         scaled = material.node_tree.nodes.new("ShaderNodeMixRGB")
         scaled.blend_type = "MULTIPLY"
         scaled.inputs[0].default_value = 1.0
@@ -285,10 +286,10 @@ def main(job_dir):
     exr = os.path.join(job_dir, "frame.exr")
     scene.render.filepath = exr
     setup_s = time.perf_counter() - started
-    seconds = []
+    seconds, cpu_seconds = [], []
     previous = None
     for index in range(len(patterns)):
-        tick = time.perf_counter()
+        tick, tick_cpu = time.perf_counter(), time.process_time()
         image = _new_image(bpy, "pattern_%04d" % index, np.asarray(patterns[index], dtype=np.float32))
         texture.image = image  # a new datablock per pattern: rewriting one image's pixels is ignored
         scene.cycles.seed = int(job["render"]["seed"]) + index  # independent sampling noise per frame
@@ -298,8 +299,10 @@ def main(job_dir):
         bpy.ops.render.render(write_still=True)
         frames[index] = _read_exr(bpy, exr, (height, width))
         seconds.append(time.perf_counter() - tick)
+        cpu_seconds.append(time.process_time() - tick_cpu)
     np.save(os.path.join(job_dir, job["output"]), frames)
     stats = {"bpy_version": bpy.app.version_string, "setup_s": setup_s, "seconds_per_frame": seconds,
+             "cpu_seconds_per_frame": cpu_seconds,
              "frames": len(patterns), "resolution": [width, height], "samples": job["render"]["samples"]}
     with open(os.path.join(job_dir, "stats.json"), "w") as handle:
         json.dump(stats, handle)
