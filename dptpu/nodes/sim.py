@@ -48,7 +48,7 @@ name                default                      meaning
 ``bit_depth``       8                            raycast: 8 (mono8) or 16 (mono16)
 ``frame_rate_hz``   0.0                          at most this many frames per second (a camera's limit); 0 = each frame
                                                  at once, as fast as possible
-``drop_frames``     ``""``                       ``SEQUENCE_ID:PATTERN_INDEX,...``: frames not published (tests: an
+``drop_frames``     ``""``                       ``SEQUENCE_ID/PATTERN_INDEX,...``: frames not published (tests: an
                                                  incomplete scan)
 ``min_subscribers`` 1                            subscriptions of ``/camera/image_raw`` before Triggers are taken
 ``ground_truth``    true                         publish ``/sim/ground_truth`` and ``/sim/ground_truth_depth``
@@ -82,15 +82,18 @@ _SCANS_REMEMBERED = 64
 
 
 def parse_drop_frames(text: str) -> set[tuple[int, int]]:
-    """``"3:5,7:0"`` -> ``{(3, 5), (7, 0)}`` (sequence id, pattern index); ValueError naming the parameter."""
+    """``"3/5,7/0"`` -> ``{(3, 5), (7, 0)}`` (sequence id, pattern index); ValueError naming the parameter.
+
+    (Not ``3:5``: YAML, which types ``-p`` values, reads that as the base-60 integer 185.)
+    """
     out = set()
     for token in str(text).split(","):
         token = token.strip()
         if not token:
             continue
-        scan, sep, pattern = token.partition(":")
+        scan, sep, pattern = token.partition("/")
         if not sep or not scan.isdigit() or not pattern.isdigit():
-            raise ValueError(f"parameter drop_frames: {token!r} must be SEQUENCE_ID:PATTERN_INDEX (e.g. 3:5)")
+            raise ValueError(f"parameter drop_frames: {token!r} must be SEQUENCE_ID/PATTERN_INDEX (e.g. 3/5)")
         out.add((int(scan), int(pattern)))
     return out
 

@@ -1,0 +1,59 @@
+"""The rig launch files validate (``dptpu launch FILE --print``) and document every argument."""
+from __future__ import annotations
+
+import pytest
+
+from dptpu.cli.main import main
+from dptpu.graph.launch import load_launch_file
+from tests.launch_files.running import REPO_ROOT
+
+LAUNCH_DIR = REPO_ROOT / "launch"
+RIGS = ("sim_rig.yaml", "dlp4500_aca640.yaml", "highspeed_dmd.yaml")
+
+
+@pytest.mark.parametrize("name", RIGS)
+def test_rig_launch_file_validates_with_print(name, capsys):
+    assert main(["launch", str(LAUNCH_DIR / name), "--print"]) == 0
+    out = capsys.readouterr().out
+    for module in ("dptpu.nodes.projector", "dptpu.nodes.phase", "dptpu.nodes.unwrap", "dptpu.nodes.cloud",
+                   "dptpu.nodes.scan_monitor"):
+        assert f"-m {module} " in out
+
+
+@pytest.mark.parametrize("name", RIGS)
+def test_every_argument_has_a_description(name, capsys):
+    assert main(["launch", str(LAUNCH_DIR / name), "--show-args"]) == 0
+    blocks = capsys.readouterr().out.split("\n\n")[1:]  # one block per argument: name, description, default
+    assert len(blocks) >= 8
+    for block in blocks:
+        lines = [line.strip() for line in block.strip().splitlines()]
+        assert len(lines) >= 3 and lines[1] and not lines[1].startswith("(default"), block
+
+
+def test_sim_rig_wires_the_twin_rig_to_the_sim_and_the_cloud():
+    plan = load_launch_file(str(LAUNCH_DIR / "sim_rig.yaml"), {"size": "160x120", "scans": "3", "method": "nt",
+                                                                "sequence": "96x12,10.9x12"})
+    commands = {node.label: node.command for node in plan.nodes}
+    assert set(commands) == {"projector", "sim", "phase", "unwrap", "cloud", "scan_monitor"}
+    rig = f"rig:={LAUNCH_DIR / 'params' / 'twin_rig.yaml'}"
+    assert rig in commands["sim"] and rig in commands["cloud"] and "use_camera_info:=true" in commands["cloud"]
+    assert "size:=160x120" in commands["sim"] and "method:=nt" in commands["unwrap"]
+    assert "sequence:=96x12,10.9x12" in commands["sim"] and "sequence:=96x12,10.9x12" in commands["projector"]
+    assert "scans:=3" in commands["scan_monitor"]
+    required = {node.label for node in plan.nodes if node.required}
+    assert required == {"scan_monitor"}  # its exit ends the launch
+
+
+def test_real_rigs_take_the_serial_port_and_the_gentl_producer():
+    plan = load_launch_file(str(LAUNCH_DIR / "dlp4500_aca640.yaml"), {"port": "/dev/ttyUSB3", "cti": "/x/P.cti"})
+    commands = {node.label: " ".join(node.command) for node in plan.nodes}
+    assert "port:=/dev/ttyUSB3" in commands["projector"] and "cti:=/x/P.cti" in commands["camera"]
+    assert "projector_size:" not in commands["projector"]  # from params/dlp4500.yaml
+    dmd = {node.label: " ".join(node.command) for node in load_launch_file(str(LAUNCH_DIR / "highspeed_dmd.yaml"),
+                                                                             {}).nodes}
+    assert "sequence:=96x3,1x3" in dmd["projector"] and "exposure_us:=1000" in dmd["projector"]
+
+
+def test_an_unknown_argument_is_refused_with_exit_code_2(capsys):
+    assert main(["launch", str(LAUNCH_DIR / "sim_rig.yaml"), "--print", "scnas:=3"]) == 2
+    assert "scnas" in capsys.readouterr().err
