@@ -38,6 +38,8 @@ def register(subparsers) -> None:
     render.add_argument("--seed", type=int, default=0, help="seed of the noise and random scenes (default 0)")
     render.add_argument("--bit-depth", type=int, choices=(8, 16), default=8)
     render.add_argument("--meshes", default=None, help="folder of meshes for random scenes")
+    render.add_argument("--supersample", type=int, default=1,
+                        help="raycast rays per pixel along each axis, averaged (default 1: the pixel centre)")
     render.add_argument("--out", required=True, help="capture folder to write")
     render.set_defaults(func=run_render)
     for name in SIM_COMMAND_MODULES:
@@ -70,7 +72,7 @@ def run_render(args) -> int:
     sequences = parse_sequences(args.sequence)
     try:
         out = render_capture(rig, scene, sequences, args.out, engine=args.engine, effects=effects, seed=args.seed,
-                             bit_depth=args.bit_depth)
+                             bit_depth=args.bit_depth, supersample=args.supersample)
     except RuntimeError as exc:  # the Blender worker: not installed (dptpu sim setup-blender), failed, timed out
         if args.engine != "blender":
             raise

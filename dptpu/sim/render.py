@@ -38,6 +38,7 @@ from .effects.camera import apply_camera_effects
 from .effects.geometry import render_rig
 from .image_formation import DEFAULT_AMPLITUDE, DEFAULT_OFFSET, _as_sequences, quantize, render_frames_float
 from .raycast import SurfaceSamples, trace
+from .rig import resize_camera
 
 __all__ = ["ENGINES", "ground_truth", "render_capture", "fringe_order_key"]
 
@@ -107,8 +108,30 @@ def _blender_frames(rig: Rig, meshes, sequences, effects, *, seed, bit_depth, ex
     return out
 
 
+def _raycast_supersampled(rig: Rig, meshes, sequences, effects, base: SurfaceSamples, *, supersample: int, seed,
+                          bit_depth, exposure) -> list[np.ndarray]:
+    """Float frames at ``rig``'s size from ``supersample`` x ``supersample`` rays per pixel (a box filter: the
+    pixel integrates its area); the camera-stage effects act on the binned frames, at the real pixels."""
+    width, height = rig.camera.size
+    fine_rig = resize_camera(rig, (width * supersample, height * supersample))
+    fine = trace(fine_rig, meshes)
+    optical = tuple(e for e in effects if e.stage != "camera")
+    camera = tuple(e for e in effects if e.stage == "camera")
+    rng = np.random.default_rng([seed, 1])
+    full_scale = float(2 ** bit_depth - 1)
+    out = []
+    for sequence in sequences:  # one sequence at a time bounds the memory of the fine frames
+        frames = render_frames_float(fine_rig, fine, [sequence], effects=optical, seed=seed, bit_depth=bit_depth,
+                                     exposure=exposure)[0]
+        binned = frames.reshape(len(frames), height, supersample, width, supersample).mean(axis=(2, 4))
+        out.append(apply_camera_effects(binned, effects=camera, albedo=base.albedo.astype(np.float64), hit=base.hit,
+                                        full_scale=full_scale, exposure=exposure, rng=rng))
+    return out
+
+
 def render_capture(rig: Rig, scene, sequences, out_dir, *, engine: str = "raycast", effects=None, seed: int = 0,
-                   bit_depth: int = 8, exposure: float = 1.0, blender_samples: int = 16) -> Path:
+                   bit_depth: int = 8, exposure: float = 1.0, blender_samples: int = 16,
+                   supersample: int = 1) -> Path:
     """Render ``scene`` in the twin of ``rig`` and write a ``dptpu-capture/1`` folder.
 
     Parameters
@@ -131,6 +154,11 @@ def render_capture(rig: Rig, scene, sequences, out_dir, *, engine: str = "raycas
         See :func:`dptpu.sim.image_formation.render_frames_float`.
     blender_samples : int
         Cycles samples per pixel (engine ``blender``).
+    supersample : int
+        Raycast rays per pixel along each axis (1: one ray through the pixel centre). With ``s > 1`` the camera is
+        traced at ``s`` times the resolution and each pixel averages its ``s x s`` rays (the sensor integrates its
+        area: mixed pixels at depth edges and shadow borders); camera-stage effects act after the averaging. The
+        ground truth stays the pixel-centre ray's.
 
     Returns
     -------
@@ -155,7 +183,14 @@ def render_capture(rig: Rig, scene, sequences, out_dir, *, engine: str = "raycas
     meshes = scene.meshes if hasattr(scene, "meshes") else list(scene)
     traced_rig = render_rig(rig, effects)
     samples = trace(traced_rig, meshes)
-    if engine == "raycast":
+    if isinstance(supersample, bool) or not isinstance(supersample, int) or not 1 <= supersample <= 8:
+        raise ValueError(f"supersample must be an integer in [1, 8]; got {supersample!r}")
+    if supersample > 1 and engine != "raycast":
+        raise ValueError("supersample applies to engine='raycast' (Blender samples with blender_samples)")
+    if engine == "raycast" and supersample > 1:
+        frames = _raycast_supersampled(traced_rig, meshes, sequences, effects, samples, supersample=supersample,
+                                       seed=seed, bit_depth=bit_depth, exposure=exposure)
+    elif engine == "raycast":
         frames = render_frames_float(traced_rig, samples, sequences, effects=effects, seed=seed,
                                      bit_depth=bit_depth, exposure=exposure)
     else:
@@ -169,7 +204,7 @@ def render_capture(rig: Rig, scene, sequences, out_dir, *, engine: str = "raycas
     phase_frames = [PhaseFrames(images=f, frequency=s.frequency, phase_offset=s.phase_offset)
                     for s, f in zip(sequences, frames) if s.kind == "phase"]
     references = {s.kind: f[0] for s, f in zip(sequences, frames) if s.kind != "phase"}
-    extras = {"twin": {"engine": engine, "seed": int(seed), "exposure": float(exposure),
+    extras = {"twin": {"engine": engine, "seed": int(seed), "exposure": float(exposure), "supersample": supersample,
                        "scene": getattr(scene, "name", "meshes"), "scene_source": getattr(scene, "source", ""),
                        "effects": effects_to_yaml(effects)}}
     write_capture(out_dir, sequences=phase_frames, projector_size=rig.projector.size,
