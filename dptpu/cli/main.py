@@ -13,7 +13,7 @@ import sys
 
 #: Modules of ``dptpu.cli`` that add sub-commands, in the order ``dptpu --help`` lists them.
 COMMAND_MODULES = ("eval_cmd", "unwrap_cmd", "triangulate_cmd", "rig_cmd", "bench_cmd", "launch_cmd", "record_cmd",
-                   "introspect_cmd", "sim_cmd", "calibrate_cmd", "train_cmd")
+                   "introspect_cmd", "sim_cmd", "calibrate_cmd", "train_cmd", "twin_cmd")
 
 
 def build_parser() -> argparse.ArgumentParser:
