@@ -51,6 +51,7 @@ from __future__ import annotations
 
 import json
 import math
+from array import array
 import sys
 import time
 from dataclasses import dataclass, field
@@ -70,7 +71,7 @@ from .scan_metrics import scan_metrics
 __all__ = ["ScanMonitorNode", "main"]
 
 _GRACE_S = 1.0  # how long a scan whose cloud arrived waits for its absolute phase and ground truth
-_KEPT_RECORDS = 10_000
+_KEPT_RECORDS = 1000  # per-scan records kept for the summary file (totals cover every scan)
 
 
 @dataclass
@@ -111,6 +112,8 @@ class ScanMonitorNode(Node):
         self.records: list[dict] = []
         self.reported = 0
         self.counts = {"ok": 0, "failed": 0, "lost": 0}
+        self._latencies_ms = array("d")  # every ok scan's latency (8 bytes each)
+        self._pooled = {"compared": 0, "errors": 0, "depth_pixels": 0, "depth_squares": 0.0}
         self.ply_written = 0
         self.finished = False
         self._pending: dict[int, _Scan] = {}
@@ -279,6 +282,7 @@ class ScanMonitorNode(Node):
             record.update(outcome="lost", reason=f"no cloud within {self.scan_timeout_s:g} s ({arrived})")
         self.counts[record["outcome"]] += 1
         self.reported += 1
+        self._pool(record)
         self._progress_s = time.monotonic()
         self.records.append(record)
         del self.records[:-_KEPT_RECORDS]
@@ -325,22 +329,29 @@ class ScanMonitorNode(Node):
                      f"is right)")
         return text + f", latency {record['latency_ms']:.0f} ms"
 
+    def _pool(self, record: dict) -> None:
+        if record["outcome"] != "ok":
+            return
+        self._latencies_ms.append(record["latency_ms"])
+        if record.get("compared_pixels"):
+            self._pooled["compared"] += record["compared_pixels"]
+            self._pooled["errors"] += record["order_errors"]
+        if record.get("depth_pixels"):
+            self._pooled["depth_pixels"] += record["depth_pixels"]
+            self._pooled["depth_squares"] += record["depth_rms_mm"] ** 2 * record["depth_pixels"]
+
     def totals(self) -> dict:
-        """Counts and figures over the reported scans (accuracy and RMS pooled over pixels)."""
-        ok = [r for r in self.records if r["outcome"] == "ok"]
+        """Counts and figures over every reported scan (accuracy and RMS pooled over pixels)."""
         totals = dict(self.counts, scans=self.reported)
-        latencies = [r["latency_ms"] for r in ok]
-        if latencies:
+        if self._latencies_ms:
+            latencies = np.array(self._latencies_ms, dtype=np.float64)
             totals["latency_ms_p50"] = float(np.percentile(latencies, 50))
             totals["latency_ms_p99"] = float(np.percentile(latencies, 99))
-        graded = [r for r in ok if "order_accuracy" in r and r["compared_pixels"]]
-        if graded:
-            compared = sum(r["compared_pixels"] for r in graded)
-            totals["order_accuracy"] = 1.0 - sum(r["order_errors"] for r in graded) / compared
-            depth = [r for r in graded if r["depth_pixels"]]
-            if depth:
-                squares = sum(r["depth_rms_mm"] ** 2 * r["depth_pixels"] for r in depth)
-                totals["depth_rms_mm"] = math.sqrt(squares / sum(r["depth_pixels"] for r in depth))
+        pooled = self._pooled
+        if pooled["compared"]:
+            totals["order_accuracy"] = 1.0 - pooled["errors"] / pooled["compared"]
+        if pooled["depth_pixels"]:
+            totals["depth_rms_mm"] = math.sqrt(pooled["depth_squares"] / pooled["depth_pixels"])
         return totals
 
     def summary_line(self) -> str:
