@@ -1,0 +1,121 @@
+"""The sim node in the in-process harness: Trigger in, the twin's frame of that pattern out, ground truth per scan."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from dptpu.fpp.phase import wrapped_phase
+from dptpu.messages import AbsolutePhase, CameraInfo, FringeFrame, Header, Image, ScanStatus, Time, Trigger
+from dptpu.nodes.harness import NodeHarness
+from dptpu.nodes.sim import LATCHED_QOS, SimNode, parse_drop_frames
+from dptpu.nodes.sim_source import capture_scenes, load_source
+
+SEQUENCE = "16x4,1x4"
+PARAMS = dict(source="raycast", size="64x48", scenes="plane,sphere", sequence=SEQUENCE)
+
+
+def _triggers(sequence_id: int, entries=((16.0, 4), (1.0, 4)), stamp_ns: int = 1_700_000_000_000_000_000):
+    count = sum(n for _, n in entries)
+    out, index = [], 0
+    for frequency, steps in entries:
+        for step in range(steps):
+            header = Header(stamp=Time.from_ns(stamp_ns + index * 1_333_333), frame_id="projector")
+            out.append(Trigger(header=header, sequence_id=sequence_id, pattern_index=index, pattern_count=count,
+                               frequency=frequency, steps=steps, step=step))
+            index += 1
+    return out
+
+
+def _run(harness, node_params, triggers, *, frames_expected):
+    harness.start(SimNode, **node_params)
+    trigger_pub = harness.publisher(Trigger, "/projector/trigger", 100)
+    frames = harness.collect(FringeFrame, "/camera/image_raw")
+    truth = harness.collect(AbsolutePhase, "/sim/ground_truth")
+    truth_depth = harness.collect(Image, "/sim/ground_truth_depth")
+    status = harness.collect(ScanStatus, "/scanner/status")
+    harness.connect(timeout_s=30.0)
+    for trigger in triggers:
+        trigger_pub.publish(trigger)
+    harness.wait(frames, frames_expected)
+    harness.spin_for(0.3)
+    return frames, truth, truth_depth, status
+
+
+def test_each_trigger_gets_the_frame_of_its_frequency_and_step_with_the_scans_ground_truth():
+    with NodeHarness() as harness:
+        frames, truth, truth_depth, status = _run(harness, PARAMS, _triggers(1), frames_expected=8)
+        info = harness.collect(CameraInfo, "/camera/camera_info", LATCHED_QOS)
+        harness.wait(info, 1)
+    source = load_source("raycast", rig="nominal", size="64x48", scenes="plane,sphere", sequence=SEQUENCE)
+    plane = source.scenes[0]
+    got = sorted(frames.messages, key=lambda m: m.trigger.pattern_index)
+    assert [m.trigger.pattern_index for m in got] == list(range(8))
+    for message in got:
+        expected = plane.stack(message.trigger.frequency, message.trigger.steps)[message.trigger.step]
+        np.testing.assert_array_equal(message.image.to_array(), expected)  # same render, same seed
+        assert message.image.header.stamp == message.trigger.header.stamp
+        assert message.image.header.frame_id == "scanner_optical_frame"
+    (gt,) = truth.messages
+    assert (gt.sequence_id, gt.frequency, gt.method) == (1, 16.0, "ground_truth:plane")
+    # the frames decode to the true phase: wrapped phase of f = 16 against Psi_true mod 2 pi (Eq. 2, Eq. 3)
+    stack = np.stack([m.image.to_array() for m in got[:4]])
+    maps = wrapped_phase(stack)
+    error = np.angle(np.exp(1j * (maps.phase - gt.absolute_phase)))[gt.valid]
+    assert gt.valid.mean() > 0.9 and np.sqrt(np.mean(error**2)) < 0.05
+    np.testing.assert_array_equal(gt.fringe_order[gt.valid], np.floor(gt.absolute_phase[gt.valid] / (2 * np.pi)))
+    (depth,) = truth_depth.messages
+    assert depth.header.stamp == gt.header.stamp and depth.encoding == "32FC1"
+    assert np.nanmedian(depth.to_array()) == pytest.approx(0.8, abs=0.01)  # the plane at the working distance, m
+    assert info.messages[0].width == 64 and info.messages[0].k[0] == pytest.approx(2600 * 64 / 640)
+    assert not status.messages
+
+
+def test_scenes_change_scan_by_scan_and_unknown_patterns_are_reported_without_stopping():
+    triggers = _triggers(2) + _triggers(3, entries=((32.0, 4),))[:1] + _triggers(3)[4:]
+    with NodeHarness() as harness:
+        frames, truth, _, status = _run(harness, PARAMS, triggers, frames_expected=12)
+        node = harness.nodes[0]
+        harness.spin_until(lambda: len(status) >= 1, 5.0)
+    assert [m.method for m in truth.messages] == ["ground_truth:sphere", "ground_truth:plane"]  # scan 2, scan 3
+    (failed,) = status.messages
+    assert (failed.sequence_id, failed.level, failed.state) == (3, ScanStatus.ERROR, "failed")
+    assert "sim: no frame for pattern 0 of scan 3 (f=32, step 0 of 4); scene plane has 16x4, 1x4" == failed.reason
+    assert node.triggers_unknown == 1 and node.frames_published == 12
+
+
+def test_dropped_frames_are_left_out():
+    with NodeHarness() as harness:
+        frames, _, _, _ = _run(harness, dict(PARAMS, drop_frames="1/5,1/2", frame_rate_hz=200.0), _triggers(1),
+                               frames_expected=6)
+        harness.spin_for(0.3)
+    assert sorted(m.trigger.pattern_index for m in frames.messages) == [0, 1, 3, 4, 6, 7]
+
+
+def test_capture_folders_are_replayed_with_their_ground_truth(tmp_path):
+    from dptpu.sim.image_formation import SequenceSpec
+    from dptpu.sim.render import render_capture
+    from dptpu.sim.rig import load_twin_rig
+    from dptpu.sim.scenes import load_scene
+
+    rig = load_twin_rig("nominal", size="64x48")
+    for name in ("plane", "board"):
+        render_capture(rig, load_scene(name, rig), [SequenceSpec(16, 4), SequenceSpec(1, 4)], tmp_path / name)
+    scenes, loaded_rig, axis, sign = capture_scenes(tmp_path)
+    assert [s.name for s in scenes] == ["board", "plane"] and (axis, sign) == ("x", -1)
+    assert loaded_rig.camera.size == (64, 48)
+    assert sorted(scenes[1].frames) == [(1.0, 4), (16.0, 4)] and scenes[1].stack(16.0, 4).shape == (4, 48, 64)
+    assert np.nanmedian(scenes[1].depth_m) == pytest.approx(0.8, abs=0.01)
+    with NodeHarness() as harness:
+        frames, truth, _, _ = _run(harness, dict(source=str(tmp_path)), _triggers(1), frames_expected=8)
+    assert truth.messages[0].method == "ground_truth:board"
+
+
+def test_bad_parameters_raise_value_errors_naming_them(tmp_path):
+    with pytest.raises(ValueError, match=r"parameter drop_frames: '3:5' must be SEQUENCE_ID/PATTERN_INDEX"):
+        parse_drop_frames("3:5")
+    with pytest.raises(ValueError, match="no dptpu-capture/1 folder"):
+        load_source(str(tmp_path), rig="nominal", size="64x48")
+    with pytest.raises(ValueError, match=r"parameter sequence: '16' must be FREQUENCYxSTEPS"):
+        load_source("raycast", rig="nominal", size="64x48", sequence="16")
+    with pytest.raises(ValueError, match=r"random:SEED"):
+        load_source("raycast", rig="nominal", size="64x48", scenes="random:x")
