@@ -14,6 +14,10 @@ exact for any ``N >= 3`` because the ``delta_n`` are equally spaced over a full 
 
 Convention: wrapped phase is in ``[0, 2*pi)``, so ``phi = psi + 2*pi*k`` with
 ``k = floor(phi / 2pi)`` (Eq. (3) of the paper); ``shift_sign = -1`` is the paper's Eq. (1).
+
+Speed: the three sums are one (3, N) @ (N, H*W) matrix product, in float32 for 8/16-bit images (exact
+inputs; the phase is then within about 5e-7 rad of the float64 result), float64 otherwise; kernels in
+:mod:`._lsq_phase`. A 12-frame 640x480 8-bit stack takes a few milliseconds on one core.
 """
 
 from __future__ import annotations
@@ -21,13 +25,17 @@ from __future__ import annotations
 import numbers
 from dataclasses import dataclass
 
+import cv2
 import numpy as np
 
+from ._lsq_phase import angle_0_2pi_float32, angle_0_2pi_float64, phase_sums
 from .checks import check_image_stack
 
 __all__ = ["PhaseMaps", "wrapped_phase", "quality_mask", "check_bit_depth"]
 
 _TWO_PI = 2.0 * np.pi
+#: Integer image dtypes whose values float32 holds exactly: their sums are computed in float32.
+_FLOAT32_EXACT = (np.uint8, np.int8, np.uint16, np.int16)
 
 
 @dataclass(frozen=True)
@@ -36,11 +44,11 @@ class PhaseMaps:
 
     Attributes
     ----------
-    phase : ndarray (H, W) float64
+    phase : ndarray (H, W) float64 (or float32 on request)
         Wrapped phase ``psi`` in radians, in ``[0, 2*pi)``.
-    modulation : ndarray (H, W) float64
+    modulation : ndarray (H, W) float64 (or float32)
         Fringe modulation ``B`` in the images' intensity units (>= 0).
-    background : ndarray (H, W) float64
+    background : ndarray (H, W) float64 (or float32)
         Background intensity ``A`` in the images' intensity units.
     """
 
@@ -49,7 +57,7 @@ class PhaseMaps:
     background: np.ndarray
 
 
-def wrapped_phase(images, *, shift_sign=-1, phase_offset=0.0, bit_depth=None) -> PhaseMaps:
+def wrapped_phase(images, *, shift_sign=-1, phase_offset=0.0, bit_depth=None, dtype=np.float64) -> PhaseMaps:
     """Least-squares wrapped phase of an N-step sequence (Eq. (2) of the paper).
 
     Parameters
@@ -63,12 +71,15 @@ def wrapped_phase(images, *, shift_sign=-1, phase_offset=0.0, bit_depth=None) ->
         Constant phase offset of the sequence in radians.
     bit_depth : int, optional
         If given, the images are checked against it first (see :func:`check_bit_depth`).
+    dtype : {numpy.float64, numpy.float32}
+        Dtype of the returned maps (float64 by default; float32 saves the casts where float32 is what
+        is kept, e.g. the phase node's messages).
 
     Returns
     -------
     PhaseMaps
         ``phase`` (H, W) in ``[0, 2*pi)`` rad, ``modulation`` ``B`` and ``background`` ``A``
-        (H, W) in the images' intensity units, all float64.
+        (H, W) in the images' intensity units, all of ``dtype``.
 
     Notes
     -----
@@ -79,7 +90,9 @@ def wrapped_phase(images, *, shift_sign=-1, phase_offset=0.0, bit_depth=None) ->
     ``sqrt(2/N) * sigma / B`` rad.
 
     Convention: phase in ``[0, 2*pi)``, so the fringe order is ``k = floor(phi / 2pi)``.
-    Computed in float64.
+    Precision: 8- and 16-bit integer images are summed in float32 (their values are exact in it) and the
+    arctangent is float32-accurate: the phase is within about ``5e-7 + 3e-7 * A / B`` rad of the float64
+    computation (``B`` and ``A`` within a relative 1e-6); every other dtype is computed in float64.
     """
     images = check_image_stack(images)
     if shift_sign not in (-1, 1):
@@ -92,19 +105,22 @@ def wrapped_phase(images, *, shift_sign=-1, phase_offset=0.0, bit_depth=None) ->
         raise ValueError(
             f"phase_offset must be a finite real number (radians); got {phase_offset!r}"
         )
+    if np.dtype(dtype) not in (np.float32, np.float64):
+        raise ValueError(f"dtype must be float32 or float64; got {np.dtype(dtype)}")
     if bit_depth is not None:
         check_bit_depth(images, bit_depth)
 
-    steps = images.shape[0]
-    delta = float(phase_offset) + shift_sign * _TWO_PI * np.arange(steps) / steps  # (N,)
-    stack = images.astype(np.float64, copy=False)  # (N, H, W)
-    numerator = -np.tensordot(np.sin(delta), stack, axes=(0, 0))  # S, (H, W)
-    denominator = np.tensordot(np.cos(delta), stack, axes=(0, 0))  # C, (H, W)
-    phase = np.mod(np.arctan2(numerator, denominator), _TWO_PI)
-    phase[phase >= _TWO_PI] = 0.0  # mod of a tiny negative angle rounds up to exactly 2*pi
-    modulation = (2.0 / steps) * np.hypot(numerator, denominator)
-    background = stack.mean(axis=0)
-    return PhaseMaps(phase=phase, modulation=modulation, background=background)
+    single = images.dtype in _FLOAT32_EXACT and images.shape[1] * images.shape[2] > 0
+    sine, cosine, background = phase_sums(images, shift_sign=shift_sign, phase_offset=phase_offset,
+                                          dtype=np.float32 if single else np.float64)  # (H, W) each
+    if single:
+        modulation = cv2.magnitude(cosine, sine)  # B = hypot(B sin(psi), B cos(psi))
+        phase = angle_0_2pi_float32(sine, cosine, modulation)
+    else:
+        modulation = np.hypot(sine, cosine)
+        phase = angle_0_2pi_float64(sine, cosine)
+    return PhaseMaps(phase=phase.astype(dtype, copy=False), modulation=modulation.astype(dtype, copy=False),
+                     background=background.astype(dtype, copy=False))
 
 
 def quality_mask(images, modulation, *, min_modulation, saturation_level=None) -> np.ndarray:
@@ -149,7 +165,7 @@ def quality_mask(images, modulation, *, min_modulation, saturation_level=None) -
     if saturation_level is not None:
         if isinstance(saturation_level, bool) or not isinstance(saturation_level, numbers.Real):
             raise ValueError(f"saturation_level must be a real number; got {saturation_level!r}")
-        mask &= ~np.any(images >= saturation_level, axis=0)
+        mask &= ~(images.max(axis=0) >= saturation_level)  # one pass: any frame at the level
     return mask
 
 

@@ -8,9 +8,12 @@ projector centre, ``(a - c b) . [X, 1] = 0``, with ``a`` the projector projectio
     t = (c beta - alpha) / (gamma - c delta),   alpha = a.[C,1], beta = b.[C,1], gamma = a[:3].w, delta = b[:3].w
 
 ``gamma`` and ``delta`` are per-pixel constants, so :class:`Triangulator` precomputes them once per rig and a
-scan costs a few vector operations. The projector measures only one coordinate of its distorted image, so
-its distortion is removed by fixed-point iteration: triangulate, project the point into the projector, move the
-ideal coordinate by the difference between the measured and the re-distorted coordinate, repeat.
+scan costs a few vector operations. The projector measures only one coordinate of its distorted image; along a
+pixel's ray that measured coordinate is a polynomial of the ideal one (:mod:`._ray_distortion`, precomputed per
+pixel), which Newton's method inverts in two or three passes over (H, W) arrays. It converges to the fixed point
+of the textbook iteration (triangulate, project the point into the projector, move the ideal coordinate by the
+difference between the measured and the re-distorted coordinate, repeat), which
+:func:`triangulate_reference` still runs.
 
 :func:`triangulate_reference` keeps the textbook per-pixel 3x3 linear solve as the reference for tests and
 benchmarks.
@@ -19,6 +22,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ._ray_distortion import RayDistortion
 from .calibration import DeviceModel, Rig
 from .distortion import distort, normalized_to_pixels, pixels_to_normalized, undistort
 
@@ -70,7 +74,14 @@ class Triangulator:
         Correct camera and projector lens distortion (default). False gives the pinhole result of the paper's
         reconstruction script.
     projector_iterations : int
-        Fixed-point iterations for the projector distortion.
+        Most Newton passes for the projector distortion (each pass stops early once converged, see
+        :data:`dptpu.fpp._ray_distortion.STEP_TOLERANCE_PX`); 0 ignores the projector's distortion.
+
+    Notes
+    -----
+    The construction costs about as much as ten scans (camera rays, per-pixel polynomials, (H, W, 3) and
+    about 16 (H, W) float64 arrays); :meth:`points` and :meth:`camera_points` then cost a handful of passes
+    over (H, W) arrays.
     """
 
     def __init__(self, rig: Rig, *, axis: str = "x", distortion: bool = True, projector_iterations: int = 6):
@@ -80,6 +91,8 @@ class Triangulator:
         self.projector_iterations = projector_iterations if distortion else 0
         self.origin = rig.camera.center  # (3,)
         self.rays = camera_rays(rig.camera, distortion=distortion)  # (H, W, 3)
+        self._rays_camera = self.rays @ rig.camera.R.T  # (H, W, 3) unit, camera frame: X_cam = t * ray
+        self._rays_camera_cast: dict[np.dtype, np.ndarray] = {}  # dtype -> _rays_camera in it
         P = rig.projector.projection_matrix  # (3, 4)
         a, b = P[self.axis], P[2]
         origin_h = np.append(self.origin, 1.0)
@@ -87,6 +100,17 @@ class Triangulator:
         self._beta = float(b @ origin_h)
         self._gamma = self.rays @ a[:3]  # (H, W)
         self._delta = self.rays @ b[:3]  # (H, W)
+        self._rays_planar = np.ascontiguousarray(np.moveaxis(self.rays, -1, 0))  # (3, H, W)
+        self._projector_distortion = None
+        if self.projector_iterations > 0 and np.any(np.asarray(rig.projector.dist) != 0):
+            distortion_model = RayDistortion(rig.projector, self.origin, self.rays, self.axis)
+            self._projector_distortion = distortion_model
+            # t in terms of u = (c - mid) / half: (u beta_u - alpha_u) / (gamma_u - u delta_u).
+            mid, half = distortion_model.mid_px, distortion_model.half_px
+            self._alpha_u = self._alpha - mid * self._beta
+            self._beta_u = half * self._beta
+            self._gamma_u = self._gamma - mid * self._delta  # (H, W)
+            self._delta_u = half * self._delta  # (H, W)
 
     @property
     def shape(self) -> tuple[int, int]:
@@ -94,30 +118,76 @@ class Triangulator:
 
     def _points_on_plane(self, coord: np.ndarray) -> np.ndarray:
         """Points (H, W, 3) where each pixel's ray meets the projector plane of ideal coordinate ``coord``."""
+        return self.origin + self.ray_parameter(coord, ideal=True)[..., None] * self.rays
+
+    def ray_parameter(self, projector_coord: np.ndarray, *, ideal: bool = False) -> np.ndarray:
+        """Distance ``t`` (H, W) along each unit ray from the camera centre to its point, rig units.
+
+        ``X = C + t w`` in world coordinates, and ``X_cam = t w_cam`` in the camera frame, so ``t`` is also the
+        range from the camera. ``projector_coord`` (H, W) is measured (distorted) unless ``ideal``. NaN where
+        the coordinate is NaN; ``t <= 0`` for a point behind the camera.
+        """
+        coord = np.asarray(projector_coord, dtype=np.float64)
+        if coord.shape != self.shape:
+            raise ValueError(f"projector_coord must have the camera's shape {self.shape}; got {coord.shape}")
+        alpha, beta, gamma, delta = self._alpha, self._beta, self._gamma, self._delta
+        if not ideal and self._projector_distortion is not None:
+            coord = self._projector_distortion.ideal_u(coord, max_iterations=self.projector_iterations)
+            alpha, beta, gamma, delta = self._alpha_u, self._beta_u, self._gamma_u, self._delta_u
         with np.errstate(divide="ignore", invalid="ignore"):
-            t = (coord * self._beta - self._alpha) / (self._gamma - coord * self._delta)  # (H, W)
-        return self.origin + t[..., None] * self.rays
+            numerator = coord * beta
+            numerator -= alpha
+            denominator = coord * delta
+            np.subtract(gamma, denominator, out=denominator)
+            numerator /= denominator
+        return numerator  # (H, W): t = (c beta - alpha) / (gamma - c delta)
 
     def points(self, projector_coord: np.ndarray) -> np.ndarray:
-        """3D points in world coordinates (rig units), (H, W, 3); NaN where the coordinate is NaN.
+        """3D points in world coordinates (rig units), (H, W, 3) float64; NaN where the coordinate is NaN.
 
         Parameters
         ----------
         projector_coord : ndarray (H, W)
             Measured (distorted) projector coordinate along the fringe axis, pixels, NaN where invalid.
         """
-        coord = np.asarray(projector_coord, dtype=np.float64)
-        if coord.shape != self.shape:
-            raise ValueError(f"projector_coord must have the camera's shape {self.shape}; got {coord.shape}")
-        ideal = coord
-        points = self._points_on_plane(ideal)
-        projector = self.rig.projector
-        for _ in range(self.projector_iterations):
-            X_prj = points @ projector.R.T + projector.T  # (H, W, 3)
-            xy = X_prj[..., :2] / X_prj[..., 2:3]
-            distorted = normalized_to_pixels(distort(xy, projector.dist), projector.K)[..., self.axis]
-            ideal = ideal + (coord - distorted)
-            points = self._points_on_plane(ideal)
+        t = self.ray_parameter(projector_coord)  # (H, W)
+        points = np.empty(self.rays.shape)  # (H, W, 3)
+        for k in range(3):  # per coordinate: a broadcast over the last axis of 3 is several times slower
+            np.multiply(t, self._rays_planar[k], out=points[..., k])
+            points[..., k] += self.origin[k]
+        return points
+
+    def camera_points(self, projector_coord: np.ndarray, *, scale: float = 1.0, dtype=np.float32) -> np.ndarray:
+        """3D points in the camera frame, ``(R X + T) * scale``, (H, W, 3) of ``dtype``; the cloud's output.
+
+        Parameters
+        ----------
+        projector_coord : ndarray (H, W)
+            Measured (distorted) projector coordinate along the fringe axis, pixels, NaN where invalid.
+        scale : float
+            Factor from rig units to the output's, e.g. ``rig.scale_to_m`` for metres.
+        dtype : numpy dtype
+            Output dtype (float32 by default, as PointCloud2 and depth images carry).
+
+        Returns
+        -------
+        ndarray (H, W, 3)
+            ``X_cam = t w_cam * scale`` (the camera centre is the origin of its frame); NaN where the coordinate
+            is NaN or the point is not in front of the camera (``z <= 0``). Equals
+            ``(points(c) @ R.T + T) * scale`` up to rounding, in one pass over the output.
+        """
+        t = self.ray_parameter(projector_coord)  # (H, W) rig units
+        with np.errstate(invalid="ignore"):
+            t[~(t > 0)] = np.nan  # behind the camera, or NaN
+        t *= scale
+        dtype = np.dtype(dtype)
+        if dtype not in self._rays_camera_cast:  # (3, H, W) planar, in the output dtype
+            self._rays_camera_cast[dtype] = np.ascontiguousarray(np.moveaxis(self._rays_camera, -1, 0), dtype=dtype)
+        rays = self._rays_camera_cast[dtype]
+        t = t.astype(dtype, copy=False)
+        points = np.empty(self.rays.shape, dtype=dtype)  # (H, W, 3)
+        for k in range(3):
+            np.multiply(t, rays[k], out=points[..., k])
         return points
 
     def depth(self, points: np.ndarray) -> np.ndarray:
