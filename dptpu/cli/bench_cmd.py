@@ -1,6 +1,7 @@
 """``dptpu bench fpp``: speed of ``dptpu.fpp`` against references, each pair in the same run (not a test).
 ``dptpu bench transport``: the graph runtime against raw pyzmq (``benchmarks/transport_bench.py``).
 ``dptpu bench twin``: the digital twin's raycast (and Blender) renderer (``benchmarks/twin_bench.py``).
+``dptpu bench pipeline``: the whole scanner graph end to end on the sim rig (``benchmarks/pipeline_bench.py``).
 
 The benchmark code is ``benchmarks/fpp_bench.py`` of the source tree, next to the ``dptpu`` package folder;
 it is not part of the installed package, so this command loads it from there and says so when it is missing
@@ -19,6 +20,8 @@ MODULE_NAME = "dptpu_benchmarks_fpp_bench"
 TRANSPORT_MODULE_NAME = "dptpu_benchmarks_transport_bench"
 #: The same for ``benchmarks/twin_bench.py`` (``dptpu bench twin``).
 TWIN_MODULE_NAME = "dptpu_benchmarks_twin_bench"
+#: The same for ``benchmarks/pipeline_bench.py`` (``dptpu bench pipeline``).
+PIPELINE_MODULE_NAME = "dptpu_benchmarks_pipeline_bench"
 
 
 def benchmarks_dir() -> Path:
@@ -111,6 +114,22 @@ def register(subparsers) -> None:
     twin.add_argument("--blender", action="store_true", help="also time dptpu.sim.blender (needs setup-blender)")
     twin.add_argument("--blender-samples", type=int, default=16, help="Cycles samples per pixel (default 16)")
     twin.set_defaults(func=run_twin)
+    pipeline = targets.add_parser(
+        "pipeline", help="scanner graph end to end: scans/s and latency p50/p99 at 640x480, 2x12 and 2x3 steps",
+        description="Runs launch/sim_rig.yaml as real processes with the sim as fast as possible and times scans per "
+                    "second, latency from trigger to cloud (p50, p99) and the ratio to the paper's camera "
+                    "(acA640-750: 31.25 scans/s at 24 frames, 125 at 6), classical and DP-TPU "
+                    "(benchmarks/pipeline_bench.py).")
+    pipeline.add_argument("--json", action="store_true", help="print the report as one JSON object")
+    pipeline.add_argument("--size", default="640x480", help="camera size WIDTHxHEIGHT (default 640x480)")
+    pipeline.add_argument("--scans", type=int, default=30, help="timed scans per configuration (default 30)")
+    pipeline.add_argument("--warmup", type=int, default=5, help="scans before timing starts (default 5)")
+    pipeline.add_argument("--in-flight", type=int, default=2, help="scans started ahead (default 2)")
+    pipeline.add_argument("--steps", default="12,3", help="12 (2 x 12-step) and/or 3 (2 x 3-step); default 12,3")
+    pipeline.add_argument("--model", default=None, help="DP-TPU .onnx model (default: the shipped one, if any)")
+    pipeline.add_argument("--classical-only", action="store_true", help="skip DP-TPU even when a model exists")
+    pipeline.add_argument("--timeout", type=float, default=600.0, help="seconds per configuration (default 600)")
+    pipeline.set_defaults(func=run_pipeline)
 
 
 def run_fpp(args) -> int:
@@ -131,3 +150,8 @@ def run_transport(args) -> int:
 def run_twin(args) -> int:
     """Load ``benchmarks/twin_bench.py`` and run it (``dptpu bench twin``); 0."""
     return load_bench("twin_bench.py", TWIN_MODULE_NAME).run(args)
+
+
+def run_pipeline(args) -> int:
+    """Load ``benchmarks/pipeline_bench.py`` and run it (``dptpu bench pipeline``); 0, 2 for bad options."""
+    return load_bench("pipeline_bench.py", PIPELINE_MODULE_NAME).run(args)

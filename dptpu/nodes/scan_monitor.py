@@ -300,7 +300,8 @@ class ScanMonitorNode(Node):
 
     def _figures(self, scan: _Scan, truth) -> dict:
         xyz = scan.cloud.to_array(["x", "y", "z"])  # (H, W, 3) metres
-        figures = {"latency_ms": (scan.cloud_arrival_ns - scan.cloud.header.stamp.to_ns()) * 1e-6}
+        figures = {"latency_ms": (scan.cloud_arrival_ns - scan.cloud.header.stamp.to_ns()) * 1e-6,
+                   "cloud_arrival_unix_s": scan.cloud_arrival_ns * 1e-9}
         if scan.first_trigger_ns:
             figures["latency_from_first_trigger_ms"] = (scan.cloud_arrival_ns - scan.first_trigger_ns) * 1e-6
         phase = scan.absolute_phase
