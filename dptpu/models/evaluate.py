@@ -2,7 +2,8 @@
 
 Solvers side by side: ``classical`` (the dataset's coarse order: Eq. (5), (7) or (9)), ``classical+median``
 (3x3 median filter of the classical order over valid pixels, the cheap fix users try first), and every
-ONNX model given (``dptpu`` / ``unet`` by their metadata kind, or the file stem if two share a kind).
+ONNX model given (``dptpu`` / ``unet`` by their metadata kind, or the file stem if two share a kind), on
+the methods its training set had (its metadata's ``methods``).
 
 Accuracy = share of valid pixels whose fringe order equals the label exactly.
 """
@@ -64,6 +65,8 @@ def evaluate_dataset(data_dir, models=(), *, threads: int | None = None) -> list
         coarse = np.rint(sample.coarse_order).astype(np.int32)
         solvers = {"classical": coarse, "classical+median": median_order(coarse, valid)}
         for name, model in zip(names, loaded):
+            if sample.method not in model.trained_methods:
+                continue  # the model was not trained for this method (no row, a blank in the summary)
             solvers[name] = model.refine(sample.wrapped_high, sample.wrapped_low, sample.coarse_order,
                                          sample.frequency_high, valid=valid)
         for name, order in solvers.items():

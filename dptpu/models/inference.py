@@ -91,6 +91,11 @@ class FringeOrderModel:
                    training=json.loads(metadata.get("training", "{}")), _session=session)
 
     @property
+    def trained_methods(self) -> tuple[str, ...]:
+        """Classical methods of the training set (from the metadata; all three when not recorded)."""
+        return tuple(self.training.get("methods") or ("mf", "mw", "nt"))
+
+    @property
     def input_names(self) -> tuple[str, ...]:
         return tuple(i.name for i in self._session.get_inputs())
 

@@ -4,12 +4,17 @@ Inputs (Fig. 9a of the paper), per pixel: the high- and low-frequency wrapped ph
 order of a classical two-frequency method (MF, Eq. (5); MW, Eq. (7); NT, Eq. (9)). Output: a continuous
 fringe order of the high frequency, rounded in post-processing (:mod:`dptpu.models.inference`).
 
-Input scaling (the network sees three channels, each of order 1):
+Input scaling (the network sees four channels, each of order 1):
 
 - ``wrapped_high / (2*pi)`` and ``wrapped_low / (2*pi)``, in ``[0, 1)`` (the paper's normalization);
 - ``coarse_order / frequency_high``, in ``[0, 1)`` for a right order (the fringe order divided by the
   number of periods across the projector: the normalized projector coordinate of the period's start),
-  so one model serves every frequency.
+  so one model serves every frequency;
+- the coarse order's local consistency, ``clip(u - median3x3(u), -4, 4)`` with ``u = k_c + psi_h/2pi``
+  (the coarse absolute phase in periods): about 0 where the order agrees with its neighbours and about
+  ``n`` where it is off by ``n``. The second channel of the coarse order is our addition: through
+  ``k_c / f_h`` alone an error of one order is a step of ``1/f_h`` (0.01 at ``f_h = 96``), too faint for a
+  small network trained briefly on a CPU.
 
 Architecture (``DPTPUConfig`` sets widths and depths):
 
@@ -42,7 +47,7 @@ from torch.nn import functional as F
 
 from .layers import ChannelNorm, ConvSelfAttention, EncoderBlock, MixAttention, RecursiveAtrousSelfAttention
 
-__all__ = ["DPTPUConfig", "DPTPUNet", "network_inputs", "PAD_MULTIPLE"]
+__all__ = ["DPTPUConfig", "DPTPUNet", "network_inputs", "median3x3", "PAD_MULTIPLE"]
 
 TWO_PI = 2.0 * torch.pi
 #: Height and width are padded to a multiple of this (the deepest stride).
@@ -91,10 +96,26 @@ class DPTPUConfig:
         return cls(**{k: tuple(v) if isinstance(v, list) else v for k, v in values.items()})
 
 
+def median3x3(x: torch.Tensor) -> torch.Tensor:
+    """3x3 median of a ``(B, 1, H, W)`` map (edge replication); the 5th largest of 9, via TopK (exports)."""
+    height, width = x.shape[-2], x.shape[-1]
+    padded = F.pad(x, (1, 1, 1, 1), mode="replicate")
+    stack = torch.cat([padded[:, :, dy:dy + height, dx:dx + width] for dy in range(3) for dx in range(3)], dim=1)
+    return torch.topk(stack, 5, dim=1).values[:, 4:5]
+
+
 def network_inputs(wrapped_high, wrapped_low, coarse_order, frequency_high) -> torch.Tensor:
-    """The three scaled input channels, ``(B, 3, H, W)``: ``psi_h/2pi``, ``psi_l/2pi``, ``k_c/f_h``."""
+    """The four scaled input channels, ``(B, 4, H, W)``.
+
+    ``psi_h/2pi``, ``psi_l/2pi``, ``k_c/f_h`` and the local consistency of the coarse order,
+    ``clip(u - median3x3(u), -4, 4)`` with ``u = k_c + psi_h/2pi`` the coarse absolute phase in periods
+    (smooth where the order is right, so a pixel whose order is off by ``n`` stands out by about ``n``
+    whatever the frequency).
+    """
     scale = frequency_high.reshape(-1, 1, 1, 1)
-    return torch.cat([wrapped_high / TWO_PI, wrapped_low / TWO_PI, coarse_order / scale], dim=1)
+    periods = coarse_order + wrapped_high / TWO_PI  # (B, 1, H, W)
+    consistency = torch.clamp(periods - median3x3(periods), -4.0, 4.0)
+    return torch.cat([wrapped_high / TWO_PI, wrapped_low / TWO_PI, coarse_order / scale, consistency], dim=1)
 
 
 def pad_to_multiple(x: torch.Tensor, multiple: int = PAD_MULTIPLE) -> torch.Tensor:
@@ -120,9 +141,9 @@ class DPTPUNet(nn.Module):
         config = config or DPTPUConfig()
         self.config = config
         w, d, h = config.widths, config.depths, config.heads
-        self.stem = nn.Sequential(nn.Conv2d(3, config.stem_width, 3, padding=1), nn.GELU())
+        self.stem = nn.Sequential(nn.Conv2d(4, config.stem_width, 3, padding=1), nn.GELU())
         self.embed = nn.ModuleList([
-            nn.Sequential(nn.Conv2d(3, w[0], 7, stride=4, padding=3), ChannelNorm(w[0])),  # x4 down
+            nn.Sequential(nn.Conv2d(4, w[0], 7, stride=4, padding=3), ChannelNorm(w[0])),  # x4 down
             *[nn.Sequential(nn.Conv2d(w[i - 1], w[i], 3, stride=2, padding=1), ChannelNorm(w[i])) for i in (1, 2, 3)],
         ])
         stages = [nn.Sequential(*[EncoderBlock(w[0], ConvSelfAttention(w[0], h[0])) for _ in range(d[0])])]

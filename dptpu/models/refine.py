@@ -26,9 +26,11 @@ REFINABLE_METHODS = ("mf", "mw", "nt")
 def resolve_model(value, method: str) -> FringeOrderModel | None:
     """The model named by ``--model``: a path, ``"none"``, or None for the shipped default.
 
-    Returns None (classical result) for ``"none"``, or by default when there is no shipped model or
-    ``method`` is not one of :data:`REFINABLE_METHODS`. An explicit path with another method is a
-    ValueError; a missing or corrupt file is a :class:`~dptpu.models.inference.ModelLoadError`.
+    Returns None (classical result) for ``"none"``, or by default when there is no shipped model, or
+    ``method`` is not one of :data:`REFINABLE_METHODS`, or the shipped model was not trained on ``method``
+    (its metadata lists the methods of its training set). An explicit path with a method outside
+    :data:`REFINABLE_METHODS` is a ValueError; a missing or corrupt file is a
+    :class:`~dptpu.models.inference.ModelLoadError`.
     """
     if value is not None and str(value).lower() == "none":
         return None
@@ -36,7 +38,8 @@ def resolve_model(value, method: str) -> FringeOrderModel | None:
         path = shipped_model_path()
         if path is None or method not in REFINABLE_METHODS:
             return None
-        return FringeOrderModel.load(path)
+        model = FringeOrderModel.load(path)
+        return model if method in model.trained_methods else None
     if method not in REFINABLE_METHODS:
         raise ValueError(f"--model refines the orders of {', '.join(REFINABLE_METHODS)}; method {method!r} "
                          "is not one of them (pass --model none)")

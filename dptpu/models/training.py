@@ -231,7 +231,9 @@ def train(options: TrainOptions) -> TrainResult:
     onnx_path = None
     if rank == 0 and options.out is not None:
         onnx_path = export_onnx(model, options.out, training={
-            **_options_record(options, world), "epochs_done": epochs_done, "final": history[-1] if history else None})
+            **_options_record(options, world), "epochs_done": epochs_done, "final": history[-1] if history else None,
+            "methods": sorted({s.method for s in dataset.samples}),
+            "frequencies": sorted({s.frequency_high for s in dataset.samples}), "samples": len(dataset)})
     if world > 1:
         dist.barrier()
     return TrainResult(epochs_done=epochs_done, history=history, checkpoint=checkpoint_path if rank == 0 else None,

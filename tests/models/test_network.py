@@ -3,7 +3,7 @@ import pytest
 import torch
 
 from dptpu.models.factory import build_model
-from dptpu.models.network import DPTPUConfig, DPTPUNet, network_inputs
+from dptpu.models.network import DPTPUConfig, DPTPUNet, median3x3, network_inputs
 from dptpu.models.unet_baseline import UNetBaseline
 
 from .conftest import TINY_DPTPU, TINY_UNET, phase_inputs, randomize_head
@@ -55,12 +55,25 @@ def test_unet_ignores_the_coarse_order_and_frequency():
         assert torch.equal(model(high, low, coarse, frequency), model(high, low, coarse * 0 + 7, frequency * 2))
 
 
-def test_inputs_are_scaled_to_unit_range():
-    high = torch.full((1, 1, 2, 2), torch.pi)
-    low = torch.full((1, 1, 2, 2), torch.pi / 2)
-    coarse = torch.full((1, 1, 2, 2), 16.0)
+def test_inputs_are_scaled_to_unit_range_and_flag_an_order_off_its_neighbours():
+    high = torch.full((1, 1, 5, 5), torch.pi)
+    low = torch.full((1, 1, 5, 5), torch.pi / 2)
+    coarse = torch.full((1, 1, 5, 5), 16.0)
+    coarse[0, 0, 2, 2] = 17.0  # one order off
+    coarse[0, 0, 0, 4] = 40.0  # far off: clipped
     x = network_inputs(high, low, coarse, torch.tensor([64.0]))
-    assert torch.allclose(x[0, :, 0, 0], torch.tensor([0.5, 0.25, 0.25]))
+    assert torch.allclose(x[0, :, 4, 0], torch.tensor([0.5, 0.25, 0.25, 0.0]))
+    assert float(x[0, 3, 2, 2]) == pytest.approx(1.0) and float(x[0, 3, 0, 4]) == pytest.approx(4.0)
+    assert float(x[0, 2, 2, 2]) == pytest.approx(17.0 / 64.0)
+
+
+def test_median3x3_is_the_median_of_each_window():
+    x = torch.arange(20, dtype=torch.float32).reshape(1, 1, 4, 5) ** 2 % 11
+    got = median3x3(x)[0, 0]
+    padded = torch.nn.functional.pad(x, (1, 1, 1, 1), mode="replicate")[0, 0]
+    expected = torch.tensor([[float(padded[r:r + 3, c:c + 3].flatten().sort().values[4]) for c in range(5)]
+                             for r in range(4)])
+    assert torch.equal(got, expected)
 
 
 def test_default_config_is_small_enough_for_cpu_training():
