@@ -1,0 +1,231 @@
+"""ROS 2 bridge: republishes the scanner's topics on DDS the way a ROS 2 driver on ``rmw_cyclonedds_cpp`` does.
+
+Each bridged graph topic ``/name`` becomes the DDS topic ``rt/name`` with ROS 2's type name
+(``sensor_msgs::msg::dds_::PointCloud2_``), sensor_msgs' members in order, plain CDR, and ROS 2's QoS, written
+through Eclipse Cyclone DDS (``cyclonedds`` on PyPI bundles the C library). A ROS 2 host then sees
+``/scanner/points`` in ``ros2 topic list`` and subscribes to it like to any driver; the scanner host needs no
+ROS 2. The reverse direction: a ``std_srvs/srv/Trigger`` service (``/scanner/capture``) that starts one scan
+through the projector's ``~/start_scan``. ROS side, tests and figures: ``docs/ros2.md``.
+
+Topics and services (defaults; the graph names are parameters)
+
+=========================== ============================= ======= ==========================================
+graph                       DDS                           dir     notes
+=========================== ============================= ======= ==========================================
+``/scanner/points``         ``rt/scanner/points``         out     PointCloud2; ROS 2 default QoS (or sensor data)
+``/scanner/depth``          ``rt/scanner/depth``          out     Image 32FC1; as above
+``/camera/camera_info``     ``rt/camera/camera_info``     out     CameraInfo; latched (TRANSIENT_LOCAL, depth 1) on
+                                                                  both sides
+``/projector/start_scan``   ``rq/scanner/captureRequest`` in      DDS ``std_srvs/srv/Trigger`` service
+(client)                    ``rr/scanner/captureReply``   out     ``/scanner/capture``; the reply is the projector's
+=========================== ============================= ======= ==========================================
+
+Parameters
+
+==================== ========================================= =================================================
+name                 default                                   meaning
+==================== ========================================= =================================================
+``topics``           [/scanner/points, /scanner/depth,         graph topics republished under the same ROS name;
+                     /camera/camera_info]                      each may carry PointCloud2, Image or CameraInfo
+``latched_topics``   [/camera/camera_info]                     of those, the ones published TRANSIENT_LOCAL
+``qos``              "default"                                 ROS 2 profile of the other topics: ``default``
+                                                               (RELIABLE, depth 10) or ``sensor_data``
+                                                               (BEST_EFFORT, depth 5)
+``domain_id``        -1                                        DDS domain; -1: ``ROS_DOMAIN_ID`` or 0
+``interface``        ""                                        network interface (``lo``, ``eth0``); "": Cyclone's
+                                                               choice or ``CYCLONEDDS_URI``
+``peers``            ""                                        comma-separated unicast peers (multicast off)
+``capture_service``  "/scanner/capture"                        ROS 2 service name of the capture request ("" = none)
+``start_service``    "/projector/start_scan"                   graph Trigger service it calls
+==================== ========================================= =================================================
+
+Counters: ``bridged`` (per topic), ``malformed``, ``rejected`` (a message of another type than the topic's first),
+``capture_requests``. Run: ``python -m dptpu.nodes.ros2_bridge --ros-args -p domain_id:=0 -p interface:=eth0``.
+"""
+from __future__ import annotations
+
+import os
+import sys
+
+import dptpu.graph as rclpy
+from dptpu.graph import ExternalShutdownException
+from dptpu.graph.interfaces import Trigger as TriggerService
+from dptpu.graph.node import Node
+from dptpu.graph.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+from dptpu.messages import CameraInfo, DecodeError, Image, PointCloud2, decode
+
+from .ros2_idl import Trigger_Request_, Trigger_Response_, dds_type_of, ros_topic_name, to_dds
+from .ros2_qos import cyclone_config_xml, ros2_qos
+
+__all__ = ["Ros2BridgeNode", "DEFAULT_TOPICS", "DEFAULT_TYPES", "main"]
+
+DEFAULT_TOPICS = ["/scanner/points", "/scanner/depth", "/camera/camera_info"]
+#: Types of the default topics: their DDS writers exist from the start, so ROS 2 sees them before the first scan.
+DEFAULT_TYPES = {"/scanner/points": PointCloud2, "/scanner/depth": Image, "/camera/camera_info": CameraInfo}
+_GRAPH_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.BEST_EFFORT)  # connects to any publisher
+_GRAPH_LATCHED_QOS = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+_REQUEST_POLL_S = 0.02
+
+
+def _domain_id(value: int) -> int:
+    if value >= 0:
+        return value
+    text = os.environ.get("ROS_DOMAIN_ID", "").strip()
+    if not text:
+        return 0
+    if not text.isdigit():
+        raise ValueError(f"ROS_DOMAIN_ID must be a non-negative integer; got {text!r}")
+    return int(text)
+
+
+class Ros2BridgeNode(Node):
+    """Graph topics -> DDS ``rt/`` topics; DDS ``/scanner/capture`` -> the projector (see the module docstring)."""
+
+    def __init__(self, node_name: str = "ros2_bridge", **node_options):
+        super().__init__(node_name, **node_options)
+        topics = list(self.declare_parameter("topics", DEFAULT_TOPICS).value)
+        latched = set(self.declare_parameter("latched_topics", ["/camera/camera_info"]).value)
+        self.qos_profile = self.declare_parameter("qos", "default").value
+        domain_id = self.declare_parameter("domain_id", -1).value
+        interface = self.declare_parameter("interface", "").value
+        peers = tuple(p.strip() for p in self.declare_parameter("peers", "").value.split(",") if p.strip())
+        capture_service = self.declare_parameter("capture_service", "/scanner/capture").value
+        start_service = self.declare_parameter("start_service", "/projector/start_scan").value
+        if self.qos_profile not in ("default", "sensor_data"):
+            raise ValueError(f"parameter qos must be 'default' or 'sensor_data'; got {self.qos_profile!r}")
+        if domain_id > 232:
+            raise ValueError(f"parameter domain_id must be -1 (ROS_DOMAIN_ID) or 0..232; got {domain_id}")
+        for topic in topics + sorted(latched) + ([capture_service] if capture_service else []):
+            ros_topic_name(topic)  # ValueError naming a bad name
+        self.domain_id = _domain_id(domain_id)
+
+        from cyclonedds.domain import Domain, DomainParticipant  # the C library loads here, not on import
+
+        config = cyclone_config_xml(interface, peers)
+        self._dds_domain = Domain(self.domain_id, config) if config else None
+        self.participant = DomainParticipant(self.domain_id)
+        self._latched = latched
+        self._writers: dict[str, tuple[type, object]] = {}   # graph topic -> (our message class, DataWriter)
+        self.bridged = {topic: 0 for topic in topics}
+        self.malformed = 0
+        self.rejected = 0
+        self.capture_requests = 0
+        for topic in topics:
+            if topic in DEFAULT_TYPES:
+                self._writer_for(topic, DEFAULT_TYPES[topic])
+
+        self._subscriptions_in = [
+            self.create_subscription(None, topic, self._forwarder(topic),
+                                     _GRAPH_LATCHED_QOS if topic in latched else _GRAPH_QOS, raw=True)
+            for topic in topics]
+
+        self.start_client = None
+        if capture_service:
+            self.start_client = self.create_client(TriggerService, start_service)
+            self._capture_setup(capture_service)
+            self.request_timer = self.create_timer(_REQUEST_POLL_S, self.on_request_timer)
+
+    # -- graph -> DDS ------------------------------------------------------------------------------------------
+
+    def _writer_for(self, topic: str, msg_type: type):
+        """The DDS writer of ``topic`` for ``msg_type`` (created on first use); None if the topic has another."""
+        from cyclonedds.pub import DataWriter
+        from cyclonedds.topic import Topic
+
+        if topic in self._writers:
+            known_type, writer = self._writers[topic]
+            return writer if known_type is msg_type else None
+        qos = ros2_qos("latched" if topic in self._latched else self.qos_profile)
+        dds_topic = Topic(self.participant, ros_topic_name(topic), dds_type_of(msg_type), qos=qos)
+        writer = DataWriter(self.participant, dds_topic, qos=qos)
+        self._writers[topic] = (msg_type, writer)
+        return writer
+
+    def _forwarder(self, topic: str):
+        def forward(frames) -> None:
+            self.on_message(topic, frames)
+        return forward
+
+    def on_message(self, topic: str, frames) -> None:
+        """Decode one graph message of ``topic`` and write it to its DDS topic (no copy of the bulk data)."""
+        try:
+            _, msg = decode(frames)
+        except DecodeError as exc:
+            self.malformed += 1
+            self.get_logger().warning(f"malformed message on {topic}: {exc}", throttle_duration_sec=1.0)
+            return
+        try:
+            writer = self._writer_for(topic, type(msg))
+        except ValueError as exc:
+            writer, reason = None, str(exc)
+        else:
+            reason = f"{topic} is bridged as {self._writers[topic][0].__name__}"
+        if writer is None:
+            self.rejected += 1
+            self.get_logger().warning(f"not bridging a {type(msg).__name__} on {topic}: {reason}",
+                                      throttle_duration_sec=5.0)
+            return
+        writer.write(to_dds(msg))
+        self.bridged[topic] += 1
+
+    # -- DDS capture request -> graph ------------------------------------------------------------------------
+
+    def _capture_setup(self, service: str) -> None:
+        from cyclonedds.pub import DataWriter
+        from cyclonedds.sub import DataReader
+        from cyclonedds.topic import Topic
+
+        qos = ros2_qos("services_default")
+        request_topic = Topic(self.participant, ros_topic_name(service + "Request", prefix="rq"), Trigger_Request_,
+                              qos=qos)
+        reply_topic = Topic(self.participant, ros_topic_name(service + "Reply", prefix="rr"), Trigger_Response_,
+                            qos=qos)
+        self.request_reader = DataReader(self.participant, request_topic, qos=qos)
+        self.reply_writer = DataWriter(self.participant, reply_topic, qos=qos)
+
+    def on_request_timer(self) -> None:
+        """Forward each DDS capture request to the projector; its answer becomes the DDS reply."""
+        for request in self.request_reader.take(N=16):
+            if not isinstance(request, Trigger_Request_):
+                continue  # an invalid sample (e.g. a disposed instance)
+            self.capture_requests += 1
+            if not self.start_client.service_is_ready():
+                self._reply(request, False, f"{self.start_client.srv_name} is not available")
+                continue
+            future = self.start_client.call_async(TriggerService.Request())
+            future.add_done_callback(lambda done, req=request: self._on_started(req, done))
+
+    def _on_started(self, request: Trigger_Request_, future) -> None:
+        if future.exception() is not None:
+            self._reply(request, False, f"{self.start_client.srv_name} failed: {future.exception()}")
+            return
+        response = future.result()
+        self._reply(request, bool(response.success), response.message)
+
+    def _reply(self, request: Trigger_Request_, success: bool, message: str) -> None:
+        self.reply_writer.write(Trigger_Response_(client_guid=request.client_guid,
+                                                  sequence_number=request.sequence_number,
+                                                  success=success, message=message))
+
+
+def main(argv=None) -> int:
+    """``python -m dptpu.nodes.ros2_bridge --ros-args -p domain_id:=N``: run until Ctrl-C or SIGTERM."""
+    rclpy.init(args=sys.argv if argv is None else argv)
+    try:
+        node = Ros2BridgeNode()
+    except (ValueError, OSError) as exc:
+        print(f"ros2_bridge: error: {exc}", file=sys.stderr)
+        rclpy.try_shutdown()
+        return 2
+    try:
+        rclpy.spin(node)
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    finally:
+        node.destroy_node()
+        rclpy.try_shutdown()
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
