@@ -371,3 +371,21 @@ def test_dispatcher_rejects_unknown_method_and_nt_without_extent():
         tpu.unwrap("gray", psi, psi, 16, 1)
     with pytest.raises(ValueError, match="method 'nt' needs extent"):
         tpu.unwrap("nt", psi, psi, 64, 10.9)
+
+
+def test_mw_equivalent_phase_is_np_mod_bit_for_bit():
+    # The masked two-pass wrap of unwrap_mw gives the numbers np.mod gives for differences of two wrapped
+    # phases (tolerance 1e-6 rad included), at the edges and on random values.
+    rng = np.random.default_rng(0)
+    two_pi = 2 * np.pi
+    edges = np.array([0.0, -1e-17, 1e-17, -two_pi + 1e-12, two_pi - 1e-12, two_pi, two_pi + 1e-7,
+                      -1e-6 - two_pi + 1e-9, np.pi, -np.pi, np.nextafter(two_pi, 0)])
+    difference = np.concatenate([edges, rng.uniform(-two_pi, two_pi, 10000)])
+    np.testing.assert_array_equal(tpu._mod_two_pi(difference.copy()), np.mod(difference, two_pi))
+
+
+def test_inf_in_a_phase_map_raises():
+    psi = np.full((4, 5), 1.0)
+    psi[1, 2] = np.inf
+    with pytest.raises(ValueError, match="psi_l must not contain inf"):
+        tpu.unwrap_mf(np.full((4, 5), 1.0), psi, 8.0)
