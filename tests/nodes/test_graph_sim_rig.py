@@ -12,7 +12,7 @@ import json
 import subprocess
 import sys
 
-from tests.launch_files.running import SIM_RIG, LaunchRun
+from tests.launch_files.running import REPO_ROOT, SIM_RIG, LaunchRun
 
 ORDER_ACCURACY_BOUND = 0.995
 DEPTH_RMS_BOUND_MM = 1.5
@@ -33,12 +33,17 @@ def test_n_scans_through_the_whole_graph_meet_the_documented_bounds(node_env, tm
     echo = subprocess.Popen([sys.executable, "-c", "import sys; from dptpu.cli.main import main; sys.exit(main())",
                              "topic", "echo", "/scanner/points", "--once", "--timeout", "90", "--spin-time", "5"],
                             env=run.proc_env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    robot = subprocess.Popen([sys.executable, str(REPO_ROOT / "examples" / "subscriber.py")], env=run.proc_env,
+                             stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
     try:
         assert run.wait(timeout=150) == 0, run.text()
         echoed, echo_err = echo.communicate(timeout=60)
     finally:
         echo.kill()
+        robot.kill()
         run.close()
+    robot_lines = robot.communicate(timeout=10)[0].splitlines()
+    assert robot_lines and all(line.startswith("160x120 cloud, ") for line in robot_lines), robot_lines
     assert echo.returncode == 0, echo_err[-2000:]
     assert "height: 120" in echoed and "width: 160" in echoed and "frame_id: scanner_optical_frame" in echoed
     report = json.loads(summary.read_text())
