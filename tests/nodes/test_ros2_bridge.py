@@ -237,7 +237,7 @@ def test_bridge_republishes_points_camera_info_and_answers_capture_requests(node
     camera_info.header.frame_id = "scanner_optical_frame"
     info.publish(camera_info)  # latched before the bridge exists
 
-    bridge = start_bridge(env)
+    bridge = start_bridge(env, "-p", "interface:=lo", "-p", "peers:=127.0.0.1")  # its own config, not the URI's
     listener = start_subscriber(tmp_path, env, clouds=3, capture=True)
     try:
         listener.wait_event("ready", timeout=30)
