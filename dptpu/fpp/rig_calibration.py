@@ -37,7 +37,7 @@ import cv2
 import numpy as np
 
 from .calibration import DeviceModel, Rig
-from .capture import Capture, load_reference, read_capture
+from .capture import Capture, load_reference, load_sequence_images, read_capture
 from .reconstruct import CaptureResult, unwrap_capture
 from .stereo_calibration import CalibrationViews, RelativePose, refine_relative_pose
 
@@ -57,8 +57,11 @@ __all__ = [
 ]
 
 _AXES = ("x", "y")
-# A corner's projector coordinate needs at least this share of its window's pixels to be valid.
+# A corner's projector coordinate needs at least this share of its window's pixels to be usable.
 _MIN_WINDOW_FILL = 0.3
+#: Pixels whose weight (modulation) is below this fraction of the largest in their window are left out of the
+#: local homography of :func:`projector_points_at`.
+MIN_RELATIVE_WEIGHT = 0.3
 
 
 # --------------------------------------------------------------------------------------------------
@@ -166,8 +169,8 @@ def projector_points_at(points_px: np.ndarray, projector_xy: np.ndarray, weights
         Projector coordinate (x_p, y_p) of every camera pixel, projector pixels (from the absolute phase of a
         vertical and a horizontal fringe sequence); any value where ``weights`` is 0.
     weights : ndarray (H, W)
-        Weight of each pixel, >= 0 (0 = invalid); the fringe modulation ``B`` is a good one, because the phase
-        noise is ``sqrt(2/N) sigma / B`` (Eq. (2)).
+        Quality of each pixel, >= 0 (0 = invalid), inversely proportional to its phase noise: the fringe
+        modulation ``B`` (the phase noise is ``sqrt(2/N) sigma / B``, Eq. (2)).
     window_px : int
         Half-size of the square window of camera pixels around each point.
 
@@ -176,14 +179,17 @@ def projector_points_at(points_px: np.ndarray, projector_xy: np.ndarray, weights
     projector_points : ndarray (M, 2) float64
         (x_p, y_p) at each point; NaN where ``ok`` is False.
     ok : ndarray (M,) bool
-        False where fewer than 30 % of the window's pixels are valid.
+        False where fewer than 30 % of the window's pixels are usable.
 
     Notes
     -----
     A plane maps to both image planes by homographies, so camera -> projector is a homography ``H`` on a
-    flat board (lens distortion is negligible inside a window). Per point, weighted DLT on centred, scaled
-    coordinates (batched SVD), one refit without pixels whose residual exceeds ``max(0.5, 4 * median)``
-    projector pixels (a wrong fringe order or a specular glint), and ``H`` evaluated at the point.
+    flat board (lens distortion is negligible inside a window). Per point: pixels whose weight is below
+    :data:`MIN_RELATIVE_WEIGHT` of the window's largest are left out (a board's dark squares: their phase is
+    noisy and their fringe orders often wrong); weighted DLT (weights squared: inverse phase variance) on
+    centred, scaled coordinates (batched SVD); one refit without pixels whose residual exceeds
+    ``max(0.5, 4 * median)`` projector pixels (a wrong fringe order, a specular glint); ``H`` evaluated at the
+    point.
     """
     points = np.asarray(points_px, dtype=np.float64)
     xy = np.asarray(projector_xy, dtype=np.float64)
@@ -205,6 +211,7 @@ def projector_points_at(points_px: np.ndarray, projector_xy: np.ndarray, weights
     w = np.where(inside, weights[vc, uc], 0.0)  # (M, P)
     target = xy[vc, uc]  # (M, P, 2)
     w = np.where(np.all(np.isfinite(target), axis=-1), w, 0.0)
+    w = np.where(w >= MIN_RELATIVE_WEIGHT * w.max(axis=1, keepdims=True), w, 0.0) ** 2  # inverse variance
     target = np.where(w[..., None] > 0, target, 0.0)
     # centred, scaled camera coordinates: the point itself is (0, 0)
     cu = (u - points[:, :1]) / window_px
@@ -212,7 +219,11 @@ def projector_points_at(points_px: np.ndarray, projector_xy: np.ndarray, weights
     result = _fit_local_homography(cu, cv, target, w)
     residual = np.linalg.norm(_apply_homography(result[0], cu, cv) - target, axis=-1)  # (M, P)
     used = w > 0
-    median = np.array([np.median(r[m]) if m.any() else 0.0 for r, m in zip(residual, used)])  # M small
+    masked = np.where(used, residual, np.inf)  # (M, P); unused pixels sort last
+    count = used.sum(axis=1)
+    ordered = np.sort(masked, axis=1)
+    middle = np.clip((count - 1) // 2, 0, masked.shape[1] - 1)
+    median = np.where(count > 0, ordered[np.arange(len(points)), middle], 0.0)  # (M,) lower median of used pixels
     keep = used & (residual <= np.maximum(0.5, 4.0 * median)[:, None])
     result = _fit_local_homography(cu, cv, target, np.where(keep, w, 0.0))
     ok = keep.sum(axis=1) >= _MIN_WINDOW_FILL * du.size
@@ -523,8 +534,6 @@ def _absolute_phase(capture: Capture) -> tuple[CaptureResult, np.ndarray]:
 
 
 def _fringe_average(capture: Capture) -> np.ndarray:
-    from .capture import load_sequence_images
-
     highest = max(capture.phase_sequences, key=capture.frequency_of)
     return load_sequence_images(capture, highest).astype(np.float64).mean(axis=0)
 
