@@ -117,7 +117,8 @@ def run(args) -> int:
                                              warmup=args.warmup, in_flight=args.in_flight, timeout_s=args.timeout))
             if not args.json:
                 r = results[-1]
-                print(f"{r['configuration']:<28} {r['scans_per_s']:7.2f} scans/s  latency p50 {r['latency_ms_p50']:7.1f} "
+                print(f"{r['configuration']:<28} {r['scans_per_s']:7.2f} scans/s  "
+                      f"latency p50 {r['latency_ms_p50']:7.1f} "
                       f"ms  p99 {r['latency_ms_p99']:7.1f} ms  camera_limit_ratio {r['camera_limit_ratio']:.3f} "
                       f"({r['scans_timed']} scans)", flush=True)
     report = {"benchmark": "pipeline", "machine": {"cpus": os.cpu_count(), "platform": platform.platform(),

@@ -134,13 +134,16 @@ class SimNode(Node):
         self.publish_truth = self.declare_parameter("ground_truth", True).value
         self.frame_id = self.declare_parameter("frame_id", DEFAULT_FRAME_ID).value
         if self.frame_rate_hz < 0:
-            raise ValueError(f"parameter frame_rate_hz must be >= 0 (0 = as fast as possible); got {self.frame_rate_hz}")
+            raise ValueError(f"parameter frame_rate_hz must be >= 0 (0 = as fast as possible); got "
+                             f"{self.frame_rate_hz}")
         if bit_depth not in (8, 16):
             raise ValueError(f"parameter bit_depth must be 8 or 16; got {bit_depth}")
         self.source: SimSource = load_source(source, rig=rig, size=size, scenes=scenes, sequence=sequence,
                                              fringe_axis=fringe_axis, shift_sign=shift_sign, seed=seed,
                                              bit_depth=bit_depth, log=self.get_logger().info)
         self.get_logger().info(self.source.note)
+        if self.source.kind != "raycast":
+            self._check_rig(rig, size)
         extent_px = self.source.rig.projector.size[0 if self.source.fringe_axis == "x" else 1]
         self.truth_frequency = max(f for f, _ in self.source.sequences)
         self._truths = [_GroundTruth(scene, self.truth_frequency, extent_px) for scene in self.source.scenes]
@@ -255,6 +258,26 @@ class SimNode(Node):
             header=Header(stamp=self.get_clock().now().to_msg()), sequence_id=trigger.sequence_id,
             level=ScanStatus.ERROR, state="failed", reason=reason, node=self.get_fully_qualified_name(),
             frames_expected=trigger.pattern_count, frames_dropped=1))
+
+    def _check_rig(self, rig, size) -> None:
+        """Warn when replayed captures were made with another rig than ``rig`` (which the cloud node is given)."""
+        from dptpu.sim.rig import load_twin_rig
+
+        try:
+            expected = load_twin_rig(rig, size=self.source.size)
+        except (ValueError, FileNotFoundError) as exc:
+            self.get_logger().warning(f"cannot compare the captures' calibration with parameter rig: {exc}")
+            return
+        got = self.source.rig
+        same = got.projector.size == expected.projector.size and all(
+            np.allclose(a, b, rtol=1e-6, atol=1e-6) for a, b in (
+                (got.projector.K, expected.projector.K), (got.projector.R, expected.projector.R),
+                (got.projector.T, expected.projector.T), (got.camera.R, expected.camera.R),
+                (got.camera.T, expected.camera.T), (got.camera.K, expected.camera.K)))
+        if not same:
+            self.get_logger().warning(f"the captures' calibration differs from parameter rig ({rig}); a cloud node "
+                                      "given that rig triangulates them wrongly: give it the captures' "
+                                      "calibration.yaml")
 
     def camera_info(self) -> CameraInfo:
         camera = self.source.rig.camera

@@ -263,7 +263,8 @@ def load_source(source: str, *, rig, size, scenes: str = DEFAULT_SCENES, sequenc
         if _capture_folders(shipped_root()):
             found, twin_rig, axis, sign = capture_scenes(shipped_root())
             return SimSource(found, twin_rig, axis, sign, "shipped",
-                             f"replaying the {len(found)} shipped render(s) of {shipped_root()}", tuple(found[0].frames))
+                             f"replaying the {len(found)} shipped render(s) of {shipped_root()}",
+                             tuple(found[0].frames))
         note = f"no shipped renders in {shipped_root()}: rendering the scenes live with the raycast twin; "
     if fringe_axis not in ("x", "y"):
         raise ValueError(f"parameter fringe_axis must be 'x' or 'y'; got {fringe_axis!r}")

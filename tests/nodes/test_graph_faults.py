@@ -41,8 +41,8 @@ def test_killed_unwrap_is_respawned_and_later_scans_are_right(node_env, tmp_path
         killed_after = max(s[0] for s in run.scans())
         os.killpg(unwrap_pid, signal.SIGKILL)
         run.wait_for(lambda lines: len(run.pids("unwrap")) == 2, 60, "unwrap respawned")
-        later = run.wait_for(lambda lines: len(_ok_scans(run, killed_after + 1)) >= 3 and _ok_scans(run, killed_after + 1),
-                             120, "three scans after the respawn")
+        later = run.wait_for(lambda lines: len(_ok_scans(run, killed_after + 1)) >= 3
+                             and _ok_scans(run, killed_after + 1), 120, "three scans after the respawn")
         run.interrupt()
         assert run.wait(timeout=30) == 0
     finally:

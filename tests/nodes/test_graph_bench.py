@@ -1,0 +1,33 @@
+"""``dptpu bench pipeline`` on a small image: the report's structure and its camera-limit arithmetic.
+
+No time is asserted."""
+from __future__ import annotations
+
+import json
+
+import pytest
+
+from dptpu.cli.bench_cmd import PIPELINE_MODULE_NAME, load_bench
+from dptpu.cli.main import main
+
+
+def test_bench_pipeline_reports_one_object_per_configuration(capsys):
+    code = main(["bench", "pipeline", "--json", "--size", "96x72", "--scans", "3", "--warmup", "1", "--steps", "3",
+                 "--classical-only"])
+    report = json.loads(capsys.readouterr().out)
+    assert code == 0
+    assert report["benchmark"] == "pipeline" and report["size"] == "96x72"
+    (three,) = report["configurations"]
+    assert (three["frames_per_scan"], three["camera_limit_scans_per_s"]) == (6, 125.0)  # 750 frames/s / 6
+    bench = load_bench("pipeline_bench.py", PIPELINE_MODULE_NAME)
+    assert bench.camera_limit_scans_per_s(24) == 31.25  # the paper's camera at 2 x 12 steps
+    for result in report["configurations"]:
+        assert result["scans_timed"] == 3 and result["scans_failed"] == result["scans_lost"] == 0
+        assert result["scans_per_s"] > 0 and 0 < result["latency_ms_p50"] <= result["latency_ms_p99"]
+        assert result["camera_limit_ratio"] == pytest.approx(result["scans_per_s"] / result["camera_limit_scans_per_s"],
+                                                             rel=1e-2)
+
+
+def test_bench_pipeline_refuses_unknown_steps(capsys):
+    assert main(["bench", "pipeline", "--steps", "5"]) == 2
+    assert "--steps takes 12 and/or 3" in capsys.readouterr().err
