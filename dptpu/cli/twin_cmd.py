@@ -1,0 +1,75 @@
+"""``dptpu twin ...``: hold measured data against the digital twin.
+
+``dptpu twin diagnose --measured PATH --rig RIG [--reference sphere:DIAMETER_MM | plane] [--self-reference]
+[--frequency F] --out DIR`` (:mod:`dptpu.sim.diagnosis`, docs/sim-to-real.md): registration, residuals and
+their decomposition (PNG figures), candidate effects ranked by BIC, the extended rig, the re-render and
+``report.json`` / ``report.md``.
+"""
+from __future__ import annotations
+
+import json
+
+
+def register(subparsers) -> None:
+    parser = subparsers.add_parser("twin", help="sim-to-real: what the twin gets wrong on measured data")
+    twin_subparsers = parser.add_subparsers(dest="twin_command", metavar="TWIN_COMMAND", required=True)
+    diagnose = twin_subparsers.add_parser(
+        "diagnose", help="diagnose measured data against the twin: cause, fitted effects, extended rig, gain",
+        description="Register the reference object (or use the data's own phase with --self-reference), fit each "
+                    "effect of the twin's vocabulary with the twin in the loop, rank them by BIC, write the "
+                    "extended rig, render again and report (report.json, report.md, PNG figures). "
+                    "See docs/sim-to-real.md.")
+    diagnose.add_argument("--measured", required=True,
+                          help="capture folder (raw frames), .npz phase file (absolute_phase, frequency, "
+                               "fringe_axis, projector_size) or a dptpu-sphere .mat phase file (with --frequency)")
+    diagnose.add_argument("--rig", default=None,
+                          help="dptpu-rig/1 or OpenCV rig file, 'CAM.mat,PRJ.mat' (Bouguet) or 'nominal'; "
+                               "optional with --self-reference")
+    diagnose.add_argument("--reference", default=None, help="sphere:DIAMETER_MM or plane")
+    diagnose.add_argument("--self-reference", action="store_true",
+                          help="no calibration or reference object: the data's own 12-step phase is the reference")
+    diagnose.add_argument("--frequency", type=float, default=None,
+                          help="fringe frequency of a .mat phase file (96 for dptpu-sphere)")
+    diagnose.add_argument("--max-pixels", type=int, default=12000,
+                          help="pixels used by the photometric fits (default 12000, a seeded random subset)")
+    diagnose.add_argument("--seed", type=int, default=0)
+    diagnose.add_argument("--no-rerender", action="store_true", help="skip rendering the twins again")
+    diagnose.add_argument("--out", required=True, help="output folder")
+    diagnose.set_defaults(func=run_diagnose)
+
+
+def run_diagnose(args) -> int:
+    from dptpu.sim.diagnosis import diagnose
+    from dptpu.sim.diagnosis.measured import load_measured
+    from dptpu.sim.diagnosis.report import write_report
+    from dptpu.sim.rig import load_twin_rig
+
+    if args.self_reference and args.reference:
+        raise ValueError("give either --reference or --self-reference, not both")
+    if not args.self_reference and not args.reference:
+        raise ValueError("--reference sphere:DIAMETER_MM | plane is required (or --self-reference)")
+    if args.rig is None and not args.self_reference:
+        raise ValueError("--rig is required with --reference")
+    if args.max_pixels < 100:
+        raise ValueError(f"--max-pixels must be >= 100; got {args.max_pixels}")
+    measured = load_measured(args.measured, frequency=args.frequency, decode=not args.self_reference)
+    rig = None
+    if args.rig is not None:
+        rig = load_twin_rig(args.rig)
+        shape = measured.absolute_phase.shape
+        width, height = rig.camera.size
+        if (width, height) != (shape[1], shape[0]) and width * shape[0] == height * shape[1]:
+            rig = load_twin_rig(args.rig, size=(shape[1], shape[0]))  # same aspect: K rescaled (docs/twin.md)
+        elif (width, height) != (shape[1], shape[0]):
+            raise ValueError(f"{args.rig}: camera size {rig.camera.size[0]}x{rig.camera.size[1]} does not match the "
+                             f"measured data's {shape[1]}x{shape[0]}")
+    result = diagnose(measured, rig, reference=args.reference, self_reference=args.self_reference,
+                      max_pixels=args.max_pixels, seed=args.seed)
+    report = write_report(result, args.out, rerender=not args.no_rerender)
+    summary = {"cause": report["cause"], "extended_rig": report["extended_rig"],
+               "effects": [{"name": e["name"], "gain": e["gain"], "named": e["evidence"]["named"]}
+                           for e in report["effects"]]}
+    if "sphere_rms_um" in report:
+        summary["sphere_rms_um"] = report["sphere_rms_um"]
+    print(json.dumps(summary, indent=2))
+    return 0

@@ -1,0 +1,121 @@
+"""Candidate effects fitted with the twin in the loop, each scored against the baseline twin.
+
+Photometric candidates (intensity domain, needs raw frames): each effect of the twin's vocabulary
+(docs/effects.md) that changes what a pixel records is switched on with one free parameter (its main one; the
+others fixed at "no random part"), and the parameter is fitted by least squares on the intensity residual
+``measured - s_q * twin`` (:func:`dptpu.sim.diagnosis.forward.intensity_residual`): a coarse grid over the
+parameter's range, then a bounded Brent search around the best grid point. ``residual_before`` /
+``residual_after`` are the RMS of the residual (DN) without / with the effect.
+
+Geometric candidates (phase domain, works on a phase file too): ``lens_distortion`` adds a camera ``k1`` to the
+rig and refits it with the pose (:func:`dptpu.sim.diagnosis.registration.register`); residuals are the
+projector-coordinate RMS (projector px).
+
+``sensor_noise`` is not fitted by least squares (noise does not change the mean): see
+:mod:`dptpu.sim.diagnosis.noise`.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+import numpy as np
+from scipy.optimize import minimize_scalar
+
+from dptpu.fpp.calibration import DeviceModel, Rig
+
+from .forward import PixelSet, intensity_residual
+from .selection import delta_bic, gain
+
+__all__ = ["Candidate", "PHOTOMETRIC", "fit_photometric", "fit_lens_distortion", "add_camera_k1"]
+
+
+@dataclass(frozen=True)
+class Candidate:
+    """A photometric candidate: effect ``name``, its fitted parameter ``main`` in ``bounds`` (``grid`` points
+    first, ``log`` spacing for a scale-like parameter), ``fixed`` other parameters, ``neutral`` the value at which
+    the effect does nothing."""
+
+    name: str
+    main: str
+    bounds: tuple
+    neutral: float
+    fixed: dict
+    grid: int = 13
+    log: bool = False
+
+    def effect(self, value: float) -> dict:
+        return {self.name: {self.main: float(value), **self.fixed}}
+
+
+#: The photometric vocabulary fitted here (docs/sim-to-real.md gives each detection limit).
+PHOTOMETRIC = (
+    Candidate("projector_gamma", "gamma", (0.4, 3.5), 1.0, {}, log=True),
+    Candidate("projector_defocus", "sigma_px", (0.0, 4.0), 0.0, {}),
+    Candidate("ambient_light", "level", (0.0, 0.6), 0.0, {}),
+    Candidate("intensity_drift", "rate_per_frame", (-0.05, 0.05), 0.0, {"sigma": 0.0}),
+    Candidate("phase_shift_error", "scale", (0.85, 1.15), 1.0, {"sigma_rad": 0.0}),
+    Candidate("saturation", "exposure_gain", (1.0, 3.0), 1.0, {}),
+)
+
+
+def _rss(pixels: PixelSet, effects, refine: int) -> float:
+    residual, _, _ = intensity_residual(pixels, effects, refine=refine)
+    return float(sum(np.sum(r * r) for r in residual))
+
+
+def fit_photometric(pixels: PixelSet, candidate: Candidate, *, base=(), refine: int = 1,
+                    rss_before: float | None = None) -> dict:
+    """Fit ``candidate``'s main parameter on top of ``base`` effects; returns an effect entry (report.json)."""
+    n = pixels.values
+    if rss_before is None:
+        rss_before = _rss(pixels, list(base), refine)
+
+    def objective(value):
+        return _rss(pixels, list(base) + [candidate.effect(value)], refine)
+
+    lo, hi = candidate.bounds
+    grid = np.geomspace(lo, hi, candidate.grid) if candidate.log else np.linspace(lo, hi, candidate.grid)
+    grid = np.unique(np.append(grid, candidate.neutral))
+    values = np.array([objective(v) for v in grid])
+    best = int(np.argmin(values))
+    left, right = grid[max(best - 1, 0)], grid[min(best + 1, len(grid) - 1)]
+    value, rss = float(grid[best]), float(values[best])
+    if right > left:
+        solution = minimize_scalar(objective, bounds=(left, right), method="bounded",
+                                   options={"xatol": 1e-4 * (hi - lo)})
+        if solution.fun < rss:
+            value, rss = float(solution.x), float(solution.fun)
+    before, after = float(np.sqrt(rss_before / n)), float(np.sqrt(rss / n))
+    return {"name": candidate.name, "parameters": {candidate.main: value, **candidate.fixed},
+            "residual_before": before, "residual_after": after, "gain": gain(before, after),
+            "evidence": {"domain": "intensity", "unit": "DN", "values": n, "parameters": 1,
+                         "delta_bic": delta_bic(rss_before, rss, n, 1)}}
+
+
+def add_camera_k1(rig: Rig, extra) -> Rig:
+    """The rig with ``extra[0]`` added to the camera's ``k1`` (the ``lens_distortion`` effect's ``camera``)."""
+    camera = rig.camera
+    dist = camera.dist.copy()
+    dist[0] += float(extra[0])
+    return replace(rig, camera=DeviceModel(K=camera.K, dist=dist, R=camera.R, T=camera.T, size=camera.size))
+
+
+def fit_lens_distortion(rig: Rig, reference, measured_x, baseline) -> tuple[dict, object]:
+    """Camera ``k1`` the calibration lacks, fitted with the pose (phase domain). Returns the entry and the
+    :class:`~dptpu.sim.diagnosis.registration.Registration` with it."""
+    from .registration import register
+
+    fitted = register(rig, reference, measured_x, baseline.mask, rig_of=add_camera_k1, extra0=[0.0],
+                      pose0=baseline.pose)
+    mask = baseline.mask & fitted.mask
+    n = int(mask.sum())
+    rss0 = float(np.sum(baseline.residual_px[mask] ** 2))
+    rss1 = float(np.sum(fitted.residual_px[mask] ** 2))
+    before, after = float(np.sqrt(rss0 / n)), float(np.sqrt(rss1 / n))
+    k1 = float(fitted.extra[0])
+    entry = {"name": "lens_distortion", "parameters": {"camera": [k1, 0.0, 0.0, 0.0, 0.0],
+                                                         "projector": [0.0] * 5},
+             "residual_before": before, "residual_after": after, "gain": gain(before, after),
+             "evidence": {"domain": "phase", "unit": "projector px", "values": n, "parameters": 1,
+                          "delta_bic": delta_bic(rss0, rss1, n, 1), "camera_k1": k1}}
+    return entry, fitted

@@ -1,0 +1,91 @@
+"""The pixels a photometric fit uses, with what the twin knows about each (:class:`~.forward.PixelSet`).
+
+- With a reference object (:func:`reference_pixels`): the registered surface gives each pixel's projector
+  coordinate, normal and reflectance factor (:func:`dptpu.sim.image_formation.reflectance_factor`, the
+  reference's material); pixels lit in the twin, one pixel in from the lit region's border (mixed pixels).
+- Self-reference (:func:`self_reference_pixels`): no calibration, no object. Each sequence's own least-squares
+  phase (Eq. (2); with 12 steps it is immune to harmonics up to the 10th, so a projector nonlinearity does not
+  bias it) gives the projector coordinate modulo one period, and the mean level gives the reflectance factor
+  (``a = FS R O``); the albedo (for ``ambient_light``) is taken proportional to that factor.
+
+At most ``max_pixels`` pixels are kept (a seeded random subset): the fits are statistics over many pixels, and
+their cost grows with the count.
+"""
+from __future__ import annotations
+
+from types import SimpleNamespace
+
+import numpy as np
+
+from dptpu.fpp.phase import wrapped_phase
+from dptpu.sim.image_formation import reflectance_factor
+
+from .forward import PixelSet
+from .measured import Measured
+from .reference import surface_hits
+
+__all__ = ["reference_pixels", "self_reference_pixels", "DEFAULT_MAX_PIXELS"]
+
+DEFAULT_MAX_PIXELS = 12000
+#: Self-reference: smallest modulation of a usable pixel, fraction of full scale.
+MIN_MODULATION_FRACTION = 0.04
+
+
+def _erode(mask: np.ndarray, pixels: int = 1) -> np.ndarray:
+    import cv2
+
+    if pixels <= 0:
+        return mask
+    kernel = np.ones((2 * pixels + 1, 2 * pixels + 1), np.uint8)
+    return cv2.erode(mask.astype(np.uint8), kernel, borderType=cv2.BORDER_CONSTANT, borderValue=0).astype(bool)
+
+
+def _limit(mask: np.ndarray, max_pixels: int, seed: int) -> tuple:
+    rows, cols = np.nonzero(mask)
+    if len(rows) > max_pixels:
+        keep = np.sort(np.random.default_rng(seed).choice(len(rows), max_pixels, replace=False))
+        rows, cols = rows[keep], cols[keep]
+    return rows, cols
+
+
+def reference_pixels(measured: Measured, rig, reference, pose, material, *, max_pixels: int = DEFAULT_MAX_PIXELS,
+                     seed: int = 0, erode_px: int = 1):
+    """PixelSet of the registered reference surface (``rig`` may carry fitted geometry), and the lit mask (H, W)."""
+    hits = surface_hits(rig, reference.kind, pose, diameter=reference.diameter)
+    axis = 0 if measured.fringe_axis == "x" else 1
+    shape = hits.lit.shape
+    samples = SimpleNamespace(points=hits.points, normals=hits.normals, lit=hits.lit,
+                              albedo=np.full(shape, material.albedo), roughness=np.full(shape, material.roughness),
+                              specular=np.full(shape, material.specular), ior=np.full(shape, material.ior))
+    factor = reflectance_factor(rig, samples)
+    stack = np.concatenate(measured.frames)  # (sum N, H, W)
+    mask = _erode(hits.lit, erode_px) & (factor > 0) & (stack.max(axis=0) > 0)
+    rows, cols = _limit(mask, max_pixels, seed)
+    coord = hits.projector_xy[rows, cols, axis]
+    return PixelSet(index=(rows, cols), coords=[coord] * len(measured.sequences), factor=factor[rows, cols],
+                    albedo=np.full(len(rows), material.albedo), projector_depth=hits.projector_depth[rows, cols],
+                    measured=[f[:, rows, cols] for f in measured.frames], sequences=list(measured.sequences),
+                    extent=measured.extent, offset=measured.pattern.offset, amplitude=measured.pattern.amplitude,
+                    full_scale=measured.full_scale), mask
+
+
+def self_reference_pixels(measured: Measured, *, max_pixels: int = DEFAULT_MAX_PIXELS, seed: int = 0):
+    """PixelSet from the data alone (module docstring), and the usable mask (H, W)."""
+    maps = [wrapped_phase(f, shift_sign=s.shift_sign, phase_offset=s.phase_offset)
+            for f, s in zip(measured.frames, measured.sequences)]
+    full_scale = measured.full_scale
+    stack = np.concatenate(measured.frames)
+    mask = np.ones(stack.shape[1:], dtype=bool)
+    for m in maps:
+        mask &= m.modulation > MIN_MODULATION_FRACTION * full_scale
+    mask &= stack.min(axis=0) < full_scale  # a pixel at full scale in every frame holds no fringe
+    mask = _erode(mask, 1)
+    rows, cols = _limit(mask, max_pixels, seed)
+    coords = [m.phase[rows, cols] * measured.extent / (2.0 * np.pi * s.frequency)
+              for m, s in zip(maps, measured.sequences)]
+    background = np.mean([m.background[rows, cols] for m in maps], axis=0)
+    factor = background / (full_scale * measured.pattern.offset)
+    return PixelSet(index=(rows, cols), coords=coords, factor=factor, albedo=factor.copy(),
+                    projector_depth=np.zeros(len(rows)), measured=[f[:, rows, cols] for f in measured.frames],
+                    sequences=list(measured.sequences), extent=measured.extent, offset=measured.pattern.offset,
+                    amplitude=measured.pattern.amplitude, full_scale=full_scale), mask
