@@ -1,0 +1,366 @@
+"""Viewer node: the live organized point cloud and the status of the last scans, in a browser on localhost.
+
+A stdlib HTTP server (a thread of this process) serves the page of ``viewer_static/`` (``index.html``,
+``viewer.js`` and three.js 0.187.0 bundled at build time: nothing is fetched from the internet) and a WebSocket
+(``/ws``, RFC 6455, :mod:`dptpu.nodes.viewer_ws`). Each cloud goes to every open page as one binary message
+(:func:`pack_cloud`: its finite points, decimated to at most ``max_points``); each ``ScanStatus`` as one JSON
+text message. The page draws the points with orbit controls, coloured by depth or by intensity, and lists the
+last scans. Design, message format and the browser test: ``docs/viewer.md``.
+
+Topics
+
+===================== =========== ===== =======================================================================
+topic                 type        dir   notes
+===================== =========== ===== =======================================================================
+``/scanner/points``   PointCloud2 in    best effort, depth 2: a slow page skips clouds, the graph never waits
+``/scanner/status``   ScanStatus  in    reliable, depth 50
+===================== =========== ===== =======================================================================
+
+Parameters
+
+================ =============== ==============================================================================
+name             default         meaning
+================ =============== ==============================================================================
+``host``         "127.0.0.1"     address the HTTP server binds (localhost only by default)
+``port``         8765            TCP port (0: any free port; the URL is logged)
+``max_points``   150000          clouds are decimated by a whole stride so at most this many pixels are sent
+``color_by``     "depth"         first colouring of the page: ``depth`` (z) or ``intensity`` (a button switches)
+================ =============== ==============================================================================
+
+Run: ``python -m dptpu.nodes.viewer --ros-args -p port:=8765``, then open ``http://127.0.0.1:8765/``.
+"""
+from __future__ import annotations
+
+import json
+import math
+import struct
+import sys
+import threading
+from collections import deque
+from http import HTTPStatus
+from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
+from pathlib import Path
+
+import numpy as np
+
+import dptpu.graph as rclpy
+from dptpu.graph import ExternalShutdownException
+from dptpu.graph.node import Node
+from dptpu.graph.qos import QoSProfile, ReliabilityPolicy
+from dptpu.messages import PointCloud2, ScanStatus
+
+from .viewer_ws import OP_BINARY, OP_CLOSE, OP_PING, OP_PONG, OP_TEXT, ProtocolError, accept_key, encode_frame, \
+    read_frame
+
+__all__ = ["ViewerNode", "pack_cloud", "unpack_cloud", "status_record", "CLOUD_MAGIC", "STATIC_DIR", "main"]
+
+STATIC_DIR = Path(__file__).with_name("viewer_static")
+#: First 4 bytes of a cloud message.
+CLOUD_MAGIC = b"DPC1"
+_CONTENT_TYPES = {".html": "text/html; charset=utf-8", ".js": "text/javascript; charset=utf-8",
+                  ".txt": "text/plain; charset=utf-8", ".css": "text/css; charset=utf-8"}
+_STATUS_KEPT = 20
+_LEVELS = {0: "OK", 1: "WARN", 2: "ERROR", 3: "STALE"}
+_CLOUD_QOS = QoSProfile(depth=2, reliability=ReliabilityPolicy.BEST_EFFORT)
+
+
+def pack_cloud(cloud: PointCloud2, max_points: int) -> bytes:
+    """One cloud as the viewer's binary message: its finite points, decimated, in the camera optical frame.
+
+    Parameters
+    ----------
+    cloud : PointCloud2
+        Organized (H, W) or not; float32/float64 fields ``x, y, z`` in metres (``intensity`` optional).
+    max_points : int
+        The grid is decimated by the smallest whole stride ``s`` with ``ceil(H/s) * ceil(W/s) <= max_points``.
+
+    Returns
+    -------
+    bytes
+        ``b"DPC1"``, uint32 ``n`` (little-endian), ``n`` bytes of UTF-8 JSON padded with spaces to a multiple of
+        4 (``stamp_ns``, ``frame_id``, ``width``, ``height``, ``stride``, ``count``, ``z_range_m``,
+        ``intensity_range``), then float32 ``xyz`` (count, 3) in metres, then float32 ``intensity`` (count,)
+        (NaN when the cloud has none). Convention: camera optical frame, x right, y down, z forward.
+
+    Raises
+    ------
+    ValueError
+        When the cloud lacks an ``x``, ``y`` or ``z`` field, or ``max_points < 1``.
+    """
+    if max_points < 1:
+        raise ValueError(f"max_points must be >= 1; got {max_points}")
+    names = [f.name for f in cloud.fields]
+    if not {"x", "y", "z"} <= set(names):
+        raise ValueError(f"the viewer needs PointCloud2 fields x, y, z; the cloud has {names}")
+    height, width = max(int(cloud.height), 1), int(cloud.width)
+    stride = 1
+    while math.ceil(height / stride) * math.ceil(width / stride) > max_points:
+        stride += 1
+    xyz = cloud.to_array(["x", "y", "z"], dtype=np.float32).reshape(height, width, 3)[::stride, ::stride]
+    if "intensity" in names:
+        intensity = cloud.to_array(["intensity"], dtype=np.float32).reshape(height, width)[::stride, ::stride]
+    else:
+        intensity = np.full(xyz.shape[:2], np.nan, np.float32)
+    finite = np.isfinite(xyz).all(axis=-1)  # (h, w)
+    points = np.ascontiguousarray(xyz[finite], dtype="<f4")  # (count, 3)
+    values = np.ascontiguousarray(intensity[finite], dtype="<f4")  # (count,)
+    stamp = cloud.header.stamp
+    meta = {"stamp_ns": int(stamp.sec) * 1_000_000_000 + int(stamp.nanosec), "frame_id": cloud.header.frame_id,
+            "width": width, "height": height, "stride": stride, "count": int(points.shape[0]),
+            "z_range_m": _range(points[:, 2]), "intensity_range": _range(values)}
+    text = json.dumps(meta).encode("utf-8")
+    text += b" " * (-len(text) % 4)
+    return b"".join([CLOUD_MAGIC, struct.pack("<I", len(text)), text, points.tobytes(), values.tobytes()])
+
+
+def _range(values: np.ndarray) -> list:
+    finite = values[np.isfinite(values)]
+    return [float(finite.min()), float(finite.max())] if finite.size else [0.0, 0.0]
+
+
+def unpack_cloud(payload: bytes) -> tuple[dict, np.ndarray, np.ndarray]:
+    """Inverse of :func:`pack_cloud`: ``(meta, xyz (count, 3) float32, intensity (count,) float32)``.
+
+    Raises
+    ------
+    ValueError
+        When the magic, the JSON or the sizes do not fit.
+    """
+    if payload[:4] != CLOUD_MAGIC or len(payload) < 8:
+        raise ValueError(f"a viewer cloud message starts with {CLOUD_MAGIC!r}; got {bytes(payload[:4])!r}")
+    (size,) = struct.unpack_from("<I", payload, 4)
+    meta = json.loads(bytes(payload[8:8 + size]))
+    count = meta["count"]
+    body = np.frombuffer(payload, dtype="<f4", offset=8 + size)
+    if body.size != 4 * count:
+        raise ValueError(f"a viewer cloud of {count} points needs {16 * count} bytes of points; got {4 * body.size}")
+    return meta, body[:3 * count].reshape(count, 3), body[3 * count:]
+
+
+def status_record(status: ScanStatus) -> dict:
+    """The JSON record of one ScanStatus the page lists (``type: status``)."""
+    stamp = status.header.stamp
+    return {"type": "status", "sequence_id": int(status.sequence_id), "level": _LEVELS.get(status.level, "?"),
+            "state": status.state, "node": status.node, "reason": status.reason,
+            "valid_pixels": int(status.valid_pixels), "total_pixels": int(status.total_pixels),
+            "duration_s": float(status.duration_s), "stamp_ns": int(stamp.sec) * 1_000_000_000 + int(stamp.nanosec)}
+
+
+class _Broadcast:
+    """What every page gets: the latest cloud (pages skip older ones) and the last statuses, with counters."""
+
+    def __init__(self):
+        self.cond = threading.Condition()
+        self.cloud: bytes | None = None
+        self.cloud_version = 0
+        self.statuses: deque = deque(maxlen=_STATUS_KEPT)  # (number, json text)
+        self.status_count = 0
+        self.closed = False
+
+    def put_cloud(self, payload: bytes) -> None:
+        with self.cond:
+            self.cloud, self.cloud_version = payload, self.cloud_version + 1
+            self.cond.notify_all()
+
+    def put_status(self, text: str) -> None:
+        with self.cond:
+            self.status_count += 1
+            self.statuses.append((self.status_count, text))
+            self.cond.notify_all()
+
+    def close(self) -> None:
+        with self.cond:
+            self.closed = True
+            self.cond.notify_all()
+
+
+class _Handler(BaseHTTPRequestHandler):
+    """GET ``/`` and the static files; GET ``/ws`` upgrades to the WebSocket feed."""
+
+    server_version = "dptpu-viewer"
+    protocol_version = "HTTP/1.1"
+
+    def log_message(self, format, *args):  # noqa: A002 - the stdlib's name
+        self.server.node_logger.debug("http: " + format % args)
+
+    def do_GET(self):  # noqa: N802 - the stdlib's name
+        path = self.path.split("?", 1)[0]
+        if path == "/ws":
+            self._websocket()
+            return
+        name = "index.html" if path == "/" else path.lstrip("/")
+        file = self.server.static_files.get(name)
+        if file is None:
+            self.send_error(HTTPStatus.NOT_FOUND, f"no such file: {path}")
+            return
+        body = file.read_bytes()
+        self.send_response(HTTPStatus.OK)
+        self.send_header("Content-Type", _CONTENT_TYPES.get(file.suffix, "application/octet-stream"))
+        self.send_header("Content-Length", str(len(body)))
+        self.send_header("Cache-Control", "no-store")
+        self.end_headers()
+        self.wfile.write(body)
+
+    def _websocket(self) -> None:
+        if self.headers.get("Upgrade", "").lower() != "websocket":
+            self.send_error(HTTPStatus.BAD_REQUEST, "/ws is a WebSocket endpoint (Upgrade: websocket)")
+            return
+        try:
+            accept = accept_key(self.headers.get("Sec-WebSocket-Key", ""))
+        except ValueError as exc:
+            self.send_error(HTTPStatus.BAD_REQUEST, str(exc))
+            return
+        self.send_response(HTTPStatus.SWITCHING_PROTOCOLS)
+        self.send_header("Upgrade", "websocket")
+        self.send_header("Connection", "Upgrade")
+        self.send_header("Sec-WebSocket-Accept", accept)
+        self.end_headers()
+        self.close_connection = True
+        _Session(self.server, self.rfile, self.wfile, self.connection).run()
+
+
+class _Session:
+    """One page: this thread sends clouds and statuses; a reader thread answers pings and sees the close."""
+
+    def __init__(self, server, rfile, wfile, connection):
+        self.broadcast: _Broadcast = server.broadcast
+        self.logger = server.node_logger
+        self.rfile, self.wfile, self.connection = rfile, wfile, connection
+        self.send_lock = threading.Lock()
+        self.open = True
+
+    def send(self, opcode: int, payload) -> None:
+        with self.send_lock:
+            for part in encode_frame(opcode, payload):
+                self.wfile.write(part)
+            self.wfile.flush()
+
+    def read_loop(self) -> None:
+        try:
+            while self.open:
+                opcode, payload = read_frame(self.rfile)
+                if opcode == OP_PING:
+                    self.send(OP_PONG, payload)
+                elif opcode == OP_CLOSE:
+                    self.send(OP_CLOSE, payload[:2])
+                    break
+        except ProtocolError as exc:
+            self.logger.warning(f"closing a viewer page: {exc}")
+            try:
+                self.send(OP_CLOSE, struct.pack("!H", exc.code))
+            except OSError:
+                pass
+        except (EOFError, OSError, ValueError):
+            pass
+        self.open = False
+        with self.broadcast.cond:
+            self.broadcast.cond.notify_all()
+
+    def run(self) -> None:
+        threading.Thread(target=self.read_loop, daemon=True, name="viewer-ws-reader").start()
+        sent_cloud, sent_status = 0, 0
+        try:
+            while True:
+                with self.broadcast.cond:
+                    self.broadcast.cond.wait_for(
+                        lambda: not self.open or self.broadcast.closed or self.broadcast.cloud_version != sent_cloud
+                        or self.broadcast.status_count != sent_status, timeout=5.0)
+                    if not self.open or self.broadcast.closed:
+                        break
+                    statuses = [text for number, text in self.broadcast.statuses if number > sent_status]
+                    sent_status = self.broadcast.status_count
+                    cloud = self.broadcast.cloud if self.broadcast.cloud_version != sent_cloud else None
+                    sent_cloud = self.broadcast.cloud_version
+                for text in statuses:
+                    self.send(OP_TEXT, text.encode("utf-8"))
+                if cloud is not None:
+                    self.send(OP_BINARY, cloud)
+            if self.open:
+                self.send(OP_CLOSE, struct.pack("!H", 1001))  # going away: the node stops
+        except OSError:
+            pass
+        finally:
+            self.open = False
+
+
+class ViewerNode(Node):
+    """PointCloud2 and ScanStatus -> a web page over a WebSocket (see the module docstring)."""
+
+    def __init__(self, node_name: str = "viewer", **node_options):
+        super().__init__(node_name, **node_options)
+        host = self.declare_parameter("host", "127.0.0.1").value
+        port = self.declare_parameter("port", 8765).value
+        self.max_points = self.declare_parameter("max_points", 150000).value
+        self.color_by = self.declare_parameter("color_by", "depth").value
+        if not 0 <= port <= 65535:
+            raise ValueError(f"parameter port must be 0..65535 (0: any free port); got {port}")
+        if self.max_points < 1:
+            raise ValueError(f"parameter max_points must be >= 1; got {self.max_points}")
+        if self.color_by not in ("depth", "intensity"):
+            raise ValueError(f"parameter color_by must be 'depth' or 'intensity'; got {self.color_by!r}")
+        static_files = {p.name: p for p in STATIC_DIR.iterdir() if p.is_file()}
+        if "index.html" not in static_files:
+            raise OSError(f"the viewer's page is missing: {STATIC_DIR / 'index.html'} (a broken install?)")
+        self.clouds_received = 0
+        self.clouds_rejected = 0
+        self.broadcast = _Broadcast()
+        self.broadcast.put_status(json.dumps({"type": "config", "color_by": self.color_by,
+                                              "max_points": self.max_points}))
+
+        self.server = ThreadingHTTPServer((host, port), _Handler)
+        self.server.daemon_threads = True
+        self.server.broadcast = self.broadcast
+        self.server.static_files = static_files
+        self.server.node_logger = self.get_logger()
+        self.port = self.server.server_address[1]
+        self.url = f"http://{host}:{self.port}/"
+        self._server_thread = threading.Thread(target=self.server.serve_forever, kwargs={"poll_interval": 0.2},
+                                               daemon=True, name="viewer-http")
+        self._server_thread.start()
+        self.get_logger().info(f"viewer at {self.url}")
+
+        self.cloud_subscription = self.create_subscription(PointCloud2, "/scanner/points", self.on_cloud, _CLOUD_QOS)
+        self.status_subscription = self.create_subscription(ScanStatus, "/scanner/status", self.on_status, 50)
+
+    def on_cloud(self, msg: PointCloud2) -> None:
+        """Pack the cloud once; every page's sender takes the newest."""
+        try:
+            payload = pack_cloud(msg, self.max_points)
+        except ValueError as exc:
+            self.clouds_rejected += 1
+            self.get_logger().warning(f"cannot show a cloud: {exc}", throttle_duration_sec=5.0)
+            return
+        self.clouds_received += 1
+        self.broadcast.put_cloud(payload)
+
+    def on_status(self, msg: ScanStatus) -> None:
+        self.broadcast.put_status(json.dumps(status_record(msg)))
+
+    def destroy_node(self) -> None:
+        self.broadcast.close()
+        self.server.shutdown()
+        self.server.server_close()
+        super().destroy_node()
+
+
+def main(argv=None) -> int:
+    """``python -m dptpu.nodes.viewer --ros-args -p port:=8765``: serve until Ctrl-C or SIGTERM."""
+    rclpy.init(args=sys.argv if argv is None else argv)
+    try:
+        node = ViewerNode()
+    except (ValueError, OSError) as exc:
+        print(f"viewer: error: {exc}", file=sys.stderr)
+        rclpy.try_shutdown()
+        return 2
+    try:
+        rclpy.spin(node)
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    finally:
+        node.destroy_node()
+        rclpy.try_shutdown()
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
