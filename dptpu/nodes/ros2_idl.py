@@ -12,9 +12,10 @@ request header ``{uint64 client_guid; int64 sequence_number}`` that rmw_cycloned
 response members, and the reply repeats the request's header.
 
 Bulk ``data`` members are declared ``sequence<uint8>`` (so the type information is ROS's), but the two types
-that carry them (``PointCloud2_``, ``Image_``) serialize through :class:`CdrWriter` (numpy buffers appended
-whole, no per-byte Python objects); ``tests/nodes/test_ros2_bridge_idl.py`` checks that it gives the same
-bytes as Cyclone's own serializer.
+that carry them (``PointCloud2_``, ``Image_``) serialize through :class:`CdrWriter` and deserialize through
+:class:`CdrReader` (buffers copied whole, no per-byte Python objects: Cyclone's own code makes one int per
+byte, about a second for a 640x480 cloud); ``tests/nodes/test_ros2_bridge_idl.py`` checks both against
+Cyclone's own serializer.
 """
 # no `from __future__ import annotations`: Cyclone DDS resolves these classes' annotations at run time
 
@@ -29,7 +30,7 @@ from dptpu.messages import CameraInfo, Image, PointCloud2
 
 __all__ = [
     "Time_", "Header_", "PointField_", "PointCloud2_", "Image_", "RegionOfInterest_", "CameraInfo_",
-    "Trigger_Request_", "Trigger_Response_", "CdrWriter", "to_dds", "dds_type_of", "ros_topic_name",
+    "Trigger_Request_", "Trigger_Response_", "CdrWriter", "CdrReader", "to_dds", "dds_type_of", "ros_topic_name",
     "CDR_LE_HEADER",
 ]
 
@@ -101,6 +102,56 @@ class CdrWriter:
         return b"".join(self._parts)
 
 
+class CdrReader:
+    """Plain CDR (XCDR1) decoder of one serialized sample (encapsulation header first); the inverse of
+    :class:`CdrWriter`. ``sequence<uint8>`` members come back as ``bytes`` slices (one copy, no int objects).
+
+    Raises
+    ------
+    ValueError
+        When the sample is not little- or big-endian plain CDR, or ends early.
+    """
+
+    def __init__(self, data):
+        self._data = memoryview(data).cast("B")
+        if self._data.nbytes < 4 or self._data[0] != 0 or self._data[1] not in (0, 1):
+            raise ValueError(f"expected a plain CDR sample (encapsulation 0x0000 or 0x0001); got "
+                             f"{bytes(self._data[:4]).hex()}")
+        self._endian = "<" if self._data[1] == 1 else ">"
+        self._pos = 4
+
+    def _take(self, size: int, align: int = 1) -> memoryview:
+        self._pos += -(self._pos - 4) % align
+        if self._pos + size > self._data.nbytes:
+            raise ValueError(f"the CDR sample ends at byte {self._data.nbytes}; a member needs {size} bytes at "
+                             f"{self._pos}")
+        chunk = self._data[self._pos:self._pos + size]
+        self._pos += size
+        return chunk
+
+    def u8(self) -> int:
+        return self._take(1)[0]
+
+    def boolean(self) -> bool:
+        return bool(self.u8())
+
+    def i32(self) -> int:
+        return struct.unpack(self._endian + "i", self._take(4, 4))[0]
+
+    def u32(self) -> int:
+        return struct.unpack(self._endian + "I", self._take(4, 4))[0]
+
+    def string(self) -> str:
+        size = self.u32()
+        return bytes(self._take(size))[:-1].decode("utf-8") if size else ""
+
+    def octets(self) -> bytes:
+        return bytes(self._take(self.u32()))
+
+    def header(self) -> "Header_":
+        return Header_(stamp=Time_(sec=self.i32(), nanosec=self.u32()), frame_id=self.string())
+
+
 @dataclass
 class Time_(IdlStruct, typename="builtin_interfaces::msg::dds_::Time_"):
     sec: int32 = 0
@@ -157,6 +208,18 @@ class PointCloud2_(IdlStruct, typename="sensor_msgs::msg::dds_::PointCloud2_"):
         writer.boolean(self.is_dense)
         return writer.getvalue()
 
+    @classmethod
+    def deserialize(cls, data, has_header=True, use_version_2=None):
+        """From plain CDR through :class:`CdrReader` (``data`` as bytes); other forms: Cyclone's deserializer."""
+        if not has_header or use_version_2 or bytes(data[:2]) not in (b"\x00\x00", b"\x00\x01"):
+            return super().deserialize(data, has_header=has_header, use_version_2=use_version_2)
+        reader = CdrReader(data)
+        header, height, width = reader.header(), reader.u32(), reader.u32()
+        fields = [PointField_(name=reader.string(), offset=reader.u32(), datatype=reader.u8(), count=reader.u32())
+                  for _ in range(reader.u32())]
+        return cls(header=header, height=height, width=width, fields=fields, is_bigendian=reader.boolean(),
+                   point_step=reader.u32(), row_step=reader.u32(), data=reader.octets(), is_dense=reader.boolean())
+
 
 @dataclass
 class Image_(IdlStruct, typename="sensor_msgs::msg::dds_::Image_"):
@@ -184,6 +247,15 @@ class Image_(IdlStruct, typename="sensor_msgs::msg::dds_::Image_"):
         writer.u32(self.step)
         writer.octets(_octet_buffer(self.data))
         return writer.getvalue()
+
+    @classmethod
+    def deserialize(cls, data, has_header=True, use_version_2=None):
+        """From plain CDR through :class:`CdrReader` (``data`` as bytes); other forms: Cyclone's deserializer."""
+        if not has_header or use_version_2 or bytes(data[:2]) not in (b"\x00\x00", b"\x00\x01"):
+            return super().deserialize(data, has_header=has_header, use_version_2=use_version_2)
+        reader = CdrReader(data)
+        return cls(header=reader.header(), height=reader.u32(), width=reader.u32(), encoding=reader.string(),
+                   is_bigendian=reader.u8(), step=reader.u32(), data=reader.octets())
 
 
 @dataclass

@@ -76,3 +76,20 @@ def test_qos_profiles_and_cyclone_configuration():
     xml = cyclone_config_xml("lo", ("127.0.0.1",))
     assert '<NetworkInterface name="lo"/>' in xml and "<AllowMulticast>false</AllowMulticast>" in xml
     assert '<Peer Address="127.0.0.1"/>' in xml
+
+
+def test_fast_deserialization_equals_cyclones():
+    cloud = PointCloud2.from_array(np.arange(60, dtype=np.float32).reshape(3, 4, 5), ["x", "y", "z", "a", "b"],
+                                   header=Header(stamp=Time(sec=-3, nanosec=5), frame_id="f"))
+    raw = to_dds(cloud).serialize()
+    fast = PointCloud2_.deserialize(raw)
+    slow = type(fast).__mro__[1].deserialize.__func__(PointCloud2_, raw)  # Cyclone's IdlStruct.deserialize
+    assert fast.header == slow.header and fast.fields == slow.fields
+    assert (fast.height, fast.width, fast.point_step, fast.row_step, fast.is_dense) == \
+        (slow.height, slow.width, slow.point_step, slow.row_step, slow.is_dense)
+    assert fast.data == bytes(slow.data) == cloud.data.tobytes()
+    image = Image.from_array(np.arange(6, dtype=np.uint16).reshape(2, 3))
+    back = Image_.deserialize(to_dds(image).serialize())
+    assert (back.encoding, back.step, back.data) == ("mono16", 6, image.data.tobytes())
+    with pytest.raises(ValueError, match="ends at byte"):
+        PointCloud2_.deserialize(raw[:40])
