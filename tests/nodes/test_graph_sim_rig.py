@@ -73,8 +73,8 @@ def test_dptpu_scans_through_the_whole_graph_meet_the_bounds(node_env, tmp_path)
     if shipped_model_path() is None:
         pytest.skip("no shipped DP-TPU model (dptpu/models/dptpu.onnx) yet")
     summary = tmp_path / "summary.json"
-    run = LaunchRun(SIM_RIG, "scans:=4", "source:=raycast", "size:=160x120", "sequence:=64x12,1x12", "method:=mf", "model:=shipped",
-                    f"summary:={summary}", "ply_dir:=", env=node_env, cwd=tmp_path)
+    run = LaunchRun(SIM_RIG, "scans:=4", "source:=raycast", "size:=160x120", "sequence:=64x12,1x12", "method:=mf",
+                    "model:=shipped", f"summary:={summary}", "ply_dir:=", env=node_env, cwd=tmp_path)
     try:
         assert run.wait(timeout=200) == 0, run.text()
     finally:
