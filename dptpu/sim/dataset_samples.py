@@ -16,7 +16,7 @@ For one scene (one trace) and every combination of high frequency ``f_h``, metho
    across a wrap, where ``k12`` would be off by one for the network's input);
 3. ``valid``: the camera ray hits a surface the projector lights (the ray cast), the 12-step absolute phase agrees
    with the ray cast's ``2 pi f_h x_p / W`` within ``pi / 2`` (a label whose order is wrong is 2 pi off; these are
-   dropped, and counted), and the input frames pass :func:`dptpu.fpp.phase.quality_mask` (modulation >= 2 % of
+   dropped, and counted where the inputs were usable), and the input frames pass :func:`dptpu.fpp.phase.quality_mask` (modulation >= 2 % of
    full scale in both inputs, no saturated frame): the pixels the classical pipeline would use too.
 
 Convention: fringes along projector x (vertical stripes), ``W`` = projector width; ``phi = 2 pi f x_p / W``;
@@ -124,7 +124,8 @@ def scene_samples(rig: Rig, scene, *, scene_seed: int, frequencies, methods, noi
         In the order frequency, method, noise (innermost). Arrays ``(H, W)``: ``wrapped_high``, ``wrapped_low``
         float32 radians in ``[0, 2 pi)``, ``coarse_order`` float32, ``label_order`` int16, ``valid`` bool; scalars
         ``frequency_high``, ``frequency_low``, ``method``, ``noise_sigma``, ``scene_seed``, ``label_rejected``
-        (lit pixels dropped because the 12-step label disagreed with the ray cast).
+        (pixels that are lit and pass the input quality mask but were dropped because the 12-step label
+        disagreed with the ray cast).
     """
     effects = parse_effects(rig.effects if effects is None else effects)
     meshes = scene.meshes if hasattr(scene, "meshes") else list(scene)
@@ -180,6 +181,6 @@ def scene_samples(rig: Rig, scene, *, scene_seed: int, frequencies, methods, noi
                     "method": np.str_(method),
                     "noise_sigma": np.float64(sigma),
                     "scene_seed": np.int64(scene_seed),
-                    "label_rejected": np.int64(np.count_nonzero(lit & ~agrees)),
+                    "label_rejected": np.int64(np.count_nonzero(lit & usable_h & usable_l & ~agrees)),
                 })
     return out

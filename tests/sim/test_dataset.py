@@ -77,6 +77,7 @@ def test_labels_agree_with_the_ray_cast_on_noiseless_valid_pixels(rig, dataset_d
             true_order = np.floor(f * x_p[valid] / 912)
             assert np.mean(s["label_order"][valid] == true_order) > 0.995  # differs only at the wraps
             assert not (valid & ~samples.lit).any()
+            assert s["label_rejected"] == 0  # noise-free 12-step labels of an effect-free rig are all right
 
 
 def test_classical_coarse_order_errors_increase_with_noise(dataset_dir):
