@@ -2,6 +2,7 @@
 ``dptpu bench transport``: the graph runtime against raw pyzmq (``benchmarks/transport_bench.py``).
 ``dptpu bench twin``: the digital twin's raycast (and Blender) renderer (``benchmarks/twin_bench.py``).
 ``dptpu bench pipeline``: the whole scanner graph end to end on the sim rig (``benchmarks/pipeline_bench.py``).
+``dptpu bench bridge``: the ROS 2 (DDS) bridge with 640x480 clouds (``benchmarks/bridge_bench.py``).
 
 The benchmark code is ``benchmarks/fpp_bench.py`` of the source tree, next to the ``dptpu`` package folder;
 it is not part of the installed package, so this command loads it from there and says so when it is missing
@@ -130,6 +131,20 @@ def register(subparsers) -> None:
     pipeline.add_argument("--classical-only", action="store_true", help="skip DP-TPU even when a model exists")
     pipeline.add_argument("--timeout", type=float, default=600.0, help="seconds per configuration (default 600)")
     pipeline.set_defaults(func=run_pipeline)
+    bridge = targets.add_parser(
+        "bridge", help="ROS 2 bridge: 640x480 clouds/s and latency added over the graph's own topic (p50/p99)",
+        description="Runs dptpu.nodes.ros2_bridge as a process, publishes 640x480 organized clouds on the graph, and "
+                    "takes them from the graph and from Cyclone DDS (rt/scanner/points, loopback) side by side "
+                    "(benchmarks/bridge_bench.py).")
+    bridge.add_argument("--json", action="store_true", help="print the report as one JSON object")
+    bridge.add_argument("--size", choices=("full", "small"), default="full", help="full: 640x480; small: 64x48")
+    bridge.add_argument("--clouds", type=int, default=None, help="clouds per measurement (default 40; small 10)")
+    bridge.add_argument("--rate", type=float, default=None, help="clouds/s of the latency run (default 5)")
+    bridge.add_argument("--window", type=int, default=None, help="clouds in flight, throughput run (default 2)")
+    bridge.add_argument("--domain", type=int, default=None, help="DDS domain (default 199)")
+    bridge.add_argument("--max-message-size", type=int, default=None, help="Cyclone MaxMessageSize, bytes")
+    bridge.add_argument("--receive-buffer", default=None, help="Cyclone SocketReceiveBufferSize min, e.g. 4MB")
+    bridge.set_defaults(func=run_bridge)
 
 
 def run_fpp(args) -> int:
@@ -155,3 +170,8 @@ def run_twin(args) -> int:
 def run_pipeline(args) -> int:
     """Load ``benchmarks/pipeline_bench.py`` and run it (``dptpu bench pipeline``); 0, 2 for bad options."""
     return load_bench("pipeline_bench.py", PIPELINE_MODULE_NAME).run(args)
+
+
+def run_bridge(args) -> int:
+    """Load ``benchmarks/bridge_bench.py`` and run it (``dptpu bench bridge``); 0 if every cloud arrived intact."""
+    return load_bench("bridge_bench.py", "dptpu_benchmarks_bridge_bench").run(args)
