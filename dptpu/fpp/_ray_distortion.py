@@ -11,8 +11,10 @@ are affine in ``c`` and the measured (distorted) coordinate
 is a polynomial in ``c`` (Brown-Conrady, ``distortion.py``): degree 7 with ``k3``, else 5 with ``k2``, else 3.
 Its coefficients are found once per rig by interpolation at Chebyshev nodes of ``u = (c - mid) / half``
 (exact for a polynomial), so a scan costs a few Horner passes over (H, W) arrays: Newton's method
-``u <- u - (m(u) - m_measured) / m'(u)`` converges quadratically, from a cubic fit of the inverse, to the
-fixed point the textbook iteration (triangulate, project, re-distort, correct) approaches linearly.
+``u <- u - (m(u) - m_measured) / m'(u)`` converges quadratically to the fixed point that the textbook
+iteration (triangulate, project, re-distort, correct) approaches linearly. It starts from a quintic fit of the
+inverse; passes that only need to get close run in float32 (twice the SIMD lanes of float64 in this numpy
+build), the last ones in float64 until the predicted error is below :data:`PREDICTED_ERROR_PX`.
 """
 from __future__ import annotations
 
@@ -28,7 +30,10 @@ STEP_TOLERANCE_PX = 1e-7
 PREDICTED_ERROR_PX = 1e-8
 _KAPPA_SAFETY = 4.0
 _KAPPA_SAMPLES = np.linspace(-1.25, 1.25, 21)  # u where kappa is sampled: the projector and a margin
-_GUESS_DEGREE = 3
+_GUESS_DEGREE = 5
+_GUESS_SAMPLES = np.linspace(-1.0, 1.0, 21)  # measured u (the projector) where the guess error is measured
+#: Error of a float32 Newton pass's result from its rounding alone (m ~ 1000 px, a few float32 roundings).
+_FLOAT32_FLOOR_PX = 2e-4
 
 
 def _chebyshev_nodes(count: int) -> np.ndarray:
@@ -92,19 +97,47 @@ class RayDistortion:
         self.coefficients = _monomial_fit(nodes, measured)  # (n+1, H, W): m(u) in pixels
         self.derivative = self.coefficients[1:] * np.arange(1, self.degree + 1)[:, None, None]  # (n, H, W)
         self.kappa = self._kappa()
-        # Initial guess: a cubic in the measured u through exact inverses at Chebyshev nodes.
+        # Initial guess: a quintic in the measured u through exact inverses at Chebyshev nodes.
         guess_nodes = _chebyshev_nodes(_GUESS_DEGREE + 1)
         ideal = np.stack([self._solve(np.full(line.shape[:2], self.mid_px + self.half_px * node), node, 40)
-                          for node in guess_nodes])  # (4, H, W) ideal u
-        self.guess = _monomial_fit(guess_nodes, ideal)  # (4, H, W)
+                          for node in guess_nodes])  # (6, H, W) ideal u
+        self.guess = _monomial_fit(guess_nodes, ideal)  # (6, H, W)
+        self.guess_error_px = self._guess_error()
+        # float32 copies for the passes that only need to get close; one float32 pass unless the guess is
+        # already within the reach of one float64 pass.
+        self._guess32 = self.guess.astype(np.float32)
+        self._coefficients32 = self.coefficients.astype(np.float32)
+        self._derivative32 = self.derivative.astype(np.float32)
+        reach = _KAPPA_SAFETY * self.kappa / self.half_px * (2.0 * self.guess_error_px + _FLOAT32_FLOOR_PX) ** 2
+        self.float32_passes = 0 if reach <= PREDICTED_ERROR_PX else 1
+
+    def _subgrid(self, array: np.ndarray) -> np.ndarray:
+        """Every 4th pixel of every 4th row, and the last row and column, of (k, H, W) ``array``: (k, h, w)."""
+        height, width = array.shape[1:]
+        rows = np.unique(np.append(np.arange(0, height, 4), height - 1))
+        cols = np.unique(np.append(np.arange(0, width, 4), width - 1))
+        return array[:, rows][:, :, cols]
+
+    def _guess_error(self) -> float:
+        """Largest ``|guess - exact inverse|`` in pixels over :data:`_GUESS_SAMPLES` on the pixel subgrid."""
+        coefficients, derivative = self._subgrid(self.coefficients), self._subgrid(self.derivative)
+        guess = self._subgrid(self.guess)
+        largest = 0.0
+        with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+            for measured_u in _GUESS_SAMPLES:
+                start = horner(guess, np.float64(measured_u))  # (h, w) ideal u
+                u = start.copy()
+                target = self.mid_px + self.half_px * measured_u
+                for _ in range(30):
+                    u -= (horner(coefficients, u) - target) / horner(derivative, u)
+                largest = max(largest, float(np.fmax.reduce(np.abs(u - start), axis=None)) * self.half_px)
+        return largest if np.isfinite(largest) else np.inf
 
     def _kappa(self) -> float:
-        """Largest ``|m''(u)| / (2 |m'(u)|)`` over :data:`_KAPPA_SAMPLES` and every 4th pixel of every 4th row
-        and the last row and column (it varies slowly across the image; u units, >= 0); inf where ``m'``
-        vanishes (a fold: the convergence prediction is then not used)."""
-        rows = np.unique(np.append(np.arange(0, self.derivative.shape[1], 4), self.derivative.shape[1] - 1))
-        cols = np.unique(np.append(np.arange(0, self.derivative.shape[2], 4), self.derivative.shape[2] - 1))
-        first = self.derivative[:, rows][:, :, cols]  # (n, h, w)
+        """Largest ``|m''(u)| / (2 |m'(u)|)`` over :data:`_KAPPA_SAMPLES` and the pixel subgrid (it varies slowly
+        across the image; u units, >= 0); inf where ``m'`` vanishes (a fold: the convergence prediction is then
+        not used)."""
+        first = self._subgrid(self.derivative)  # (n, h, w)
         second = first[1:] * np.arange(1, self.degree)[:, None, None]  # (n-1, h, w)
         kappa = 0.0
         with np.errstate(divide="ignore", invalid="ignore"):
@@ -125,14 +158,22 @@ class RayDistortion:
     def ideal_u(self, measured_px: np.ndarray, *, max_iterations: int = 6) -> np.ndarray:
         """Ideal (undistorted) coordinate as ``u = (c - mid) / half`` (H, W) of the measured one (H, W), pixels.
 
-        A cubic guess, then Newton passes on the exact polynomial until the largest correction is below
-        :data:`STEP_TOLERANCE_PX`, the predicted error below :data:`PREDICTED_ERROR_PX`, or after
-        ``max_iterations`` passes. NaN stays NaN.
+        The quintic guess and :attr:`float32_passes` Newton passes in float32, then float64 Newton passes until
+        the largest correction is below :data:`STEP_TOLERANCE_PX`, the predicted error below
+        :data:`PREDICTED_ERROR_PX`, or after ``max_iterations`` passes. NaN stays NaN.
         """
         measured_px = np.asarray(measured_px, dtype=np.float64)
-        u = measured_px - self.mid_px
-        u /= self.half_px
-        return self._solve(measured_px, horner(self.guess, u), max_iterations)  # (H, W)
+        measured32 = measured_px.astype(np.float32)
+        u32 = measured32 - np.float32(self.mid_px)
+        u32 *= np.float32(1.0 / self.half_px)
+        u32 = horner(self._guess32, u32)  # (H, W) ideal u, float32
+        with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+            for _ in range(self.float32_passes):
+                step = horner(self._coefficients32, u32)
+                step -= measured32
+                step /= horner(self._derivative32, u32)
+                u32 -= step
+        return self._solve(measured_px, u32.astype(np.float64), max_iterations, u32)
 
     def ideal(self, measured_px: np.ndarray, *, max_iterations: int = 6) -> np.ndarray:
         """Ideal (undistorted) projector coordinate (H, W), pixels, of the measured one (H, W); see :meth:`ideal_u`."""
@@ -141,8 +182,12 @@ class RayDistortion:
         u += self.mid_px
         return u
 
-    def _solve(self, measured_px, u, max_iterations: int) -> np.ndarray:
-        """Newton passes on ``m(u) = measured_px`` (H, W) from ``u`` (scalar or (H, W), overwritten); returns ``u``."""
+    def _solve(self, measured_px, u, max_iterations: int, u32=None) -> np.ndarray:
+        """Newton passes on ``m(u) = measured_px`` (H, W) from ``u`` (scalar or (H, W), overwritten); returns ``u``.
+
+        With ``u32`` (``u`` in float32), ``m'`` is evaluated in float32: its relative error, about 1e-7, only
+        adds ``1e-7 * step`` to a pass's error.
+        """
         if np.shape(u) != np.shape(measured_px):
             u = np.array(np.broadcast_to(u, np.shape(measured_px)), dtype=np.float64)
         step_tolerance = STEP_TOLERANCE_PX / self.half_px  # u units
@@ -151,9 +196,14 @@ class RayDistortion:
             for _ in range(max_iterations):
                 step = horner(self.coefficients, u)  # m(u), pixels
                 step -= measured_px
-                step /= horner(self.derivative, u)  # / m'(u) (pixels per unit u): Newton's step, u units
+                if u32 is None:
+                    step /= horner(self.derivative, u)  # / m'(u) (pixels per unit u): Newton's step, u units
+                else:
+                    step /= horner(self._derivative32, u32)
                 u -= step
                 largest = np.fmax.reduce(np.abs(step, out=step), axis=None)  # ignores NaN pixels
                 if not largest > step_tolerance or kappa_px * largest**2 <= PREDICTED_ERROR_PX:
                     break  # converged (or every pixel NaN)
+                if u32 is not None:
+                    u32 = u.astype(np.float32)
         return u

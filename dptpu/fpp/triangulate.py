@@ -92,7 +92,7 @@ class Triangulator:
         self.origin = rig.camera.center  # (3,)
         self.rays = camera_rays(rig.camera, distortion=distortion)  # (H, W, 3)
         self._rays_camera = self.rays @ rig.camera.R.T  # (H, W, 3) unit, camera frame: X_cam = t * ray
-        self._rays_camera_cast: dict[np.dtype, np.ndarray] = {}  # dtype -> _rays_camera in it
+        self._rays_camera_cast: dict[tuple, np.ndarray] = {}  # (dtype, scale) -> scaled planar rays
         P = rig.projector.projection_matrix  # (3, 4)
         a, b = P[self.axis], P[2]
         origin_h = np.append(self.origin, 1.0)
@@ -176,15 +176,14 @@ class Triangulator:
             is NaN or the point is not in front of the camera (``z <= 0``). Equals
             ``(points(c) @ R.T + T) * scale`` up to rounding, in one pass over the output.
         """
-        t = self.ray_parameter(projector_coord)  # (H, W) rig units
-        with np.errstate(invalid="ignore"):
-            t[~(t > 0)] = np.nan  # behind the camera, or NaN
-        t *= scale
-        dtype = np.dtype(dtype)
-        if dtype not in self._rays_camera_cast:  # (3, H, W) planar, in the output dtype
-            self._rays_camera_cast[dtype] = np.ascontiguousarray(np.moveaxis(self._rays_camera, -1, 0), dtype=dtype)
-        rays = self._rays_camera_cast[dtype]
-        t = t.astype(dtype, copy=False)
+        t = self.ray_parameter(projector_coord).astype(dtype)  # (H, W) rig units; NaN stays NaN
+        np.copyto(t, np.nan, where=t <= 0)  # behind the camera
+        key = (np.dtype(dtype), float(scale))
+        if key not in self._rays_camera_cast:  # (3, H, W) planar unit rays times scale, in the output dtype
+            self._rays_camera_cast.clear()
+            self._rays_camera_cast[key] = np.ascontiguousarray(np.moveaxis(self._rays_camera * scale, -1, 0),
+                                                               dtype=dtype)
+        rays = self._rays_camera_cast[key]
         points = np.empty(self.rays.shape, dtype=dtype)  # (H, W, 3)
         for k in range(3):
             np.multiply(t, rays[k], out=points[..., k])
