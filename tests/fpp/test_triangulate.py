@@ -115,6 +115,7 @@ def test_newton_triangulation_equals_the_converged_fixed_point(dist):
     tri = Triangulator(rig)
     coord, truth = wavy_coordinates(tri)
     points = tri.points(coord)
+    assert tri._projector_distortion.degree == {0.0: 3, 1.5: 5, 6.3: 7}[dist[1]]
     assert np.max(np.abs(points - truth)) < 1e-8  # mm
     rng = np.random.default_rng(0)
     rows, cols = rng.integers(0, 120, 60), rng.integers(0, 160, 60)
@@ -128,6 +129,7 @@ def test_ray_polynomial_is_the_distortion_model_and_newton_inverts_it():
     tri = Triangulator(rig)
     model = RayDistortion(rig.projector, tri.origin, tri.rays, axis=0)
     assert model.degree == 7 and model.kappa > 0
+    assert 1e-3 < model.guess_error_px < 5 and model.float32_passes == 1  # strong: a float32 pass first
     rng = np.random.default_rng(1)
     ideal_px = rng.uniform(-50, 962, tri.shape)
     u = (ideal_px - model.mid_px) / model.half_px
