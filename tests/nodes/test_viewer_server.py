@@ -16,7 +16,8 @@ import numpy as np
 import pytest
 
 from dptpu.messages import Header, PointCloud2, ScanStatus, Time
-from dptpu.nodes.viewer import STATIC_DIR, pack_cloud, unpack_cloud
+from dptpu.nodes.harness import NodeHarness
+from dptpu.nodes.viewer import STATIC_DIR, ViewerNode, pack_cloud, unpack_cloud
 from dptpu.nodes.viewer_ws import OP_PING, OP_TEXT, ProtocolError, accept_key, encode_frame, read_frame
 
 
@@ -157,9 +158,12 @@ def test_viewer_process_serves_the_page_and_streams_clouds_and_statuses(spawn_no
         client.close()
 
 
-def test_viewer_refuses_bad_parameters_with_exit_code_2(spawn_node):
-    for args, message in ((["-p", "color_by:=rainbow"], "color_by must be 'depth' or 'intensity'"),
-                          (["-p", "max_points:=0"], "max_points must be >= 1")):
-        viewer = spawn_node("dptpu.nodes.viewer", "--ros-args", *args)
-        assert viewer.wait(timeout=30) == 2
-        assert message in viewer.stderr, viewer.stderr
+def test_viewer_refuses_bad_parameters_naming_them(spawn_node):
+    with NodeHarness() as harness:
+        with pytest.raises(ValueError, match="parameter color_by must be 'depth' or 'intensity'; got 'rainbow'"):
+            harness.start(ViewerNode, color_by="rainbow")
+        with pytest.raises(ValueError, match="parameter max_points must be >= 1; got 0"):
+            harness.start(ViewerNode, max_points=0)
+    viewer = spawn_node("dptpu.nodes.viewer", "--ros-args", "-p", "port:=70000")
+    assert viewer.wait(timeout=30) == 2
+    assert "viewer: error: parameter port must be 0..65535 (0: any free port); got 70000" in viewer.stderr
