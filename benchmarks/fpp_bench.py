@@ -20,6 +20,16 @@ What is measured (camera images of ``--size``, default 640x480):
   :func:`dptpu.fpp.triangulate.triangulate_reference`, which is timed on a subset of pixels and scaled
   linearly to the full image.
 
+- ``node_paths``: the hot paths of the scanner graph's nodes, per 640x480 scan, against the previous
+  implementations written out here (``before``): the phase node's 24 frames (wrapped phase, modulation,
+  quality mask, float32 maps) against float64 ``tensordot`` + ``arctan2``; the unwrap node's MW call on
+  float32 phases with a validity mask; the cloud node's triangulation on a rig with the projector and
+  camera distortion of the real sphere calibration (projector ``k2 = 6.28``: up to 26 px of distortion),
+  against the whole-image fixed point (6 iterations of triangulate, project, re-distort), each followed by
+  the cloud node's camera-frame float32 metres; ours also through ``Triangulator.camera_points``.
+  Times here also carry ``best_cpu_ms`` (``time.process_time``: the CPU the process used, which on a
+  loaded machine is closer to the idle-core time than the wall clock).
+
 The scene is synthetic and seeded: a camera 640x480 (fx = 2600 px, intrinsics scaled with ``--size``)
 at the origin looking along +z, a 912x1140 projector (fx = 1730 px, fy = 3460 px) 170 mm to its right
 turned 6.21 deg towards it (the paper's rig), both with small lens distortion, looking at a tilted plane
@@ -43,8 +53,8 @@ import tracemalloc
 import numpy as np
 
 from dptpu.fpp.calibration import DeviceModel, Rig
-from dptpu.fpp.phase import wrapped_phase
-from dptpu.fpp.tpu import unwrap_mf, unwrap_mw, unwrap_nt
+from dptpu.fpp.phase import quality_mask, wrapped_phase
+from dptpu.fpp.tpu import unwrap, unwrap_mf, unwrap_mw, unwrap_nt
 from dptpu.fpp.triangulate import Triangulator, camera_rays, projector_coordinate, triangulate_reference
 
 TWO_PI = 2.0 * np.pi
@@ -65,6 +75,19 @@ PHASE_SAME_SETS_RMS_BOUND_RAD = 0.05  # a convention slip (sign, offset, frame o
 TRIANGULATION_BOUND_MM = 1e-6
 DEFAULT_REPEATS = 5
 DEFAULT_SUBSET_PIXELS = 2000
+#: Lens distortion (k1 k2 p1 p2 k3) of the real sphere calibration (``CamCalibResult_real.mat``,
+#: ``PrjCalibResult_real.mat``, rounded): the node-path triangulation runs on a rig with these.
+REAL_LIKE_CAMERA_DIST = (-0.1289, -0.5635, -0.00138, -0.00038, 0.0)
+REAL_LIKE_PROJECTOR_DIST = (-0.0494, 6.279, 0.00098, 0.00113, 0.0)
+#: Phase node parameters (its defaults): smallest modulation of a valid pixel, DN; the uint8 saturation level.
+NODE_MIN_MODULATION_DN = 5.0
+NODE_SATURATION_DN = 255
+FIXED_POINT_ITERATIONS = 6  # the previous Triangulator's projector-distortion iterations
+#: Node-path agreement bounds: float32 phase (measured 5e-7 rad), float32 metres (1e-7 relative), the
+#: Newton triangulation against the converged fixed point (measured 3e-12 mm).
+NODE_PHASE_BOUND_RAD = 1e-5
+NODE_POINTS_BOUND_MM = 1e-6
+NODE_METRES_RELATIVE_BOUND = 1e-6
 
 
 # --------------------------------------------------------------------------------------------
@@ -72,7 +95,8 @@ DEFAULT_SUBSET_PIXELS = 2000
 # --------------------------------------------------------------------------------------------
 
 
-def make_rig(camera_size=CAMERA_SIZE) -> Rig:
+def make_rig(camera_size=CAMERA_SIZE, *, camera_dist=(-0.08, 0.12, 0.0004, -0.0003, 0.0),
+             projector_dist=(0.02, -0.04, 0.0003, 0.0002, 0.0)) -> Rig:
     """The benchmark rig: camera at the origin looking +z, projector 170 mm to the right, 6.21 deg toe-in.
 
     Parameters
@@ -80,6 +104,9 @@ def make_rig(camera_size=CAMERA_SIZE) -> Rig:
     camera_size : (int, int)
         Camera ``(width, height)`` in pixels; the 640x480 intrinsics (fx = fy = 2600 px) are scaled by
         ``width / 640`` so every size sees the same field of view.
+    camera_dist, projector_dist : sequence of 5 float
+        ``k1 k2 p1 p2 k3`` of each device; small by default, :data:`REAL_LIKE_PROJECTOR_DIST` etc. for the
+        node-path triangulation.
 
     Returns
     -------
@@ -93,7 +120,7 @@ def make_rig(camera_size=CAMERA_SIZE) -> Rig:
     scale = width / CAMERA_SIZE[0]
     camera = DeviceModel(
         K=[[2600.0 * scale, 0.0, (width - 1) / 2.0], [0.0, 2600.0 * scale, (height - 1) / 2.0], [0, 0, 1]],
-        dist=[-0.08, 0.12, 0.0004, -0.0003, 0.0],
+        dist=list(camera_dist),
         R=np.eye(3),
         T=np.zeros(3),
         size=(width, height),
@@ -103,7 +130,7 @@ def make_rig(camera_size=CAMERA_SIZE) -> Rig:
     R_p = np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]])  # optical axis turned towards -x
     projector = DeviceModel(
         K=[[1730.0, 0.0, (PROJECTOR_SIZE[0] - 1) / 2.0], [0.0, 3460.0, (PROJECTOR_SIZE[1] - 1) / 2.0], [0, 0, 1]],
-        dist=[0.02, -0.04, 0.0003, 0.0002, 0.0],
+        dist=list(projector_dist),
         R=R_p,
         T=-R_p @ np.array([170.0, 0.0, 0.0]),
         size=PROJECTOR_SIZE,
@@ -214,23 +241,90 @@ def reference_nt(psi_h, psi_l, f_h, f_l, extent, *, rows_per_block=32):
     return k_h, psi_h + TWO_PI * k_h
 
 
+def reference_phase_node(stack, min_modulation, saturation_level):
+    """The phase node's work on one N-step stack as it was: Eq. (2) in float64 by ``tensordot``, ``arctan2``,
+    ``hypot``, ``mean``, the mask by ``any(stack >= level)``, then float32 maps.
+
+    Returns (phase float32 in [0, 2pi), modulation float32, valid bool), each (H, W).
+    """
+    steps = stack.shape[0]
+    delta = -TWO_PI * np.arange(steps) / steps  # (N,)
+    frames = stack.astype(np.float64)  # (N, H, W)
+    s = -np.tensordot(np.sin(delta), frames, axes=(0, 0))
+    c = np.tensordot(np.cos(delta), frames, axes=(0, 0))
+    phase = np.mod(np.arctan2(s, c), TWO_PI)
+    phase[phase >= TWO_PI] = 0.0
+    modulation = (2.0 / steps) * np.hypot(s, c)
+    frames.mean(axis=0)  # the background, computed (and dropped by the node) as before
+    valid = (modulation >= min_modulation) & ~np.any(stack >= saturation_level, axis=0)
+    phase32 = phase.astype(np.float32)
+    return np.where(phase32 >= TWO_PI, np.float32(0.0), phase32), modulation.astype(np.float32), valid
+
+
+def reference_points_fixed_point(rig, rays, coord, axis=0, iterations=FIXED_POINT_ITERATIONS):
+    """Whole-image triangulation as it was: the plane of the measured coordinate, then ``iterations`` passes
+    of project into the projector, re-distort, move the ideal coordinate by the miss, re-intersect.
+
+    ``rays`` (H, W, 3) are the undistorted unit camera rays (world); returns world points (H, W, 3).
+    """
+    projector = rig.projector
+    P = projector.projection_matrix
+    a, b = P[axis], P[2]
+    origin = rig.camera.center
+    alpha, beta = a @ np.append(origin, 1.0), b @ np.append(origin, 1.0)
+    gamma, delta = rays @ a[:3], rays @ b[:3]  # (H, W)
+
+    def on_plane(c):
+        with np.errstate(divide="ignore", invalid="ignore"):
+            return origin + ((c * beta - alpha) / (gamma - c * delta))[..., None] * rays
+
+    ideal = coord
+    points = on_plane(ideal)
+    k1, k2, p1, p2, k3 = projector.dist
+    for _ in range(iterations):
+        X = points @ projector.R.T + projector.T  # (H, W, 3)
+        x, y = X[..., 0] / X[..., 2], X[..., 1] / X[..., 2]
+        r2 = x * x + y * y
+        radial = 1.0 + r2 * (k1 + r2 * (k2 + r2 * k3))
+        x_d = x * radial + 2.0 * p1 * x * y + p2 * (r2 + 2.0 * x * x)
+        y_d = y * radial + p1 * (r2 + 2.0 * y * y) + 2.0 * p2 * x * y
+        measured = (projector.K[0, 0] * x_d + projector.K[0, 1] * y_d + projector.K[0, 2] if axis == 0
+                    else projector.K[1, 1] * y_d + projector.K[1, 2])
+        ideal = ideal + (coord - measured)
+        points = on_plane(ideal)
+    return points
+
+
+def cloud_node_metres(rig, world):
+    """The cloud node's step after triangulation: camera frame, metres, NaN unless z > 0, float32 (H, W, 3)."""
+    camera = (world @ rig.camera.R.T + rig.camera.T) * rig.scale_to_m
+    with np.errstate(invalid="ignore"):
+        camera[~(camera[..., 2] > 0)] = np.nan
+    return camera.astype(np.float32)
+
+
 # --------------------------------------------------------------------------------------------
 # Timing
 # --------------------------------------------------------------------------------------------
 
 
-def time_call(function, repeats):
+def time_call(function, repeats, *, cpu=False):
     """Run ``function()`` once untimed (warm-up: caches, thread pools), then ``repeats`` timed times.
 
-    Returns ({"best_ms", "median_ms"}, result of the last call).
+    Returns ({"best_ms", "median_ms"}, result of the last call); with ``cpu`` also ``"best_cpu_ms"``, the
+    least process CPU time (``time.process_time``, all threads) of a run.
     """
     result = function()
-    times_ms = []
+    times_ms, cpu_ms = [], []
     for _ in range(repeats):
-        start = time.perf_counter()
+        start, start_cpu = time.perf_counter(), time.process_time()
         result = function()
         times_ms.append((time.perf_counter() - start) * 1e3)
-    return {"best_ms": float(np.min(times_ms)), "median_ms": float(np.median(times_ms))}, result
+        cpu_ms.append((time.process_time() - start_cpu) * 1e3)
+    timing = {"best_ms": float(np.min(times_ms)), "median_ms": float(np.median(times_ms))}
+    if cpu:
+        timing["best_cpu_ms"] = float(np.min(cpu_ms))
+    return timing, result
 
 
 def peak_memory_mib(function) -> float:
@@ -450,6 +544,100 @@ def bench_triangulate(rig, coord, scene, repeats, subset_pixels, rng) -> dict:
     }
 
 
+def bench_node_paths(images_high, images_low, size, repeats) -> dict:
+    """The nodes' hot paths per scan: phase (24 frames), unwrap (MW), cloud (real-like distortion)."""
+    stacks = [images_high, images_low]
+
+    def phase_before():
+        return [reference_phase_node(stack, NODE_MIN_MODULATION_DN, NODE_SATURATION_DN) for stack in stacks]
+
+    def phase_as_called():  # dptpu.nodes.phase.scan_phase_maps today: float64 maps, cast by the node
+        maps_list = []
+        for stack in stacks:
+            maps = wrapped_phase(stack, shift_sign=-1, phase_offset=0.0)
+            valid = quality_mask(stack, maps.modulation, min_modulation=NODE_MIN_MODULATION_DN)
+            phase32 = maps.phase.astype(np.float32)
+            maps_list.append((np.where(phase32 >= TWO_PI, np.float32(0.0), phase32),
+                              maps.modulation.astype(np.float32), valid))
+        return maps_list
+
+    def phase_float32():  # the same with wrapped_phase(..., dtype=np.float32): no casts
+        maps_list = []
+        for stack in stacks:
+            maps = wrapped_phase(stack, shift_sign=-1, phase_offset=0.0, dtype=np.float32)
+            maps_list.append((maps.phase, maps.modulation,
+                              quality_mask(stack, maps.modulation, min_modulation=NODE_MIN_MODULATION_DN)))
+        return maps_list
+
+    before, reference = time_call(phase_before, repeats, cpu=True)
+    as_called, ours = time_call(phase_as_called, repeats, cpu=True)
+    float32, ours32 = time_call(phase_float32, repeats, cpu=True)
+    phase_difference = max(float(np.abs(_circular_difference(mine[0].astype(np.float64),
+                                                              ref[0].astype(np.float64))).max())
+                           for result in (ours, ours32) for mine, ref in zip(result, reference))
+    modulation_difference = max(float(np.max(np.abs(mine[1] / ref[1] - 1.0)))
+                                for result in (ours, ours32) for mine, ref in zip(result, reference))
+    mask_differ = sum(int(np.count_nonzero(mine[2] != ref[2]))
+                      for result in (ours, ours32) for mine, ref in zip(result, reference))
+    phase = {
+        "frames": sum(len(stack) for stack in stacks),
+        "before": before, "ours_as_called": as_called, "ours_float32": float32,
+        "ratio_as_called": _ratio(before, as_called), "ratio_float32": _ratio(before, float32),
+        "max_phase_difference_rad": phase_difference,
+        "max_modulation_relative_difference": modulation_difference,
+        "mask_pixels_differ": mask_differ,
+        "bound_rad": NODE_PHASE_BOUND_RAD,
+        "same": bool(phase_difference < NODE_PHASE_BOUND_RAD and modulation_difference < 1e-5 and mask_differ == 0),
+    }
+
+    valid = ours32[0][2] & ours32[1][2]
+    unwrap_timing, unwrapped = time_call(
+        lambda: unwrap("mw", ours32[0][0], ours32[1][0], F_HIGH, F_LOW["mw"], valid=valid), repeats, cpu=True)
+    k_reference, _ = reference_mw(ours32[0][0].astype(np.float64), ours32[1][0].astype(np.float64),
+                                  F_HIGH, F_LOW["mw"])
+    orders_differ = int(np.count_nonzero(unwrapped.valid & (unwrapped.fringe_order != k_reference)))
+    unwrap_report = {"ours_as_called": unwrap_timing, "orders_differ_from_bare_equation": orders_differ,
+                     "same": orders_differ == 0}
+
+    rig = make_rig(size, camera_dist=REAL_LIKE_CAMERA_DIST, projector_dist=REAL_LIKE_PROJECTOR_DIST)
+    scene = make_scene(rig)
+    coord = scene["projector_x"]  # (H, W) measured projector column, noise free
+    precompute, triangulator = time_call(lambda: Triangulator(rig), max(1, min(repeats, 3)), cpu=True)
+    tri_before, metres_before = time_call(
+        lambda: cloud_node_metres(rig, reference_points_fixed_point(rig, triangulator.rays, coord)), repeats, cpu=True)
+    tri_points, world = time_call(lambda: triangulator.points(coord), repeats, cpu=True)
+    tri_as_called, metres = time_call(lambda: cloud_node_metres(rig, triangulator.points(coord)), repeats, cpu=True)
+    tri_camera, metres_direct = time_call(lambda: triangulator.camera_points(coord, scale=rig.scale_to_m),
+                                          repeats, cpu=True)
+    converged = reference_points_fixed_point(rig, triangulator.rays, coord, iterations=50)
+    fixed_six = reference_points_fixed_point(rig, triangulator.rays, coord)
+    difference = float(np.nanmax(np.abs(world - converged)))
+    with np.errstate(invalid="ignore", divide="ignore"):
+        relative = float(np.nanmax(np.abs(metres_direct - metres) / np.linalg.norm(metres, axis=-1, keepdims=True)))
+    error = np.linalg.norm(world - scene["points"], axis=-1)
+    triangulate = {
+        "projector_dist": list(REAL_LIKE_PROJECTOR_DIST), "camera_dist": list(REAL_LIKE_CAMERA_DIST),
+        "precompute": precompute, "before": tri_before, "ours_points": tri_points,
+        "ours_as_called": tri_as_called, "ours_camera_points": tri_camera,
+        "ratio_as_called": _ratio(tri_before, tri_as_called), "ratio_camera_points": _ratio(tri_before, tri_camera),
+        "max_difference_vs_converged_fixed_point_mm": difference,
+        "max_difference_vs_6_iterations_mm": float(np.nanmax(np.abs(world - fixed_six))),
+        "max_error_vs_scene_mm": float(np.nanmax(error)),
+        "camera_points_max_relative_difference": relative,
+        "bound_mm": NODE_POINTS_BOUND_MM,
+        "same": bool(difference < NODE_POINTS_BOUND_MM and relative < NODE_METRES_RELATIVE_BOUND),
+    }
+    per_scan = {key: phase[p_key]["best_ms"] + unwrap_timing["best_ms"] + triangulate[t_key]["best_ms"]
+                for key, p_key, t_key in (("before", "before", "before"),
+                                          ("ours_as_called", "ours_as_called", "ours_as_called"),
+                                          ("ours_if_nodes_adopt", "ours_float32", "ours_camera_points"))}
+    return {"phase": phase, "unwrap_mw": unwrap_report, "triangulate": triangulate, "per_scan_best_ms": per_scan,
+            "note": "before = the previous implementations written out in this file; as_called = what the phase "
+                    "and cloud nodes call today; float32 / camera_points = wrapped_phase(dtype=np.float32) and "
+                    "Triangulator.camera_points, which the nodes can adopt; per_scan sums the three nodes' "
+                    "best times (unwrap as called in all three)."}
+
+
 def machine() -> dict:
     """Processor, cores and library versions of this run."""
     cpu = platform.processor() or platform.machine()
@@ -490,7 +678,8 @@ def run_benchmarks(*, size=CAMERA_SIZE, repeats=DEFAULT_REPEATS, subset_pixels=D
     Returns
     -------
     dict
-        ``{"machine", "size", "repeats", "phase", "unwrap", "triangulate"}`` (see the module docstring);
+        ``{"machine", "size", "repeats", "phase", "unwrap", "triangulate", "node_paths"}`` (see the module
+        docstring);
         times in ms, ratios = reference / ours.
     """
     width, height = _check_size(size)
@@ -511,6 +700,7 @@ def run_benchmarks(*, size=CAMERA_SIZE, repeats=DEFAULT_REPEATS, subset_pixels=D
     absolute = unwrap_mf(phases[F_HIGH], phases[F_LOW["mf"]], F_HIGH, F_LOW["mf"]).absolute_phase
     coord = projector_coordinate(absolute, F_HIGH, PROJECTOR_SIZE[0])  # (H, W) projector column
     triangulate = bench_triangulate(rig, coord, scene, repeats, subset_pixels, rng)
+    node_paths = bench_node_paths(images[F_HIGH], images[F_LOW["mw"]], (width, height), repeats)
     return {
         "machine": machine(),
         "size": [width, height],
@@ -520,6 +710,7 @@ def run_benchmarks(*, size=CAMERA_SIZE, repeats=DEFAULT_REPEATS, subset_pixels=D
         "phase": phase,
         "unwrap": unwrap,
         "triangulate": triangulate,
+        "node_paths": node_paths,
     }
 
 
@@ -610,6 +801,37 @@ def format_report(report: dict) -> str:
         f"    max |ours - reference| {t['max_difference_mm']:.2e} mm -> {'AGREE' if t['agree'] else 'DISAGREE'} "
         f"(< {t['bound_mm']:g} mm); rms error vs scene {t['rms_error_vs_scene_mm']:.4f} mm"
     )
+    n = report["node_paths"]
+    lines.append(f"(d) node hot paths per scan (best / median wall ms, best process CPU ms; ratio = before / ours)")
+
+    def node_row(name, timing, ratio=None):
+        ratio_text = f"{ratio:8.2f}" if ratio is not None else ""
+        lines.append(f"{name:44s} {_ms(timing)} {ratio_text}   cpu {timing['best_cpu_ms']:.2f}")
+
+    np_, nu, nt = n["phase"], n["unwrap_mw"], n["triangulate"]
+    node_row(f"  phase node, {np_['frames']} frames: before", np_["before"])
+    node_row("  ours as the node calls it (float64 maps)", np_["ours_as_called"], np_["ratio_as_called"])
+    node_row("  ours with dtype=float32", np_["ours_float32"], np_["ratio_float32"])
+    lines.append(f"    max |phase - before| {np_['max_phase_difference_rad']:.1e} rad (< {np_['bound_rad']:g}), "
+                 f"modulation {np_['max_modulation_relative_difference']:.1e} relative, mask pixels differ "
+                 f"{np_['mask_pixels_differ']} -> same: {'yes' if np_['same'] else 'NO'}")
+    node_row("  unwrap node, MW on float32 phases + mask", nu["ours_as_called"])
+    lines.append(f"    orders differ from the bare equation: {nu['orders_differ_from_bare_equation']} "
+                 f"-> same: {'yes' if nu['same'] else 'NO'}")
+    node_row("  cloud node, real-like distortion: precompute", nt["precompute"])
+    node_row(f"  before: fixed point x{FIXED_POINT_ITERATIONS} + camera metres", nt["before"])
+    node_row("  ours points() alone", nt["ours_points"])
+    node_row("  ours points() + camera metres (as called)", nt["ours_as_called"], nt["ratio_as_called"])
+    node_row("  ours camera_points(coord, scale)", nt["ours_camera_points"], nt["ratio_camera_points"])
+    lines.append(
+        f"    max |ours - converged fixed point| {nt['max_difference_vs_converged_fixed_point_mm']:.1e} mm "
+        f"(< {nt['bound_mm']:g}; vs 6 iterations {nt['max_difference_vs_6_iterations_mm']:.1e}), vs scene max "
+        f"{nt['max_error_vs_scene_mm']:.1e} mm; camera_points vs as called "
+        f"{nt['camera_points_max_relative_difference']:.1e} relative -> same: {'yes' if nt['same'] else 'NO'}")
+    per_scan = n["per_scan_best_ms"]
+    lines.append(f"  per scan (phase + unwrap + cloud, best): before {per_scan['before']:.1f} ms, as called "
+                 f"{per_scan['ours_as_called']:.1f} ms, if the nodes adopt float32 / camera_points "
+                 f"{per_scan['ours_if_nodes_adopt']:.1f} ms")
     memory = [f"phase {p['peak_memory_mib']['ours_24_frames']:.1f}",
               *(f"unwrap_{name} {u['peak_memory_mib']['ours']:.1f} (reference {u['peak_memory_mib']['reference']:.1f})"
                 for name, u in report["unwrap"].items()),
@@ -621,6 +843,7 @@ def format_report(report: dict) -> str:
         f"note 1: {p['how_scaled']}",
         f"note 2: {t['how_scaled']}.",
         f"note 3: {a['note']}",
+        f"note 4: {n['note']}",
     ]
     return "\n".join(lines)
 
@@ -656,8 +879,10 @@ def run(args) -> int:
         print(json.dumps(report, indent=2))
     else:
         print(format_report(report))
+    node_paths = report["node_paths"]
     agree = [report["phase"]["agreement"]["agree"], report["triangulate"]["agree"],
-             *(u["agree"] for u in report["unwrap"].values())]
+             *(u["agree"] for u in report["unwrap"].values()),
+             node_paths["phase"]["same"], node_paths["unwrap_mw"]["same"], node_paths["triangulate"]["same"]]
     return 0 if all(agree) else 1
 
 
