@@ -89,3 +89,18 @@ def test_cli_rejects_missing_folders_and_too_few_poses(pose_folders, tmp_path, c
     assert "nope: no such calibration pose folder" in capsys.readouterr().err
     assert main(["calibrate", str(pose_folders[0]), "--board", "10x8:13", "--out", str(tmp_path / "r.yaml")]) == 2
     assert "at least 3 board poses" in capsys.readouterr().err
+
+
+def test_cli_twin_round_trip_prints_the_comparison(tmp_path, capsys):
+    out = tmp_path / "rig.yaml"
+    code = main(["calibrate", "--twin", "nominal", "--size", "160x120", "--poses", "3", "--supersample", "1",
+                 "--board", "10x8:13", "--keep", str(tmp_path / "poses"), "--out", str(out)])
+    assert code == 0
+    text = capsys.readouterr().out
+    assert "camera: fx" in text and "baseline:" in text and "relative pose error" in text
+    assert sorted(p.name for p in (tmp_path / "poses").iterdir()) == ["pose_00", "pose_01", "pose_02"]
+    assert load_rig(out).camera.size == (160, 120)
+    capsys.readouterr()
+    assert main(["calibrate", str(tmp_path / "poses"), "--twin", "nominal", "--board", "10x8:13",
+                 "--out", str(out)]) == 2
+    assert "either POSE_DIRs or --twin RIG" in capsys.readouterr().err
