@@ -40,7 +40,7 @@ name                 default  meaning
 ``ground_truth``     true     compare with ``/sim/ground_truth``; false: points and latency only (a real rig)
 ``ply_dir``          ""       folder for PLY files of the first ``ply_count`` clouds ("" = none)
 ``ply_count``        3        clouds written as ``scan_<sequence_id>.ply``
-``summary``          ""       JSON file written at exit (and every 50 scans): every scan's figures and totals
+``summary``          ""       JSON file written at exit (and every 50 scans): the last 200 scans' figures, totals
 ``start_scans``      0        keep this many scans in flight by calling ``start_service`` (scan on demand: the
                               next scan starts when one was reported, so a slow machine is never overrun);
                               0 = start none (the projector runs its own scans)
@@ -71,7 +71,7 @@ from .scan_metrics import scan_metrics
 __all__ = ["ScanMonitorNode", "main"]
 
 _GRACE_S = 1.0  # how long a scan whose cloud arrived waits for its absolute phase and ground truth
-_KEPT_RECORDS = 1000  # per-scan records kept for the summary file (totals cover every scan)
+_KEPT_RECORDS = 200  # per-scan records kept for the summary file (totals cover every scan)
 
 
 @dataclass
@@ -207,6 +207,7 @@ class ScanMonitorNode(Node):
                 self._report(scan)
         for sequence_id in [i for i, when in self._done_ids.items() if now_s - when > 4 * self.scan_timeout_s]:
             del self._done_ids[sequence_id]
+        self._orphan_clouds = [entry for entry in self._orphan_clouds if now_s - entry[2] < self.scan_timeout_s]
         self._start_more()
 
     # -- scans on demand -------------------------------------------------------------------------------------

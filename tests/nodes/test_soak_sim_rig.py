@@ -1,9 +1,10 @@
 """Soak: many scans through the whole sim rig as fast as it goes, and no node's resident memory grows.
 
-The test runs ``DPTPU_SOAK_SCANS`` scans (default 200, about a minute on the 2-core CI machine; the full 1,000
-are run the same way by hand, ``DPTPU_SOAK_SCANS=1000``, figures in docs/scanner.md) at 160x120 with two scans
-in flight. Every node's ``VmRSS`` is sampled twice a second; the bound is the brief's: after the warm-up (the
-first fifth of the scans) no process grows by more than 10 %.
+The test runs ``DPTPU_SOAK_SCANS`` scans (default the full 1,000: about 80 s on the shared 2-core build machine,
+under the brief's 3 minutes; set e.g. ``DPTPU_SOAK_SCANS=200`` for a quicker run; figures in docs/scanner.md) at
+160x120 with two scans in flight. Every node's ``VmRSS`` is sampled twice a second; the bound is the brief's: after the warm-up (the
+first fifth of the scans) no process grows by more than 10 % (median of the first three samples after the
+warm-up against the median of the last three).
 """
 from __future__ import annotations
 
@@ -15,7 +16,7 @@ import time
 from tests.launch_files.running import SIM_RIG, LaunchRun, rss_kib
 from tests.nodes.test_graph_sim_rig import SMALL
 
-SCANS = int(os.environ.get("DPTPU_SOAK_SCANS", "200"))
+SCANS = int(os.environ.get("DPTPU_SOAK_SCANS", "1000"))
 GROWTH_BOUND = 0.10
 NODES = ("projector", "sim", "phase", "unwrap", "cloud", "scan_monitor")
 
@@ -48,7 +49,9 @@ def test_soak_no_resident_memory_growth_after_warm_up(node_env, tmp_path):
     totals = json.loads(summary.read_text())["totals"]
     warm = [rss for count, rss in samples if count >= SCANS // 5]
     assert len(warm) >= 4, f"only {len(warm)} samples after warm-up"
-    baseline, final = warm[0], warm[-1]
+    # medians of three samples, so one sample taken mid-allocation does not decide
+    baseline = {name: sorted(rss[name] for rss in warm[:3])[1] for name in NODES}
+    final = {name: sorted(rss[name] for rss in warm[-3:])[1] for name in NODES}
     growth = {name: (final[name] - baseline[name]) / baseline[name] for name in NODES}
     print(f"\nsoak: {SCANS} scans in {elapsed:.0f} s; {totals}\nRSS after warm-up (KiB): {baseline}\n"
           f"RSS at the end (KiB): {final}\ngrowth: { {k: round(100 * v, 1) for k, v in growth.items()} } %")
