@@ -70,7 +70,7 @@ def run_configuration(*, steps: int, model: str, size: str, scans: int, warmup: 
     finally:
         shutil.rmtree(folder, ignore_errors=True)
     records = [r for r in report["scans"] if r["outcome"] == "ok"]
-    timed = records[warmup:] if len(records) > warmup + 1 else records
+    timed = records[-scans:] if len(records) > scans else records  # the monitor keeps the last 200 records
     arrivals = np.array([r["cloud_arrival_unix_s"] for r in timed])
     latency = np.array([r["latency_ms"] for r in timed])
     first = np.array([r.get("latency_from_first_trigger_ms", np.nan) for r in timed])
@@ -107,6 +107,10 @@ def run(args) -> int:
     steps = [int(s) for s in str(args.steps).split(",")]
     if any(s not in SEQUENCES for s in steps):
         print(f"dptpu bench pipeline: error: --steps takes 12 and/or 3; got {args.steps}", file=sys.stderr)
+        return 2
+    if not 2 <= args.scans <= 200 or args.warmup < 0 or args.in_flight < 1:
+        print("dptpu bench pipeline: error: --scans must be 2..200 (the monitor keeps 200 records), --warmup >= 0, "
+              f"--in-flight >= 1; got {args.scans}, {args.warmup}, {args.in_flight}", file=sys.stderr)
         return 2
     model = dptpu_model(args.model)
     models = ["none"] + ([model] if model and not args.classical_only else [])
