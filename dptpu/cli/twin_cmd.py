@@ -32,6 +32,8 @@ def register(subparsers) -> None:
                           help="fringe frequency of a .mat phase file (96 for dptpu-sphere)")
     diagnose.add_argument("--max-pixels", type=int, default=12000,
                           help="pixels used by the photometric fits (default 12000, a seeded random subset)")
+    diagnose.add_argument("--rounds", type=int, default=3,
+                          help="photometric effects found greedily, the cause first (default 3)")
     diagnose.add_argument("--seed", type=int, default=0)
     diagnose.add_argument("--no-rerender", action="store_true", help="skip rendering the twins again")
     diagnose.add_argument("--out", required=True, help="output folder")
@@ -50,6 +52,8 @@ def run_diagnose(args) -> int:
         raise ValueError("--reference sphere:DIAMETER_MM | plane is required (or --self-reference)")
     if args.rig is None and not args.self_reference:
         raise ValueError("--rig is required with --reference")
+    if args.rounds < 1:
+        raise ValueError(f"--rounds must be >= 1; got {args.rounds}")
     if args.max_pixels < 100:
         raise ValueError(f"--max-pixels must be >= 100; got {args.max_pixels}")
     measured = load_measured(args.measured, frequency=args.frequency, decode=not args.self_reference)
@@ -64,7 +68,8 @@ def run_diagnose(args) -> int:
             raise ValueError(f"{args.rig}: camera size {rig.camera.size[0]}x{rig.camera.size[1]} does not match the "
                              f"measured data's {shape[1]}x{shape[0]}")
     result = diagnose(measured, rig, reference=args.reference, self_reference=args.self_reference,
-                      max_pixels=args.max_pixels, seed=args.seed)
+                      max_pixels=args.max_pixels, seed=args.seed, outside_vocabulary=True,
+                      rounds=args.rounds)
     report = write_report(result, args.out, rerender=not args.no_rerender)
     summary = {"cause": report["cause"], "extended_rig": report["extended_rig"],
                "effects": [{"name": e["name"], "gain": e["gain"], "named": e["evidence"]["named"]}

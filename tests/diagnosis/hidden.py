@@ -19,6 +19,10 @@ SIZE = "160x120"
 SEQUENCES = (SequenceSpec(96, 12), SequenceSpec(1, 12))
 REFERENCES = {"sphere": "sphere:50.8082", "plane": "plane"}
 
+#: Exposure gain at which the brightest pixel of the noiseless render reaches full scale (255 / max level:
+#: plane 196 DN, sphere 212 DN); saturation does nothing below it.
+CLIP_ONSET_GAIN = {"plane": 255.0 / 196.0, "sphere": 255.0 / 212.0}
+
 #: effect -> (main parameter, neutral value the error is measured from, relative tolerance)
 MAIN = {
     "projector_gamma": ("gamma", 1.0, 0.2),
@@ -52,9 +56,9 @@ def hidden_effect(name: str, seed: int, magnitude: float = 1.0, scene: str = "pl
     if name == "intensity_drift":
         return {name: {"rate_per_frame": sign * 0.004 * u, "sigma": 0.0}}
     if name == "phase_shift_error":
-        return {name: {"scale": 1.0 + sign * 0.06 * u, "sigma_rad": 0.0}}
-    if name == "saturation":
-        return {name: {"exposure_gain": 1.0 + 1.0 * u}}
+        return {name: {"scale": 1.0 + sign * 0.008 * u, "sigma_rad": 0.0}}
+    if name == "saturation":  # sized past the gain at which the brightest pixel starts to clip
+        return {name: {"exposure_gain": CLIP_ONSET_GAIN[scene] * (1.0 + 0.4 * u)}}
     raise ValueError(f"no hidden-effect recipe for {name!r}")
 
 

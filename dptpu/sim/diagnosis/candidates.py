@@ -26,7 +26,8 @@ from dptpu.fpp.calibration import DeviceModel, Rig
 from .forward import PixelSet, intensity_residual
 from .selection import delta_bic, gain
 
-__all__ = ["Candidate", "PHOTOMETRIC", "fit_photometric", "fit_lens_distortion", "add_camera_k1"]
+__all__ = ["Candidate", "PHOTOMETRIC", "fit_photometric", "fit_lens_distortion", "add_camera_k1",
+           "fit_geometric_extra"]
 
 
 @dataclass(frozen=True)
@@ -40,7 +41,7 @@ class Candidate:
     bounds: tuple
     neutral: float
     fixed: dict
-    grid: int = 13
+    grid: int = 9
     log: bool = False
 
     def effect(self, value: float) -> dict:
@@ -98,6 +99,37 @@ def add_camera_k1(rig: Rig, extra) -> Rig:
     dist = camera.dist.copy()
     dist[0] += float(extra[0])
     return replace(rig, camera=DeviceModel(K=camera.K, dist=dist, R=camera.R, T=camera.T, size=camera.size))
+
+
+def _phase_entry(name, parameters, baseline, fitted, parameters_count, **evidence) -> dict:
+    mask = baseline.mask & fitted.mask
+    n = int(mask.sum())
+    rss0 = float(np.sum(baseline.residual_px[mask] ** 2))
+    rss1 = float(np.sum(fitted.residual_px[mask] ** 2))
+    before, after = float(np.sqrt(rss0 / n)), float(np.sqrt(rss1 / n))
+    return {"name": name, "parameters": parameters, "residual_before": before, "residual_after": after,
+            "gain": gain(before, after),
+            "evidence": {"domain": "phase", "unit": "projector px", "values": n, "parameters": parameters_count,
+                         "delta_bic": delta_bic(rss0, rss1, n, parameters_count), **evidence}}
+
+
+def fit_geometric_extra(rig: Rig, reference, measured_x, baseline) -> list[dict]:
+    """Phase-domain explanations outside the twin's effect vocabulary, reported for the record (never a cause,
+    never in the extended rig): ``sphere_diameter`` (the apparent sphere is smaller or larger: volume
+    scattering under the surface, a scale error of the calibration) and ``projector_offset`` (a constant
+    projector-coordinate offset: a pixel-centre convention, a phase offset)."""
+    from .registration import register
+
+    out = []
+    if reference.kind == "sphere":
+        fitted = register(rig, reference, measured_x, baseline.mask, pose0=baseline.pose, free_diameter=True)
+        out.append(_phase_entry("sphere_diameter", {"diameter": fitted.diameter,
+                                                    "certified": reference.diameter}, baseline, fitted, 1,
+                                outside_vocabulary=True))
+    fitted = register(rig, reference, measured_x, baseline.mask, pose0=baseline.pose, free_offset=True)
+    out.append(_phase_entry("projector_offset", {"offset_px": fitted.offset_px}, baseline, fitted, 1,
+                            outside_vocabulary=True))
+    return out
 
 
 def fit_lens_distortion(rig: Rig, reference, measured_x, baseline) -> tuple[dict, object]:

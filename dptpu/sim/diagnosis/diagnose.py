@@ -7,7 +7,7 @@
    (:mod:`.selection`): geometric ones on the phase residual, photometric ones on the intensity residual over
    the geometry of the best geometric model, the random part on what the best deterministic model leaves.
 4. Rank: named (significant) deterministic effects by gain, then the noise; the cause is the first named one,
-   or ``"none"``.
+   or ``"none"``. With ``rounds > 1`` further photometric effects are added greedily on top of the cause.
 5. Extend: the rig plus the named effects (the cause, and the noise when it is named too), rendered again.
 """
 from __future__ import annotations
@@ -18,13 +18,13 @@ import numpy as np
 
 from dptpu.fpp.calibration import Rig
 
-from .candidates import PHOTOMETRIC, fit_lens_distortion, fit_photometric
+from .candidates import PHOTOMETRIC, fit_geometric_extra, fit_lens_distortion, fit_photometric
 from .forward import intensity_residual
 from .measured import Measured, load_measured
 from .noise import fit_sensor_noise
 from .pixels import DEFAULT_MAX_PIXELS, reference_pixels, self_reference_pixels
 from .reference import Reference, parse_reference
-from .registration import register
+from .registration import register_robust
 from .selection import significant
 
 __all__ = ["Diagnosis", "diagnose", "effect_entry"]
@@ -49,6 +49,7 @@ class Diagnosis:
     model_before: list | None = None
     extended_effects: list = field(default_factory=list)
     material: object = None
+    additional: list = field(default_factory=list)
 
     @property
     def named(self) -> list:
@@ -60,6 +61,20 @@ def effect_entry(entry: dict) -> dict:
     return {entry["name"]: dict(entry["parameters"])}
 
 
+def rescore_in_intensity(entry: dict, rss_before: float, rss_after: float, values: int) -> None:
+    """Re-score a phase-domain entry on the intensity residual (same pixels, same values), keeping the phase
+    figures in its evidence: with raw frames every candidate is then judged on one residual."""
+    from .selection import delta_bic, gain
+
+    evidence = entry["evidence"]
+    evidence.update({"phase_residual_before_px": entry["residual_before"],
+                     "phase_residual_after_px": entry["residual_after"], "phase_delta_bic": evidence["delta_bic"],
+                     "domain": "intensity", "unit": "DN", "values": values,
+                     "delta_bic": delta_bic(rss_before, rss_after, values, evidence["parameters"])})
+    before, after = float(np.sqrt(rss_before / values)), float(np.sqrt(rss_after / values))
+    entry.update({"residual_before": before, "residual_after": after, "gain": gain(before, after)})
+
+
 def _reference_material(reference: Reference, rig: Rig):
     from dptpu.sim.scenes import load_scene
 
@@ -68,7 +83,8 @@ def _reference_material(reference: Reference, rig: Rig):
 
 
 def diagnose(measured, rig: Rig, *, reference=None, self_reference: bool = False, frequency=None,
-             max_pixels: int = DEFAULT_MAX_PIXELS, seed: int = 0, candidates=PHOTOMETRIC) -> Diagnosis:
+             max_pixels: int = DEFAULT_MAX_PIXELS, seed: int = 0, candidates=PHOTOMETRIC,
+             outside_vocabulary: bool = False, rounds: int = 1) -> Diagnosis:
     """Diagnose ``measured`` (a path or :class:`Measured`) against the twin of ``rig``.
 
     Parameters
@@ -87,6 +103,12 @@ def diagnose(measured, rig: Rig, *, reference=None, self_reference: bool = False
         Pixels used by the photometric fits.
     candidates : sequence of Candidate
         Photometric candidates (default all of :data:`~.candidates.PHOTOMETRIC`).
+    outside_vocabulary : bool
+        Also fit the phase-domain explanations the twin has no effect for
+        (:func:`~.candidates.fit_geometric_extra`); reported, never named.
+    rounds : int
+        Photometric effects found greedily: after the cause, each further round fits the remaining candidates
+        on top of the effects found so far and adds the best significant one (``Diagnosis.additional``).
     """
     if not isinstance(measured, Measured):
         measured = load_measured(measured, frequency=frequency, decode=not self_reference)
@@ -96,7 +118,7 @@ def diagnose(measured, rig: Rig, *, reference=None, self_reference: bool = False
             raise ValueError(f"{measured.source}: --self-reference needs raw frames (a capture folder)")
         reference = Reference("self")
         pixels, mask = self_reference_pixels(measured, max_pixels=max_pixels, seed=seed)
-        entries, registration, geometry, material, refine = [], None, None, None, 2
+        entries, registration, material, refine, lens_pixels = [], None, None, 2, None
     else:
         reference = reference if isinstance(reference, Reference) else parse_reference(reference)
         if reference.kind not in ("sphere", "plane"):
@@ -106,33 +128,69 @@ def diagnose(measured, rig: Rig, *, reference=None, self_reference: bool = False
             raise ValueError("a diagnosis against a reference object needs the rig (--rig)")
         if measured.fringe_axis != "x":
             raise ValueError(f"{measured.source}: the diagnosis reads fringe_axis x captures; got y")
-        registration = register(rig, reference, measured.projector_x, measured.valid)
+        registration = register_robust(rig, reference, measured.projector_x, measured.valid,
+                                       period_px=measured.extent / measured.frequency)
+        if registration.order_errors:  # unwrap the measured phase with the twin's orders instead
+            period = 2.0 * np.pi
+            model = registration.model_x * 2.0 * np.pi * measured.frequency / measured.extent
+            phase = measured.absolute_phase
+            measured.absolute_phase = phase + period * np.round((model - phase) / period)
         lens, with_lens = fit_lens_distortion(rig, reference, measured.projector_x, registration)
         lens["named"] = significant(lens)
         entries = [lens]
-        geometry = with_lens if lens["named"] else registration
+        if outside_vocabulary:
+            for extra in fit_geometric_extra(rig, reference, measured.projector_x, registration):
+                extra["named"] = False
+                entries.append(extra)
         material = _reference_material(reference, rig)
-        pixels = mask = None
+        pixels = mask = lens_pixels = None
         if measured.has_frames:
-            pixels, mask = reference_pixels(measured, geometry.rig, reference, geometry.pose, material,
+            pixels, mask = reference_pixels(measured, registration.rig, reference, registration.pose, material,
                                              max_pixels=max_pixels, seed=seed)
+            lens_pixels, _ = reference_pixels(measured, with_lens.rig, reference, with_lens.pose, material,
+                                              index=pixels.index)
         refine = 1
     residual_before = residual_after = model_before = None
-    best_photometric = None
+    additional = []
     if pixels is not None and pixels.size:
         residual_before, _, model_before = intensity_residual(pixels, (), refine=refine)
         rss0 = float(sum(np.sum(r * r) for r in residual_before))
+        if lens_pixels is not None:  # with frames, the geometric candidate is judged on the frames too
+            lens_residual, _, lens_model = intensity_residual(lens_pixels, (), refine=refine)
+            rescore_in_intensity(lens, rss0, float(sum(np.sum(r * r) for r in lens_residual)), pixels.values)
+            lens["named"] = significant(lens)
         for candidate in candidates:
             entry = fit_photometric(pixels, candidate, refine=refine, rss_before=rss0)
             entry["named"] = significant(entry)
             entries.append(entry)
-        photometric = [e for e in entries if e["evidence"]["domain"] == "intensity" and e["named"]]
-        best_photometric = max(photometric, key=lambda e: e["gain"]) if photometric else None
-        base = [effect_entry(best_photometric)] if best_photometric else []
-        residual_after, _, model_after = intensity_residual(pixels, base, refine=refine)
+        deterministic = [e for e in entries if e["named"]]
+        best = max(deterministic, key=lambda e: e["gain"]) if deterministic else None
+        if best is not None and best["name"] == "lens_distortion":
+            residual_after, model_after = lens_residual, lens_model
+        else:
+            base = [effect_entry(best)] if best is not None else []
+            for _ in range(max(int(rounds), 1) - 1):  # greedy: what else, on top of the effects found so far
+                if not base:
+                    break
+                chosen = {next(iter(b)) for b in base}
+                residual, _, _ = intensity_residual(pixels, base, refine=refine)
+                rss = float(sum(np.sum(r * r) for r in residual))
+                more = [fit_photometric(pixels, c, base=base, refine=refine, rss_before=rss)
+                        for c in candidates if c.name not in chosen]
+                more = [dict(e, evidence=dict(e["evidence"], round=len(base) + 1)) for e in more if significant(e)]
+                if not more:
+                    break
+                top = max(more, key=lambda e: e["gain"])
+                top["named"] = True
+                additional.append(top)
+                base.append(effect_entry(top))
+            residual_after, _, model_after = intensity_residual(pixels, base, refine=refine)
         noise = fit_sensor_noise(residual_after, model_after)
         noise["named"] = significant(noise)
         entries.append(noise)
+    geometry = None
+    if registration is not None:
+        geometry = with_lens if lens["named"] else registration
     deterministic = sorted([e for e in entries if e["named"] and e["name"] != "sensor_noise"],
                            key=lambda e: -e["gain"])
     noise_named = [e for e in entries if e["named"] and e["name"] == "sensor_noise"]
@@ -140,8 +198,8 @@ def diagnose(measured, rig: Rig, *, reference=None, self_reference: bool = False
     ranked = deterministic + noise_named + rest
     cause = ranked[0]["name"] if ranked and ranked[0]["named"] else "none"
     extended = [effect_entry(deterministic[0])] if deterministic else []
-    extended += [effect_entry(e) for e in noise_named]
+    extended += [effect_entry(e) for e in additional] + [effect_entry(e) for e in noise_named]
     return Diagnosis(cause=cause, effects=ranked, measured=measured, rig=rig, reference=reference,
                      registration=registration, geometry=geometry, pixels=pixels, pixel_mask=mask,
                      residual_before=residual_before, residual_after=residual_after, model_before=model_before,
-                     extended_effects=extended, material=material)
+                     extended_effects=extended, material=material, additional=additional)

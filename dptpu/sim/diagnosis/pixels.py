@@ -49,8 +49,10 @@ def _limit(mask: np.ndarray, max_pixels: int, seed: int) -> tuple:
 
 
 def reference_pixels(measured: Measured, rig, reference, pose, material, *, max_pixels: int = DEFAULT_MAX_PIXELS,
-                     seed: int = 0, erode_px: int = 1):
-    """PixelSet of the registered reference surface (``rig`` may carry fitted geometry), and the lit mask (H, W)."""
+                     seed: int = 0, erode_px: int = 1, index=None):
+    """PixelSet of the registered reference surface (``rig`` may carry fitted geometry), and the lit mask (H, W).
+
+    ``index`` ``(rows, cols)`` forces the pixels (to compare two geometries on the same values)."""
     hits = surface_hits(rig, reference.kind, pose, diameter=reference.diameter)
     axis = 0 if measured.fringe_axis == "x" else 1
     shape = hits.lit.shape
@@ -60,7 +62,7 @@ def reference_pixels(measured: Measured, rig, reference, pose, material, *, max_
     factor = reflectance_factor(rig, samples)
     stack = np.concatenate(measured.frames)  # (sum N, H, W)
     mask = _erode(hits.lit, erode_px) & (factor > 0) & (stack.max(axis=0) > 0)
-    rows, cols = _limit(mask, max_pixels, seed)
+    rows, cols = _limit(mask, max_pixels, seed) if index is None else index
     coord = hits.projector_xy[rows, cols, axis]
     return PixelSet(index=(rows, cols), coords=[coord] * len(measured.sequences), factor=factor[rows, cols],
                     albedo=np.full(len(rows), material.albedo), projector_depth=hits.projector_depth[rows, cols],

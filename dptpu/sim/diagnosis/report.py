@@ -121,6 +121,10 @@ def write_report(diagnosis, out_dir, *, rerender: bool = True) -> dict:
     out_dir.mkdir(parents=True, exist_ok=True)
     measured, reference = diagnosis.measured, diagnosis.reference
     report = {"cause": diagnosis.cause, "effects": _entries(diagnosis)}
+    if diagnosis.additional:
+        report["additional_effects"] = [
+            {k: e[k] for k in ("name", "parameters", "residual_before", "residual_after", "gain", "evidence")}
+            for e in diagnosis.additional]
     figures = {}
     # the extended rig: the baseline rig plus the named effects
     extended = list(diagnosis.extended_effects)
@@ -139,6 +143,7 @@ def write_report(diagnosis, out_dir, *, rerender: bool = True) -> dict:
         registration = diagnosis.registration
         report["registration"] = {"pose": registration.pose, "rms_px": registration.rms_px,
                                   "pixels": registration.pixels,
+                                  "order_errors_fraction": registration.order_errors,
                                   "geometry_pose": diagnosis.geometry.pose, "geometry_rms_px": diagnosis.geometry.rms_px}
         residual = -registration.residual_px  # measured - twin
         phase = decompose_phase(residual, measured.projector_x, frequency=measured.frequency, extent=measured.extent)
@@ -168,6 +173,11 @@ def write_report(diagnosis, out_dir, *, rerender: bool = True) -> dict:
         figures["intensity_decomposition"] = profile_figure(out_dir / "intensity_decomposition.png", profiles,
                                                             x_label="angle / frame / level", unit="").name
     report["decomposition"] = decomposition
+    if diagnosis.residual_before is not None:
+        rms = lambda parts: float(np.sqrt(np.mean(np.concatenate([p.ravel() for p in parts]) ** 2)))  # noqa: E731
+        report["residual_rms_dn"] = {"twin": rms(diagnosis.residual_before),
+                                     "extended_twin": rms(diagnosis.residual_after),
+                                     "pixels": diagnosis.pixels.size}
     if rerender:
         again = _rerender(diagnosis, extended)
         if "sphere_rms_um" in again:
@@ -197,6 +207,12 @@ def _markdown(report: dict) -> str:
         lines.append(f"| {e['name']} | {'yes' if ev['named'] else 'no'} | {params} | {e['residual_before']} | "
                      f"{e['residual_after']} | {e['gain']} | {ev['delta_bic']} | {ev['domain']} ({ev['unit']}) |")
     lines.append("")
+    for e in report.get("additional_effects", []):
+        lines.append(f"Also named (round {e['evidence'].get('round')}, on top of the cause): **{e['name']}** "
+                     f"{e['parameters']}, residual {e['residual_before']} -> {e['residual_after']} "
+                     f"(gain {e['gain']}).")
+    if report.get("additional_effects"):
+        lines.append("")
     if "sphere_rms_um" in report:
         s = report["sphere_rms_um"]
         lines += ["## Sphere-fit RMS (um)", "", "| measured | twin | extended twin |", "|---|---|---|",
