@@ -9,6 +9,7 @@ timed:
 - ``scans_per_s``: ``(n - 1) / (t_n - t_1)`` over the clouds' arrival times at the monitor;
 - ``latency_ms_p50`` / ``latency_ms_p99``: from the scan's last Trigger (the stamp its frames and cloud carry)
   to its cloud's arrival at the monitor; ``latency_from_first_trigger_ms_p50`` adds the projection itself;
+- ``node_duration_ms_p50``: each node's median ``ScanStatus.duration_s`` (where the time goes);
 - ``camera_limit_ratio``: ``scans_per_s`` over what the paper's camera allows, the Basler acA640-750 at 750
   frames/s: 31.25 scans/s at 24 frames (2 x 12 steps), 125 at 6 frames (2 x 3 steps).
 
@@ -85,10 +86,19 @@ def run_configuration(*, steps: int, model: str, size: str, scans: int, warmup: 
         "latency_ms_p99": round(float(np.percentile(latency, 99)), 1),
         "latency_from_first_trigger_ms_p50": round(float(np.nanpercentile(first, 50)), 1)
         if np.isfinite(first).any() else None,
+        "node_duration_ms_p50": _node_durations_ms(timed),
         "camera_limit_scans_per_s": camera_limit_scans_per_s(frames),
         "camera_limit_ratio": round(float(scans_per_s / camera_limit_scans_per_s(frames)), 4),
         "wall_s": round(time.monotonic() - started, 1),
     }
+
+
+def _node_durations_ms(records) -> dict:
+    """Median ``ScanStatus.duration_s`` of each node over ``records``, ms (docs/nodes.md: phase from the scan's first
+    frame's arrival, unwrap its own unwrapping, cloud from the scan's last frame to the cloud)."""
+    nodes = sorted({node for r in records for node in r.get("node_durations_s", {})})
+    return {node: round(1e3 * float(np.median([r["node_durations_s"][node] for r in records
+                                                if node in r.get("node_durations_s", {})])), 1) for node in nodes}
 
 
 def dptpu_model(explicit: str | None) -> str | None:

@@ -88,6 +88,7 @@ class _Scan:
     truth: AbsolutePhase | None = None
     truth_depth: Image | None = None
     seen: dict = field(default_factory=dict)  # node -> state of its OK statuses
+    durations_s: dict = field(default_factory=dict)  # node -> ScanStatus.duration_s of its OK status
     failure: str = ""
 
 
@@ -192,6 +193,7 @@ class ScanMonitorNode(Node):
             self._report(scan)
         else:
             scan.seen[msg.node] = msg.state
+            scan.durations_s[msg.node] = float(msg.duration_s)
 
     def on_timer(self) -> None:
         """Report the scans that waited too long; take Triggers once the pipeline's outputs are there."""
@@ -276,6 +278,7 @@ class ScanMonitorNode(Node):
         if scan.cloud is not None:
             record.update(self._figures(scan, truth))
             record["outcome"] = "ok"
+            record["node_durations_s"] = dict(scan.durations_s)  # each node's own ScanStatus.duration_s
         elif scan.failure:
             record.update(outcome="failed", reason=scan.failure)
         else:
