@@ -95,7 +95,9 @@ class RayDistortion:
         nodes = _chebyshev_nodes(self.degree + 1)
         measured = np.stack([self.measured(self.mid_px + self.half_px * node) for node in nodes])  # (n+1, H, W)
         self.coefficients = _monomial_fit(nodes, measured)  # (n+1, H, W): m(u) in pixels
-        self.derivative = self.coefficients[1:] * np.arange(1, self.degree + 1)[:, None, None]  # (n, H, W)
+        derivative = self.coefficients[1:] * np.arange(1, self.degree + 1)[:, None, None]  # (n, H, W) m'(u)
+        # m' only scales Newton's step: float32 (relative error ~1e-7) costs nothing in accuracy.
+        self.derivative = derivative.astype(np.float32)
         self.kappa = self._kappa()
         # Initial guess: a quintic in the measured u through exact inverses at Chebyshev nodes.
         guess_nodes = _chebyshev_nodes(_GUESS_DEGREE + 1)
@@ -105,9 +107,8 @@ class RayDistortion:
         self.guess_error_px = self._guess_error()
         # float32 copies for the passes that only need to get close; one float32 pass unless the guess is
         # already within the reach of one float64 pass.
-        self._guess32 = self.guess.astype(np.float32)
+        self.guess = self.guess.astype(np.float32)  # (6, H, W): only ever evaluated in float32
         self._coefficients32 = self.coefficients.astype(np.float32)
-        self._derivative32 = self.derivative.astype(np.float32)
         reach = _KAPPA_SAFETY * self.kappa / self.half_px * (2.0 * self.guess_error_px + _FLOAT32_FLOOR_PX) ** 2
         self.float32_passes = 0 if reach <= PREDICTED_ERROR_PX else 1
 
@@ -120,7 +121,7 @@ class RayDistortion:
 
     def _guess_error(self) -> float:
         """Largest ``|guess - exact inverse|`` in pixels over :data:`_GUESS_SAMPLES` on the pixel subgrid."""
-        coefficients, derivative = self._subgrid(self.coefficients), self._subgrid(self.derivative)
+        coefficients, derivative = self._subgrid(self.coefficients), self._subgrid(self.derivative).astype(float)
         guess = self._subgrid(self.guess)
         largest = 0.0
         with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
@@ -137,7 +138,7 @@ class RayDistortion:
         """Largest ``|m''(u)| / (2 |m'(u)|)`` over :data:`_KAPPA_SAMPLES` and the pixel subgrid (it varies slowly
         across the image; u units, >= 0); inf where ``m'`` vanishes (a fold: the convergence prediction is then
         not used)."""
-        first = self._subgrid(self.derivative)  # (n, h, w)
+        first = self._subgrid(self.derivative).astype(np.float64)  # (n, h, w)
         second = first[1:] * np.arange(1, self.degree)[:, None, None]  # (n-1, h, w)
         kappa = 0.0
         with np.errstate(divide="ignore", invalid="ignore"):
@@ -166,12 +167,12 @@ class RayDistortion:
         measured32 = measured_px.astype(np.float32)
         u32 = measured32 - np.float32(self.mid_px)
         u32 *= np.float32(1.0 / self.half_px)
-        u32 = horner(self._guess32, u32)  # (H, W) ideal u, float32
+        u32 = horner(self.guess, u32)  # (H, W) ideal u, float32
         with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
             for _ in range(self.float32_passes):
                 step = horner(self._coefficients32, u32)
                 step -= measured32
-                step /= horner(self._derivative32, u32)
+                step /= horner(self.derivative, u32)
                 u32 -= step
         return self._solve(measured_px, u32.astype(np.float64), max_iterations, u32)
 
@@ -185,25 +186,23 @@ class RayDistortion:
     def _solve(self, measured_px, u, max_iterations: int, u32=None) -> np.ndarray:
         """Newton passes on ``m(u) = measured_px`` (H, W) from ``u`` (scalar or (H, W), overwritten); returns ``u``.
 
-        With ``u32`` (``u`` in float32), ``m'`` is evaluated in float32: its relative error, about 1e-7, only
-        adds ``1e-7 * step`` to a pass's error.
+        ``m(u)`` is evaluated in float64, ``m'`` in float32 at ``u32`` (``u`` in float32, given or cast): its
+        relative error, about 1e-7, only adds ``1e-7 * step`` to a pass's error.
         """
         if np.shape(u) != np.shape(measured_px):
             u = np.array(np.broadcast_to(u, np.shape(measured_px)), dtype=np.float64)
+        if u32 is None:
+            u32 = u.astype(np.float32)
         step_tolerance = STEP_TOLERANCE_PX / self.half_px  # u units
         kappa_px = _KAPPA_SAFETY * self.kappa * self.half_px  # predicted error (px) per squared step (u units)
         with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
             for _ in range(max_iterations):
                 step = horner(self.coefficients, u)  # m(u), pixels
                 step -= measured_px
-                if u32 is None:
-                    step /= horner(self.derivative, u)  # / m'(u) (pixels per unit u): Newton's step, u units
-                else:
-                    step /= horner(self._derivative32, u32)
+                step /= horner(self.derivative, u32)  # / m'(u) (pixels per unit u): Newton's step, u units
                 u -= step
                 largest = np.fmax.reduce(np.abs(step, out=step), axis=None)  # ignores NaN pixels
                 if not largest > step_tolerance or kappa_px * largest**2 <= PREDICTED_ERROR_PX:
                     break  # converged (or every pixel NaN)
-                if u32 is not None:
-                    u32 = u.astype(np.float32)
+                u32 = u.astype(np.float32)
         return u
