@@ -170,3 +170,19 @@ def test_cli_writes_a_dataset_with_a_progress_bar(tmp_path, capsys):
     assert "dataset [" in captured.err and "1/1 scenes" in captured.err
     sample = open_dataset(tmp_path / "set")[0]
     assert sample["method"] == "nt" and sample["frequency_low"] == 10.9
+
+
+def test_open_dataset_rejects_duplicate_indices_and_misnamed_samples(dataset_dir, tmp_path):
+    import shutil
+
+    copy = tmp_path / "copy"
+    (copy / "samples").mkdir(parents=True)
+    shutil.copy(dataset_dir / "dataset.yaml", copy / "dataset.yaml")
+    shutil.copy(dataset_dir / "samples" / "0-000003.npz", copy / "samples" / "0-000003.npz")
+    assert len(open_dataset(copy)) == 1 and open_dataset(copy).missing == 23
+    shutil.copy(dataset_dir / "samples" / "0-000003.npz", copy / "samples" / "1-000003.npz")
+    with pytest.raises(ValueError, match="index 3 is also in 0-000003.npz"):
+        open_dataset(copy)
+    (copy / "samples" / "1-000003.npz").rename(copy / "samples" / "sample3.npz")
+    with pytest.raises(ValueError, match="sample3.npz: sample files must be named <shard>-<index:06d>.npz"):
+        open_dataset(copy)
