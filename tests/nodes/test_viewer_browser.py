@@ -117,23 +117,28 @@ def _free_port() -> int:
         return s.getsockname()[1]
 
 
+_STATE_JS = """(() => { try { return JSON.stringify({clouds: viewerState.clouds, statuses: viewerState.statuses,
+  live: document.getElementById('connection').textContent === '(live)',
+  cloud: document.getElementById('cloud').textContent, scans: document.getElementById('scans').innerText,
+  panel: (r => [r.left, r.top, r.right, r.bottom])(document.getElementById('panel').getBoundingClientRect())});
+} catch (e) { return JSON.stringify({clouds: -1, statuses: -1, live: false, error: String(e)}); } })()"""
+
+
 def _page_state(browser: DevTools) -> dict:
-    return browser.evaluate(
-        "JSON.stringify({clouds: window.viewerState ? viewerState.clouds : -1,"
-        " statuses: window.viewerState ? viewerState.statuses : -1,"
-        " cloud: document.getElementById('cloud').textContent, scans: document.getElementById('scans').innerText,"
-        " panel: (r => [r.left, r.top, r.right, r.bottom])(document.getElementById('panel').getBoundingClientRect())})")
+    """The page's counters and texts; ``clouds == -1`` while the page has not loaded."""
+    return json.loads(browser.evaluate(_STATE_JS) or '{"clouds": -1, "statuses": -1, "live": false}')
 
 
-def _wait_state(browser: DevTools, predicate, timeout: float, run: LaunchRun, what: str) -> dict:
+def _wait_state(browser: DevTools, predicate, timeout: float, run: LaunchRun | None, what: str) -> dict:
     deadline = time.monotonic() + timeout
     state = {}
     while time.monotonic() < deadline:
-        state = json.loads(_page_state(browser))
+        state = _page_state(browser)
         if predicate(state):
             return state
         time.sleep(0.3)
-    raise AssertionError(f"{what}: not within {timeout} s; page state {state}; launch output:\n{run.text(30)}")
+    output = run.text(30) if run is not None else ""
+    raise AssertionError(f"{what}: not within {timeout} s; page state {state}; launch output:\n{output}")
 
 
 def _scene_pixels(image: np.ndarray, panel: list) -> np.ndarray:
@@ -156,11 +161,11 @@ def test_browser_shows_the_sim_rig_cloud_and_the_scan_status(spawn_node, node_en
         browser.call("Page.enable")
         browser.call("Emulation.setDeviceMetricsOverride", width=WIDTH, height=HEIGHT, deviceScaleFactor=1,
                      mobile=False)
-        run = LaunchRun(SIM_RIG, "scans:=0", "size:=160x120", "sequence:=16x4,1x4", "method:=mf", "ply_dir:=",
-                        "frame_rate:=20.0", env=node_env, cwd=tmp_path)
+        ready = _wait_state(browser, lambda s: s["clouds"] == 0 and s["live"], 60, None, "the page connected")
         blank = browser.screenshot()
-        panel = json.loads(_page_state(browser))["panel"]
-        assert _scene_pixels(blank, panel).sum() < 0.001 * blank.shape[0] * blank.shape[1]  # nothing drawn yet
+        assert _scene_pixels(blank, ready["panel"]).sum() < 0.001 * blank.shape[0] * blank.shape[1]  # nothing yet
+        run = LaunchRun(SIM_RIG, "scans:=0", "size:=160x120", "sequence:=16x4,1x4", "method:=mf", "ply_dir:=",
+                        "frame_rate:=20.0", "scenes:=random:1", env=node_env, cwd=tmp_path)
 
         first = _wait_state(browser, lambda s: s["clouds"] >= 1, 90, run, "the first cloud")
         assert first["cloud"].startswith("cloud ") and "points of 160x120" in first["cloud"], first
