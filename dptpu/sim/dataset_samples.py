@@ -80,8 +80,9 @@ def _noise_effects(effects, sigma: float) -> tuple:
     return parse_effects(kept)
 
 
-def _render_seed(scene_seed: int, frequency: float, sigma: float, steps: int) -> int:
-    key = [int(scene_seed), int(round(frequency * 1000)), int(round(sigma * 1e6)), int(steps)]
+def _render_seed(scene_seed: int, sigma: float, steps: int) -> int:
+    """Seed of the frames of one scene at one noise level and step count."""
+    key = [int(scene_seed), int(round(sigma * 1e6)), int(steps)]
     return int(np.random.SeedSequence(key).generate_state(1)[0])
 
 
@@ -139,16 +140,16 @@ def scene_samples(rig: Rig, scene, *, scene_seed: int, frequencies, methods, noi
     needed = sorted({float(f) for f in frequencies} | {low_frequency(m, f) for f in frequencies for m in methods})
     label_effects = _noise_effects(effects, 0.0)
     label_frames = render_frames_float(traced_rig, samples, [SequenceSpec(f, label_steps) for f in needed],
-                                       effects=label_effects, seed=_render_seed(scene_seed, 0.0, 0.0, label_steps))
+                                       effects=label_effects, seed=_render_seed(scene_seed, 0.0, label_steps))
     label_phase = {f: _wrapped(frames)[0] for f, frames in zip(needed, label_frames)}
 
     inputs = {}  # (f, sigma) -> (psi, usable)
     for sigma in noise_sigmas:
         noisy = _noise_effects(effects, float(sigma))
-        for f in needed:
-            frames = quantize(render_frames_float(traced_rig, samples, [SequenceSpec(f, input_steps)], effects=noisy,
-                                                  seed=_render_seed(scene_seed, f, float(sigma), input_steps))[0],
-                              _BIT_DEPTH)
+        rendered = render_frames_float(traced_rig, samples, [SequenceSpec(f, input_steps) for f in needed],
+                                       effects=noisy, seed=_render_seed(scene_seed, float(sigma), input_steps))
+        for f, float_frames in zip(needed, rendered):
+            frames = quantize(float_frames, _BIT_DEPTH)
             psi, modulation = _wrapped(frames)
             psi = _float32_wrapped(psi)
             usable = phase.quality_mask(frames, modulation, min_modulation=MIN_MODULATION_FRACTION * full_scale)
