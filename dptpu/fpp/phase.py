@@ -91,8 +91,10 @@ def wrapped_phase(images, *, shift_sign=-1, phase_offset=0.0, bit_depth=None, dt
 
     Convention: phase in ``[0, 2*pi)``, so the fringe order is ``k = floor(phi / 2pi)``.
     Precision: 8- and 16-bit integer images are summed in float32 (their values are exact in it) and the
-    arctangent is float32-accurate: the phase is within about ``5e-7 + 3e-7 * A / B`` rad of the float64
-    computation (``B`` and ``A`` within a relative 1e-6); every other dtype is computed in float64.
+    arctangent is float32-accurate: for ``N <= 24`` the phase is within about ``5e-7 + 3e-7 * A / B`` rad of
+    the float64 computation (measured 4e-7 rad at A = 128, B = 100 DN, 8-bit; 2e-5 rad at A = 30000,
+    B = 300 DN, 16-bit, where the noise is ~1e-3 rad), ``B`` and ``A`` within a relative 1e-6; every other
+    dtype is computed in float64.
     """
     images = check_image_stack(images)
     if shift_sign not in (-1, 1):
