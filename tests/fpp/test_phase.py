@@ -225,3 +225,16 @@ def test_quality_mask_saturation_in_any_frame_of_sixteen_bit():
     mask = quality_mask(images, np.full((4, 5), 50.0), min_modulation=10.0)
     assert mask.sum() == 19 and not mask[1, 1]
     assert not quality_mask(images, np.full((4, 5), 50.0), min_modulation=10.0, saturation_level=65534)[3, 4]
+
+
+@pytest.mark.parametrize("steps", [4, 40])
+def test_float64_path_in_blocks_equals_the_formula(steps):
+    # Float images: float64 sums, in several pixel blocks (19200 px; 2048 px per block at 40 steps).
+    rng = np.random.default_rng(2)
+    phase, background, modulation = smooth_scene(120, 160)
+    images = synthetic_stack(phase, background, modulation, steps, -1, 0.3) + rng.normal(0, 2.0, (steps, 120, 160))
+    maps = wrapped_phase(images, phase_offset=0.3)
+    psi, b, a = reference_maps(images, -1, 0.3)
+    assert np.abs(wrapped_difference(maps.phase, psi)).max() < 1e-12
+    np.testing.assert_allclose(maps.modulation, b, rtol=1e-12)
+    np.testing.assert_allclose(maps.background, a, rtol=1e-12)
