@@ -22,12 +22,18 @@ from .candidates import PHOTOMETRIC, fit_geometric_extra, fit_lens_distortion, f
 from .forward import intensity_residual
 from .measured import Measured, load_measured
 from .noise import fit_sensor_noise
-from .pixels import DEFAULT_MAX_PIXELS, reference_pixels, self_reference_pixels
+from .pixels import DEFAULT_MAX_PIXELS, _erode, reference_pixels, self_reference_pixels
 from .reference import Reference, parse_reference
 from .registration import register_robust
 from .selection import significant
 
-__all__ = ["Diagnosis", "diagnose", "effect_entry"]
+__all__ = ["Diagnosis", "diagnose", "effect_entry", "EDGE_BAND_PX"]
+
+#: Noise is named only when its excess variance exceeds this many times the variance the best deterministic
+#: candidate explains.
+NOISE_OVER_SYSTEMATIC = 4.0
+#: Pixels next to the border of the measured region left out of the geometric fits (mixed pixels).
+EDGE_BAND_PX = 2
 
 
 @dataclass
@@ -128,7 +134,9 @@ def diagnose(measured, rig: Rig, *, reference=None, self_reference: bool = False
             raise ValueError("a diagnosis against a reference object needs the rig (--rig)")
         if measured.fringe_axis != "x":
             raise ValueError(f"{measured.source}: the diagnosis reads fringe_axis x captures; got y")
-        registration = register_robust(rig, reference, measured.projector_x, measured.valid,
+        # the silhouette's mixed pixels are the edge band of the decomposition, not evidence for an effect
+        fit_mask = _erode(measured.valid, EDGE_BAND_PX)
+        registration = register_robust(rig, reference, measured.projector_x, fit_mask,
                                        period_px=measured.extent / measured.frequency)
         if registration.order_errors:  # unwrap the measured phase with the twin's orders instead
             period = 2.0 * np.pi
@@ -186,7 +194,13 @@ def diagnose(measured, rig: Rig, *, reference=None, self_reference: bool = False
                 base.append(effect_entry(top))
             residual_after, _, model_after = intensity_residual(pixels, base, refine=refine)
         noise = fit_sensor_noise(residual_after, model_after)
-        noise["named"] = significant(noise)
+        # noise is named only when the excess variance is random: far more than any deterministic candidate
+        # can explain (a small systematic misfit also raises the residual above quantization)
+        systematic = max([e["residual_before"] ** 2 - e["residual_after"] ** 2 for e in entries
+                          if e["evidence"]["domain"] == "intensity"] + [0.0])
+        noise["evidence"]["systematic_variance_dn2"] = systematic
+        noise["named"] = significant(noise) and (
+            noise["evidence"]["excess_variance_dn2"] > NOISE_OVER_SYSTEMATIC * systematic)
         entries.append(noise)
     geometry = None
     if registration is not None:

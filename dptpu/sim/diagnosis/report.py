@@ -96,9 +96,16 @@ def _rerender(diagnosis, extended_effects) -> dict:
             2 * np.pi * measured.frequency)
         x_extended = decode(extended, measured.sequences, bit_depth=measured.bit_depth) * measured.extent / (
             2 * np.pi * measured.frequency)
-    else:
-        x_twin = geometry.model_x
-        x_extended = diagnosis.geometry.model_x
+    else:  # a phase file: render the paper's sequences (f x 12 and 1 x 12, 8 bit) and decode them the same way
+        from dptpu.sim.image_formation import SequenceSpec
+
+        sequences = [SequenceSpec(measured.frequency, 12), SequenceSpec(1.0, 12)]
+        twin = render_twin(rig, reference, geometry.pose, diagnosis.material, sequences)
+        extended = render_twin(extended_rig, reference, extended_pose, diagnosis.material, sequences,
+                               effects=[e for e in effects if e.stage != "geometry"])
+        to_x = measured.extent / (2 * np.pi * measured.frequency)
+        x_twin, x_extended = decode(twin, sequences) * to_x, decode(extended, sequences) * to_x
+        out["rendered_sequences"] = [s.label for s in sequences]
     x_measured = measured.projector_x
     both = mask & np.isfinite(x_measured) & np.isfinite(x_twin) & np.isfinite(x_extended)
     if both.any():
@@ -145,7 +152,7 @@ def write_report(diagnosis, out_dir, *, rerender: bool = True) -> dict:
                                   "pixels": registration.pixels,
                                   "order_errors_fraction": registration.order_errors,
                                   "geometry_pose": diagnosis.geometry.pose, "geometry_rms_px": diagnosis.geometry.rms_px}
-        residual = -registration.residual_px  # measured - twin
+        residual = measured.projector_x - registration.model_x  # measured - twin, every valid pixel
         phase = decompose_phase(residual, measured.projector_x, frequency=measured.frequency, extent=measured.extent)
         decomposition["phase"] = phase["stats"]
         figures["phase_residual"] = map_figure(out_dir / "phase_residual.png", {"measured - twin": residual},
