@@ -9,6 +9,7 @@ a phase noise of 0.02 rad is 0.18 projector pixels, about 0.45 mm of depth at 80
 from __future__ import annotations
 
 import json
+import os
 import subprocess
 import sys
 
@@ -28,13 +29,15 @@ def _check_scan(record: dict) -> None:
 
 def test_n_scans_through_the_whole_graph_meet_the_documented_bounds_and_a_dropped_frame_fails_one(node_env, tmp_path):
     summary = tmp_path / "summary.json"
+    env = dict(os.environ, **node_env, PYTHONPATH=str(REPO_ROOT) + os.pathsep + os.environ.get("PYTHONPATH", ""))
+    # the robot and `dptpu topic echo` start first, so they listen before the first cloud
+    echo = subprocess.Popen([sys.executable, "-c", "import sys; from dptpu.cli.main import main; sys.exit(main())",
+                             "topic", "echo", "/scanner/points", "--once", "--timeout", "120", "--spin-time", "60"],
+                            env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    robot = subprocess.Popen([sys.executable, str(REPO_ROOT / "examples" / "subscriber.py")], env=env,
+                             stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
     run = LaunchRun(SIM_RIG, "scans:=6", *SMALL, "drop_frames:=5/5", f"summary:={summary}",
                     f"ply_dir:={tmp_path / 'ply'}", "ply_count:=2", env=node_env, cwd=tmp_path)
-    echo = subprocess.Popen([sys.executable, "-c", "import sys; from dptpu.cli.main import main; sys.exit(main())",
-                             "topic", "echo", "/scanner/points", "--once", "--timeout", "90", "--spin-time", "5"],
-                            env=run.proc_env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    robot = subprocess.Popen([sys.executable, str(REPO_ROOT / "examples" / "subscriber.py")], env=run.proc_env,
-                             stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
     try:
         assert run.wait(timeout=150) == 0, run.text()
         echoed, echo_err = echo.communicate(timeout=60)
