@@ -93,7 +93,12 @@ class DevTools:
         return result["result"].get("value")
 
     def screenshot(self) -> np.ndarray:
-        data = self.call("Page.captureScreenshot", format="png")["data"]
+        """The page as (H, W, 3) BGR, with the status panel hidden for the shot (it grows as statuses come)."""
+        self.evaluate("document.getElementById('panel').style.visibility = 'hidden'")
+        try:
+            data = self.call("Page.captureScreenshot", format="png")["data"]
+        finally:
+            self.evaluate("document.getElementById('panel').style.visibility = 'visible'")
         image = cv2.imdecode(np.frombuffer(base64.b64decode(data), np.uint8), cv2.IMREAD_COLOR)  # (H, W, 3) BGR
         assert image is not None, "the screenshot is not a PNG"
         return image
@@ -119,8 +124,7 @@ def _free_port() -> int:
 
 _STATE_JS = """(() => { try { return JSON.stringify({clouds: viewerState.clouds, statuses: viewerState.statuses,
   live: document.getElementById('connection').textContent === '(live)',
-  cloud: document.getElementById('cloud').textContent, scans: document.getElementById('scans').innerText,
-  panel: (r => [r.left, r.top, r.right, r.bottom])(document.getElementById('panel').getBoundingClientRect())});
+  cloud: document.getElementById('cloud').textContent, scans: document.getElementById('scans').innerText});
 } catch (e) { return JSON.stringify({clouds: -1, statuses: -1, live: false, error: String(e)}); } })()"""
 
 
@@ -141,12 +145,9 @@ def _wait_state(browser: DevTools, predicate, timeout: float, run: LaunchRun | N
     raise AssertionError(f"{what}: not within {timeout} s; page state {state}; launch output:\n{output}")
 
 
-def _scene_pixels(image: np.ndarray, panel: list) -> np.ndarray:
-    """(H, W) bool: pixels that are not the background, the status panel excluded."""
-    scene = (np.abs(image.astype(np.int32) - BACKGROUND_BGR).max(axis=-1) > 24)
-    left, top, right, bottom = (int(round(v)) for v in panel)
-    scene[max(top - 2, 0):bottom + 2, max(left - 2, 0):right + 2] = False
-    return scene
+def _scene_pixels(image: np.ndarray) -> np.ndarray:
+    """(H, W) bool: pixels that are not the background (the screenshot hides the status panel)."""
+    return np.abs(image.astype(np.int32) - BACKGROUND_BGR).max(axis=-1) > 24
 
 
 def test_browser_shows_the_sim_rig_cloud_and_the_scan_status(spawn_node, node_env, tmp_path):
@@ -163,15 +164,16 @@ def test_browser_shows_the_sim_rig_cloud_and_the_scan_status(spawn_node, node_en
                      mobile=False)
         ready = _wait_state(browser, lambda s: s["clouds"] == 0 and s["live"], 60, None, "the page connected")
         blank = browser.screenshot()
-        assert _scene_pixels(blank, ready["panel"]).sum() < 0.001 * blank.shape[0] * blank.shape[1]  # nothing yet
+        assert _scene_pixels(blank).sum() < 0.001 * blank.shape[0] * blank.shape[1]  # nothing yet
         run = LaunchRun(SIM_RIG, "scans:=0", "size:=160x120", "sequence:=16x4,1x4", "method:=mf", "ply_dir:=",
                         "frame_rate:=20.0", "scenes:=random:1", env=node_env, cwd=tmp_path)
 
         first = _wait_state(browser, lambda s: s["clouds"] >= 1, 90, run, "the first cloud")
         assert first["cloud"].startswith("cloud ") and "points of 160x120" in first["cloud"], first
         image = browser.screenshot()
+        cv2.imwrite(str(tmp_path / "viewer.png"), image)
         assert image.shape[:2] == (HEIGHT, WIDTH)
-        scene = _scene_pixels(image, first["panel"])
+        scene = _scene_pixels(image)
         count = int(scene.sum())
         assert count > 0.01 * WIDTH * HEIGHT, count  # the scene covers a real part of the canvas
         rows, cols = np.nonzero(scene)
@@ -179,7 +181,6 @@ def test_browser_shows_the_sim_rig_cloud_and_the_scan_status(spawn_node, node_en
         assert np.hypot(rows.mean() - centre[0], cols.mean() - centre[1]) < 0.15 * HEIGHT  # centred on the cloud
         radius = np.hypot(rows - centre[0], cols - centre[1])
         assert np.quantile(radius, 0.99) < 0.55 * HEIGHT  # inside the framed bounding sphere
-        cv2.imwrite(str(tmp_path / "viewer.png"), image)
 
         later = _wait_state(browser, lambda s: s["statuses"] > first["statuses"] and s["clouds"] > first["clouds"]
                             and s["scans"] != first["scans"], 60, run, "a status update")
