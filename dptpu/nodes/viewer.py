@@ -149,7 +149,8 @@ def status_record(status: ScanStatus) -> dict:
 class _Broadcast:
     """What every page gets: the latest cloud (pages skip older ones) and the last statuses, with counters."""
 
-    def __init__(self):
+    def __init__(self, config: str):
+        self.config = config  # JSON text every page gets first
         self.cond = threading.Condition()
         self.cloud: bytes | None = None
         self.cloud_version = 0
@@ -260,6 +261,7 @@ class _Session:
         threading.Thread(target=self.read_loop, daemon=True, name="viewer-ws-reader").start()
         sent_cloud, sent_status = 0, 0
         try:
+            self.send(OP_TEXT, self.broadcast.config.encode("utf-8"))
             while True:
                 with self.broadcast.cond:
                     self.broadcast.cond.wait_for(
@@ -303,9 +305,8 @@ class ViewerNode(Node):
             raise OSError(f"the viewer's page is missing: {STATIC_DIR / 'index.html'} (a broken install?)")
         self.clouds_received = 0
         self.clouds_rejected = 0
-        self.broadcast = _Broadcast()
-        self.broadcast.put_status(json.dumps({"type": "config", "color_by": self.color_by,
-                                              "max_points": self.max_points}))
+        self.broadcast = _Broadcast(json.dumps({"type": "config", "color_by": self.color_by,
+                                                "max_points": self.max_points}))
 
         self.server = ThreadingHTTPServer((host, port), _Handler)
         self.server.daemon_threads = True
