@@ -117,7 +117,8 @@ def run_export(args: argparse.Namespace) -> int:
     from dptpu.models.export import export_onnx, load_checkpoint_model
 
     model, checkpoint = load_checkpoint_model(args.checkpoint)
-    out = export_onnx(model, args.out, training={**checkpoint.get("options", {}), "epochs_done": checkpoint["epoch"]})
+    out = export_onnx(model, args.out, training={**checkpoint.get("options", {}), **checkpoint.get("dataset", {}),
+                                                 "epochs_done": checkpoint["epoch"]})
     print(f"{checkpoint['kind']} (epoch {checkpoint['epoch']}) -> {out}")
     return 0
 

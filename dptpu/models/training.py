@@ -223,7 +223,7 @@ def train(options: TrainOptions) -> TrainResult:
             _save_checkpoint(checkpoint_path, {
                 "format": CHECKPOINT_FORMAT, "kind": options.model, "config": model_config(model),
                 "epoch": epoch + 1, "model": model.state_dict(), "optimizer": optimizer.state_dict(),
-                "history": history, "options": _options_record(options, world)})
+                "history": history, "options": _options_record(options, world), "dataset": _dataset_record(dataset)})
         if options.time_limit_s is not None and time.perf_counter() - started > options.time_limit_s:
             break
     epochs_done = len(history)
@@ -232,13 +232,18 @@ def train(options: TrainOptions) -> TrainResult:
     if rank == 0 and options.out is not None:
         onnx_path = export_onnx(model, options.out, training={
             **_options_record(options, world), "epochs_done": epochs_done, "final": history[-1] if history else None,
-            "methods": sorted({s.method for s in dataset.samples}),
-            "frequencies": sorted({s.frequency_high for s in dataset.samples}), "samples": len(dataset)})
+            **_dataset_record(dataset)})
     if world > 1:
         dist.barrier()
     return TrainResult(epochs_done=epochs_done, history=history, checkpoint=checkpoint_path if rank == 0 else None,
                        onnx=onnx_path, seconds=time.perf_counter() - started,
                        parameters=sum(p.numel() for p in model.parameters()), world_size=world)
+
+
+def _dataset_record(dataset: FringeOrderDataset) -> dict:
+    """Methods, high frequencies and size of the training set (the model's domain, kept in its metadata)."""
+    return {"methods": sorted({s.method for s in dataset.samples}),
+            "frequencies": sorted({s.frequency_high for s in dataset.samples}), "samples": len(dataset)}
 
 
 def _options_record(options: TrainOptions, world: int) -> dict:

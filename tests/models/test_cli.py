@@ -30,6 +30,11 @@ def test_train_then_export_then_eval(tiny_dataset, tmp_path, capsys):
 
     code, stdout, _ = _run(capsys, ["model", "export", "--checkpoint", tmp_path / "m.ckpt", "--out", tmp_path / "e.onnx"])
     assert code == 0 and stdout.strip() == f"dptpu (epoch 1) -> {tmp_path / 'e.onnx'}"
+    from dptpu.models.inference import FringeOrderModel
+
+    for path in (out, tmp_path / "e.onnx"):  # the model's domain travels in its metadata
+        loaded = FringeOrderModel.load(path)
+        assert loaded.trained_methods == ("mf", "nt") and loaded.training["frequencies"] == [32.0, 80.0]
 
     code, stdout, _ = _run(capsys, ["model", "eval", "--data", tiny_dataset, "--model", out, "--out", tmp_path / "ev"])
     assert code == 0 and "| method | f_h | noise | classical | classical+median | dptpu |" in stdout
