@@ -96,9 +96,10 @@ def pack_cloud(cloud: PointCloud2, max_points: int) -> bytes:
     stride = 1
     while math.ceil(height / stride) * math.ceil(width / stride) > max_points:
         stride += 1
-    xyz = cloud.to_array(["x", "y", "z"], dtype=np.float32).reshape(height, width, 3)[::stride, ::stride]
+    grid = cloud.to_structured().reshape(height, width)[::stride, ::stride]  # (h, w) view of the points
+    xyz = np.stack([grid["x"], grid["y"], grid["z"]], axis=-1).astype(np.float32, copy=False)  # (h, w, 3)
     if "intensity" in names:
-        intensity = cloud.to_array(["intensity"], dtype=np.float32).reshape(height, width)[::stride, ::stride]
+        intensity = grid["intensity"].astype(np.float32)  # (h, w)
     else:
         intensity = np.full(xyz.shape[:2], np.nan, np.float32)
     finite = np.isfinite(xyz).all(axis=-1)  # (h, w)
