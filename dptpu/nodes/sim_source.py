@@ -7,8 +7,9 @@ the scene of that scan; nothing here knows about sockets or messages.
 Sources (the sim node's ``source`` parameter):
 
 - ``shipped``: the ``dptpu-capture/1`` folders under ``dptpu/sim/shipped/`` (Blender renders of the twin, with
-  ``gt.npz``), see :func:`shipped_root`; when that folder holds none, the built-in scenes rendered live
-  (``raycast``) instead, and :func:`load_source` says so in its note;
+  ``gt.npz``), see :func:`shipped_root`, when they hold the asked camera size and every asked sequence; otherwise
+  (or when there are none) the scenes rendered live (``raycast``) instead, and :func:`load_source` says why in
+  its note;
 - ``raycast``: the scenes named by ``scenes`` rendered with :mod:`dptpu.sim.raycast` and
   :mod:`dptpu.sim.image_formation` at start-up (a few seconds per scene at 640x480);
 - a folder: one capture folder (it holds ``capture.yaml``) or a folder of capture folders (each a scene).
@@ -238,6 +239,21 @@ def capture_scenes(folder) -> tuple[list[SimScene], Rig, str, int]:
     return scenes, rig, first.fringe_axis, first.phase_shift_sign
 
 
+def _shipped_lacks(scenes, rig: Rig, size, sequence) -> str:
+    """What the shipped renders lack of the asked camera size and sequences ("" when they hold both)."""
+    from dptpu.sim.rig import parse_size
+
+    lacking = []
+    width, height = parse_size(size)
+    if tuple(rig.camera.size) != (width, height):
+        lacking.append(f"the size {width}x{height} (they are {rig.camera.size[0]}x{rig.camera.size[1]})")
+    missing = [f"{f:g}x{n}" for f, n in parse_sequence_list(sequence) if scenes[0].stack(f, n) is None]
+    if missing:
+        held = ", ".join(f"{f:g}x{n}" for f, n in scenes[0].frames)
+        lacking.append(f"the sequence(s) {', '.join(missing)} (they hold {held})")
+    return " and ".join(lacking)
+
+
 def load_source(source: str, *, rig, size, scenes: str = DEFAULT_SCENES, sequence: str = "96x12,1x12",
                 fringe_axis: str = "x", shift_sign: int = -1, seed: int = 0, bit_depth: int = 8,
                 log=None) -> SimSource:
@@ -262,10 +278,15 @@ def load_source(source: str, *, rig, size, scenes: str = DEFAULT_SCENES, sequenc
     if source == "shipped":
         if _capture_folders(shipped_root()):
             found, twin_rig, axis, sign = capture_scenes(shipped_root())
-            return SimSource(found, twin_rig, axis, sign, "shipped",
-                             f"replaying the {len(found)} shipped render(s) of {shipped_root()}",
-                             tuple(found[0].frames))
-        note = f"no shipped renders in {shipped_root()}: rendering the scenes live with the raycast twin; "
+            lacking = _shipped_lacks(found, twin_rig, size, sequence)
+            if not lacking:
+                return SimSource(found, twin_rig, axis, sign, "shipped",
+                                 f"replaying the {len(found)} shipped render(s) of {shipped_root()}",
+                                 tuple(found[0].frames))
+            note = f"the shipped renders of {shipped_root()} lack {lacking}: rendering the scenes live with the " \
+                   "raycast twin; "
+        else:
+            note = f"no shipped renders in {shipped_root()}: rendering the scenes live with the raycast twin; "
     if fringe_axis not in ("x", "y"):
         raise ValueError(f"parameter fringe_axis must be 'x' or 'y'; got {fringe_axis!r}")
     if shift_sign not in (-1, 1):

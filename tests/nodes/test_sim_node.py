@@ -119,3 +119,20 @@ def test_bad_parameters_raise_value_errors_naming_them(tmp_path):
         load_source("raycast", rig="nominal", size="64x48", sequence="16")
     with pytest.raises(ValueError, match=r"random:SEED"):
         load_source("raycast", rig="nominal", size="64x48", scenes="random:x")
+
+
+def test_shipped_renders_are_used_only_when_they_hold_the_asked_size_and_sequences(tmp_path, monkeypatch):
+    from dptpu.nodes import sim_source
+    from dptpu.sim.image_formation import SequenceSpec
+    from dptpu.sim.render import render_capture
+    from dptpu.sim.rig import load_twin_rig
+    from dptpu.sim.scenes import load_scene
+
+    rig = load_twin_rig("nominal", size="64x48")
+    render_capture(rig, load_scene("plane", rig), [SequenceSpec(16, 4), SequenceSpec(1, 4)], tmp_path / "plane")
+    monkeypatch.setattr(sim_source, "shipped_root", lambda: tmp_path)
+    shipped = load_source("shipped", rig="nominal", size="64x48", scenes="sphere", sequence="16x4,1x4")
+    assert shipped.kind == "shipped" and [s.name for s in shipped.scenes] == ["plane"]
+    other = load_source("shipped", rig="nominal", size="32x24", scenes="sphere", sequence="16x4,1x4,8x4")
+    assert other.kind == "raycast" and [s.name for s in other.scenes] == ["sphere"]
+    assert "lack the size 32x24 (they are 64x48) and the sequence(s) 8x4 (they hold 16x4, 1x4)" in other.note
