@@ -36,6 +36,12 @@ case "$job" in
     pip install -e '.[test]' torch==2.13.0
     # the Blender renderer's own venv (bpy 4.5 pins numpy < 2): .blender-venv/ or $DPTPU_BLENDER_ENV; idempotent
     .venv/bin/python -m dptpu.sim.blender
+    # headless Chromium for the browser viewer's test (Debian's package; the test skips with a reason without it)
+    if [ ! -x /usr/bin/chromium ] && [ "$(id -u)" = 0 ] && command -v apt-get >/dev/null; then
+      echo "installing chromium (browser viewer test)"
+      apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq chromium >/dev/null \
+        || echo "could not install chromium: the browser viewer test will skip" >&2
+    fi
     shift || true
     exec .venv/bin/python -m pytest -q "$@"
     ;;
