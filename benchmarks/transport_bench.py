@@ -487,13 +487,14 @@ def _resolve(args) -> argparse.Namespace:
     if size not in SIZES:
         raise ValueError(f"--size must be 'full' or 'small'; got {size!r}")
     options = dict(SIZES[size])
-    for key in ("messages", "rounds", "round_trips", "window"):
+    for key in ("messages", "rounds", "round_trips", "window", "repeat"):
         value = getattr(args, key, None)
         if value is not None:
             if isinstance(value, bool) or not isinstance(value, int) or value < 1:
                 raise ValueError(f"--{key.replace('_', '-')} must be an integer >= 1; got {value!r}")
             options[key] = value
     options.setdefault("window", DEFAULT_WINDOW)
+    options.setdefault("repeat", 1)
     return argparse.Namespace(size=size, json=bool(getattr(args, "json", False)),
                               pin=not bool(getattr(args, "no_pin", False)), **options)
 
@@ -546,12 +547,30 @@ def _run_pair(receiver: str, sender: str, options, env: dict, folder: Path, tag:
                 process.wait()
 
 
+def _pooled(results: list[dict]) -> dict:
+    """One result dict from the same role's results of several repeats: lists joined, counts added."""
+    if len(results) == 1:
+        return results[0]
+    pooled = {}
+    for key, value in results[0].items():
+        values = [result[key] for result in results]
+        if isinstance(value, list):
+            pooled[key] = [item for item in values for item in item]
+        elif isinstance(value, bool) or not isinstance(value, (int, float)):
+            pooled[key] = value
+        elif key.endswith("_per_message"):
+            pooled[key] = float(np.mean(values))
+        else:
+            pooled[key] = sum(values)
+    return pooled
+
+
 def _throughput_figures(sender: dict, receiver: dict, options) -> dict:
     nbytes = int(np.prod(options.shape))
     rates = [options.messages * nbytes / seconds / 1e6 for seconds in sender["rounds_s"]]
-    expected = options.rounds * options.messages
+    expected = options.repeat * options.rounds * options.messages
     intact = (receiver["failures"] == 0 and receiver["sequence_gaps"] == 0 and receiver["timed"] == expected
-              and receiver["full_checks"] >= options.warmup_messages)
+              and receiver["full_checks"] >= options.repeat * options.warmup_messages)
     return {"mb_per_s": float(np.median(rates)), "rounds_mb_per_s": rates,
             "messages_per_s": float(np.median(rates)) * 1e6 / nbytes,
             "sender_cpu_us_per_message": sender["cpu_s_per_message"] * 1e6, "receiver": receiver,
@@ -590,17 +609,32 @@ def measure(args) -> dict:
     repo_root = str(Path(__file__).resolve().parents[1])
     env.update({"DPTPU_DISCOVERY_DIR": str(folder / "graph"), "DPTPU_DOMAIN_ID": "0",
                 "PYTHONPATH": repo_root + os.pathsep + env.get("PYTHONPATH", "")})
+    pairs = (("raw-sink", "raw-source", "rt"), ("ours-sink", "ours-source", "ot"), ("raw-pong", "raw-ping", "rl"),
+             ("ours-pong", "ours-ping", "ol"))
+    results: dict[str, list] = {role: [] for pair in pairs for role in pair[:2]}
+    repeats = []
     try:
-        raw_sink, raw_source = _run_pair("raw-sink", "raw-source", options, env, folder, "rt")
-        ours_sink, ours_source = _run_pair("ours-sink", "ours-source", options, env, folder, "ot")
-        raw_pong, raw_ping = _run_pair("raw-pong", "raw-ping", options, env, folder, "rl")
-        ours_pong, ours_ping = _run_pair("ours-pong", "ours-ping", options, env, folder, "ol")
+        for index in range(options.repeat):  # raw and ours alternate, so a load that drifts hits both alike
+            for receiver, sender, tag in pairs:
+                received, sent = _run_pair(receiver, sender, options, env, folder, f"{tag}{index}")
+                results[receiver].append(received)
+                results[sender].append(sent)
+            if options.repeat > 1:
+                single = argparse.Namespace(**{**vars(options), "repeat": 1})
+                figures = [_throughput_figures(results[sender][-1], results[receiver][-1], single)
+                           for receiver, sender, _ in pairs[:2]]
+                times = [_latency_figures(results[sender][-1], results[receiver][-1], single)
+                         for receiver, sender, _ in pairs[2:]]
+                repeats.append({"throughput_ratio": figures[1]["mb_per_s"] / figures[0]["mb_per_s"],
+                                "latency_p50_ratio": times[1]["p50_us"] / times[0]["p50_us"],
+                                "latency_p99_ratio": times[1]["p99_us"] / times[0]["p99_us"]})
     finally:
         shutil.rmtree(folder, ignore_errors=True)
-    throughput = {"ours": _throughput_figures(ours_source, ours_sink, options),
-                  "raw": _throughput_figures(raw_source, raw_sink, options)}
-    latency = {"ours": _latency_figures(ours_ping, ours_pong, options),
-               "raw": _latency_figures(raw_ping, raw_pong, options)}
+    pooled = {role: _pooled(values) for role, values in results.items()}
+    throughput = {"ours": _throughput_figures(pooled["ours-source"], pooled["ours-sink"], options),
+                  "raw": _throughput_figures(pooled["raw-source"], pooled["raw-sink"], options)}
+    latency = {"ours": _latency_figures(pooled["ours-ping"], pooled["ours-pong"], options),
+               "raw": _latency_figures(pooled["raw-ping"], pooled["raw-pong"], options)}
     throughput_ratio = throughput["ours"]["mb_per_s"] / throughput["raw"]["mb_per_s"]
     p50_ratio = latency["ours"]["p50_us"] / latency["raw"]["p50_us"]
     p99_ratio = latency["ours"]["p99_us"] / latency["raw"]["p99_us"]
@@ -617,7 +651,7 @@ def measure(args) -> dict:
         "goals": {"throughput_ratio_min": THROUGHPUT_GOAL, "latency_ratio_max": LATENCY_GOAL,
                   "throughput_met": throughput_ratio >= THROUGHPUT_GOAL,
                   "latency_met": max(p50_ratio, p99_ratio) <= LATENCY_GOAL},
-        "intact": intact,
+        "intact": intact, "repeat": options.repeat, "repeats": repeats,
         "throughput": {"message_bytes": int(np.prod(options.shape)), "shape": list(options.shape),
                        "messages_per_round": options.messages, "rounds": options.rounds, "window": options.window,
                        "warmup_messages": options.warmup_messages, **throughput},
@@ -678,6 +712,7 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--rounds", type=int, default=None)
     parser.add_argument("--round-trips", type=int, default=None)
     parser.add_argument("--window", type=int, default=None)
+    parser.add_argument("--repeat", type=int, default=None, help="run raw and ours alternately this many times")
     parser.add_argument("--no-pin", action="store_true")
     parser.add_argument("--pin", action="store_true", help=argparse.SUPPRESS)  # a child's own pinning
     parser.add_argument("--role", choices=tuple(ROLES), default=None, help=argparse.SUPPRESS)

@@ -1,8 +1,11 @@
 """Executors: run the callbacks of nodes (``rclpy.executors``).
 
 An executor waits until something is ready (a message in a subscription's queue, a due timer, a
-service request, a task) and runs its callback. The runtime's I/O thread fills the queues and wakes
-the executor; the executor never touches a socket.
+service request, a task) and runs its callback. While it waits, it receives from the subscription
+sockets of its nodes itself: the runtime's I/O thread lends them to it (:mod:`dptpu.graph.lease`), so
+a message reaches its callback without changing threads. While the executor runs callbacks for longer
+than :data:`~dptpu.graph.lease.TAKEOVER_S`, or does not spin, the I/O thread drains those sockets
+into the subscriptions' queues and wakes the executor, as it does for service requests and responses.
 
 - :class:`SingleThreadedExecutor` runs one callback at a time in the thread that spins.
 - :class:`MultiThreadedExecutor` runs callbacks on ``num_threads`` threads; callbacks of one
@@ -15,43 +18,98 @@ traceback), counted on the entity (``exception_count``), and the executor goes o
 
 from __future__ import annotations
 
+import math
 import os
 import threading
 import time
+import weakref
 from concurrent.futures import ThreadPoolExecutor
 
+import zmq
+
 from .context import get_default_context
+from .lease import BUSY
 from .logging import get_logger
 from .task import Task
 
 __all__ = ["Executor", "SingleThreadedExecutor", "MultiThreadedExecutor", "WakeSignal", "ShutdownException"]
 
 _MAX_WAIT_S = 0.5  # an idle executor re-checks the context this often
+#: While callbacks keep an executor busy, it drains its lent sockets (without waiting) at least this often.
+_PUMP_INTERVAL_S = 0.002
+#: A poll that returned sooner than this did not wait: messages may be piling up, so drain every socket fully.
+_NO_WAIT_S = 50e-6
 
 
 class ShutdownException(Exception):
     """The executor was shut down (rclpy's name)."""
 
 
+def _close_fds(*fds) -> None:
+    for fd in fds:
+        try:
+            os.close(fd)
+        except OSError:
+            pass
+
+
 class WakeSignal:
-    """A condition with a generation counter: waiting never misses a notify that came after ``generation()``."""
+    """A generation counter and a pipe: waiting never misses a notify that came after ``generation()``.
+
+    The waiting side is a ``zmq_poll`` that includes the pipe's read end (:attr:`fd`), so one wait
+    covers both a notify and data on the executor's lent sockets. ``notify`` writes to the pipe only
+    while a thread waits.
+    """
 
     def __init__(self):
-        self._cond = threading.Condition(threading.Lock())
+        self._lock = threading.Lock()
         self._generation = 0
+        self._waiters = 0
+        self._armed = False  # a byte is in the pipe
+        self.fd, self._write_fd = os.pipe()
+        os.set_blocking(self.fd, False)
+        os.set_blocking(self._write_fd, False)
+        self._pipe_poller = zmq.Poller()
+        self._pipe_poller.register(self.fd, zmq.POLLIN)
+        weakref.finalize(self, _close_fds, self.fd, self._write_fd)
 
     def generation(self) -> int:
         return self._generation
 
     def notify(self) -> None:
-        with self._cond:
+        with self._lock:
             self._generation += 1
-            self._cond.notify_all()
+            if self._waiters and not self._armed:
+                self._armed = True
+                try:
+                    os.write(self._write_fd, b"\0")
+                except OSError:
+                    pass
 
-    def wait(self, generation: int, timeout: float | None) -> None:
-        with self._cond:
-            if self._generation == generation:
-                self._cond.wait(timeout)
+    def wait(self, generation: int, timeout: float | None, poller=None):
+        """Wait until notified or ``timeout`` seconds (None: forever) pass, unless notified since ``generation``.
+
+        ``poller``: a ``zmq.Poller`` that includes :attr:`fd` (and sockets). Returns its ready list, or
+        None when a notify came after ``generation`` (then nothing was polled).
+        """
+        with self._lock:
+            if self._generation != generation:
+                return None
+            self._waiters += 1
+        try:
+            # whole ms, rounded up: zmq_poll truncates, and waking early would spin until the deadline
+            ready = (poller or self._pipe_poller).poll(None if timeout is None else math.ceil(timeout * 1000.0))
+        finally:
+            with self._lock:
+                self._waiters -= 1
+                if not self._waiters and self._armed:
+                    self._armed = False
+                    try:
+                        while os.read(self.fd, 4096):
+                            pass
+                    except OSError:
+                        pass
+        return ready
 
 
 class _TaskEntity:
@@ -98,6 +156,9 @@ class Executor:
         self._round_robin = 0
         self._take_lock = threading.Lock()
         self._is_shutdown = False
+        self._lease = None  # SocketLease with the context's runtime, made on the first wait
+        self._last_poll = 0.0
+        self._entity_cache: tuple = ((), [])  # (the nodes' _work tuples, entities)
         self._context._track_executor(self)
 
     @property
@@ -114,10 +175,17 @@ class Executor:
                 current.remove_node(node)
             self._nodes.append(node)
             node._set_executor(self)
+        lease = self._lease
+        if lease is not None and not lease.covers(node):
+            lease.invalidate()  # lend this node's sockets too
         self._wake.notify()
         return True
 
     def remove_node(self, node) -> None:
+        """Remove ``node``. Its sockets stay lent to this executor until the runtime takes them back (when
+        another executor needs them, or this one does not poll for a while); meanwhile what this executor
+        receives for the node goes into its queues and wakes the node's executor, if it has one. So
+        ``spin_once(node)``, which adds and removes the node each time, does not hand sockets back and forth."""
         with self._nodes_lock:
             if node in self._nodes:
                 self._nodes.remove(node)
@@ -147,16 +215,22 @@ class Executor:
             for node in self._nodes:
                 node._set_executor(None)
             self._nodes.clear()
+            lease, self._lease = self._lease, None
+        if lease is not None:
+            lease.close()
         return True
 
     # -- finding work ---------------------------------------------------------------------------------
 
     def _entities(self) -> list:
         with self._nodes_lock:
-            nodes = list(self._nodes)
-        entities = []
-        for node in nodes:
-            entities.extend(node._work)
+            works = tuple(node._work for node in self._nodes)
+        cached_works, cached = self._entity_cache
+        if len(works) == len(cached_works) and all(a is b for a, b in zip(works, cached_works)):
+            entities = list(cached)
+        else:
+            entities = [entity for work in works for entity in work]
+            self._entity_cache = (works, list(entities))
         if self._tasks:
             with self._tasks_lock:
                 self._tasks = [t for t in self._tasks if not t.task.done() and not t.task._claimed]
@@ -223,6 +297,47 @@ class Executor:
                 if self._notify_after_run:
                     self._wake.notify()  # another thread may wait for this group to be free
 
+    def _current_lease(self):
+        """This executor's lease with its context's runtime (None before the runtime exists)."""
+        runtime = self._context._runtime_instance
+        if runtime is None or self._is_shutdown:
+            return None
+        lease = self._lease
+        if lease is None or lease.runtime is not runtime:
+            with self._nodes_lock:
+                lease = self._lease
+                if (lease is None or lease.runtime is not runtime) and not self._is_shutdown:
+                    lease = self._lease = runtime.lease_for(self)
+        return lease
+
+    def _poll(self, lease, generation: int, wait: float) -> bool:
+        """Wait up to ``wait`` s on the lent sockets and the wake pipe, receiving what arrives; False when
+        the sockets are not lent to this executor now (then nothing happened).
+
+        Every socket is drained completely (so a backlog reaches the subscriptions' queues, which drop
+        their oldest messages), except after a poll that waited for data: then one message per socket
+        is taken and the next poll finds out whether more came. While callbacks keep the executor busy
+        it still drains completely every :data:`_PUMP_INTERVAL_S`.
+        """
+        poller = lease.begin_poll()
+        if poller is None:
+            return False
+        try:
+            started = time.monotonic()
+            ready = self._wake.wait(generation, wait, poller)
+            if ready is not None:
+                now = time.monotonic()
+                if not ready:
+                    self._last_poll = now  # nothing was waiting
+                elif wait <= 0 or now - started < _NO_WAIT_S or now - self._last_poll > _PUMP_INTERVAL_S:
+                    lease.drain(ready)
+                    self._last_poll = now
+                else:
+                    lease.drain(ready, 1)
+        finally:
+            lease.end_poll()
+        return True
+
     def _wait_for_work(self, timeout_sec):
         """Wait until work is taken (returned) or the timeout passes (None)."""
         deadline = None if timeout_sec is None or timeout_sec < 0 else time.monotonic() + timeout_sec
@@ -230,6 +345,9 @@ class Executor:
             if self._is_shutdown or not self._context.ok():
                 return None
             generation = self._wake.generation()
+            lease = self._current_lease()
+            if lease is not None and lease.state == BUSY and time.monotonic() - self._last_poll > _PUMP_INTERVAL_S:
+                self._poll(lease, self._wake.generation(), 0.0)  # busy with callbacks: take in what arrived
             found = self._take_ready()
             if found is not None:
                 return found
@@ -243,6 +361,10 @@ class Executor:
             if timer_deadline is not None:
                 wait = min(wait, max(0.0, timer_deadline - now))
             if wait > 0:
+                if lease is not None and self._poll(lease, generation, wait):
+                    continue
+                if lease is not None:
+                    lease.request()  # the I/O thread lends the sockets and wakes us
                 self._wake.wait(generation, wait)
 
     # -- spinning -------------------------------------------------------------------------------------

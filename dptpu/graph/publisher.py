@@ -8,7 +8,8 @@ full, ZeroMQ drops the message for that subscriber only (it sees the sequence ga
 The socket is XPUB so the publisher sees each subscriber connect and leave: that gives
 ``get_subscription_count()`` and, for TRANSIENT_LOCAL, the moment to replay the kept messages (with
 the HISTORY flag; subscribers drop what they already have by sequence number, and VOLATILE ones drop
-all replays). The runtime's I/O thread handles those events every few tens of milliseconds.
+all replays). A TRANSIENT_LOCAL publisher handles those events before each send and the runtime's I/O
+thread every 25 ms; other publishers when asked for their subscriber count, and once a second.
 """
 
 from __future__ import annotations
@@ -28,6 +29,23 @@ __all__ = ["Publisher", "PUBLISHER_LINGER_MS"]
 
 #: How long closing a publisher waits for queued messages to leave, ms.
 PUBLISHER_LINGER_MS = 200
+
+
+_MORE = zmq.SNDMORE | zmq.NOBLOCK
+
+
+def _send(sock, frames: list, envelope: bytes) -> None:
+    """Send ``[topic, header, *arrays]`` (from ``codec.encode``) and the envelope as one message, never blocking.
+
+    The topic and header (bytes) are copied into ZeroMQ; the arrays' memoryviews go without a copy
+    (pyzmq still copies those below its 64 kB copy threshold, which is cheaper for small ones).
+    """
+    send = sock.send
+    send(frames[0], _MORE)
+    send(frames[1], _MORE)
+    for index in range(2, len(frames)):
+        send(frames[index], _MORE, copy=False)
+    send(envelope, zmq.NOBLOCK)
 
 
 class Publisher:
@@ -52,6 +70,7 @@ class Publisher:
         self.qos_profile = qos_profile
         self.callback_group = callback_group
         self.gid = uuid.uuid4().bytes
+        self._topic_bytes = topic_name.encode("utf-8")
         runtime = node.context._runtime()
         self._runtime = runtime
         self._lock = threading.Lock()
@@ -92,28 +111,33 @@ class Publisher:
         if not isinstance(msg, self.msg_type):
             raise ValueError(f"publisher on {self.topic_name} expects {self.msg_type.__name__} "
                              f"({self.msg_type.TYPE_NAME}); got {type(msg).__name__}")
-        frames = encode(self.topic_name, msg)
+        frames = encode(self._topic_bytes, msg)
         with self._lock:
-            if self._socket is None:
+            sock = self._socket
+            if sock is None:
                 raise RuntimeError(f"publisher on {self.topic_name} was destroyed")
             if self._history is not None:
                 self._handle_events_locked()  # replay to a newcomer before any newer message reaches it
             self._seq += 1
             stamp_ns = time.time_ns()
-            frames.append(pack_envelope(0, self._seq, stamp_ns, self.gid))
-            self._socket.send_multipart(frames, flags=zmq.NOBLOCK, copy=False)
+            _send(sock, frames, pack_envelope(0, self._seq, stamp_ns, self.gid))
             self.published_count += 1
             if self._history is not None:
-                self._history.append((self._seq, stamp_ns, frames[:-1]))
+                self._history.append((self._seq, stamp_ns, frames))
 
     def get_subscription_count(self) -> int:
-        """Subscriptions connected now (seen by the socket, updated every few tens of ms)."""
+        """Subscriptions connected now (as the socket has seen them join and leave)."""
+        # the TRANSIENT_LOCAL publishers of this process first: a caller that starts publishing once
+        # subscribers are there should not overtake the replays to those subscribers
+        self._runtime.service_transient_local_publishers()
+        if self._history is None:
+            self._service_events()
         return self._subscriber_count
 
     def wait_for_subscriptions(self, count: int = 1, timeout_sec: float | None = None) -> bool:
         """Block until at least ``count`` subscriptions are connected (not in rclpy); True when they are."""
         deadline = None if timeout_sec is None else time.monotonic() + timeout_sec
-        while self._subscriber_count < count:
+        while self.get_subscription_count() < count:
             if deadline is not None and time.monotonic() >= deadline:
                 return False
             time.sleep(0.005)
@@ -146,8 +170,7 @@ class Publisher:
                 self._subscriber_count = max(0, self._subscriber_count - 1)
         if replay and self._history:
             for seq, stamp_ns, frames in self._history:
-                sock.send_multipart(list(frames) + [pack_envelope(FLAG_HISTORY, seq, stamp_ns, self.gid)],
-                                    flags=zmq.NOBLOCK, copy=False)
+                _send(sock, frames, pack_envelope(FLAG_HISTORY, seq, stamp_ns, self.gid))
 
     def _close(self) -> None:
         with self._lock:

@@ -4,8 +4,12 @@ The I/O thread owns every receiving socket (SUB, the nodes' service ROUTERs, cli
 
 - drains them as soon as data arrives into the subscriptions' and services' queues, then wakes the
   executors of the nodes concerned (callbacks never run on this thread);
+- lends the SUB sockets of a waiting executor's nodes to that executor, which then receives from them
+  itself, and takes them back when the executor does not poll them for a while
+  (:mod:`dptpu.graph.lease`);
 - sends service responses and client requests handed to it by other threads;
-- every 25 ms lets each publisher handle its subscribe events (counts, TRANSIENT_LOCAL replays);
+- every 25 ms lets each TRANSIENT_LOCAL publisher handle its subscribe events (late-joiner replays), and
+  every publisher once a second (subscriber counts; ``get_subscription_count`` also does it at once);
 - every :data:`~dptpu.graph.discovery.SCAN_INTERVAL_S` re-reads the discovery folder, writes this
   process's announcements, and connects or disconnects subscriptions and clients to match the graph
   (immediately, too, when a local entity is created or destroyed);
@@ -17,6 +21,7 @@ thread hop. Any error inside the loop is logged and the loop goes on.
 
 from __future__ import annotations
 
+import math
 import os
 import queue
 import threading
@@ -27,17 +32,19 @@ import zmq
 from .discovery import (FORMAT, SCAN_INTERVAL_S, DirectoryScanner, announcement_file_name, base_directory,
                         domain_directory, ensure_private_directory, host_identity, process_start_ticks,
                         remove_announcement, write_announcement)
+from .lease import IO, POLLING, SocketLease, drain_socket
 from .logging import get_logger
 from .qos import QoSProfile, qos_compatibility
 from .transport import MAX_IPC_PATH_BYTES, TransportConfig, choose_endpoint, connect, remove_ipc_file
 
 __all__ = ["GraphRuntime", "EVENTS_INTERVAL_S", "STATS_INTERVAL_S"]
 
-#: Seconds between two passes over the publishers' subscribe events.
+#: Seconds between two passes over the TRANSIENT_LOCAL publishers' subscribe events (late-joiner replays).
 EVENTS_INTERVAL_S = 0.025
-#: Seconds between two refreshes of the counters in the announcements.
+#: Seconds between two refreshes of the counters in the announcements (and of all publishers' subscriber counts).
 STATS_INTERVAL_S = 1.0
-_DRAIN_BATCH = 1000
+#: Longest wait of the I/O thread while it has something to retry (a client request, a lease to take back).
+_RETRY_S = 0.005
 
 
 class GraphRuntime:
@@ -75,7 +82,11 @@ class GraphRuntime:
         self._clients: set = set()
         self._hosts: dict[str, object] = {}
         self._pending_clients: set = set()
-        self._handlers: dict = {}
+        self._handlers: dict = {}       # socket -> handler, for the sockets the I/O thread polls now
+        self._lent: dict = {}           # socket -> SocketLease, for the SUB sockets lent to an executor
+        self._leases: set = set()
+        self._deferred: list = []       # commands waiting until a lease gave its sockets back
+        self.sleeping_until = float("inf")  # monotonic time the I/O thread sleeps until (inf: awake)
         self._commands: queue.SimpleQueue = queue.SimpleQueue()
         self._wake_r, self._wake_w = os.pipe()
         os.set_blocking(self._wake_r, False)
@@ -187,6 +198,20 @@ class GraphRuntime:
     def flush_client(self, client) -> None:
         self.call_soon(lambda: self._flush_client(client))
 
+    def service_transient_local_publishers(self) -> None:
+        """Let every TRANSIENT_LOCAL publisher replay its history to new subscribers now (any thread)."""
+        with self._lock:
+            publishers = [p for p in self._publishers if p._history is not None]
+        for publisher in publishers:
+            publisher._service_events()
+
+    def lease_for(self, executor) -> SocketLease:
+        """A new lease through which ``executor`` may receive from its nodes' subscription sockets."""
+        lease = SocketLease(executor, self)
+        with self._lock:
+            self._leases.add(lease)
+        return lease
+
     def service_endpoints(self, node) -> list[str]:
         host = self._hosts.get(node._gid)
         return list(host.endpoints) if host is not None else []
@@ -200,6 +225,14 @@ class GraphRuntime:
             self._nodes.clear()
             publishers = list(self._publishers)
             self._publishers.clear()
+            leases = list(self._leases)
+        for lease in leases:
+            lease.close()  # no executor polls a socket from now on ...
+        deadline = time.monotonic() + 2.0
+        me = threading.get_ident()
+        while time.monotonic() < deadline and any(lease.state == POLLING and lease.poll_thread != me
+                                                  for lease in leases):
+            time.sleep(0.001)  # ... once the ones inside zmq_poll returned (close() woke them)
         self._running = False
         self.wake()
         if threading.current_thread() is not self._thread:
@@ -224,16 +257,24 @@ class GraphRuntime:
     def _run(self) -> None:
         next_scan = next_events = next_stats = 0.0
         while self._running:
+            self.sleeping_until = float("inf")  # an executor going BUSY from now on wakes this thread
             now = time.monotonic()
-            timeout = min(next_scan, next_events, next_stats) - now
-            if self._pending_clients or self._rematch or self._dirty:
-                timeout = min(timeout, 0.005)
+            wake_at = min(next_scan, next_events, next_stats)
+            if self._pending_clients or self._rematch or self._dirty or self._deferred:
+                wake_at = min(wake_at, now + _RETRY_S)
+            for lease in list(self._leases):
+                look = lease.watch_until(now)
+                if look is not None:
+                    wake_at = min(wake_at, look)
+            self.sleeping_until = wake_at
             try:
-                ready = self._poller.poll(max(0.0, timeout) * 1000.0)
+                # whole ms, rounded up: zmq_poll truncates, and waking early would spin until the deadline
+                ready = self._poller.poll(math.ceil(max(0.0, wake_at - now) * 1000.0))
             except zmq.ZMQError:
                 if not self._running:
                     break
                 raise
+            self.sleeping_until = float("inf")
             woken = False
             if ready:
                 notify = set()
@@ -251,10 +292,15 @@ class GraphRuntime:
             for client in list(self._pending_clients):
                 self._guard(lambda: self._flush_client(client))
             now = time.monotonic()
+            if self._leases:
+                self._guard(lambda: self._reclaim_leases(now))
+            if self._deferred:
+                self._guard(self._run_deferred)
             if now >= next_events:
                 next_events = now + EVENTS_INTERVAL_S
                 for publisher in list(self._publishers):
-                    self._guard(publisher._service_events)
+                    if publisher._history is not None:  # TRANSIENT_LOCAL: replay to late joiners soon
+                        self._guard(publisher._service_events)
             if now >= next_scan or self._rematch or self._dirty:
                 if now >= next_scan:
                     next_scan = now + SCAN_INTERVAL_S
@@ -268,6 +314,9 @@ class GraphRuntime:
                 self._guard(self._refresh_stats)
                 if self._peers is not None:
                     self._guard(self._peers.step)
+            if self._leases and not self._rematch and not self._deferred:
+                # last: sockets go out only once connects, disconnects and closes are done with them
+                self._guard(lambda: self._grant_leases(now))
 
     def _guard(self, function) -> None:
         try:
@@ -291,34 +340,40 @@ class GraphRuntime:
             self._guard(command)
 
     def _drain(self, sock, handler, notify: set) -> None:
-        for _ in range(_DRAIN_BATCH):
-            if not sock.getsockopt(zmq.EVENTS) & zmq.POLLIN:
-                return
-            try:
-                frames = sock.recv_multipart(zmq.NOBLOCK, copy=False)
-            except zmq.Again:
-                return
+        def on_message(frames):
             node = handler(frames)
             if node is not None:
                 notify.add(node)
+        drain_socket(sock, on_message)
+
+    @staticmethod
+    def _handler_for(entity):
+        if hasattr(entity, "_flush"):
+            return lambda frames, e=entity: e._on_message(frames)  # noqa: E731 -- clients notify nobody
+        return lambda frames, e=entity: e._node if e._on_message(frames) else None  # noqa: E731
 
     def _open(self, entity, registry: set, opener) -> None:
         if entity._destroyed:
             return
         sock = opener()
         registry.add(entity)
-        if hasattr(entity, "_flush"):
-            handler = lambda frames, e=entity: e._on_message(frames)  # noqa: E731 -- clients notify nobody
-        else:
-            handler = lambda frames, e=entity: e._node if e._on_message(frames) else None  # noqa: E731
-        self._handlers[sock] = handler
+        self._handlers[sock] = self._handler_for(entity)
         self._poller.register(sock, zmq.POLLIN)
         self._rematch = True
+        if not hasattr(entity, "_flush"):  # a new subscription: its executor's lease must include it
+            lease = self._lease_of(entity._node)
+            if lease is not None:
+                lease.invalidate()
 
     def _close(self, entity, registry: set) -> None:
+        sock = entity._socket
+        lease = self._lent.get(sock) if sock is not None else None
+        if lease is not None:  # lent to an executor: close it once the lease gave it back
+            lease.invalidate()
+            self._deferred.append(lambda: self._close(entity, registry))
+            return
         registry.discard(entity)
         self._pending_clients.discard(entity)
-        sock = entity._socket
         if sock is not None:
             self._handlers.pop(sock, None)
             try:
@@ -328,6 +383,76 @@ class GraphRuntime:
             sock.close(linger=0)
             entity._socket = None
         entity._connected.clear()
+
+    def _run_deferred(self) -> None:
+        deferred, self._deferred = self._deferred, []
+        for command in deferred:
+            self._guard(command)  # may defer itself again
+
+    # -- socket leases (see dptpu.graph.lease) ------------------------------------------------------
+
+    def _lease_of(self, node):
+        """The lease of ``node``'s executor with this runtime, or None."""
+        executor = node.executor
+        lease = getattr(executor, "_lease", None) if executor is not None else None
+        return lease if lease is not None and lease.runtime is self else None
+
+    def _reclaim_leases(self, now: float) -> None:
+        """Take back the sockets of executors that did not poll them for TAKEOVER_S, or must give them back."""
+        for lease in list(self._leases):
+            executor = lease.executor
+            back = lease.take_back(now, force=executor is None or lease.closed)
+            if back is not None:
+                self._own_again(back, lease)
+            if (executor is None or lease.closed) and lease.state == IO:
+                with self._lock:
+                    self._leases.discard(lease)
+
+    def _grant_leases(self, now: float) -> None:
+        for lease in list(self._leases):
+            if lease.state == IO and lease.wanted and not lease.closed:
+                executor = lease.executor
+                if executor is not None:
+                    self._grant(lease, executor, now)
+
+    def _grant(self, lease, executor, now: float) -> None:
+        subscriptions = {}
+        for sub in list(self._subscriptions):
+            sock = sub._socket
+            if sock is None or sub._destroyed or sub._node.executor is not executor:
+                continue
+            other = self._lent.get(sock)
+            if other is not None:  # still lent to the node's previous executor: it gives it back, then we refresh
+                other.invalidate()
+                continue
+            subscriptions[sock] = sub
+        poller = zmq.Poller()
+        poller.register(executor._wake.fd, zmq.POLLIN)
+        for sock in subscriptions:
+            self._handlers.pop(sock, None)
+            try:
+                self._poller.unregister(sock)
+            except KeyError:
+                pass
+            poller.register(sock, zmq.POLLIN)
+            self._lent[sock] = lease
+        if not lease.grant(subscriptions, poller, now):
+            self._own_again(subscriptions, lease)
+
+    def _own_again(self, subscriptions: dict, lease) -> None:
+        """Poll these sockets on the I/O thread again (they came back from ``lease``)."""
+        for sock, sub in subscriptions.items():
+            if self._lent.get(sock) is lease:
+                del self._lent[sock]
+            if sub._socket is not sock:
+                continue
+            self._handlers[sock] = self._handler_for(sub)
+            self._poller.register(sock, zmq.POLLIN)
+            if sub._queue:
+                sub._node._notify_executor()  # it may belong to another executor by now
+            other = self._lease_of(sub._node)
+            if other is not None and other is not lease:
+                other.invalidate()  # the node moved to another executor: that one's lease must include it
 
     def _host(self, node):
         from .services import ServiceHost
@@ -396,6 +521,8 @@ class GraphRuntime:
                 self._written_stats[gid] = node._stats_signature()
 
     def _refresh_stats(self) -> None:
+        for publisher in list(self._publishers):
+            self._guard(publisher._service_events)  # subscriber counts
         with self._lock:
             for gid, node in list(self._nodes.items()):
                 if self._written_stats.get(gid) != node._stats_signature():
@@ -428,7 +555,7 @@ class GraphRuntime:
         return entry.get("host") == self.host and entry.get("boot_id") == self.boot_id
 
     def _match_subscription(self, sub, candidates) -> None:
-        if sub._socket is None:
+        if sub._socket is None or sub._destroyed:
             return
         wanted: dict[str, tuple] = {}
         for entry, pub in candidates:
@@ -451,6 +578,12 @@ class GraphRuntime:
             endpoint = choose_endpoint(pub.get("endpoints"), same_host=self._same_host(entry), config=self.transport)
             if endpoint is not None:
                 wanted[endpoint] = (gid, entry.get("curve_public_key"))
+        if set(wanted) != set(sub._connected):
+            lease = self._lent.get(sub._socket)
+            if lease is not None:  # lent to an executor: (dis)connect once it is back
+                lease.invalidate()
+                self._rematch = True
+                return
         for endpoint in set(sub._connected) - set(wanted):
             gid = sub._connected.pop(endpoint)
             try:

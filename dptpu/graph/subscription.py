@@ -61,6 +61,7 @@ class Subscription:
         self.callback_group = callback_group
         self.raw = raw
         self.gid = uuid.uuid4().bytes
+        self._topic_bytes = topic_name.encode("utf-8")
         resolved = qos_profile.resolved()
         self._limit = queue_limit(resolved)
         self._hwm = pipe_high_water_mark(resolved)
@@ -119,8 +120,8 @@ class Subscription:
         except EnvelopeError as exc:
             self._malformed(str(exc))
             return False
-        if bytes(frames[0].buffer) != self._topic_bytes():
-            self._malformed(f"message for topic {bytes(frames[0].buffer)[:80]!r} on a socket of {self.topic_name}")
+        if frames[0].bytes != self._topic_bytes:
+            self._malformed(f"message for topic {frames[0].bytes[:80]!r} on a socket of {self.topic_name}")
             return False
         if envelope.flags & FLAG_HISTORY and not self._transient:
             return False  # a TRANSIENT_LOCAL replay; a VOLATILE subscription does not want the past
@@ -145,12 +146,6 @@ class Subscription:
             self._queue.append(item)
             self.received_count += 1
         return True
-
-    def _topic_bytes(self) -> bytes:
-        cached = getattr(self, "_topic_cache", None)
-        if cached is None:
-            cached = self._topic_cache = self.topic_name.encode("utf-8")
-        return cached
 
     def _malformed(self, reason: str) -> None:
         with self._lock:

@@ -21,6 +21,7 @@ schema of the declared type are checked, and anything wrong raises :class:`Decod
 from __future__ import annotations
 
 import struct
+import threading
 from dataclasses import dataclass, fields
 
 import msgpack
@@ -49,6 +50,7 @@ ARRAY_REF_EXT_CODE = 1
 ALLOWED_DTYPES: dict[str, np.dtype] = {dtype.str: dtype for dtype in ARRAY_DTYPES.values()}
 
 _HEADER_KEYS = ("wire", "type", "version", "fields", "arrays")
+_HEADER_KEY_SET = frozenset(_HEADER_KEYS)
 # primitive -> (exact Python type on the wire, inclusive integer range or None).
 _SCALAR_CHECKS = {"string": (str, None, None), "float64": (float, None, None), "bool": (bool, None, None),
                   **{name: (int, low, high) for name, (low, high) in INTEGER_RANGES.items()}}
@@ -107,9 +109,23 @@ class DecodeLimits:
 DEFAULT_LIMITS = DecodeLimits()
 
 
-@dataclass(frozen=True)
 class _ArrayRef:
-    index: int
+    """A header's reference to array frame ``2 + index`` (made once per array of every decoded message)."""
+
+    __slots__ = ("index",)
+
+    def __init__(self, index: int):
+        self.index = index
+
+
+_packers = threading.local()  # one reusable msgpack.Packer per thread (a Packer is not thread-safe)
+
+
+def _packb(value) -> bytes:
+    packer = getattr(_packers, "packer", None)
+    if packer is None:
+        packer = _packers.packer = msgpack.Packer(use_bin_type=True)
+    return packer.pack(value)
 
 
 # --------------------------------------------------------------------------------------------------
@@ -155,7 +171,7 @@ def encode(topic, msg: Message) -> list:
         "fields": encoded_fields,
         "arrays": [[array.dtype.str, list(array.shape)] for array in arrays],
     }
-    frames = [topic_bytes, msgpack.packb(header, use_bin_type=True)]
+    frames = [topic_bytes, _packb(header)]
     frames.extend(memoryview(array.reshape(-1).view(np.uint8)) for array in arrays)
     return frames
 
@@ -182,11 +198,12 @@ def _encode_fields(msg: Message, path: str, arrays: list) -> dict:
             else:
                 out[spec.name] = _encode_scalar(spec.primitive, value, f"{path}.{spec.name}")
             continue
-        where = f"{path}.{spec.name}"
         if kind == ARRAY:
             out[spec.name] = msgpack.ExtType(ARRAY_REF_EXT_CODE, _INDEX.pack(len(arrays)))
-            arrays.append(_encode_array(spec, value, where))
-        elif kind == MESSAGE:
+            arrays.append(_encode_array(spec, value, path))
+            continue
+        where = f"{path}.{spec.name}"
+        if kind == MESSAGE:
             _check_nested_type(spec, value, where)
             out[spec.name] = _encode_fields(value, where, arrays)
         elif kind == MESSAGE_LIST:
@@ -260,13 +277,17 @@ def _encode_sequence(spec: FieldSpec, value, where: str) -> list:
     return values.astype(target, copy=False).tolist()
 
 
-def _encode_array(spec: FieldSpec, value, where: str) -> np.ndarray:
+def _encode_array(spec: FieldSpec, value, path: str) -> np.ndarray:
+    target = spec.dtype
+    if type(value) is np.ndarray and value.dtype == target and value.ndim == len(spec.axes):
+        # fast path: the right dtype (hence little-endian or single-byte) and number of dimensions
+        return value if value.flags.c_contiguous else np.ascontiguousarray(value)  # one copy into C order
+    where = f"{path}.{spec.name}"
     axes = f"({', '.join(spec.axes)})"
     if not isinstance(value, np.ndarray):
         raise EncodeError(f"{where} must be a numpy ndarray {axes} of {spec.primitive}; got {type(value).__name__}")
     if value.ndim != len(spec.axes):
         raise EncodeError(f"{where} must have {len(spec.axes)} dimension(s) {axes}; got shape {value.shape}")
-    target = spec.dtype
     if value.dtype.newbyteorder("<") != target:
         raise EncodeError(f"{where} must have dtype {spec.primitive} ({target.str}); got {value.dtype} "
                           f"(convert with .astype(np.{target.name}))")
@@ -319,14 +340,12 @@ def decode(frames, *, expected_type=None, limits: DecodeLimits = DEFAULT_LIMITS)
     if not isinstance(limits, DecodeLimits):
         raise ValueError(f"limits must be a DecodeLimits; got {type(limits).__name__}")
     expected = _expected_class(expected_type)
-    context = "cannot decode message"
+    topic = cls = None
     try:
         views = _frame_views(frames, limits)
         topic = _decode_topic(views[0], limits)
-        context += f" on topic {topic!r}"
         header = _unpack_header(views[1], limits)
         cls = _header_class(header, expected, len(views) - 2)
-        context += f" of type {cls.TYPE_NAME}"
         arrays = [_array_view(index, descriptor, view, limits)
                   for index, (descriptor, view) in enumerate(zip(header["arrays"], views[2:]))]
         used = [False] * len(arrays)
@@ -335,6 +354,11 @@ def decode(frames, *, expected_type=None, limits: DecodeLimits = DEFAULT_LIMITS)
             raise DecodeError(f"array frame(s) {[i for i, u in enumerate(used) if not u]} are not referenced by "
                               "any field")
     except DecodeError as error:
+        context = "cannot decode message"
+        if topic is not None:
+            context += f" on topic {topic!r}"
+        if cls is not None:
+            context += f" of type {cls.TYPE_NAME}"
         raise DecodeError(f"{context}: {error}") from None
     return topic, msg
 
@@ -419,9 +443,9 @@ def _unpack_header(view: memoryview, limits: DecodeLimits) -> dict:
         raise DecodeError(f"header is not valid msgpack ({type(error).__name__}: {detail})") from None
     if type(header) is not dict:
         raise DecodeError(f"header must be a msgpack map; got {type(header).__name__}")
-    missing = [key for key in _HEADER_KEYS if key not in header]
-    unknown = [key for key in header if key not in _HEADER_KEYS]
-    if missing or unknown:
+    if header.keys() != _HEADER_KEY_SET:
+        missing = [key for key in _HEADER_KEYS if key not in header]
+        unknown = [key for key in header if key not in _HEADER_KEYS]
         raise DecodeError(f"header must have exactly the keys {', '.join(_HEADER_KEYS)}; "
                           f"missing {missing}, unknown {[_short_repr(k) for k in unknown]}")
     wire = header["wire"]
@@ -494,10 +518,11 @@ def _decode_fields(cls: type, raw, arrays: list, used: list, path: str) -> Messa
         if kind == SCALAR:
             values[spec.name] = _decode_scalar(spec.primitive, value, path, spec.name)
             continue
-        where = f"{path}.{spec.name}"
         if kind == ARRAY:
-            values[spec.name] = _decode_array_ref(spec, value, arrays, used, where)
-        elif kind == MESSAGE:
+            values[spec.name] = _decode_array_ref(spec, value, arrays, used, path)
+            continue
+        where = f"{path}.{spec.name}"
+        if kind == MESSAGE:
             values[spec.name] = _decode_fields(spec.message_type, value, arrays, used, where)
         elif kind == MESSAGE_LIST:
             if type(value) is not list:
@@ -533,7 +558,15 @@ def _decode_sequence(spec: FieldSpec, value, where: str) -> np.ndarray:
     return np.array(value, dtype=spec.dtype)
 
 
-def _decode_array_ref(spec: FieldSpec, value, arrays: list, used: list, where: str) -> np.ndarray:
+def _decode_array_ref(spec: FieldSpec, value, arrays: list, used: list, path: str) -> np.ndarray:
+    if type(value) is _ArrayRef:  # fast path: a valid, unused reference to an array of the right dtype and rank
+        index = value.index
+        if index < len(arrays) and not used[index]:
+            values = arrays[index]
+            if values.dtype == spec.dtype and values.ndim == len(spec.axes):
+                used[index] = True
+                return values
+    where = f"{path}.{spec.name}"
     if type(value) is not _ArrayRef:
         raise DecodeError(f"{where} must be an array reference; got {type(value).__name__} {_short_repr(value)}")
     index = value.index
@@ -541,8 +574,11 @@ def _decode_array_ref(spec: FieldSpec, value, arrays: list, used: list, where: s
         raise DecodeError(f"{where} refers to array {index}; the message has {len(arrays)} array(s)")
     if used[index]:
         raise DecodeError(f"{where} refers to array {index}, which another field already uses")
-    used[index] = True
     values = arrays[index]
+    if values.dtype != spec.dtype:
+        raise DecodeError(f"{where} must have dtype {spec.primitive} ({spec.dtype.str}); got {values.dtype.str}")
+    raise DecodeError(f"{where} must have {len(spec.axes)} dimension(s) ({', '.join(spec.axes)}); "
+                      f"got shape {values.shape}")
     if values.dtype != spec.dtype:
         raise DecodeError(f"{where} must have dtype {spec.primitive} ({spec.dtype.str}); got {values.dtype.str}")
     if values.ndim != len(spec.axes):

@@ -9,7 +9,7 @@ def test_remapped_topic_reaches_the_namespaced_subscriber(spawn, domain_dir):
     # listener subscribes to relative "talk" in namespace /robot -> /robot/talk
     right = spawn("listener", "--topic", "talk", "--count", "3", "--linger", "3", "--ros-args", "-r", "__ns:=/robot",
                   "-r", "__node:=ear")
-    wrong = spawn("listener", "--name", "bystander", "--timeout", "1.5")  # /chatter
+    wrong = spawn("listener", "--name", "bystander", "--timeout", "5")  # /chatter (alive until the graph is read)
     assert right.wait_event("ready")["topic"] == "/robot/talk"
     assert wrong.wait_event("ready")["topic"] == "/chatter"
     talker = spawn("talker", "--count", "3", "--wait-subs", "1", "--ros-args", "-r", "chatter:=/robot/talk")

@@ -20,15 +20,17 @@ def test_volatile_late_subscriber_gets_no_history(spawn):
 
 def test_transient_local_subscription_is_not_matched_with_volatile_publisher(spawn):
     # ROS 2 rule: requesting TRANSIENT_LOCAL from a VOLATILE publisher is incompatible (warned, not connected)
-    talker = spawn("talker", "--count", "200", "--period", "0.005", "--linger", "0")
+    # the talker outlives the listener (10 s) even when a loaded machine starts the listener slowly
+    talker = spawn("talker", "--count", "2000", "--period", "0.005", "--linger", "0")
     talker.wait_event("ready")
     listener = spawn("listener", "--transient-local", "--timeout", "1.0")
     assert listener.wait_event("done")["received"] == []
-    assert "requests TRANSIENT_LOCAL but the publisher offers VOLATILE" in listener.stderr
+    assert listener.wait_for_stderr("requests TRANSIENT_LOCAL but the publisher offers VOLATILE", timeout=2.0)
 
 
 def test_late_transient_local_subscriber_gets_history_then_live_without_gap_or_duplicate(spawn):
-    talker = spawn("talker", "--count", "400", "--period", "0.005", "--depth", "5", "--transient-local",
+    # 2000 messages (10 s): the listener gets its 30 even when a loaded machine starts it slowly
+    talker = spawn("talker", "--count", "2000", "--period", "0.005", "--depth", "5", "--transient-local",
                    "--linger", "0")
     talker.wait_event("ready")
     listener = spawn("listener", "--transient-local", "--depth", "50", "--count", "30")

@@ -81,7 +81,7 @@ class LaunchProcess:
             self.lines.append(line)
             self._new_lines.put(line)
 
-    def wait_for(self, pattern: str, timeout_s: float = 5.0) -> re.Match:
+    def wait_for(self, pattern: str, timeout_s: float = 15.0) -> re.Match:
         regex = re.compile(pattern)
         for line in list(self.lines):
             match = regex.search(line)
@@ -98,7 +98,7 @@ class LaunchProcess:
                 return match
         raise AssertionError(f"no line matched {pattern!r} within {timeout_s} s; output:\n" + "\n".join(self.lines))
 
-    def wait_for_all(self, pattern: str, timeout_s: float = 5.0) -> list[re.Match]:
+    def wait_for_all(self, pattern: str, timeout_s: float = 15.0) -> list[re.Match]:
         """Every line matching ``pattern`` once the launcher has exited (waits for it)."""
         self.process.wait(timeout=timeout_s)
         for reader in self._readers:

@@ -4,8 +4,9 @@ It publishes, with the rclpy-style API of ``dptpu.graph``:
 
 1. one ``CameraInfo`` on ``/camera/camera_info`` (TRANSIENT_LOCAL, depth 1) right away, before anyone
    listens, so only a TRANSIENT_LOCAL subscription (the recorder's) can get it;
-2. once ``/projector/trigger``, ``/camera/image_raw`` and ``/scanner/points`` each have a subscription:
-   a ``Trigger``, three mono8 ``Image``\\ s and one ``PointCloud2``, :data:`GAP_S` seconds apart;
+2. once ``/projector/trigger``, ``/camera/image_raw``, ``/scanner/points`` and the CameraInfo topic each
+   have a subscription, and :data:`GAP_S` seconds later (so the CameraInfo's replay to the late subscriber
+   comes first): a ``Trigger``, three mono8 ``Image``\\ s and one ``PointCloud2``, :data:`GAP_S` seconds apart;
 
 then stays up :data:`LINGER_S` seconds and exits 0 (3 when nobody subscribed within :data:`WAIT_S`).
 :func:`published_messages` gives the same messages to the test for comparison.
@@ -66,11 +67,12 @@ def main() -> int:
     for topic, msg in messages:
         if topic not in publishers:
             publishers[topic] = node.create_publisher(type(msg), topic, 10)
-    for publisher in publishers.values():
+    for publisher in [*publishers.values(), info_publisher]:
         if not publisher.wait_for_subscriptions(1, timeout_sec=WAIT_S):
             print(f"publish_samples: no subscription on {publisher.topic} within {WAIT_S} s", file=sys.stderr)
             graph.shutdown()
             return 3
+    time.sleep(GAP_S)
     for topic, msg in messages:
         publishers[topic].publish(msg)
         time.sleep(GAP_S)
