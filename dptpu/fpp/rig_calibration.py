@@ -352,8 +352,12 @@ def calibrate_device(object_points, image_points, size, *, name: str = "device",
     flags = cv2.CALIB_FIX_K3 if fix_k3 else 0
     criteria = (cv2.TERM_CRITERIA_COUNT + cv2.TERM_CRITERIA_EPS, 200, 1e-12)
     size = (int(size[0]), int(size[1]))
-    _, K, dist, rvecs, tvecs = cv2.calibrateCamera(objects, images, size, None, None, flags=flags,
-                                                  criteria=criteria)
+    try:
+        _, K, dist, rvecs, tvecs = cv2.calibrateCamera(objects, images, size, None, None, flags=flags,
+                                                      criteria=criteria)
+    except cv2.error as exc:  # degenerate views (e.g. all boards parallel), points outside the image
+        raise ValueError(f"{name}: Zhang's calibration failed ({exc.err}); use poses with the board tilted in "
+                         f"several directions") from None
     poses, view_rms, squared = [], [], []
     for o, p, rvec, tvec in zip(objects, images, rvecs, tvecs):
         projected, _ = cv2.projectPoints(o, rvec, tvec, K, dist)

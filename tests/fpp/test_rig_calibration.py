@@ -271,3 +271,14 @@ def test_find_pose_folders_rejects_a_folder_without_captures(tmp_path):
         find_pose_folders([tmp_path / "empty"])
     with pytest.raises(FileNotFoundError, match="missing: no such calibration pose folder"):
         find_pose_folders([tmp_path / "missing"])
+
+
+def test_calibrate_device_turns_degenerate_views_into_a_clear_error():
+    from dptpu.fpp.rig_calibration import calibrate_device
+
+    board = Board(4, 3, 10.0)
+    flat = board.object_points()[:, :2] * 5 + 100  # three identical fronto-parallel views: no focal length
+    with pytest.raises(ValueError, match="camera: Zhang's calibration failed"):
+        calibrate_device([board.object_points()] * 3, [flat] * 3, (320, 240), name="camera")
+    with pytest.raises(ValueError, match="projector: Zhang's calibration needs at least 3 board poses; got 2"):
+        calibrate_device([board.object_points()] * 2, [flat] * 2, (912, 1140), name="projector")
