@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # Set up the project's virtual environment (idempotent) and run one job.
-#   bash scripts/dev.sh run    set up, then run the main job
+#   bash scripts/dev.sh run    set up, then run the main job (the sim-mode scanner graph)
 #   bash scripts/dev.sh test   set up with test extras, then run the test suite
 # Needs Python 3.11 and, for open3d, the system library libusb-1.0-0 (installed here when run as root).
 set -euo pipefail
@@ -29,7 +29,9 @@ case "$job" in
   run)
     pip install -e .
     shift || true
-    exec .venv/bin/dptpu eval sphere "$@"
+    # the sim-mode scanner graph; with no arguments 20 scans, then a clean stop (scans:=0 runs until Ctrl-C)
+    [ "$#" -gt 0 ] || set -- scans:=20
+    exec .venv/bin/dptpu launch launch/sim_rig.yaml "$@"
     ;;
   test)
     # torch: training only; exactly 2.13.0, a CPU build pip takes from local disk (never an unpinned torch)
