@@ -98,6 +98,9 @@ def format_summary(rows: list[Row]) -> str:
     for (method, frequency, noise), values in sorted(groups.items()):
         cells = [f"{100 * values[s]:.2f}" if s in values else "" for s in solvers]
         lines.append(f"| {method} | {frequency:g} | {noise:g} | " + " | ".join(cells) + " |")
-    means = [np.mean([v[s] for v in groups.values() if s in v]) for s in solvers]
-    lines.append("| mean | | | " + " | ".join(f"{100 * m:.2f}" for m in means) + " |")
+    common = [v for v in groups.values() if all(s in v for s in solvers)]  # groups every solver ran on
+    if common:
+        means = [np.mean([v[s] for v in common]) for s in solvers]
+        lines.append(f"| mean of {len(common)} groups with every solver | | | "
+                     + " | ".join(f"{100 * m:.2f}" for m in means) + " |")
     return "\n".join(lines) + "\n"
