@@ -1,0 +1,26 @@
+"""Evaluation helpers: the 3x3 median of an order map and the accuracy summary."""
+import numpy as np
+
+from dptpu.models.evaluate import Row, format_summary, median_order
+
+
+def test_median_fixes_isolated_wrong_orders_and_ignores_invalid_neighbours():
+    order = np.tile(np.arange(8, dtype=np.int32) // 3, (6, 1))  # (6, 8) staircase, steps between columns 2|3, 5|6
+    noisy = order.copy()
+    noisy[2, 4] += 1  # an isolated wrong order
+    valid = np.ones(order.shape, bool)
+    valid[:, 0] = False
+    noisy[:, 0] = 99  # invalid garbage must neither be changed nor pull its neighbours
+    filtered = median_order(noisy, valid)
+    assert filtered[2, 4] == order[2, 4]
+    assert np.array_equal(filtered[:, 1:], order[:, 1:])  # a straight step survives the median
+    assert np.array_equal(filtered[:, 0], noisy[:, 0])
+
+
+def test_summary_has_one_column_per_solver_and_means_over_common_groups():
+    rows = [Row("mf", 32.0, 1.5693, "classical", 0.9, 100), Row("mf", 32.0, 1.5693, "dptpu", 0.99, 100),
+            Row("nt", 32.0, 1.5693, "classical", 0.2, 100)]
+    text = format_summary(rows)
+    assert "| method | f_h | noise | classical | dptpu |" in text
+    assert "| mf | 32 | 1.5693 | 90.00 | 99.00 |" in text and "| nt | 32 | 1.5693 | 20.00 |  |" in text
+    assert text.strip().endswith("| mean of 1 groups with every solver | | | 90.00 | 99.00 |")
