@@ -13,8 +13,8 @@ from dptpu.sim.diagnosis import diagnose
 
 from .hidden import MAIN, REFERENCES, hidden_effect, relative_error, render_measured
 
-#: Pixels of the photometric fits in tests (the CLI default is 12000): 1500 pixels x 24 frames = 36000 values.
-TEST_PIXELS = 1500
+#: Pixels of the photometric fits in tests (the CLI default is 12000): 1000 pixels x 24 frames = 24000 values.
+TEST_PIXELS = 1000
 
 
 def _diagnose(tmp_path, scene, effect, seed):

@@ -22,7 +22,7 @@ from .candidates import PHOTOMETRIC, fit_geometric_extra, fit_lens_distortion, f
 from .forward import intensity_residual
 from .measured import Measured, load_measured
 from .noise import fit_sensor_noise
-from .pixels import DEFAULT_MAX_PIXELS, _erode, reference_pixels, self_reference_pixels
+from .pixels import DEFAULT_MAX_PIXELS, erode_mask, reference_pixels, self_reference_pixels
 from .reference import Reference, parse_reference
 from .registration import register_robust
 from .selection import significant
@@ -90,7 +90,7 @@ def _reference_material(reference: Reference, rig: Rig):
 
 def diagnose(measured, rig: Rig, *, reference=None, self_reference: bool = False, frequency=None,
              max_pixels: int = DEFAULT_MAX_PIXELS, seed: int = 0, candidates=PHOTOMETRIC,
-             outside_vocabulary: bool = False, rounds: int = 1) -> Diagnosis:
+             outside_vocabulary: bool = False, rounds: int = 1, phase_candidates: bool = True) -> Diagnosis:
     """Diagnose ``measured`` (a path or :class:`Measured`) against the twin of ``rig``.
 
     Parameters
@@ -112,6 +112,8 @@ def diagnose(measured, rig: Rig, *, reference=None, self_reference: bool = False
     outside_vocabulary : bool
         Also fit the phase-domain explanations the twin has no effect for
         (:func:`~.candidates.fit_geometric_extra`); reported, never named.
+    phase_candidates : bool
+        With a phase file, fit the photometric effects a 12-step phase shows (:mod:`.phase_candidates`).
     rounds : int
         Photometric effects found greedily: after the cause, each further round fits the remaining candidates
         on top of the effects found so far and adds the best significant one (``Diagnosis.additional``).
@@ -135,7 +137,7 @@ def diagnose(measured, rig: Rig, *, reference=None, self_reference: bool = False
         if measured.fringe_axis != "x":
             raise ValueError(f"{measured.source}: the diagnosis reads fringe_axis x captures; got y")
         # the silhouette's mixed pixels are the edge band of the decomposition, not evidence for an effect
-        fit_mask = _erode(measured.valid, EDGE_BAND_PX)
+        fit_mask = erode_mask(measured.valid, EDGE_BAND_PX)
         registration = register_robust(rig, reference, measured.projector_x, fit_mask,
                                        period_px=measured.extent / measured.frequency)
         if registration.order_errors:  # unwrap the measured phase with the twin's orders instead
@@ -157,6 +159,13 @@ def diagnose(measured, rig: Rig, *, reference=None, self_reference: bool = False
                                              max_pixels=max_pixels, seed=seed)
             lens_pixels, _ = reference_pixels(measured, with_lens.rig, reference, with_lens.pose, material,
                                               index=pixels.index)
+        else:  # a phase file: the photometric effects a 12-step phase shows, judged on the phase
+            from .phase_candidates import PHASE_VISIBLE, fit_phase_candidate
+
+            for candidate in PHASE_VISIBLE if phase_candidates else ():
+                entry = fit_phase_candidate(measured, rig, reference, material, registration, candidate)
+                entry["named"] = significant(entry)
+                entries.append(entry)
         refine = 1
     residual_before = residual_after = model_before = None
     additional = []

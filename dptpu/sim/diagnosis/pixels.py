@@ -31,7 +31,8 @@ DEFAULT_MAX_PIXELS = 12000
 MIN_MODULATION_FRACTION = 0.04
 
 
-def _erode(mask: np.ndarray, pixels: int = 1) -> np.ndarray:
+def erode_mask(mask: np.ndarray, pixels: int = 1) -> np.ndarray:
+    """``mask`` (H, W) bool eroded by ``pixels`` (a square neighbourhood; outside the image counts as False)."""
     import cv2
 
     if pixels <= 0:
@@ -61,7 +62,7 @@ def reference_pixels(measured: Measured, rig, reference, pose, material, *, max_
                               specular=np.full(shape, material.specular), ior=np.full(shape, material.ior))
     factor = reflectance_factor(rig, samples)
     stack = np.concatenate(measured.frames)  # (sum N, H, W)
-    mask = _erode(hits.lit, erode_px) & (factor > 0) & (stack.max(axis=0) > 0)
+    mask = erode_mask(hits.lit, erode_px) & (factor > 0) & (stack.max(axis=0) > 0)
     rows, cols = _limit(mask, max_pixels, seed) if index is None else index
     coord = hits.projector_xy[rows, cols, axis]
     return PixelSet(index=(rows, cols), coords=[coord] * len(measured.sequences), factor=factor[rows, cols],
@@ -81,7 +82,7 @@ def self_reference_pixels(measured: Measured, *, max_pixels: int = DEFAULT_MAX_P
     for m in maps:
         mask &= m.modulation > MIN_MODULATION_FRACTION * full_scale
     mask &= stack.min(axis=0) < full_scale  # a pixel at full scale in every frame holds no fringe
-    mask = _erode(mask, 1)
+    mask = erode_mask(mask, 1)
     rows, cols = _limit(mask, max_pixels, seed)
     coords = [m.phase[rows, cols] * measured.extent / (2.0 * np.pi * s.frequency)
               for m, s in zip(maps, measured.sequences)]
