@@ -1,7 +1,6 @@
 """``dptpu sim twin`` (Table 1 printout) and ``dptpu sim setup-blender``."""
 import json
 
-import numpy as np
 import pytest
 
 from dptpu.cli.main import main

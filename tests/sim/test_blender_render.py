@@ -4,7 +4,6 @@ These run Blender (bpy 4.5, Cycles on the CPU) in its own environment; they skip
 (``dptpu sim setup-blender`` creates it; ``scripts/dev.sh test`` does so before the tests). Small renders only:
 160x120 camera, 4-8 samples, 8-step sequences.
 """
-from dataclasses import replace
 
 import numpy as np
 import pytest

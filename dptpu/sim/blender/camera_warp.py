@@ -3,10 +3,10 @@
 Blender renders an ideal pinhole with square pixels and no skew: ``K_r = [[f, 0, cx_r], [0, f, cy_r], [0, 0, 1]]``
 at ``size_r``. Every pixel ``(u, v)`` of the real camera looks along the undistorted normalized direction
 ``(x, y) = undistort(K^-1 (u, v))``, which the ideal render shows at ``(f x + cx_r, f y + cy_r)``; the real frame
-is the render sampled there (cubic B-spline interpolation: bilinear
-interpolation biases the phase of fringes a few pixels wide by ~0.05 projector pixels where the two grids keep a
-constant sub-pixel offset; the cubic spline brings that under 0.005). When the real camera is itself such a pinhole (to ``tolerance_px``), the
-render is the frame and nothing is resampled.
+is the render sampled there (cubic B-spline interpolation: bilinear interpolation biases the phase of fringes a
+few pixels wide by ~0.05 projector pixels where the two grids keep a constant sub-pixel offset; the cubic spline
+brings that under 0.005). When the real camera is itself such a pinhole (to ``tolerance_px``), the render is the
+frame and nothing is resampled.
 
 Convention: 0-based pixel centres (ARCHITECTURE.md); ``f = max(fx, fy)`` so the render never undersamples.
 """

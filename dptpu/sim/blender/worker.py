@@ -24,7 +24,6 @@ afterwards blanks the image); each pattern gets a new image datablock (rewriting
 between renders is ignored).
 """
 import json
-import math
 import os
 import sys
 import time
