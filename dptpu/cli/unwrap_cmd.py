@@ -57,16 +57,19 @@ def register(subparsers) -> None:
     add_unwrap_arguments(parser)
     parser.add_argument("--model", metavar="PATH|none",
                         help="DP-TPU network (.onnx) that refines the mf/mw/nt fringe order; 'none' = classical; "
-                             "default: the shipped model (dptpu/models/dptpu.onnx) when present")
+                             "default: the shipped model (dptpu/models/dptpu.onnx) when present, for the methods it "
+                             "was trained on and fringe periods of 4 camera pixels or more")
     parser.add_argument("--out", required=True, type=Path, metavar="OUT.npz", help="output .npz file")
     parser.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:
-    from dptpu.models.refine import refine_capture_result, resolve_model
+    from dptpu.models.refine import DEFAULT_MAX_PERIODS_PER_PIXEL, fringe_density, refine_capture_result, resolve_model
 
     model = resolve_model(args.model, args.method)  # before the work: a bad model file fails fast
     result = unwrap_from_args(args)
+    if model is not None and args.model is None and fringe_density(result) > DEFAULT_MAX_PERIODS_PER_PIXEL:
+        model = None  # the shipped model by default only within its training domain (fringe periods >= 4 px)
     if model is not None:
         result = refine_capture_result(result, model)
     out = args.out if args.out.suffix == ".npz" else args.out.with_name(args.out.name + ".npz")

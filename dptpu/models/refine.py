@@ -17,10 +17,16 @@ import numpy as np
 
 from .inference import FringeOrderModel, shipped_model_path
 
-__all__ = ["REFINABLE_METHODS", "resolve_model", "refine_capture_result"]
+__all__ = ["REFINABLE_METHODS", "DEFAULT_MAX_PERIODS_PER_PIXEL", "resolve_model", "fringe_density",
+           "refine_capture_result"]
 
 #: Classical methods whose result the network refines (the paper's three two-frequency methods).
 REFINABLE_METHODS = ("mf", "mw", "nt")
+#: The shipped model is applied by default only to fringes of at most this many periods per camera pixel
+#: (a period of 4 pixels or more). Its training fringes had periods of about 6 to 15 pixels; near the
+#: Nyquist limit (0.5 periods per pixel) the 3x3 neighbourhoods it relies on no longer see a smooth phase,
+#: and on such captures it was measured to change right orders (see docs/network.md).
+DEFAULT_MAX_PERIODS_PER_PIXEL = 0.25
 
 
 def resolve_model(value, method: str) -> FringeOrderModel | None:
@@ -75,3 +81,18 @@ def refine_capture_result(result, model: FringeOrderModel):
         result, fringe_order=np.where(valid, order, 0).astype(np.int32),
         absolute_phase=np.where(valid, absolute, np.nan), valid=valid,
         reliability=np.where(valid, result.reliability, 0.0))
+
+
+def fringe_density(result) -> float:
+    """Median fringe periods per camera pixel of a result, along its fringe axis' faster image direction.
+
+    The median over valid neighbour pairs of ``|d absolute_phase| / 2pi`` along image rows and along
+    columns; the larger of the two. 0.0 when fewer than 2 valid neighbours exist.
+    """
+    periods = np.where(result.valid, result.absolute_phase, np.nan) / (2.0 * np.pi)  # (H, W)
+    medians = []
+    for axis in (0, 1):
+        steps = np.abs(np.diff(periods, axis=axis))
+        steps = steps[np.isfinite(steps)]
+        medians.append(float(np.median(steps)) if steps.size else 0.0)
+    return max(medians)

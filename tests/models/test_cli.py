@@ -116,3 +116,40 @@ def test_unwrap_model_only_refines_two_frequency_methods(synthetic_capture, tiny
     code, _, stderr = _run(capsys, ["unwrap", "--capture", folder, "--method", "heterodyne", "--model", tiny_onnx[0],
                                     "--out", tmp_path / "x.npz"])
     assert code == 2 and "--model refines the orders of mf, mw, nt; method 'heterodyne'" in stderr
+
+
+def _scene(projector_px_per_pixel, shape=(48, 64)):
+    from types import SimpleNamespace
+
+    rows, cols = np.mgrid[0:shape[0], 0:shape[1]]
+    return SimpleNamespace(projector_x=(100.0 + projector_px_per_pixel * cols + 0.3 * rows), albedo=np.full(shape, 0.8),
+                           lit=np.ones(shape, bool))
+
+
+def test_fringe_density_is_periods_per_pixel(synthetic_capture):
+    from dptpu.fpp.capture import read_capture
+    from dptpu.fpp.reconstruct import unwrap_capture
+    from dptpu.models.refine import fringe_density
+
+    folder, _ = synthetic_capture(MF, scene=_scene(2.0))
+    result = unwrap_capture(read_capture(folder), method="mf")
+    assert fringe_density(result) == pytest.approx(64 * 2.0 / 912, rel=1e-3)  # 0.14 periods per pixel
+
+
+@pytest.mark.skipif(__import__("dptpu.models.inference", fromlist=["x"]).shipped_model_path() is None,
+                    reason="no shipped model dptpu/models/dptpu.onnx")
+@pytest.mark.parametrize("px_per_pixel,used", [(2.0, True), (10.0, False)])
+def test_unwrap_uses_the_shipped_model_by_default_only_within_its_fringe_density(synthetic_capture, tmp_path, capsys,
+                                                                               px_per_pixel, used):
+    from dptpu.models.inference import shipped_model_path
+
+    folder, scene = synthetic_capture(MF, scene=_scene(px_per_pixel))
+    code, _, stderr = _run(capsys, ["unwrap", "--capture", folder, "--method", "mf", "--out", tmp_path / "x.npz"])
+    assert code == 0, stderr
+    with np.load(tmp_path / "x.npz") as result:
+        assert str(result["model"]) == (str(shipped_model_path()) if used else "none")
+        valid = result["valid"]
+        truth = 2 * np.pi * 64 * scene.projector_x / 912  # absolute phase, radians
+        error = np.abs(result["absolute_phase"][valid] - truth[valid])
+        # 12 steps, tiny noise: every order is right, with or without the network (a wrong order is 2 pi off)
+        assert valid.mean() > 0.99 and error.max() < 0.5
