@@ -158,7 +158,7 @@ class Executor:
         self._is_shutdown = False
         self._lease = None  # SocketLease with the context's runtime, made on the first wait
         self._last_poll = 0.0
-        self._entity_cache: tuple = ((), [])  # (the nodes' _work tuples, entities)
+        self._entity_cache: tuple = ((), [], [])  # (the nodes' _work tuples, their entities, the timers among them)
         self._context._track_executor(self)
 
     @property
@@ -222,16 +222,21 @@ class Executor:
 
     # -- finding work ---------------------------------------------------------------------------------
 
-    def _entities(self) -> list:
+    def _node_entities(self) -> tuple:
+        """``(entities, timers)`` of this executor's nodes (rebuilt only when a node's entities changed)."""
         with self._nodes_lock:
             works = tuple(node._work for node in self._nodes)
-        cached_works, cached = self._entity_cache
-        if len(works) == len(cached_works) and all(a is b for a, b in zip(works, cached_works)):
-            entities = list(cached)
-        else:
+        cached_works, entities, timers = self._entity_cache
+        if len(works) != len(cached_works) or not all(a is b for a, b in zip(works, cached_works)):
             entities = [entity for work in works for entity in work]
-            self._entity_cache = (works, list(entities))
+            timers = [entity for entity in entities if hasattr(entity, "_deadline")]
+            self._entity_cache = (works, entities, timers)
+        return entities, timers
+
+    def _entities(self) -> list:
+        entities = self._node_entities()[0]
         if self._tasks:
+            entities = list(entities)
             with self._tasks_lock:
                 self._tasks = [t for t in self._tasks if not t.task.done() and not t.task._claimed]
                 entities.extend(self._tasks)
@@ -264,15 +269,10 @@ class Executor:
 
     def _next_deadline(self) -> float | None:
         deadline = None
-        with self._nodes_lock:
-            nodes = list(self._nodes)
-        for node in nodes:
-            for entity in node._work:
-                next_call = getattr(entity, "_deadline", None)
-                if next_call is not None:
-                    value = next_call()
-                    if value is not None and (deadline is None or value < deadline):
-                        deadline = value
+        for timer in self._node_entities()[1]:
+            value = timer._deadline()
+            if value is not None and (deadline is None or value < deadline):
+                deadline = value
         return deadline
 
     def _run(self, entity, work, group) -> None:

@@ -363,9 +363,14 @@ def decode(frames, *, expected_type=None, limits: DecodeLimits = DEFAULT_LIMITS)
     return topic, msg
 
 
+_EXPECTED_CLASSES: set = set()  # message classes already accepted as expected_type (registration is permanent)
+
+
 def _expected_class(expected_type):
     if expected_type is None:
         return None
+    if expected_type in _EXPECTED_CLASSES:
+        return expected_type
     if isinstance(expected_type, str):
         try:
             return lookup(expected_type)
@@ -373,6 +378,7 @@ def _expected_class(expected_type):
             raise ValueError(f"expected_type: {error.args[0]}") from None
     if isinstance(expected_type, type) and issubclass(expected_type, Message) \
             and is_registered(getattr(expected_type, "TYPE_NAME", None)):
+        _EXPECTED_CLASSES.add(expected_type)
         return expected_type
     raise ValueError(f"expected_type must be a message class or type name; got {expected_type!r}")
 
@@ -474,6 +480,25 @@ def _header_class(header: dict, expected, array_frames: int) -> type:
 
 
 def _array_view(index: int, descriptor, view: memoryview, limits: DecodeLimits) -> np.ndarray:
+    if type(descriptor) is list and len(descriptor) == 2:  # fast path: a well-formed descriptor within limits
+        dtype_name, shape = descriptor
+        dtype = ALLOWED_DTYPES.get(dtype_name) if type(dtype_name) is str else None
+        if dtype is not None and type(shape) is list and len(shape) <= limits.max_ndim:
+            bound = limits.max_dims_product
+            elements = 1
+            for size in shape:
+                if type(size) is not int or not 0 <= size <= bound:
+                    break
+                elements *= size
+                if elements > bound:
+                    break
+            else:
+                nbytes = elements * dtype.itemsize
+                if nbytes == view.nbytes and nbytes <= limits.max_array_bytes:
+                    values = np.frombuffer(view, dtype=dtype).reshape(shape)
+                    values.flags.writeable = False
+                    return values
+    # the same checks one by one, raising the first that fails
     if type(descriptor) is not list or len(descriptor) != 2:
         raise DecodeError(f"array {index}: descriptor must be [dtype, shape]; got {_short_repr(descriptor)}")
     dtype_name, shape = descriptor
