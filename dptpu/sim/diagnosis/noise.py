@@ -34,7 +34,8 @@ def fit_sensor_noise(residual: list, model: list) -> dict:
         c1 = max(float(np.mean(r2) - QUANTIZATION_VAR_DN2) / max(float(level.mean()), 1e-9), 0.0)
     variance = QUANTIZATION_VAR_DN2 + read2 + c1 * np.clip(level, 0.0, None)
     n = r2.size
-    loglik_ratio = 0.5 * float(np.sum(r2 / QUANTIZATION_VAR_DN2 - r2 / variance - np.log(variance / QUANTIZATION_VAR_DN2)))
+    q2 = QUANTIZATION_VAR_DN2
+    loglik_ratio = 0.5 * float(np.sum(r2 / q2 - r2 / variance - np.log(variance / q2)))
     excess = max(float(np.mean(r2)) - QUANTIZATION_VAR_DN2, 0.0)
     # residual of the noise model: the random level the model leaves unexplained (DN), in 8 level bins
     edges = np.quantile(level, np.linspace(0.0, 1.0, 9))

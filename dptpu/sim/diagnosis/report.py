@@ -151,7 +151,8 @@ def write_report(diagnosis, out_dir, *, rerender: bool = True) -> dict:
         report["registration"] = {"pose": registration.pose, "rms_px": registration.rms_px,
                                   "pixels": registration.pixels,
                                   "order_errors_fraction": registration.order_errors,
-                                  "geometry_pose": diagnosis.geometry.pose, "geometry_rms_px": diagnosis.geometry.rms_px}
+                                  "geometry_pose": diagnosis.geometry.pose,
+                                  "geometry_rms_px": diagnosis.geometry.rms_px}
         residual = measured.projector_x - registration.model_x  # measured - twin, every valid pixel
         phase = decompose_phase(residual, measured.projector_x, frequency=measured.frequency, extent=measured.extent)
         decomposition["phase"] = phase["stats"]

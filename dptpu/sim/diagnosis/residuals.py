@@ -103,7 +103,8 @@ def decompose_phase(residual_px: np.ndarray, projector_x: np.ndarray, *, frequen
 
 def decompose_intensity(pixels, residual: list, model: list) -> dict:
     """Components (module docstring) of an intensity residual (lists of (N, P) per sequence)."""
-    stats = {"values": int(sum(r.size for r in residual)), "total_rms_dn": _rms(np.concatenate([r.ravel() for r in residual]))}
+    stats = {"values": int(sum(r.size for r in residual)),
+             "total_rms_dn": _rms(np.concatenate([r.ravel() for r in residual]))}
     per_frame, periodic, random_parts = [], {}, []
     level_values, level_residual = [], []
     for s, (sequence, coord, res, mod) in enumerate(zip(pixels.sequences, pixels.coords, residual, model)):
