@@ -30,12 +30,12 @@ def test_every_argument_has_a_description(name, capsys):
         assert len(lines) >= 3 and lines[1] and not lines[1].startswith("(default"), block
 
 
-def test_sim_rig_wires_the_twin_rig_to_the_sim_and_the_cloud():
+def test_sim_rig_wires_the_shipped_renders_rig_to_the_sim_and_the_cloud():
     plan = load_launch_file(str(LAUNCH_DIR / "sim_rig.yaml"), {"size": "160x120", "scans": "3", "method": "nt",
                                                                 "sequence": "96x12,10.9x12"})
     commands = {node.label: node.command for node in plan.nodes}
     assert set(commands) == {"projector", "sim", "phase", "unwrap", "cloud", "scan_monitor"}
-    rig = f"rig:={LAUNCH_DIR / 'params' / 'twin_rig.yaml'}"
+    rig = f"rig:={LAUNCH_DIR / 'params' / 'shipped_rig.yaml'}"
     assert rig in commands["sim"] and rig in commands["cloud"] and "use_camera_info:=true" in commands["cloud"]
     assert "size:=160x120" in commands["sim"] and "method:=nt" in commands["unwrap"]
     assert "sequence:=96x12,10.9x12" in commands["sim"] and "sequence:=96x12,10.9x12" in commands["projector"]

@@ -13,11 +13,11 @@ import os
 import subprocess
 import sys
 
-from tests.launch_files.running import REPO_ROOT, SIM_RIG, LaunchRun
+from tests.launch_files.running import REPO_ROOT, SIM_RIG, TWIN_RIG_ARG, LaunchRun
 
 ORDER_ACCURACY_BOUND = 0.995
 DEPTH_RMS_BOUND_MM = 1.5
-SMALL = ("source:=raycast", "size:=160x120", "sequence:=16x12,1x12", "method:=mf")  # not the shipped renders
+SMALL = ("source:=raycast", TWIN_RIG_ARG, "size:=160x120", "sequence:=16x12,1x12", "method:=mf")  # not the shipped renders
 
 
 def _check_scan(record: dict) -> None:
@@ -76,7 +76,7 @@ def test_dptpu_scans_through_the_whole_graph_meet_the_bounds(node_env, tmp_path)
     if shipped_model_path() is None:
         pytest.skip("no shipped DP-TPU model (dptpu/models/dptpu.onnx) yet")
     summary = tmp_path / "summary.json"
-    run = LaunchRun(SIM_RIG, "scans:=4", "source:=raycast", "size:=160x120", "sequence:=64x12,1x12", "method:=mf",
+    run = LaunchRun(SIM_RIG, "scans:=4", "source:=raycast", TWIN_RIG_ARG, "size:=160x120", "sequence:=64x12,1x12", "method:=mf",
                     "model:=shipped", f"summary:={summary}", "ply_dir:=", env=node_env, cwd=tmp_path)
     try:
         assert run.wait(timeout=200) == 0, run.text()

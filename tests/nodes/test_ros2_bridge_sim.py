@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from tests.launch_files.running import SIM_RIG, LaunchRun
+from tests.launch_files.running import SIM_RIG, LaunchRun, TWIN_RIG_ARG
 from tests.nodes.test_ros2_bridge import assert_same_cloud, dds_env, start_bridge, start_subscriber, stop
 
 pytest.importorskip("cyclonedds", reason="cyclonedds (the bridge's DDS binding) is not installed")
@@ -26,7 +26,7 @@ def test_ros2_subscriber_receives_the_sim_rig_clouds_exactly(node_env, probe, tm
     bridge = start_bridge(env)
     listener = start_subscriber(tmp_path, env, clouds=CLOUDS)
     listener.wait_event("ready", timeout=30)
-    run = LaunchRun(SIM_RIG, "scans:=0", "size:=160x120", "sequence:=16x4,1x4", "method:=mf", "ply_dir:=",
+    run = LaunchRun(SIM_RIG, "scans:=0", TWIN_RIG_ARG, "size:=160x120", "sequence:=16x4,1x4", "method:=mf", "ply_dir:=",
                     "frame_rate:=40.0", env=env, cwd=tmp_path)
     try:
         events = [run_event(listener, run) for _ in range(CLOUDS)]
