@@ -2,8 +2,9 @@
 
 Phase residual (measured - twin projector coordinate, projector px), removed one after the other:
 
-- ``low_order``: a quadratic in the image coordinates (pose and calibration errors);
-- ``radial``: ``a r^2 + b r^4`` about the image centre (lens distortion the calibration lacks);
+- ``low_order``: a quadratic in the image coordinates (pose and calibration errors), normalized to [-1, 1];
+- ``radial``: ``a r^4 + b r^6`` about the image centre, fitted jointly with the quadratic (``r^2`` is part of
+  it): lens distortion the calibration lacks;
 - ``periodic``: the mean in 32 bins of the wrapped phase ``theta = 2 pi f x / W mod 2 pi``, with its harmonic
   amplitudes (gamma with few steps: harmonic N; drift: 1; step errors: 2);
 - ``pixel_pitch``: the mean in 16 bins of the projector coordinate's fractional part (pixelation);
@@ -36,6 +37,15 @@ def harmonics(profile: np.ndarray, count: int = 4) -> list:
     return [float(2.0 * abs(spectrum[k])) for k in range(1, count + 1)]
 
 
+def _harmonics_lsq(values: np.ndarray, theta: np.ndarray, count: int = 4) -> list:
+    """Amplitudes of harmonics 1..count of ``values`` against the angle ``theta`` (least squares on every
+    value, so an uneven sampling of the angle does not bias them)."""
+    design = np.column_stack([np.ones_like(theta)] + [f(k * theta) for k in range(1, count + 1)
+                                                      for f in (np.cos, np.sin)])
+    coefficients, *_ = np.linalg.lstsq(design, values, rcond=None)
+    return [float(np.hypot(coefficients[2 * k - 1], coefficients[2 * k])) for k in range(1, count + 1)]
+
+
 def _rms(values) -> float:
     values = np.asarray(values, dtype=np.float64)
     return float(np.sqrt(np.mean(values ** 2))) if values.size else float("nan")
@@ -62,28 +72,27 @@ def decompose_phase(residual_px: np.ndarray, projector_x: np.ndarray, *, frequen
     x = (u - (width - 1) / 2.0) / (width / 2.0)
     y = (v - (height - 1) / 2.0) / (height / 2.0)
 
-    def remove(name, design):
-        nonlocal r
-        coefficients, *_ = np.linalg.lstsq(design, r, rcond=None)
-        component = design @ coefficients
-        r = r - component
-        _store(name, component)
-
     def _store(name, component):
         image = np.full((height, width), np.nan)
         image[mask] = component
         maps[name] = image
         stats[f"{name}_rms_px"] = _rms(component)
 
-    remove("low_order", np.column_stack([np.ones_like(x), x, y, x * x, x * y, y * y]))
+    # low order and radial fitted jointly (r^2 is in the quadratic; r^4, r^6 are the radial part), then split
     rho2 = x * x + y * y
-    remove("radial", np.column_stack([rho2, rho2 * rho2]))
+    quadratic = np.column_stack([np.ones_like(x), x, y, x * x, x * y, y * y])
+    radial = np.column_stack([rho2 ** 2, rho2 ** 3])
+    coefficients, *_ = np.linalg.lstsq(np.hstack([quadratic, radial]), r, rcond=None)
+    low_part, radial_part = quadratic @ coefficients[:6], radial @ coefficients[6:]
+    r = r - low_part - radial_part
+    _store("low_order", low_part)
+    _store("radial", radial_part)
     theta = np.mod(2.0 * np.pi * frequency * projector_x[mask] / extent, 2.0 * np.pi)
     index = np.minimum((theta / (2.0 * np.pi) * PHASE_BINS).astype(int), PHASE_BINS - 1)
+    stats["periodic_harmonics_px"] = _harmonics_lsq(r, theta)
     profile, _ = _binned_mean(r, index, PHASE_BINS)
     r = r - profile[index]
     _store("periodic", profile[index])
-    stats["periodic_harmonics_px"] = harmonics(profile)
     stats["periodic_profile_px"] = [float(p) for p in profile]
     fraction = np.mod(projector_x[mask] + 0.5, 1.0)
     index = np.minimum((fraction * PITCH_BINS).astype(int), PITCH_BINS - 1)
