@@ -88,13 +88,8 @@ def camera_points_m(triangulator: Triangulator, absolute_phase: np.ndarray, freq
         ``X_cam = (R X_world + T) * scale_to_m``; NaN where the phase is NaN or the point is not in front of
         the camera (``z <= 0``).
     """
-    rig = triangulator.rig
     coord = projector_coordinate(absolute_phase, frequency, extent_px)  # (H, W) projector pixels
-    world = triangulator.points(coord)  # (H, W, 3) rig units
-    camera = (world @ rig.camera.R.T + rig.camera.T) * rig.scale_to_m  # (H, W, 3) metres
-    with np.errstate(invalid="ignore"):
-        camera[~(camera[..., 2] > 0)] = np.nan
-    return camera.astype(np.float32)
+    return triangulator.camera_points(coord, scale=triangulator.rig.scale_to_m, dtype=np.float32)  # (H, W, 3) m
 
 
 def write_ply(path, points_m: np.ndarray, intensity: np.ndarray) -> int:

@@ -71,12 +71,13 @@ def scan_phase_maps(scan: AssembledScan, *, min_modulation: float, saturation_le
     phases, modulations = [], []
     valid = np.ones(scan.stacks[0].shape[1:], dtype=bool)
     for stack, offset in zip(scan.stacks, scan.layout.phase_offsets):
-        maps = fpp_phase.wrapped_phase(stack, shift_sign=scan.layout.shift_sign, phase_offset=offset)
+        maps = fpp_phase.wrapped_phase(stack, shift_sign=scan.layout.shift_sign, phase_offset=offset,
+                                       dtype=np.float32)
         valid &= fpp_phase.quality_mask(stack, maps.modulation, min_modulation=min_modulation,
                                         saturation_level=saturation_level)
-        phase32 = maps.phase.astype(np.float32)
+        phase32 = maps.phase.astype(np.float32, copy=False)
         phases.append(np.where(phase32 >= _TWO_PI, np.float32(0.0), phase32))
-        modulations.append(maps.modulation.astype(np.float32))
+        modulations.append(maps.modulation.astype(np.float32, copy=False))
     return np.stack(phases), np.stack(modulations), valid
 
 
