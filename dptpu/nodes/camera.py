@@ -53,7 +53,6 @@ from __future__ import annotations
 import sys
 from collections import deque
 
-import dptpu.graph as rclpy
 from dptpu.fpp.calibration import load_rig
 from dptpu.graph.node import Node
 from dptpu.graph.qos import DurabilityPolicy, QoSProfile
@@ -63,6 +62,7 @@ from dptpu.messages import CameraInfo, FringeFrame, Header, Image, ScanStatus, T
 from .genicam_acquisition import Acquisition
 from .genicam_device import CameraSettings
 from .genicam_producers import split_cti_paths
+from .node_main import run_node
 
 __all__ = ["CameraNode", "main"]
 
@@ -177,21 +177,7 @@ def _serial_text(value) -> str:
 
 def main(argv=None) -> int:
     """``python -m dptpu.nodes.camera [--ros-args ...]``; returns the exit code (2 for bad parameters)."""
-    rclpy.init(args=sys.argv if argv is None else argv)
-    try:
-        node = CameraNode()
-    except ValueError as exc:
-        print(f"camera: {exc}", file=sys.stderr)
-        rclpy.try_shutdown()
-        return 2
-    try:
-        rclpy.spin(node)
-    except KeyboardInterrupt:
-        pass
-    finally:
-        node.destroy_node()
-        rclpy.try_shutdown()
-    return 0
+    return run_node("camera", CameraNode, argv)
 
 
 if __name__ == "__main__":

@@ -48,15 +48,14 @@ from pathlib import Path
 
 import numpy as np
 
-import dptpu.graph as rclpy
 from dptpu.fpp.calibration import DeviceModel, Rig, load_rig
 from dptpu.fpp.triangulate import Triangulator, projector_coordinate
-from dptpu.graph import ExternalShutdownException
 from dptpu.graph.node import Node
 from dptpu.graph.qos import DurabilityPolicy, QoSProfile
 from dptpu.messages import AbsolutePhase, CameraInfo, Header, Image, PhaseMaps, PointCloud2, ScanStatus
 
 from .sequence_assembler import same_frequency
+from .node_main import run_node
 
 __all__ = ["CloudNode", "FIELDS", "camera_points_m", "write_ply", "main"]
 
@@ -282,21 +281,7 @@ class CloudNode(Node):
 
 def main(argv=None) -> int:
     """``python -m dptpu.nodes.cloud --ros-args -p rig:=FILE``: run the node until Ctrl-C or SIGTERM."""
-    rclpy.init(args=sys.argv if argv is None else argv)
-    try:
-        node = CloudNode()
-    except (ValueError, OSError) as exc:
-        print(f"cloud: error: {exc}", file=sys.stderr)
-        rclpy.try_shutdown()
-        return 2
-    try:
-        rclpy.spin(node)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    finally:
-        node.destroy_node()
-        rclpy.try_shutdown()
-    return 0
+    return run_node("cloud", CloudNode, argv)
 
 
 if __name__ == "__main__":

@@ -43,14 +43,13 @@ import time
 
 import numpy as np
 
-import dptpu.graph as rclpy
 from dptpu.fpp import phase as fpp_phase
-from dptpu.graph import ExternalShutdownException
 from dptpu.graph.node import Node
 from dptpu.graph.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from dptpu.messages import FringeFrame, Header, PatternSequence, PhaseMaps, ScanStatus, Time
 
 from .sequence_assembler import AssembledScan, DroppedScan, FrameInfo, RejectedFrame, ScanLayout, SequenceAssembler
+from .node_main import run_node
 
 __all__ = ["PhaseNode", "scan_phase_maps", "main"]
 
@@ -210,21 +209,7 @@ class PhaseNode(Node):
 
 def main(argv=None) -> int:
     """``python -m dptpu.nodes.phase [--ros-args ...]``: run the node until Ctrl-C or SIGTERM."""
-    rclpy.init(args=sys.argv if argv is None else argv)
-    try:
-        node = PhaseNode()
-    except ValueError as exc:
-        print(f"phase: error: {exc}", file=sys.stderr)
-        rclpy.try_shutdown()
-        return 2
-    try:
-        rclpy.spin(node)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    finally:
-        node.destroy_node()
-        rclpy.try_shutdown()
-    return 0
+    return run_node("phase", PhaseNode, argv)
 
 
 if __name__ == "__main__":

@@ -57,7 +57,6 @@ import sys
 import threading
 import time
 
-import dptpu.graph as rclpy
 from dptpu.graph.interfaces import Trigger as TriggerService
 from dptpu.graph.node import Node
 from dptpu.graph.qos import DurabilityPolicy, QoSProfile
@@ -65,6 +64,7 @@ from dptpu.messages import Header, PatternEntry, PatternSequence, ScanStatus, Tr
 
 from .projector_link import ProjectorLink
 from .projector_protocol import SequenceSpec, parse_sequence_spec
+from .node_main import run_node
 
 __all__ = ["ProjectorNode", "main"]
 
@@ -182,21 +182,7 @@ class ProjectorNode(Node):
 
 def main(argv=None) -> int:
     """``python -m dptpu.nodes.projector [--ros-args ...]``; returns the exit code (2 for bad parameters)."""
-    rclpy.init(args=sys.argv if argv is None else argv)
-    try:
-        node = ProjectorNode()
-    except ValueError as exc:
-        print(f"projector: {exc}", file=sys.stderr)
-        rclpy.try_shutdown()
-        return 2
-    try:
-        rclpy.spin(node)
-    except KeyboardInterrupt:
-        pass
-    finally:
-        node.destroy_node()
-        rclpy.try_shutdown()
-    return 0
+    return run_node("projector", ProjectorNode, argv)
 
 
 if __name__ == "__main__":

@@ -47,8 +47,6 @@ from __future__ import annotations
 import os
 import sys
 
-import dptpu.graph as rclpy
-from dptpu.graph import ExternalShutdownException
 from dptpu.graph.interfaces import Trigger as TriggerService
 from dptpu.graph.node import Node
 from dptpu.graph.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
@@ -56,6 +54,7 @@ from dptpu.messages import CameraInfo, DecodeError, Image, PointCloud2, decode
 
 from .ros2_idl import Trigger_Request_, Trigger_Response_, dds_type_of, ros_topic_name, to_dds
 from .ros2_qos import cyclone_config_xml, ros2_qos
+from .node_main import run_node
 
 __all__ = ["Ros2BridgeNode", "DEFAULT_TOPICS", "DEFAULT_TYPES", "main"]
 
@@ -210,21 +209,7 @@ class Ros2BridgeNode(Node):
 
 def main(argv=None) -> int:
     """``python -m dptpu.nodes.ros2_bridge --ros-args -p domain_id:=N``: run until Ctrl-C or SIGTERM."""
-    rclpy.init(args=sys.argv if argv is None else argv)
-    try:
-        node = Ros2BridgeNode()
-    except (ValueError, OSError) as exc:
-        print(f"ros2_bridge: error: {exc}", file=sys.stderr)
-        rclpy.try_shutdown()
-        return 2
-    try:
-        rclpy.spin(node)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    finally:
-        node.destroy_node()
-        rclpy.try_shutdown()
-    return 0
+    return run_node("ros2_bridge", Ros2BridgeNode, argv)
 
 
 if __name__ == "__main__":

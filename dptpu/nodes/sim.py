@@ -63,14 +63,13 @@ from collections import OrderedDict, deque
 
 import numpy as np
 
-import dptpu.graph as rclpy
-from dptpu.graph import ExternalShutdownException
 from dptpu.graph.node import Node
 from dptpu.graph.qos import DurabilityPolicy, QoSProfile
 from dptpu.messages import AbsolutePhase, CameraInfo, FringeFrame, Header, Image, PatternSequence, ScanStatus, Trigger
 
 from .sequence_assembler import same_frequency
 from .sim_source import DEFAULT_SCENES, SimScene, SimSource, load_source
+from .node_main import run_node
 
 __all__ = ["SimNode", "parse_drop_frames", "main"]
 
@@ -288,21 +287,7 @@ class SimNode(Node):
 
 def main(argv=None) -> int:
     """``python -m dptpu.nodes.sim [--ros-args ...]``: run the node until Ctrl-C or SIGTERM (2: bad parameters)."""
-    rclpy.init(args=sys.argv if argv is None else argv)
-    try:
-        node = SimNode()
-    except (ValueError, FileNotFoundError) as exc:
-        print(f"sim: error: {exc}", file=sys.stderr)
-        rclpy.try_shutdown()
-        return 2
-    try:
-        rclpy.spin(node)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    finally:
-        node.destroy_node()
-        rclpy.try_shutdown()
-    return 0
+    return run_node("sim", SimNode, argv)
 
 
 if __name__ == "__main__":

@@ -38,14 +38,13 @@ import time
 
 import numpy as np
 
-import dptpu.graph as rclpy
 from dptpu.fpp import tpu
-from dptpu.graph import ExternalShutdownException
 from dptpu.graph.node import Node
 from dptpu.graph.qos import QoSProfile
 from dptpu.messages import AbsolutePhase, Header, PhaseMaps, ScanStatus
 
 from .sequence_assembler import same_frequency
+from .node_main import run_node
 
 __all__ = ["UnwrapNode", "select_frequencies", "load_model", "refined", "METHODS", "main"]
 
@@ -261,21 +260,7 @@ def refined(result: tpu.Unwrapped, psi_h: np.ndarray, order: np.ndarray) -> tpu.
 
 def main(argv=None) -> int:
     """``python -m dptpu.nodes.unwrap [--ros-args ...]``: run the node until Ctrl-C or SIGTERM."""
-    rclpy.init(args=sys.argv if argv is None else argv)
-    try:
-        node = UnwrapNode()
-    except (ValueError, ImportError, OSError) as exc:
-        print(f"unwrap: error: {exc}", file=sys.stderr)
-        rclpy.try_shutdown()
-        return 2
-    try:
-        rclpy.spin(node)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    finally:
-        node.destroy_node()
-        rclpy.try_shutdown()
-    return 0
+    return run_node("unwrap", UnwrapNode, argv)
 
 
 if __name__ == "__main__":

@@ -43,14 +43,13 @@ from pathlib import Path
 
 import numpy as np
 
-import dptpu.graph as rclpy
-from dptpu.graph import ExternalShutdownException
 from dptpu.graph.node import Node
 from dptpu.graph.qos import QoSProfile, ReliabilityPolicy
 from dptpu.messages import PointCloud2, ScanStatus
 
 from .viewer_ws import OP_BINARY, OP_CLOSE, OP_PING, OP_PONG, OP_TEXT, ProtocolError, accept_key, encode_frame, \
     read_frame
+from .node_main import run_node
 
 __all__ = ["ViewerNode", "pack_cloud", "unpack_cloud", "status_record", "CLOUD_MAGIC", "STATIC_DIR", "main"]
 
@@ -347,21 +346,7 @@ class ViewerNode(Node):
 
 def main(argv=None) -> int:
     """``python -m dptpu.nodes.viewer --ros-args -p port:=8765``: serve until Ctrl-C or SIGTERM."""
-    rclpy.init(args=sys.argv if argv is None else argv)
-    try:
-        node = ViewerNode()
-    except (ValueError, OSError) as exc:
-        print(f"viewer: error: {exc}", file=sys.stderr)
-        rclpy.try_shutdown()
-        return 2
-    try:
-        rclpy.spin(node)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    finally:
-        node.destroy_node()
-        rclpy.try_shutdown()
-    return 0
+    return run_node("viewer", ViewerNode, argv)
 
 
 if __name__ == "__main__":
