@@ -3,12 +3,13 @@
 Phase residual (measured - twin projector coordinate, projector px), removed one after the other:
 
 - ``low_order``: a quadratic in the image coordinates (pose and calibration errors), normalized to [-1, 1];
-- ``radial``: ``a r^4 + b r^6`` about the image centre, fitted jointly with the quadratic (``r^2`` is part of
+- ``radial``: ``a r^4 + b r^6`` about the image centre, their part orthogonal to the quadratic (``r^2`` is in
   it): lens distortion the calibration lacks;
 - ``periodic``: the mean in 32 bins of the wrapped phase ``theta = 2 pi f x / W mod 2 pi``, with its harmonic
   amplitudes (gamma with few steps: harmonic N; drift: 1; step errors: 2);
 - ``pixel_pitch``: the mean in 16 bins of the projector coordinate's fractional part (pixelation);
-- ``edge_band``: the RMS within 2 px of the valid region's border against the interior's;
+- ``edge_band``: the RMS within 2 px of the valid region's border against the interior's (the low-order and
+  radial parts are fitted on the interior only);
 - ``random``: what is left: RMS and the correlation of horizontal neighbours (0 for white noise).
 
 Intensity residual (measured - twin frames, DN), per value of the photometric fit: ``per_frame`` mean relative
@@ -78,12 +79,15 @@ def decompose_phase(residual_px: np.ndarray, projector_x: np.ndarray, *, frequen
         maps[name] = image
         stats[f"{name}_rms_px"] = _rms(component)
 
-    # low order and radial fitted jointly (r^2 is in the quadratic; r^4, r^6 are the radial part), then split
+    # the quadratic first; then the radial terms' part orthogonal to it (on a small region r^4 is nearly a
+    # quadratic: a joint fit would split one shape into two large cancelling parts)
     rho2 = x * x + y * y
     quadratic = np.column_stack([np.ones_like(x), x, y, x * x, x * y, y * y])
     radial = np.column_stack([rho2 ** 2, rho2 ** 3])
-    coefficients, *_ = np.linalg.lstsq(np.hstack([quadratic, radial]), r, rcond=None)
-    low_part, radial_part = quadratic @ coefficients[:6], radial @ coefficients[6:]
+    inner = ~_edge_band(mask)[mask]  # smooth components are fitted on the interior (the rim is its own part)
+    low_part = quadratic @ np.linalg.lstsq(quadratic[inner], r[inner], rcond=None)[0]
+    radial = radial - quadratic @ np.linalg.lstsq(quadratic[inner], radial[inner], rcond=None)[0]
+    radial_part = radial @ np.linalg.lstsq(radial[inner], (r - low_part)[inner], rcond=1e-10)[0]
     r = r - low_part - radial_part
     _store("low_order", low_part)
     _store("radial", radial_part)
