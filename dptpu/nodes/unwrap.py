@@ -138,6 +138,9 @@ class UnwrapNode(Node):
             raise ValueError("parameter model refines a two-frequency method (mf, mw or nt), as the network was "
                              "trained; got method heterodyne")
         self.model = load_model(self.model_path)
+        if self.model is not None and self.method not in self.model.trained_methods:
+            raise ValueError(f"parameter model {self.model_path!r} was trained for method(s) "
+                             f"{', '.join(self.model.trained_methods)}; got method {self.method}")
         self.scans_published = 0
         self.scans_rejected = 0
         self.pixels_nan = 0
