@@ -63,10 +63,18 @@ class SimScene:
     depth_m: np.ndarray
 
     def stack(self, frequency: float, steps: int) -> np.ndarray | None:
-        """The (N, H, W) frames of the sequence ``frequency x steps``, or None when the scene has none."""
+        """The (N, H, W) frames of the sequence ``frequency x steps``, or None when the scene has none.
+
+        A sequence of ``M`` steps, ``M`` a multiple of ``N``, holds the ``N``-step one: its frames ``0, M/N,
+        2M/N, ...`` (image ``n`` is ``A + B cos(phi + sign 2 pi n / N)``, Eq. (1), and ``n/N = (n M/N) / M``), so
+        12-step renders also serve 3-, 4- and 6-step sequences.
+        """
         for (f, n), frames in self.frames.items():
             if n == steps and same_frequency(f, frequency):
                 return frames
+        for (f, n), frames in self.frames.items():
+            if n % steps == 0 and same_frequency(f, frequency):
+                return frames[:: n // steps]  # (steps, H, W) read-only view
         return None
 
 

@@ -8,7 +8,7 @@ from dptpu.fpp.phase import wrapped_phase
 from dptpu.messages import AbsolutePhase, CameraInfo, FringeFrame, Header, Image, ScanStatus, Time, Trigger
 from dptpu.nodes.harness import NodeHarness
 from dptpu.nodes.sim import LATCHED_QOS, SimNode, parse_drop_frames
-from dptpu.nodes.sim_source import capture_scenes, load_source
+from dptpu.nodes.sim_source import SimScene, capture_scenes, load_source
 
 SEQUENCE = "16x4,1x4"
 PARAMS = dict(source="raycast", size="64x48", scenes="plane,sphere", sequence=SEQUENCE)
@@ -136,3 +136,26 @@ def test_shipped_renders_are_used_only_when_they_hold_the_asked_size_and_sequenc
     other = load_source("shipped", rig="nominal", size="32x24", scenes="sphere", sequence="16x4,1x4,8x4")
     assert other.kind == "raycast" and [s.name for s in other.scenes] == ["sphere"]
     assert "lack the size 32x24 (they are 64x48) and the sequence(s) 8x4 (they hold 16x4, 1x4)" in other.note
+
+
+def test_a_12_step_capture_serves_its_3_step_sequence_as_every_fourth_frame(tmp_path):
+    """Eq. (1): image n of N steps is A + B cos(phi - 2 pi n / N); frame 4k of 12 steps is frame k of 3 steps."""
+    from dptpu.sim.image_formation import SequenceSpec
+    from dptpu.sim.render import render_capture
+    from dptpu.sim.rig import load_twin_rig
+    from dptpu.sim.scenes import load_scene
+
+    rig = load_twin_rig("nominal", size="64x48")
+    render_capture(rig, load_scene("plane", rig), [SequenceSpec(16, 12), SequenceSpec(16, 3)], tmp_path / "twelve")
+    (scene,), _, _, _ = capture_scenes(tmp_path)
+    three = scene.frames[(16.0, 3)]
+    only_twelve = SimScene(name="only-12", frames={(16.0, 12): scene.frames[(16.0, 12)]},
+                           projector_coord=scene.projector_coord, valid=scene.valid, depth_m=scene.depth_m)
+    served = only_twelve.stack(16.0, 3)
+    assert served.shape == (3, 48, 64)
+    np.testing.assert_array_equal(served, scene.frames[(16.0, 12)][[0, 4, 8]])
+    # the same phase as a 3-step render of the scene (both noiseless 8-bit: within quantization)
+    lit = scene.valid
+    difference = np.angle(np.exp(1j * (wrapped_phase(served).phase - wrapped_phase(three).phase)))[lit]
+    assert np.abs(difference).max() < 0.02
+    assert scene.stack(16.0, 5) is None  # 12 is not a multiple of 5
