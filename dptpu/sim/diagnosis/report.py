@@ -28,7 +28,11 @@ from .forward import fit_gain
 from .rerender import decode, render_twin, sphere_rms_um
 from .residuals import decompose_intensity, decompose_phase
 
-__all__ = ["write_report", "json_ready"]
+__all__ = ["write_report", "json_ready", "RERENDER_SEED"]
+
+#: Seed of the re-render's random effects: never the data's own realization, so a re-rendered noise is a new
+#: draw (its residual RMS then grows by ~sqrt(2) x the noise; the noise entry's variance match is its gain).
+RERENDER_SEED = 20261123
 
 
 def json_ready(value):
@@ -86,12 +90,15 @@ def _rerender(diagnosis, extended_effects) -> dict:
     mask = diagnosis.pixel_mask if diagnosis.pixel_mask is not None else (geometry.mask & np.isfinite(geometry.model_x))
     axis = measured.fringe_axis
     if measured.has_frames:
-        kwargs = dict(bit_depth=measured.bit_depth, pattern=measured.pattern)
+        kwargs = dict(bit_depth=measured.bit_depth, pattern=measured.pattern, seed=RERENDER_SEED)
         twin = render_twin(rig, reference, geometry.pose, diagnosis.material, measured.sequences, **kwargs)
         extended = render_twin(extended_rig, reference, extended_pose, diagnosis.material, measured.sequences,
                                effects=[e for e in effects if e.stage != "geometry"], **kwargs)
         out["intensity_rms_dn"] = {"twin": _intensity_rms(measured.frames, twin, mask),
                                    "extended_twin": _intensity_rms(measured.frames, extended, mask)}
+        # how far measurement and extended twin each depart from the ideal twin (for noise: equal levels)
+        out["departure_from_twin_dn"] = {"measured": out["intensity_rms_dn"]["twin"],
+                                         "extended_twin": _intensity_rms(extended, twin, mask)}
         x_twin = decode(twin, measured.sequences, bit_depth=measured.bit_depth) * measured.extent / (
             2 * np.pi * measured.frequency)
         x_extended = decode(extended, measured.sequences, bit_depth=measured.bit_depth) * measured.extent / (
@@ -102,7 +109,7 @@ def _rerender(diagnosis, extended_effects) -> dict:
         sequences = [SequenceSpec(measured.frequency, 12), SequenceSpec(1.0, 12)]
         twin = render_twin(rig, reference, geometry.pose, diagnosis.material, sequences)
         extended = render_twin(extended_rig, reference, extended_pose, diagnosis.material, sequences,
-                               effects=[e for e in effects if e.stage != "geometry"])
+                               effects=[e for e in effects if e.stage != "geometry"], seed=RERENDER_SEED)
         to_x = measured.extent / (2 * np.pi * measured.frequency)
         x_twin, x_extended = decode(twin, sequences) * to_x, decode(extended, sequences) * to_x
         out["rendered_sequences"] = [s.label for s in sequences]
