@@ -322,20 +322,26 @@ class Executor:
         poller = lease.begin_poll()
         if poller is None:
             return False
+        received = 0
         try:
             started = time.monotonic()
-            ready = self._wake.wait(generation, wait, poller)
+            try:
+                ready = self._wake.wait(generation, wait, poller)
+            except zmq.ZMQError:
+                if self._context.ok() and not lease.closed:
+                    raise
+                ready = None  # the context shut down under us (a signal handler in this thread)
             if ready is not None:
                 now = time.monotonic()
                 if not ready:
                     self._last_poll = now  # nothing was waiting
                 elif wait <= 0 or now - started < _NO_WAIT_S or now - self._last_poll > _PUMP_INTERVAL_S:
-                    lease.drain(ready)
+                    received = lease.drain(ready)
                     self._last_poll = now
                 else:
-                    lease.drain(ready, 1)
+                    received = lease.drain(ready, 1)
         finally:
-            lease.end_poll()
+            lease.end_poll(received > 0)
         return True
 
     def _wait_for_work(self, timeout_sec):

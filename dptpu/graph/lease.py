@@ -27,9 +27,9 @@ Every change of state happens under the lease's mutex:
   the executor shut down): :meth:`SocketLease.invalidate` stops a polling executor first.
 
 The I/O thread does not watch a lease that is idle in ``POLLING``: the executor wakes it (one pipe
-write) when it goes ``BUSY`` while the I/O thread sleeps for longer than :data:`TAKEOVER_S`. While
-messages flow, the I/O thread therefore wakes every :data:`TAKEOVER_S` to watch for a long callback,
-and not at all otherwise.
+write) when a poll received messages and the I/O thread sleeps for longer than :data:`TAKEOVER_S`.
+While messages flow (and for :data:`WATCH_AFTER_TRAFFIC_S` after), the I/O thread therefore wakes every
+:data:`TAKEOVER_S` to watch for a long callback, and not at all otherwise.
 """
 
 from __future__ import annotations
@@ -109,6 +109,7 @@ class SocketLease:
         self.revoke = False            # the I/O thread wants them back (the set must change)
         self.closed = False            # the executor is shut down: never lend again
         self.busy_since = 0.0          # monotonic time of the last BUSY transition
+        self.traffic_at = -1e9         # monotonic time of the last poll that received a message
         self.poll_thread = None        # ident of the thread in POLLING
 
     @property
@@ -158,14 +159,17 @@ class SocketLease:
         subscriptions = self.subscriptions
         return all(sub._socket is None or sub._socket in subscriptions for sub in list(node._subscriptions))
 
-    def end_poll(self) -> None:
-        """``POLLING -> BUSY``; wakes the I/O thread when it would not look at this lease in time."""
+    def end_poll(self, received: bool) -> None:
+        """``POLLING -> BUSY``. When the poll ``received`` messages (callbacks follow) and the I/O thread
+        sleeps for longer than TAKEOVER_S, wake it so it watches for a long callback."""
         now = time.monotonic()
         with self.mutex:
             self.state = BUSY
             self.poll_thread = None
             self.busy_since = now
-        if self.runtime.sleeping_until > now + TAKEOVER_S:
+            if received:
+                self.traffic_at = now
+        if received and self.runtime.sleeping_until > now + TAKEOVER_S:
             self.runtime.wake()
 
     def invalidate(self) -> None:
@@ -223,12 +227,13 @@ class SocketLease:
         """When the I/O thread must look at this lease again (None: only when woken)."""
         with self.mutex:
             state, busy_since, revoke = self.state, self.busy_since, self.revoke or self.closed
+            traffic_at = self.traffic_at
         if state == BUSY:
             return now if revoke else busy_since + TAKEOVER_S
         if state == POLLING:
             if revoke:
                 return now + 0.001
-            if now - busy_since < WATCH_AFTER_TRAFFIC_S:
+            if now - traffic_at < WATCH_AFTER_TRAFFIC_S:
                 return now + TAKEOVER_S
         return None
 

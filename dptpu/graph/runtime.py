@@ -259,7 +259,9 @@ class GraphRuntime:
         while self._running:
             self.sleeping_until = float("inf")  # an executor going BUSY from now on wakes this thread
             now = time.monotonic()
-            wake_at = min(next_scan, next_events, next_stats)
+            wake_at = min(next_scan, next_stats)
+            if any(publisher._history is not None for publisher in list(self._publishers)):
+                wake_at = min(wake_at, next_events)  # TRANSIENT_LOCAL replays
             if self._pending_clients or self._rematch or self._dirty or self._deferred:
                 wake_at = min(wake_at, now + _RETRY_S)
             for lease in list(self._leases):
