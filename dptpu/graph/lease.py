@@ -23,8 +23,11 @@ Every change of state happens under the lease's mutex:
 - ``BUSY -> IO``: the I/O thread, when the executor has not polled for :data:`TAKEOVER_S` (a long
   callback, or nobody spins): the sockets are drained at once again, so a slow callback still makes its
   subscription's queue drop the *oldest* messages instead of letting ZeroMQ's pipe fill up and drop
-  the newest. Also when the set of lent sockets must change (a node or subscription added or removed,
-  the executor shut down): :meth:`SocketLease.invalidate` stops a polling executor first.
+  the newest. Also when a lent socket must be connected, disconnected or closed, or the set of lent
+  sockets must change (a node or subscription added, a node moved to another executor, the executor
+  shut down): :meth:`SocketLease.invalidate` stops a polling executor first. A node merely removed
+  from the executor stays in the lease until one of these happens; what the executor receives for it
+  meanwhile wakes the node's new executor, if any.
 
 The I/O thread does not watch a lease that is idle in ``POLLING``: the executor wakes it (one pipe
 write) when a poll received messages and the I/O thread sleeps for longer than :data:`TAKEOVER_S`.
@@ -46,7 +49,7 @@ IO, BUSY, POLLING = "io", "busy", "polling"
 
 #: Seconds an executor may hold its lent sockets without polling them before the I/O thread takes them back.
 TAKEOVER_S = 0.01
-#: Seconds after the last callback during which the I/O thread keeps watching a lease every TAKEOVER_S.
+#: Seconds after the last poll that received messages during which the I/O thread watches the lease every TAKEOVER_S.
 WATCH_AFTER_TRAFFIC_S = 1.0
 #: Messages received from one socket in one go before the other sockets get their turn.
 DRAIN_BATCH = 1000
