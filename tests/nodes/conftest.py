@@ -70,6 +70,18 @@ class Inbox:
     def __init__(self):
         self.messages: list = []
         self._cond = threading.Condition()
+        self.subscription = None  # set by Probe.subscribe
+
+    def wait_for_publishers(self, count: int = 1, timeout: float = 10.0) -> None:
+        """Block until the subscription is connected to ``count`` publishers (a message published before that
+        is lost, as in ROS 2 with a volatile subscription); AssertionError after ``timeout``."""
+        deadline = time.monotonic() + timeout
+        while self.subscription.get_publisher_count() < count:
+            if time.monotonic() > deadline:
+                connected = self.subscription.get_publisher_count()
+                raise AssertionError(f"{self.subscription.topic_name}: connected to {connected} of {count} "
+                                     f"publisher(s) after {timeout} s")
+            time.sleep(0.01)
 
     def __call__(self, msg) -> None:
         with self._cond:
@@ -120,7 +132,7 @@ class Probe:
 
     def subscribe(self, msg_type, topic: str, qos=100) -> Inbox:
         inbox = Inbox()
-        self.node.create_subscription(msg_type, topic, inbox, qos)
+        inbox.subscription = self.node.create_subscription(msg_type, topic, inbox, qos)
         return inbox
 
     def publisher(self, msg_type, topic: str, qos=100):

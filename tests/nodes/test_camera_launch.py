@@ -7,6 +7,7 @@ The projector runs on ``loop://`` (its trigger-box emulator) and the camera on `
 from __future__ import annotations
 
 import textwrap
+import time
 
 import numpy as np
 
@@ -45,6 +46,13 @@ def test_launch_file_runs_projector_and_camera_and_frames_carry_their_triggers(p
         launch.wait_for(r"camera Machine Vision Games Ltd\. Viky serial 0: 160x120 Mono8", timeout_s=20)
         client = probe.client(TriggerService, "/projector/start_scan")
         assert client.wait_for_service(timeout_sec=10)
+        frames.wait_for_publishers(1)  # the camera's frames reach the probe before the first scan
+        # the camera's Trigger subscription is announced; the runtime connects a late subscriber within 1 s
+        # (docs/graph.md), and a Trigger published before that is lost, so give the link that second
+        deadline = time.monotonic() + 10
+        while probe.node.count_subscribers("/projector/trigger") < 1 and time.monotonic() < deadline:
+            time.sleep(0.05)
+        time.sleep(1.0)
         for sequence_id in (1, 2):
             assert client.call(TriggerService.Request(), timeout_sec=5).message == f"scan {sequence_id} queued"
             status.wait_for(lambda s, i=sequence_id: s.sequence_id == i and s.state == "done", timeout=10)

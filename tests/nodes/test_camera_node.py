@@ -55,6 +55,7 @@ def test_viky_free_running_pairs_each_trigger_with_a_real_frame_and_publishes_ca
     assert node.wait_for_stderr("camera Machine Vision Games Ltd. Viky serial 1: 160x120 Mono8, trigger mode "
                                 "free-running", timeout=20)
     assert trigger_pub.wait_for_subscriptions(1, timeout_sec=10)
+    frames.wait_for_publishers(1)  # the camera's frames reach the probe before the first Trigger
     sent = triggers(3, 6)
     publish_spaced(trigger_pub, sent)
     received = frames.wait(6, timeout=10)
@@ -83,6 +84,7 @@ def test_tlsimu_software_trigger_one_frame_per_trigger(spawn_node, probe):
     assert node.wait_for_stderr("camera EMVA_D TLSimuMono serial SN_InterfaceA_0: 160x120 Mono8, trigger mode "
                                 "software", timeout=20)
     assert trigger_pub.wait_for_subscriptions(1, timeout_sec=10)
+    frames.wait_for_publishers(1)  # the camera's frames reach the probe before the first Trigger
     sent = triggers(9, 5)
     publish_spaced(trigger_pub, sent, gap_s=0.01)
     received = frames.wait(5, timeout=10)

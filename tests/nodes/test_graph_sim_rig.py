@@ -17,7 +17,8 @@ from tests.launch_files.running import REPO_ROOT, SIM_RIG, TWIN_RIG_ARG, LaunchR
 
 ORDER_ACCURACY_BOUND = 0.995
 DEPTH_RMS_BOUND_MM = 1.5
-SMALL = ("source:=raycast", TWIN_RIG_ARG, "size:=160x120", "sequence:=16x12,1x12", "method:=mf")  # not the shipped renders
+# the live raycast twin on the round-number rig, not the shipped renders
+SMALL = ("source:=raycast", TWIN_RIG_ARG, "size:=160x120", "sequence:=16x12,1x12", "method:=mf")
 
 
 def _check_scan(record: dict) -> None:
@@ -80,8 +81,8 @@ def test_dptpu_scans_through_the_whole_graph_meet_the_bounds(node_env, tmp_path)
     if shipped_model_path() is None:
         pytest.skip("no shipped DP-TPU model (dptpu/models/dptpu.onnx) yet")
     summary = tmp_path / "summary.json"
-    run = LaunchRun(SIM_RIG, "scans:=4", "source:=raycast", TWIN_RIG_ARG, "size:=160x120", "sequence:=64x12,1x12", "method:=mf",
-                    "model:=shipped", f"summary:={summary}", "ply_dir:=", env=node_env, cwd=tmp_path)
+    run = LaunchRun(SIM_RIG, "scans:=4", "source:=raycast", TWIN_RIG_ARG, "size:=160x120", "sequence:=64x12,1x12",
+                    "method:=mf", "model:=shipped", f"summary:={summary}", "ply_dir:=", env=node_env, cwd=tmp_path)
     try:
         assert run.wait(timeout=200) == 0, run.text()
     finally:
