@@ -106,11 +106,11 @@ class NodeProcess:
             pass
 
 
-@pytest.fixture
-def graph_env(monkeypatch):
-    """Environment of a private domain: ``{"DPTPU_DISCOVERY_DIR": ..., "DPTPU_DOMAIN_ID": ...}``."""
-    folder = tempfile.mkdtemp(prefix="dg", dir="/tmp")
-    values = {"DPTPU_DISCOVERY_DIR": folder, "DPTPU_DOMAIN_ID": str(TEST_DOMAIN_ID)}
+def private_domain_env(monkeypatch, prefix: str, domain_id: int):
+    """Generator for fixtures: a fresh discovery folder and ``domain_id``, set for child processes and this process
+    alike, with every other graph variable unset; yields the values and removes the folder afterwards."""
+    folder = tempfile.mkdtemp(prefix=prefix, dir="/tmp")
+    values = {"DPTPU_DISCOVERY_DIR": folder, "DPTPU_DOMAIN_ID": str(domain_id)}
     for name in ("ROS_DOMAIN_ID", "DPTPU_TRANSPORT", "DPTPU_TCP_INTERFACE", "DPTPU_CURVE_SECRET_KEY",
                  "DPTPU_CURVE_AUTHORIZED_KEYS", "DPTPU_PEERS", "DPTPU_DISCOVERY_PORT"):
         monkeypatch.delenv(name, raising=False)
@@ -118,6 +118,12 @@ def graph_env(monkeypatch):
         monkeypatch.setenv(name, value)
     yield values
     shutil.rmtree(folder, ignore_errors=True)
+
+
+@pytest.fixture
+def graph_env(monkeypatch):
+    """Environment of a private domain: ``{"DPTPU_DISCOVERY_DIR": ..., "DPTPU_DOMAIN_ID": ...}``."""
+    yield from private_domain_env(monkeypatch, "dg", TEST_DOMAIN_ID)
 
 
 @pytest.fixture

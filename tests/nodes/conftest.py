@@ -10,15 +10,13 @@ messages that arrived over real ZeroMQ sockets from the node processes.
 from __future__ import annotations
 
 import os
-import shutil
-import tempfile
 import threading
 import time
 from pathlib import Path
 
 import pytest
 
-from tests.graph.conftest import NodeProcess
+from tests.graph.conftest import NodeProcess, private_domain_env
 
 REPO_ROOT = Path(__file__).resolve().parents[2]
 TEST_DOMAIN_ID = 23
@@ -27,15 +25,7 @@ TEST_DOMAIN_ID = 23
 @pytest.fixture
 def node_env(monkeypatch):
     """Environment of a private domain, set for child processes and this process alike."""
-    folder = tempfile.mkdtemp(prefix="dn", dir="/tmp")
-    values = {"DPTPU_DISCOVERY_DIR": folder, "DPTPU_DOMAIN_ID": str(TEST_DOMAIN_ID)}
-    for name in ("ROS_DOMAIN_ID", "DPTPU_TRANSPORT", "DPTPU_TCP_INTERFACE", "DPTPU_CURVE_SECRET_KEY",
-                 "DPTPU_CURVE_AUTHORIZED_KEYS", "DPTPU_PEERS", "DPTPU_DISCOVERY_PORT"):
-        monkeypatch.delenv(name, raising=False)
-    for name, value in values.items():
-        monkeypatch.setenv(name, value)
-    yield values
-    shutil.rmtree(folder, ignore_errors=True)
+    yield from private_domain_env(monkeypatch, "dn", TEST_DOMAIN_ID)
 
 
 @pytest.fixture
