@@ -705,15 +705,24 @@ def _child_main(options) -> int:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--json", action="store_true")
-    parser.add_argument("--size", choices=tuple(SIZES), default="full")
-    parser.add_argument("--messages", type=int, default=None)
-    parser.add_argument("--rounds", type=int, default=None)
-    parser.add_argument("--round-trips", type=int, default=None)
-    parser.add_argument("--window", type=int, default=None)
-    parser.add_argument("--repeat", type=int, default=None, help="run raw and ours alternately this many times")
-    parser.add_argument("--no-pin", action="store_true")
+    """The options of ``dptpu bench transport`` / ``python benchmarks/transport_bench.py`` (and of its children)."""
+    parser = argparse.ArgumentParser(
+        prog="dptpu bench transport", description=__doc__.split("\n\n")[0],
+        epilog="Two processes over ipc, ours (dptpu.graph publisher -> subscription) and raw pyzmq side by side; "
+               "ratios are ours / raw (see docs/benchmarks.md).")
+    parser.add_argument("--json", action="store_true", help="print the report as one JSON object")
+    parser.add_argument("--size", choices=tuple(SIZES), default="full",
+                        help="full: 24x480x640 (default); small: 2x48x64 and few messages (for tests)")
+    parser.add_argument("--messages", type=int, default=None, help="timed messages per round (default 100)")
+    parser.add_argument("--rounds", type=int, default=None, help="rounds of each measurement (default 3)")
+    parser.add_argument("--round-trips", type=int, default=None, help="timed round trips per round (default 2000)")
+    parser.add_argument("--window", type=int, default=None, help=f"messages in flight (default {DEFAULT_WINDOW})")
+    parser.add_argument("--repeat", type=int, default=None,
+                        help="run raw and ours alternately this many times, fresh processes each time; the report "
+                             "pools them and lists each repeat's ratios (default 1)")
+    parser.add_argument("--no-pin", action="store_true",
+                        help="let the OS place the processes (default: senders on the first half of the CPUs, "
+                             "receivers on the second half)")
     parser.add_argument("--pin", action="store_true", help=argparse.SUPPRESS)  # a child's own pinning
     parser.add_argument("--role", choices=tuple(ROLES), default=None, help=argparse.SUPPRESS)
     for name in ("--shape", "--ack", "--data"):
@@ -723,6 +732,20 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def main(argv=None) -> int:
+    """Entry of ``dptpu bench transport ARGS`` and of ``python benchmarks/transport_bench.py ARGS``.
+
+    Returns 0 when every message arrived intact, 1 when not, 2 for a bad option (message on stderr).
+    """
+    parsed = build_parser().parse_args(argv)
+    if parsed.role:
+        return _child_main(parsed)
+    try:
+        return run(parsed)
+    except ValueError as exc:
+        print(f"dptpu bench transport: error: {exc}", file=sys.stderr)
+        return 2
+
+
 if __name__ == "__main__":
-    parsed = build_parser().parse_args()
-    sys.exit(_child_main(parsed) if parsed.role else run(parsed))
+    sys.exit(main())
