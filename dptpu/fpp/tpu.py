@@ -9,8 +9,9 @@ pixel from one or more lower-frequency wrapped phases:
 - ``unwrap_mw``: multi-wavelength (MW), Eqs. (6)-(7); needs ``0 < f_h - f_l <= 1``.
 - ``unwrap_heterodyne``: Eqs. (6)-(7) as a beat tree over 2 or more frequencies; needs the final
   beat in ``(0, 1]``.
-- ``unwrap_nt``: number-theoretic (NT), Eqs. (8)-(9); needs ``LCM(p_h, p_l) >= extent``
-  (:func:`nt_period_pair`).
+- ``unwrap_nt``: number-theoretic (NT), Eqs. (8)-(9): the measured key is matched to the nearest key
+  of the fringe-order pairs that occur across the projector (:func:`nt_lookup_table`); needs
+  ``LCM(lambda_h, lambda_l) >= extent``.
 - ``unwrap``: the two-frequency methods by name (``"mf"``, ``"mw"``, ``"nt"``).
 
 Convention: wrapped phases lie in ``[0, 2*pi)`` and the absolute phase of projector coordinate
@@ -20,7 +21,8 @@ A phase in ``(-pi, pi]`` (raw ``arctan2``) must be mapped with ``np.mod(psi, 2*p
 
 Every method returns an :class:`Unwrapped`; its ``reliability`` is ``1 - 2*|q - Round(q)|`` of the
 real quantity ``q`` that the method rounds (1 = ``q`` is exactly an integer, 0 = exactly half way
-between two integers), a per-pixel margin against phase noise.
+between two integers), a per-pixel margin against phase noise (NT: the key's distance to its decision
+boundary over the table's tolerance, see :func:`unwrap_nt`).
 
 References
 ----------
@@ -57,6 +59,9 @@ _WRAP_TOLERANCE_RAD = 1e-6
 # denominator is at most _MAX_DENOMINATOR.
 _MAX_DENOMINATOR = 1000
 _RATIONAL_RELATIVE_TOLERANCE = 1e-9
+# nt_lookup_table: projector segments shorter than this fraction of the extent are coincident breakpoints,
+# and keys closer than it are equal (an ambiguous pair).
+_NT_SEGMENT_EPS = 1e-9
 
 
 @dataclass(frozen=True, eq=False)
@@ -75,12 +80,14 @@ class Unwrapped:
         mask, if any) and, for NT, its lookup key was in the table.
     reliability : ndarray of float64, shape (H, W)
         ``1 - 2*|q - Round(q)|`` in ``[0, 1]`` of the quantity ``q`` that was rounded to an integer
-        (MF/MW: the fringe order of Eqs. (5)/(7); NT: the key ``m`` of Eq. (9); heterodyne: the
-        minimum over the levels of the beat tree). 1 means ``q`` was exactly an integer, 0 exactly
-        half way between two. 0 at invalid pixels.
+        (MF/MW: the fringe order of Eqs. (5)/(7); heterodyne: the minimum over the levels of the
+        beat tree). 1 means ``q`` was exactly an integer, 0 exactly half way between two. NT: the
+        key's distance to the nearest decision boundary of its table entry over the table's
+        ``tolerance_px``, clipped to ``[0, 1]`` (0 = on a boundary). 0 at invalid pixels.
     n_rejected : int
-        Pixels that were valid on input but that the method rejected (NT: rounded key ``m`` not in
-        the lookup table); 0 for the other methods.
+        Pixels that were valid on input but that the method rejected (NT: key outside every table
+        entry's decision cell, beyond the smallest or largest key by more than half the outer gap);
+        0 for the other methods.
 
     Notes
     -----
@@ -97,41 +104,76 @@ class Unwrapped:
 
 @dataclass(frozen=True, eq=False)
 class NTLookupTable:
-    """Lookup table of Eq. (9): key ``m = p_h*k_h - p_l*k_l`` to the fringe-order pair ``(k_h, k_l)``.
+    """Lookup table of Eq. (9): the key of every fringe-order pair that occurs across the projector.
+
+    A projector coordinate ``x_p`` in ``[0, W)`` has orders ``k_h = floor(x_p/lambda_h)`` and
+    ``k_l = floor(x_p/lambda_l)``; its key is ``lambda_h*k_h - lambda_l*k_l`` projector pixels, the
+    value that the measured key ``(lambda_l*psi_l - lambda_h*psi_h)/(2*pi)`` takes without noise.
 
     Attributes
     ----------
-    p_h, p_l : int
-        Coprime integer periods, ``lambda_h : lambda_l = p_h : p_l`` (see :func:`nt_period_pair`).
-    m_min : int
-        Smallest reachable key; entry ``i`` of the arrays belongs to ``m = m_min + i``.
+    key_px : ndarray of float64, shape (M,)
+        Keys of the occurring pairs in projector pixels, sorted ascending, distinct.
     k_h, k_l : ndarray of int32, shape (M,)
-        Fringe orders for key ``m_min + i``; -1 where that key is unreachable for
-        ``0 <= x_p < extent``. ``M = m_max - m_min + 1``.
+        Fringe orders of the pair with key ``key_px[i]``.
+    lambda_h_px, lambda_l_px : float
+        Periods ``W/f_h`` and ``W/f_l`` in projector pixels.
+    tolerance_px : float
+        Half the smallest gap between neighbouring keys, pixels: a key error below it never changes
+        the matched pair (see :attr:`tolerance_rad`).
     """
 
-    p_h: int
-    p_l: int
-    m_min: int
+    key_px: np.ndarray
     k_h: np.ndarray
     k_l: np.ndarray
+    lambda_h_px: float
+    lambda_l_px: float
+    tolerance_px: float
 
-    def lookup(self, m):
-        """Fringe-order pairs of integer keys ``m`` (any shape), vectorized.
+    @property
+    def tolerance_rad(self) -> float:
+        """Largest phase error (radians) on both ``psi_h`` and ``psi_l`` that never changes the pair.
+
+        A phase error ``d_h``, ``d_l`` moves the key by ``(lambda_l*d_l - lambda_h*d_h)/(2*pi)``
+        pixels; with ``|d_h|, |d_l| < d`` that is below ``tolerance_px`` while
+        ``d < 2*pi*tolerance_px / (lambda_h + lambda_l)``.
+        """
+        return TWO_PI * self.tolerance_px / (self.lambda_h_px + self.lambda_l_px)
+
+    def match(self, key_px):
+        """Nearest table entry of measured keys (any shape), vectorized.
+
+        Parameters
+        ----------
+        key_px : ndarray of float, any shape
+            Measured keys in projector pixels.
 
         Returns
         -------
-        k_h, k_l : ndarray of int32, same shape as ``m``
-            Orders; -1 where the key is unreachable.
-        found : ndarray of bool, same shape as ``m``
-            True where the key is in the table.
+        index : ndarray of int64, same shape
+            Index of the nearest entry of :attr:`key_px`.
+        margin_px : ndarray of float64, same shape
+            Signed distance (pixels) from the key to the nearest decision boundary of its entry
+            (the midpoints to the neighbouring keys; beyond the first and last key the boundary lies
+            half the adjacent gap outside). Negative outside every entry's cell.
         """
-        index = np.asarray(m, dtype=np.int64) - self.m_min
-        inside = (index >= 0) & (index < self.k_h.size)
-        index = np.clip(index, 0, self.k_h.size - 1)
-        k_h = np.where(inside, self.k_h[index], -1).astype(np.int32)
-        k_l = np.where(inside, self.k_l[index], -1).astype(np.int32)
-        return k_h, k_l, k_h >= 0
+        key_px = np.asarray(key_px, dtype=np.float64)
+        keys = self.key_px
+        upper = np.clip(np.searchsorted(keys, key_px), 1, keys.size - 1)  # keys[upper-1] <= key < keys[upper]
+        lower = upper - 1
+        index = np.where(key_px - keys[lower] <= keys[upper] - key_px, lower, upper)
+        low_edge, high_edge = self._cell_edges
+        margin_px = np.minimum(key_px - low_edge[index], high_edge[index] - key_px)
+        return index, margin_px
+
+    @property
+    def _cell_edges(self):
+        """(M,) lower and upper decision boundaries of each entry, pixels."""
+        keys = self.key_px
+        mid = 0.5 * (keys[:-1] + keys[1:])
+        low = np.concatenate([[keys[0] - 0.5 * (keys[1] - keys[0])], mid])
+        high = np.concatenate([mid, [keys[-1] + 0.5 * (keys[-1] - keys[-2])]])
+        return low, high
 
 
 # --------------------------------------------------------------------------------------------
@@ -363,46 +405,63 @@ def nt_period_pair(f_h, f_l, extent) -> tuple[int, int]:
 
 
 def nt_lookup_table(f_h, f_l, extent) -> NTLookupTable:
-    """Lookup table of Eq. (9): every reachable key ``m = p_h*k_h - p_l*k_l`` to ``(k_h, k_l)``.
+    """Lookup table of Eq. (9) over the fringe-order pairs that occur across the projector.
 
     Parameters
     ----------
     f_h, f_l : float
-        Frequencies in periods across the projector extent (see :func:`nt_period_pair`).
+        Frequencies in periods across the projector extent, > 0, distinct (e.g. 64 and 10.9).
     extent : float
         Projector extent ``W`` along the fringe axis in projector pixels, > 0.
 
     Returns
     -------
     NTLookupTable
-        Arrays indexed by ``m - m_min``; -1 for keys that no projector coordinate
-        ``0 <= x_p < extent`` produces.
+        Sorted keys ``lambda_h*k_h - lambda_l*k_l`` (pixels) of every pair ``(k_h, k_l)`` of some
+        ``x_p`` in ``[0, W)``, with the pairs and the noise tolerance.
+
+    Raises
+    ------
+    ValueError
+        If a frequency or the extent is not > 0 and finite, the frequencies are equal, or two
+        different pairs share a key (the pair is ambiguous: ``LCM(lambda_h, lambda_l) < W``, the
+        condition after Eq. (8) of the paper).
 
     Notes
     -----
-    In units of ``u = lambda_h/p_h`` a coordinate ``t`` in ``[0, f_h*p_h)`` has orders
-    ``k_h = floor(t/p_h)`` and ``k_l = floor(t/p_l)``; the pair only changes at multiples of
-    ``p_h`` or ``p_l``, so those breakpoints list every reachable pair. Since
-    ``m = (t - p_l*k_l) - (t - p_h*k_h)``, keys lie in ``(-p_h, p_l)``: the table has fewer than
-    ``p_h + p_l`` entries.
+    The pair only changes where ``x_p`` crosses a multiple of ``lambda_h`` or ``lambda_l``, so the
+    pairs at the midpoints of the segments between those breakpoints are all the pairs (fewer than
+    ``ceil(f_h) + ceil(f_l)``). Example 64 / 10.9 over 912 px: 74 pairs, keys in
+    ``(-lambda_h, lambda_l) = (-14.25, 83.67)`` px, smallest gap 0.392 px, so ``tolerance_px`` =
+    0.196 px and ``tolerance_rad`` = 0.0126 rad; most gaps are 1.44 px or 1.83 px.
     """
-    p_h, p_l = nt_period_pair(f_h, f_l, extent)
-    _, _, extent_units = _nt_periods(float(f_h), float(f_l))
-    n_h = math.ceil(extent_units / p_h)  # = ceil(f_h) periods of the high frequency
-    n_l = math.ceil(extent_units / p_l)
-    breakpoints = np.union1d(p_h * np.arange(n_h, dtype=np.int64), p_l * np.arange(n_l, dtype=np.int64))
-    k_h = breakpoints // p_h
-    k_l = breakpoints // p_l
-    m = p_h * k_h - p_l * k_l
-    if np.unique(m).size != m.size:  # guarded by nt_period_pair's LCM check
-        raise ValueError(f"ambiguous NT pair: keys m repeat for p_h = {p_h}, p_l = {p_l}")
-    m_min = int(m.min())
-    size = int(m.max()) - m_min + 1
-    table_h = np.full(size, -1, dtype=np.int32)
-    table_l = np.full(size, -1, dtype=np.int32)
-    table_h[m - m_min] = k_h
-    table_l[m - m_min] = k_l
-    return NTLookupTable(p_h=p_h, p_l=p_l, m_min=m_min, k_h=table_h, k_l=table_l)
+    f_h = _check_frequency("f_h", f_h)
+    f_l = _check_frequency("f_l", f_l)
+    extent = _check_extent(extent)
+    if f_h == f_l:
+        raise ValueError(f"NT needs two different frequencies; got f_h = f_l = {f_h:g}")
+    lambda_h, lambda_l = extent / f_h, extent / f_l
+    breaks = np.union1d(lambda_h * np.arange(math.ceil(f_h)), lambda_l * np.arange(math.ceil(f_l)))
+    breaks = breaks[breaks < extent]
+    edges = np.append(breaks, extent)  # (S + 1,) segment ends, px
+    length = np.diff(edges)
+    mid = 0.5 * (edges[:-1] + edges[1:])[length > _NT_SEGMENT_EPS * extent]  # drop coincident breakpoints
+    k_h = np.floor(mid / lambda_h).astype(np.int64)
+    k_l = np.floor(mid / lambda_l).astype(np.int64)
+    key = lambda_h * k_h - lambda_l * k_l  # (S,) px
+    order = np.argsort(key, kind="stable")
+    key, k_h, k_l = key[order], k_h[order], k_l[order]
+    gaps = np.diff(key)
+    if key.size < 2 or gaps.min() <= _NT_SEGMENT_EPS * extent:
+        i = int(np.argmin(gaps)) if key.size >= 2 else 0
+        raise ValueError(
+            f"ambiguous NT pair: f_h = {f_h:g}, f_l = {f_l:g} over extent {extent:g} px give the same key "
+            f"{key[i]:.6g} px to the fringe-order pairs ({k_h[i]}, {k_l[i]}) and ({k_h[min(i + 1, key.size - 1)]}, "
+            f"{k_l[min(i + 1, key.size - 1)]}), so they repeat within the projector (Eq. (8) needs "
+            "LCM(lambda_h, lambda_l) >= W)"
+        )
+    return NTLookupTable(key_px=key, k_h=k_h.astype(np.int32), k_l=k_l.astype(np.int32),
+                         lambda_h_px=lambda_h, lambda_l_px=lambda_l, tolerance_px=0.5 * float(gaps.min()))
 
 
 def unwrap_nt(psi_h, psi_l, f_h, f_l, extent, *, valid=None) -> Unwrapped:
@@ -413,8 +472,8 @@ def unwrap_nt(psi_h, psi_l, f_h, f_l, extent, *, valid=None) -> Unwrapped:
     psi_h, psi_l : ndarray, shape (H, W)
         Wrapped phases of the two frequencies in radians, ``[0, 2*pi)``; NaN marks an invalid pixel.
     f_h, f_l : float
-        Frequencies in periods across the projector extent, > 0, rational (e.g. 64 and 10.9),
-        forming an unambiguous pair (:func:`nt_period_pair`).
+        Frequencies in periods across the projector extent, > 0, distinct, forming an unambiguous
+        pair (e.g. 64 and 10.9; see :func:`nt_lookup_table`).
     extent : float
         Projector extent ``W`` along the fringe axis in projector pixels, > 0.
     valid : ndarray of bool, shape (H, W), optional
@@ -423,32 +482,40 @@ def unwrap_nt(psi_h, psi_l, f_h, f_l, extent, *, valid=None) -> Unwrapped:
     Returns
     -------
     Unwrapped
-        Fringe order and absolute phase of ``f_h``. A pixel whose rounded key is not in the lookup
-        table is invalid (not an exception) and counted in ``n_rejected``.
+        Fringe order and absolute phase of ``f_h``. ``reliability`` is the distance of the key to
+        its entry's nearest decision boundary over ``tolerance_px``, clipped to ``[0, 1]``. A pixel
+        whose key lies outside every entry's decision cell (more than half the outer gap beyond the
+        smallest or largest key) is invalid (not an exception) and counted in ``n_rejected``.
 
     Notes
     -----
-    ``m = Round[(p_l*psi_l - p_h*psi_h) / (2*pi)] = p_h*k_h - p_l*k_l`` (Eq. (8) with the coprime
-    periods ``p_h : p_l = lambda_h : lambda_l``), then ``(k_h, k_l) = LUT[m]`` (Eq. (9)). A phase
-    error moves the key by ``(p_l*d_l - p_h*d_h)/(2*pi)``, so NT tolerates noise only up to about
-    ``pi / sqrt(p_h**2 + p_l**2)`` (for 64 / 10.9: ``p = 109, 640``, a few milliradians).
+    The measured key ``K = (lambda_l*psi_l - lambda_h*psi_h)/(2*pi)`` (pixels; Eq. (8) with
+    ``lambda = W/f``) equals ``lambda_h*k_h - lambda_l*k_l`` without noise; the pair is the
+    table entry nearest to ``K`` (Eq. (9), ``np.searchsorted`` on the sorted keys). A phase error
+    ``d_h``, ``d_l`` moves ``K`` by ``(lambda_l*d_l - lambda_h*d_h)/(2*pi)`` pixels, so every pixel
+    is right while that stays below ``tolerance_px`` = half the smallest gap between table keys,
+    i.e. for ``|d_h|, |d_l| < tolerance_rad = 2*pi*tolerance_px/(lambda_h + lambda_l)``
+    (64 / 10.9 / 912 px: 0.196 px, 0.0126 rad); pixels whose entry has wider gaps tolerate more.
+    With Gaussian phase noise of std ``sigma`` the key error has std
+    ``sigma*sqrt(lambda_h**2 + lambda_l**2)/(2*pi)`` pixels.
     """
     table = nt_lookup_table(f_h, f_l, extent)
     psi_h = _as_phase_map("psi_h", psi_h, wrapped=True)
     psi_l = _as_phase_map("psi_l", psi_l, wrapped=True)
     mask = _pixel_mask({"psi_h": psi_h, "psi_l": psi_l}, valid)
     psi_h = _fill(psi_h, mask)
-    key = (table.p_l * _fill(psi_l, mask) - table.p_h * psi_h) / TWO_PI  # Eq. (8), (H, W)
-    m, reliability = _round_with_reliability(key)
-    k_h, _, found = table.lookup(m)  # Eq. (9)
-    ok = mask & found
-    k_h = np.where(ok, k_h, 0).astype(np.int32)
+    key_px = (table.lambda_l_px * _fill(psi_l, mask) - table.lambda_h_px * psi_h) / TWO_PI  # Eq. (8), (H, W)
+    index, margin_px = table.match(key_px)  # Eq. (9)
+    inside = margin_px >= 0.0
+    ok = mask & inside
+    k_h = np.where(ok, table.k_h[index], 0).astype(np.int32)
+    reliability = np.clip(margin_px / table.tolerance_px, 0.0, 1.0)
     return Unwrapped(
         fringe_order=k_h,
         absolute_phase=np.where(ok, psi_h + TWO_PI * k_h, np.nan),
         valid=ok,
         reliability=np.where(ok, reliability, 0.0),
-        n_rejected=int(np.count_nonzero(mask & ~found)),
+        n_rejected=int(np.count_nonzero(mask & ~inside)),
     )
 
 

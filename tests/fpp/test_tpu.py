@@ -255,36 +255,7 @@ def test_nt_period_pair_rejects_equal_irrational_and_bad_frequencies():
         tpu.nt_period_pair(64, 10.9, -1)
 
 
-def test_nt_lookup_table_maps_every_reachable_key_to_its_order_pair():
-    table = tpu.nt_lookup_table(64, 10.9, EXTENT_PX)
-    reachable = np.flatnonzero(table.k_h >= 0)
-    # pairs change at the 64 high and 11 low period starts; only x_p = 0 is shared
-    assert reachable.size == 64 + 11 - 1
-    m = table.m_min + reachable
-    np.testing.assert_array_equal(m, 109 * table.k_h[reachable] - 640 * table.k_l[reachable])
-    assert table.m_min > -109 and m.max() < 640
-    np.testing.assert_array_equal(np.unique(table.k_h[reachable]), np.arange(64))
-    np.testing.assert_array_equal(np.unique(table.k_l[reachable]), np.arange(11))
-    assert np.all(table.k_l[table.k_h < 0] == -1)
-
-
-def test_unwrap_nt_marks_unreachable_key_invalid_and_counts_it(scene):
-    f_h = 64
-    table = tpu.nt_lookup_table(f_h, NT_LOW_FREQUENCY, EXTENT_PX)
-    unreachable_m = table.m_min + int(np.flatnonzero(table.k_h < 0)[0])
-    psi_h = wrapped(scene, f_h)
-    psi_l = wrapped(scene, NT_LOW_FREQUENCY)
-    # three pixels with psi_h = 0 and p_l*psi_l/(2*pi) = m: key m, which no x_p produces
-    bad = (np.array([5, 40, 90]), np.array([7, 64, 100]))
-    psi_h[bad] = 0.0
-    psi_l[bad] = np.mod(2 * np.pi * unreachable_m / table.p_l, 2 * np.pi)
-    result = tpu.unwrap_nt(psi_h, psi_l, f_h, NT_LOW_FREQUENCY, EXTENT_PX)
-    assert result.n_rejected == 3
-    assert np.count_nonzero(~result.valid) == 3 and not result.valid[bad].any()
-    assert np.isnan(result.absolute_phase[bad]).all()
-    assert (result.fringe_order[bad] == 0).all() and (result.reliability[bad] == 0).all()
-    order, _ = expected_order_and_phase(scene, f_h)
-    np.testing.assert_array_equal(result.fringe_order[result.valid], order[result.valid])
+# NT lookup table, noise tolerance and rejection: tests/fpp/test_tpu_nt.py
 
 
 # --- invalid pixels and masks ----------------------------------------------------------------------
