@@ -8,7 +8,8 @@ model of Table 1). Sources:
 - a ``dptpu-rig/1`` YAML file or an OpenCV FileStorage rig file (:func:`dptpu.fpp.calibration.load_rig`);
 - a Bouguet toolbox pair ``"CAM.mat,PRJ.mat"`` (or a 2-tuple), camera 640x480 and projector 912x1140 by default
   (the DP-TPU rig);
-- ``"nominal"``: :func:`nominal_rig`, a DP-TPU-like rig built from round numbers (no data needed).
+- ``"nominal"``: :func:`nominal_rig`, a DP-TPU-like rig built from round numbers (no data needed);
+- ``"dynamic"``: :func:`dynamic_rig`, the paper's second ("dynamic", unseen) rig from its published numbers.
 
 Convention: pixel centres are 0-based (ARCHITECTURE.md); resizing the camera keeps the image's outer edges
 fixed, so pixel ``u`` of the original maps to ``(u + 0.5) * s - 0.5`` of the resized image.
@@ -22,12 +23,14 @@ import numpy as np
 
 from dptpu.fpp.calibration import DeviceModel, Rig, load_bouguet_pair, load_opencv_rig, load_rig
 
-__all__ = ["DEFAULT_CAMERA_SIZE", "DEFAULT_PROJECTOR_SIZE", "load_twin_rig", "nominal_rig", "resize_camera",
-           "parse_size", "working_point", "working_distance"]
+__all__ = ["DEFAULT_CAMERA_SIZE", "DEFAULT_PROJECTOR_SIZE", "DYNAMIC_PROJECTOR_SIZE", "RIG_PRESETS", "load_twin_rig",
+           "nominal_rig", "dynamic_rig", "resize_camera", "parse_size", "working_point", "working_distance"]
 
 #: The DP-TPU rig: Basler acA640-750um camera and DLP4500 projector, (width, height) pixels.
 DEFAULT_CAMERA_SIZE = (640, 480)
 DEFAULT_PROJECTOR_SIZE = (912, 1140)
+#: The paper's dynamic rig: an XGA DMD, (width, height) pixels.
+DYNAMIC_PROJECTOR_SIZE = (1024, 768)
 
 
 def load_twin_rig(source, *, camera_size=None, projector_size=None, size=None) -> Rig:
@@ -37,7 +40,7 @@ def load_twin_rig(source, *, camera_size=None, projector_size=None, size=None) -
     ----------
     source : str, path-like, tuple of two paths, or Rig
         ``dptpu-rig/1`` or OpenCV rig file; ``"CAM.mat,PRJ.mat"`` or ``(CAM.mat, PRJ.mat)`` (Bouguet toolbox, world
-        frame = calibration view 1); ``"nominal"`` (:func:`nominal_rig`); a :class:`Rig` is passed through.
+        frame = calibration view 1); ``"nominal"`` (:func:`nominal_rig`) or ``"dynamic"`` (:func:`dynamic_rig`); a :class:`Rig` is passed through.
     camera_size, projector_size : (int, int), optional
         ``(width, height)`` of the devices when the source does not hold them (Bouguet files, OpenCV rig files
         without ``cam_size``/``proj_size``); default 640x480 and 912x1140.
@@ -58,8 +61,8 @@ def load_twin_rig(source, *, camera_size=None, projector_size=None, size=None) -
         rig = load_bouguet_pair(source[0], source[1], camera_size=camera_size, projector_size=projector_size)
     else:
         text = str(source)
-        if text == "nominal":
-            rig = nominal_rig()
+        if text in RIG_PRESETS:
+            rig = RIG_PRESETS[text]()
         elif "," in text:
             parts = [p.strip() for p in text.split(",")]
             if len(parts) != 2 or not all(parts):
@@ -69,7 +72,7 @@ def load_twin_rig(source, *, camera_size=None, projector_size=None, size=None) -
             path = Path(text)
             if not path.exists():
                 raise FileNotFoundError(f"{path}: no such rig file (give a dptpu-rig/1 or OpenCV rig file, "
-                                        "'CAM.mat,PRJ.mat', or 'nominal')")
+                                        "'CAM.mat,PRJ.mat', 'nominal' or 'dynamic')")
             if path.suffix.lower() == ".mat":
                 raise ValueError(f"{path}: a Bouguet calibration needs both files: 'CAM.mat,PRJ.mat'")
             try:
@@ -135,6 +138,65 @@ def nominal_rig(*, camera_size=DEFAULT_CAMERA_SIZE, distance_mm: float = 800.0, 
                             dist=[-0.05, 0.0, 0.0, 0.0, 0.0], R=R_p, T=-R_p @ centre, size=DEFAULT_PROJECTOR_SIZE)
     rig = Rig(camera=camera, projector=projector, units="mm")
     return rig if tuple(camera_size) == DEFAULT_CAMERA_SIZE else resize_camera(rig, camera_size)
+
+
+def dynamic_rig(*, distance_mm: float = 600.0, angle_deg: float = 10.07, focal_length_mm: float = 18.7,
+                pixel_pitch_mm: float = 0.0048, camera_size=DEFAULT_CAMERA_SIZE,
+                projector_focal_px: float = 5000.0) -> Rig:
+    """The paper's dynamic rig (section "dynamic scenes"), unseen by the training data: a rig for tests of generalization.
+
+    Published: an 18.7 mm camera lens, a 1024x768 DMD projector, a 0.12 m baseline, a 0.6 m object distance and
+    10.07 deg between the camera and projector axes. Built like :func:`nominal_rig`: the world frame is the
+    camera's, the projector sits to the camera's left, turned by ``angle_deg`` so both axes cross at
+    ``distance_mm`` on the camera axis (where built-in and random scenes are placed).
+
+    Parameters
+    ----------
+    distance_mm : float
+        Working distance along the camera axis, mm (paper: 0.6 m).
+    angle_deg : float
+        Angle between the optical axes, degrees (paper: 10.07).
+    focal_length_mm, pixel_pitch_mm : float
+        Camera lens focal length and pixel pitch, mm: ``f = 18.7 / 0.0048 = 3895.8`` px. The paper's camera
+        (a Phantom V611) is not otherwise specified in the paper; the pitch and the 640x480 size are the
+        DP-TPU rig's camera (4.8 um, Basler acA640-750um), giving a 98.6 x 73.8 mm field at 0.6 m.
+    camera_size : (int, int)
+        Camera ``(width, height)``; other sizes rescale ``K`` (:func:`resize_camera`).
+    projector_focal_px : float
+        Projector focal length, DMD pixels (not published): 5000 px lights a 123 x 92 mm field at 0.6 m, 1.25
+        times the camera's field.
+
+    Returns
+    -------
+    Rig
+        Units mm. The crossing-axes geometry with 0.6 m and 10.07 deg puts the projector
+        ``600 * tan(10.07 deg) = 106.6`` mm from the camera, not 120 mm: the three published numbers do not
+        describe one rig with crossing axes (120 mm and 10.07 deg would cross at 675 mm), so the working
+        distance and the angle, which set the fringe geometry on the object, are kept.
+
+    Notes
+    -----
+    Small radial distortion (camera ``k1 = -0.03``, projector ``k1 = -0.02``) differs from the nominal rig's, as
+    an unseen rig's would.
+    """
+    a = np.radians(angle_deg)
+    baseline = distance_mm * np.tan(a)
+    R_p = np.array([[np.cos(a), 0.0, -np.sin(a)], [0.0, 1.0, 0.0], [np.sin(a), 0.0, np.cos(a)]])  # axis +x turned
+    centre = np.array([-baseline, 0.0, 0.0])
+    f_px = focal_length_mm / pixel_pitch_mm
+    width, height = DEFAULT_CAMERA_SIZE
+    camera = DeviceModel(K=[[f_px, 0.0, (width - 1) / 2], [0.0, f_px, (height - 1) / 2], [0.0, 0.0, 1.0]],
+                         dist=[-0.03, 0.0, 0.0, 0.0, 0.0], R=np.eye(3), T=np.zeros(3), size=DEFAULT_CAMERA_SIZE)
+    pw, ph = DYNAMIC_PROJECTOR_SIZE
+    projector = DeviceModel(K=[[projector_focal_px, 0.0, (pw - 1) / 2], [0.0, projector_focal_px, (ph - 1) / 2],
+                               [0.0, 0.0, 1.0]],
+                            dist=[-0.02, 0.0, 0.0, 0.0, 0.0], R=R_p, T=-R_p @ centre, size=DYNAMIC_PROJECTOR_SIZE)
+    rig = Rig(camera=camera, projector=projector, units="mm")
+    return rig if tuple(camera_size) == DEFAULT_CAMERA_SIZE else resize_camera(rig, camera_size)
+
+
+#: Rigs that ``load_twin_rig`` (and ``--rig`` of the sim commands) builds by name.
+RIG_PRESETS = {"nominal": nominal_rig, "dynamic": dynamic_rig}
 
 
 def _principal_ray(device: DeviceModel) -> tuple[np.ndarray, np.ndarray]:
