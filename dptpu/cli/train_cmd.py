@@ -6,6 +6,7 @@
     dptpu model export --checkpoint CKPT --out MODEL.onnx
     dptpu model eval --data DIR [--model MODEL.onnx ...] --out DIR
     dptpu model toy-data --out DIR [--scenes N --frequencies 32,48,64,80 --methods mf,mw,nt ...]
+    dptpu model study --out DIR [--sets S1,...,S5 --methods mf,mw --scenes N --steps T ...]
 
 Thin shell over :mod:`dptpu.models`; torch is imported only by ``train`` and ``model export``.
 """
@@ -89,6 +90,15 @@ def register(subparsers) -> None:
     toy.add_argument("--steps", type=int, default=3, help="phase steps of the inputs (default 3)")
     toy.add_argument("--seed", type=int, default=0)
     toy.set_defaults(func=run_toy_data)
+
+    from dptpu.models.study import add_study_arguments, run_study_command  # no torch at import
+
+    study = actions.add_parser("study", help="the paper's training-frequency study (S1-S5) and Fourier ablation",
+                               description="Train one DP-TPU model per frequency set on the same twin scenes "
+                                           "and step budget, test on unseen scenes -> table.csv, boxplots, "
+                                           "summary.md (dptpu.models.study).")
+    add_study_arguments(study)
+    study.set_defaults(func=run_study_command)
 
 
 def run_train(args: argparse.Namespace) -> int:
