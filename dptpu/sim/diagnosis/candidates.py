@@ -26,26 +26,33 @@ from dptpu.fpp.calibration import DeviceModel, Rig
 from .forward import PixelSet, intensity_residual
 from .selection import delta_bic, gain
 
-__all__ = ["Candidate", "PHOTOMETRIC", "fit_photometric", "fit_lens_distortion", "add_camera_k1",
-           "fit_geometric_extra"]
+__all__ = ["Candidate", "PHOTOMETRIC", "NOT_IDENTIFIABLE", "not_identifiable", "fit_photometric",
+           "fit_lens_distortion", "add_camera_k1", "fit_geometric_extra"]
 
 
 @dataclass(frozen=True)
 class Candidate:
     """A photometric candidate: effect ``name``, its fitted parameter ``main`` in ``bounds`` (``grid`` points
     first, ``log`` spacing for a scale-like parameter), ``fixed`` other parameters, ``neutral`` the value at which
-    the effect does nothing."""
+    the effect does nothing (None: the effect switched off). ``values``: a discrete parameter, each value tried
+    (no search between them). ``per_pixel_gain=False``: scored with one gain for all pixels (an effect a free
+    per-pixel gain would absorb). ``needs``: what the pixel set must carry (``"reference"``: a registered
+    reference object, not the data's own phase)."""
 
     name: str
     main: str
     bounds: tuple
-    neutral: float
+    neutral: float | None
     fixed: dict
     grid: int = 9
     log: bool = False
+    values: tuple = ()
+    per_pixel_gain: bool = True
+    needs: str | None = None
 
-    def effect(self, value: float) -> dict:
-        return {self.name: {self.main: float(value), **self.fixed}}
+    def effect(self, value) -> dict:
+        value = int(value) if self.values and float(value).is_integer() else float(value)
+        return {self.name: {self.main: value, **self.fixed}}
 
 
 #: The photometric vocabulary fitted here (docs/sim-to-real.md gives each detection limit).
@@ -56,41 +63,85 @@ PHOTOMETRIC = (
     Candidate("intensity_drift", "rate_per_frame", (-0.05, 0.05), 0.0, {"sigma": 0.0}),
     Candidate("phase_shift_error", "scale", (0.85, 1.15), 1.0, {"sigma_rad": 0.0}),
     Candidate("saturation", "exposure_gain", (1.0, 3.0), 1.0, {}),
+    Candidate("projector_pixelation", "quantize_bits", (0, 10), None, {}, values=(0, 4, 5, 6, 7, 8, 10),
+              needs="reference"),
+    Candidate("vignetting", "k1", (-0.6, 0.6), 0.0, {"k2": 0.0}, per_pixel_gain=False, needs="reference"),
+    Candidate("camera_defocus", "sigma_px", (0.0, 3.0), 0.0, {}, needs="reference"),
 )
 
+#: Why an effect cannot be fitted from the data's own phase (self-reference) or from a phase file.
+NOT_IDENTIFIABLE = {
+    "self": {
+        "projector_pixelation": "the reference phase is the data's own: it holds the staircase already, so the "
+                                "model coordinate is rounded the same way with the effect on or off",
+        "vignetting": "the reflectance factor is each pixel's own mean level: it holds the vignetting already",
+        "camera_defocus": "the reference phase and level are the blurred data's own; on a smooth surface the "
+                          "blur only lowers the modulation, which the data-derived factor cannot tell from the "
+                          "projector's",
+        "motion": "no geometry: the coordinate change a motion causes depends on the surface, which "
+                  "self-reference does not know",
+    },
+    "phase": {
+        "projector_pixelation": "a phase file: raw frames needed (the candidates are fitted on the intensities)",
+        "vignetting": "a phase file: vignetting scales background and modulation together, which leaves the "
+                      "phase unchanged",
+        "camera_defocus": "a phase file: on a smooth surface the blur only lowers the modulation, which leaves "
+                          "a 12-step phase unchanged (the edge band shows where it mixes phases)",
+        "motion": "a phase file: raw frames needed (the motion shows in the change from frame to frame)",
+    },
+}
 
-def _rss(pixels: PixelSet, effects, refine: int) -> float:
-    residual, _, _ = intensity_residual(pixels, effects, refine=refine)
+
+def not_identifiable(name: str, why: str) -> dict:
+    """The report entry of a candidate the data cannot show (never named), with the reason."""
+    return {"name": name, "parameters": {}, "residual_before": None, "residual_after": None, "gain": 0.0,
+            "named": False, "evidence": {"domain": "none", "unit": "", "values": 0, "parameters": 0,
+                                         "delta_bic": 0.0, "identifiable": False, "reason": why}}
+
+
+def _rss(pixels: PixelSet, effects, refine: int, per_pixel_gain: bool = True) -> float:
+    residual, _, _ = intensity_residual(pixels, effects, refine=refine, per_pixel_gain=per_pixel_gain)
     return float(sum(np.sum(r * r) for r in residual))
 
 
 def fit_photometric(pixels: PixelSet, candidate: Candidate, *, base=(), refine: int = 1,
                     rss_before: float | None = None) -> dict:
-    """Fit ``candidate``'s main parameter on top of ``base`` effects; returns an effect entry (report.json)."""
+    """Fit ``candidate``'s main parameter on top of ``base`` effects; returns an effect entry (report.json).
+
+    ``rss_before`` (the baseline with a per-pixel gain) is recomputed for a candidate scored with one gain."""
     n = pixels.values
-    if rss_before is None:
-        rss_before = _rss(pixels, list(base), refine)
+    per_pixel = candidate.per_pixel_gain
+    if rss_before is None or not per_pixel:
+        rss_before = _rss(pixels, list(base), refine, per_pixel)
 
     def objective(value):
-        return _rss(pixels, list(base) + [candidate.effect(value)], refine)
+        return _rss(pixels, list(base) + [candidate.effect(value)], refine, per_pixel)
 
     lo, hi = candidate.bounds
-    grid = np.geomspace(lo, hi, candidate.grid) if candidate.log else np.linspace(lo, hi, candidate.grid)
-    grid = np.unique(np.append(grid, candidate.neutral))
+    if candidate.values:
+        grid = np.asarray(candidate.values, dtype=np.float64)
+    elif candidate.log:
+        grid = np.geomspace(lo, hi, candidate.grid)
+    else:
+        grid = np.linspace(lo, hi, candidate.grid)
+    if candidate.neutral is not None:
+        grid = np.unique(np.append(grid, candidate.neutral))
     values = np.array([objective(v) for v in grid])
     best = int(np.argmin(values))
     left, right = grid[max(best - 1, 0)], grid[min(best + 1, len(grid) - 1)]
     value, rss = float(grid[best]), float(values[best])
-    if right > left:
+    if right > left and not candidate.values:
         solution = minimize_scalar(objective, bounds=(left, right), method="bounded",
                                    options={"xatol": 1e-4 * (hi - lo)})
         if solution.fun < rss:
             value, rss = float(solution.x), float(solution.fun)
     before, after = float(np.sqrt(rss_before / n)), float(np.sqrt(rss / n))
-    return {"name": candidate.name, "parameters": {candidate.main: value, **candidate.fixed},
-            "residual_before": before, "residual_after": after, "gain": gain(before, after),
-            "evidence": {"domain": "intensity", "unit": "DN", "values": n, "parameters": 1,
-                         "delta_bic": delta_bic(rss_before, rss, n, 1)}}
+    evidence = {"domain": "intensity", "unit": "DN", "values": n, "parameters": 1,
+                "delta_bic": delta_bic(rss_before, rss, n, 1)}
+    if not per_pixel:
+        evidence["gain_model"] = "one gain for all pixels"
+    return {"name": candidate.name, "parameters": dict(next(iter(candidate.effect(value).values()))),
+            "residual_before": before, "residual_after": after, "gain": gain(before, after), "evidence": evidence}
 
 
 def add_camera_k1(rig: Rig, extra) -> Rig:

@@ -18,14 +18,17 @@ import numpy as np
 
 from dptpu.fpp.calibration import Rig
 
-from .candidates import PHOTOMETRIC, fit_geometric_extra, fit_lens_distortion, fit_photometric
+from .candidates import (NOT_IDENTIFIABLE, PHOTOMETRIC, fit_geometric_extra, fit_lens_distortion, fit_photometric,
+                         not_identifiable)
 from .forward import intensity_residual
 from .measured import Measured, load_measured
 from .noise import fit_sensor_noise
 from .pixels import DEFAULT_MAX_PIXELS, erode_mask, reference_pixels, self_reference_pixels
-from .reference import Reference, parse_reference
+from .motion import fit_motion, identifiable_directions
+from .reference import Reference, load_scene_reference, parse_reference
 from .registration import register_robust
-from .selection import significant
+from .response import fit_response
+from .selection import MIN_DELTA_BIC, significant
 
 __all__ = ["Diagnosis", "diagnose", "effect_entry", "EDGE_BAND_PX"]
 
@@ -81,9 +84,33 @@ def rescore_in_intensity(entry: dict, rss_before: float, rss_after: float, value
     entry.update({"residual_before": before, "residual_after": after, "gain": gain(before, after)})
 
 
+#: Two models of one thing, the projector's response: never both in the extended twin.
+RESPONSE_ALTERNATIVES = ("projector_gamma", "projector_response")
+
+
+def _response_entry(pixels, entries, *, refine: int, rss_before: float) -> dict:
+    """The lookup-table response, named only when the BIC prefers it to every one-parameter photometric
+    candidate by more than ``MIN_DELTA_BIC`` (its many knots must buy more than the best single parameter); when
+    it is named, the power law it replaces is not."""
+    entry = fit_response(pixels, refine=refine, rss_before=rss_before)
+    single = [e for e in entries if e["evidence"]["domain"] == "intensity" and e["evidence"]["parameters"] == 1]
+    best = max(single, key=lambda e: e["evidence"]["delta_bic"], default=None)
+    margin = entry["evidence"]["delta_bic"] - (best["evidence"]["delta_bic"] if best else 0.0)
+    entry["evidence"]["delta_bic_over_best_single"] = margin
+    entry["named"] = significant(entry) and margin > MIN_DELTA_BIC
+    if entry["named"]:
+        for e in entries:
+            if e["name"] == "projector_gamma" and e["named"]:
+                e["named"] = False
+                e["evidence"]["superseded_by"] = "projector_response"
+    return entry
+
+
 def _reference_material(reference: Reference, rig: Rig):
     from dptpu.sim.scenes import load_scene
 
+    if reference.kind == "scene":
+        return None  # a traced scene carries its own materials
     name = "plane" if reference.kind == "plane" else "sphere"
     return load_scene(name, rig).meshes[0].material
 
@@ -127,28 +154,43 @@ def diagnose(measured, rig: Rig, *, reference=None, self_reference: bool = False
         reference = Reference("self")
         pixels, mask = self_reference_pixels(measured, max_pixels=max_pixels, seed=seed)
         entries, registration, material, refine, lens_pixels = [], None, None, 2, None
+        entries += [not_identifiable(c.name, NOT_IDENTIFIABLE["self"][c.name]) for c in candidates if c.needs]
+        entries.append(not_identifiable("motion", NOT_IDENTIFIABLE["self"]["motion"]))
+        candidates = [c for c in candidates if not c.needs]
     else:
         reference = reference if isinstance(reference, Reference) else parse_reference(reference)
-        if reference.kind not in ("sphere", "plane"):
-            raise ValueError("the diagnosis needs --reference sphere:DIAMETER_MM or plane, or --self-reference; "
-                             f"got {reference.label!r}")
+        if reference.kind not in ("sphere", "plane", "scene"):
+            raise ValueError("the diagnosis needs --reference sphere:DIAMETER_MM, plane or scene:FILE, or "
+                             f"--self-reference; got {reference.label!r}")
         if rig is None:
             raise ValueError("a diagnosis against a reference object needs the rig (--rig)")
         if measured.fringe_axis != "x":
             raise ValueError(f"{measured.source}: the diagnosis reads fringe_axis x captures; got y")
+        reference = load_scene_reference(reference, rig)
         # the silhouette's mixed pixels are the edge band of the decomposition, not evidence for an effect
         fit_mask = erode_mask(measured.valid, EDGE_BAND_PX)
-        registration = register_robust(rig, reference, measured.projector_x, fit_mask,
-                                       period_px=measured.extent / measured.frequency)
+        if reference.kind == "scene":
+            from .scene_registration import register_scene
+
+            registration = register_scene(rig, reference, measured.projector_x, fit_mask,
+                                          period_px=measured.extent / measured.frequency)
+        else:
+            registration = register_robust(rig, reference, measured.projector_x, fit_mask,
+                                           period_px=measured.extent / measured.frequency)
         if registration.order_errors:  # unwrap the measured phase with the twin's orders instead
             period = 2.0 * np.pi
             model = registration.model_x * 2.0 * np.pi * measured.frequency / measured.extent
             phase = measured.absolute_phase
             measured.absolute_phase = phase + period * np.round((model - phase) / period)
-        lens, with_lens = fit_lens_distortion(rig, reference, measured.projector_x, registration)
+        if reference.kind == "scene":
+            from .scene_registration import fit_scene_lens_distortion
+
+            lens, with_lens = fit_scene_lens_distortion(rig, reference, measured.projector_x, registration)
+        else:
+            lens, with_lens = fit_lens_distortion(rig, reference, measured.projector_x, registration)
         lens["named"] = significant(lens)
         entries = [lens]
-        if outside_vocabulary:
+        if outside_vocabulary and reference.kind != "scene":
             for extra in fit_geometric_extra(rig, reference, measured.projector_x, registration):
                 extra["named"] = False
                 entries.append(extra)
@@ -158,7 +200,7 @@ def diagnose(measured, rig: Rig, *, reference=None, self_reference: bool = False
             pixels, mask = reference_pixels(measured, registration.rig, reference, registration.pose, material,
                                              max_pixels=max_pixels, seed=seed)
             lens_pixels, _ = reference_pixels(measured, with_lens.rig, reference, with_lens.pose, material,
-                                              index=pixels.index)
+                                              index=pixels.index, motion=False)
         else:  # a phase file: the photometric effects a 12-step phase shows, judged on the phase
             from .phase_candidates import PHASE_VISIBLE, fit_phase_candidate
 
@@ -166,6 +208,8 @@ def diagnose(measured, rig: Rig, *, reference=None, self_reference: bool = False
                 entry = fit_phase_candidate(measured, rig, reference, material, registration, candidate)
                 entry["named"] = significant(entry)
                 entries.append(entry)
+            entries += [not_identifiable(c.name, NOT_IDENTIFIABLE["phase"][c.name]) for c in candidates if c.needs]
+            entries.append(not_identifiable("motion", NOT_IDENTIFIABLE["phase"]["motion"]))
         refine = 1
     residual_before = residual_after = model_before = None
     additional = []
@@ -180,6 +224,12 @@ def diagnose(measured, rig: Rig, *, reference=None, self_reference: bool = False
             entry = fit_photometric(pixels, candidate, refine=refine, rss_before=rss0)
             entry["named"] = significant(entry)
             entries.append(entry)
+        if registration is not None:
+            motion = fit_motion(pixels, identifiable_directions(rig, reference, registration.pose), refine=refine,
+                                rss_before=rss0)
+            motion["named"] = significant(motion)
+            entries.append(motion)
+        entries.append(_response_entry(pixels, entries, refine=refine, rss_before=rss0))
         deterministic = [e for e in entries if e["named"]]
         best = max(deterministic, key=lambda e: e["gain"]) if deterministic else None
         if best is not None and best["name"] == "lens_distortion":
@@ -190,6 +240,8 @@ def diagnose(measured, rig: Rig, *, reference=None, self_reference: bool = False
                 if not base:
                     break
                 chosen = {next(iter(b)) for b in base}
+                if chosen & set(RESPONSE_ALTERNATIVES):  # one projector response model at a time
+                    chosen |= set(RESPONSE_ALTERNATIVES)
                 residual, _, _ = intensity_residual(pixels, base, refine=refine)
                 rss = float(sum(np.sum(r * r) for r in residual))
                 more = [fit_photometric(pixels, c, base=base, refine=refine, rss_before=rss)

@@ -22,9 +22,9 @@ from dptpu.sim.image_formation import reflectance_factor
 
 from .forward import PixelSet
 from .measured import Measured
-from .reference import surface_hits
+from .reference import reference_hits, translated_pose
 
-__all__ = ["reference_pixels", "self_reference_pixels", "DEFAULT_MAX_PIXELS"]
+__all__ = ["reference_pixels", "self_reference_pixels", "motion_jacobian", "DEFAULT_MAX_PIXELS"]
 
 DEFAULT_MAX_PIXELS = 12000
 #: Self-reference: smallest modulation of a usable pixel, fraction of full scale.
@@ -49,27 +49,66 @@ def _limit(mask: np.ndarray, max_pixels: int, seed: int) -> tuple:
     return rows, cols
 
 
+def _surface_material(hits, material, shape):
+    """Per-pixel material arrays (H, W): a traced scene's own, or the analytic reference's uniform one."""
+    if hits.samples is not None:
+        samples = hits.samples
+        return (samples.albedo.astype(np.float64), samples.roughness, samples.specular, samples.ior)
+    return (np.full(shape, material.albedo), np.full(shape, material.roughness), np.full(shape, material.specular),
+            np.full(shape, material.ior))
+
+
+def motion_jacobian(rig, reference, pose, index, axis: int, coord, *, step=None) -> np.ndarray:
+    """Derivative (P, 3) of the projector coordinate at pixels ``index`` with respect to a world translation
+    of the reference (px per rig unit), by central differences of :func:`~.reference.reference_hits`; 0 where
+    a moved surface leaves the pixel."""
+    hits = reference_hits(rig, reference, pose)
+    depth = np.nanmedian(hits.points[..., 2][hits.lit]) if hits.lit.any() else 1.0
+    step = 1e-4 * abs(float(depth)) if step is None else step
+    columns = []
+    for i in range(3):
+        move = np.zeros(3)
+        move[i] = step
+        plus = reference_hits(rig, reference, translated_pose(rig, reference, pose, move))
+        minus = reference_hits(rig, reference, translated_pose(rig, reference, pose, -move))
+        d = (plus.projector_xy[..., axis][index] - minus.projector_xy[..., axis][index]) / (2.0 * step)
+        ok = plus.lit[index] & minus.lit[index] & np.isfinite(d)
+        columns.append(np.where(ok, d, 0.0))
+    return np.column_stack(columns)
+
+
 def reference_pixels(measured: Measured, rig, reference, pose, material, *, max_pixels: int = DEFAULT_MAX_PIXELS,
-                     seed: int = 0, erode_px: int = 1, index=None):
+                     seed: int = 0, erode_px: int = 1, index=None, motion: bool = True):
     """PixelSet of the registered reference surface (``rig`` may carry fitted geometry), and the lit mask (H, W).
 
-    ``index`` ``(rows, cols)`` forces the pixels (to compare two geometries on the same values)."""
-    hits = surface_hits(rig, reference.kind, pose, diameter=reference.diameter)
+    ``index`` ``(rows, cols)`` forces the pixels (to compare two geometries on the same values). The set carries
+    the whole image (``grid``) and, with ``motion``, the coordinate's derivative with respect to a translation
+    (:func:`motion_jacobian`; 6 more surface evaluations)."""
+    hits = reference_hits(rig, reference, pose)
     axis = 0 if measured.fringe_axis == "x" else 1
     shape = hits.lit.shape
-    samples = SimpleNamespace(points=hits.points, normals=hits.normals, lit=hits.lit,
-                              albedo=np.full(shape, material.albedo), roughness=np.full(shape, material.roughness),
-                              specular=np.full(shape, material.specular), ior=np.full(shape, material.ior))
-    factor = reflectance_factor(rig, samples)
+    albedo, roughness, specular, ior = _surface_material(hits, material, shape)
+    samples = SimpleNamespace(points=hits.points, normals=hits.normals, lit=hits.lit, albedo=albedo,
+                              roughness=roughness, specular=specular, ior=ior)
+    factor = np.where(hits.lit, reflectance_factor(rig, samples), 0.0)
     stack = np.concatenate(measured.frames)  # (sum N, H, W)
     mask = erode_mask(hits.lit, erode_px) & (factor > 0) & (stack.max(axis=0) > 0)
     rows, cols = _limit(mask, max_pixels, seed) if index is None else index
-    coord = hits.projector_xy[rows, cols, axis]
+    coord_image = np.where(hits.lit, hits.projector_xy[..., axis], 0.0)
+    coord = coord_image[rows, cols]
+    grid = SimpleNamespace(coords=[coord_image] * len(measured.sequences), factor=factor,
+                           albedo=np.where(hits.hit, albedo, 0.0), projector_depth=np.nan_to_num(hits.projector_depth),
+                           hit=hits.hit)
+    jacobian = motion_jacobian(rig, reference, pose, (rows, cols), axis, coord) if motion else None
+    high = int(np.argmax([s.frequency for s in measured.sequences]))
+    start = sum(s.steps for s in measured.sequences[:high])
+    reference_frame = start + 0.5 * (measured.sequences[high].steps - 1)
     return PixelSet(index=(rows, cols), coords=[coord] * len(measured.sequences), factor=factor[rows, cols],
-                    albedo=np.full(len(rows), material.albedo), projector_depth=hits.projector_depth[rows, cols],
+                    albedo=albedo[rows, cols], projector_depth=hits.projector_depth[rows, cols],
                     measured=[f[:, rows, cols] for f in measured.frames], sequences=list(measured.sequences),
                     extent=measured.extent, offset=measured.pattern.offset, amplitude=measured.pattern.amplitude,
-                    full_scale=measured.full_scale), mask
+                    full_scale=measured.full_scale, shape=shape, grid=grid, motion_jacobian=jacobian,
+                    motion_reference_frame=reference_frame), mask
 
 
 def self_reference_pixels(measured: Measured, *, max_pixels: int = DEFAULT_MAX_PIXELS, seed: int = 0):
@@ -91,4 +130,4 @@ def self_reference_pixels(measured: Measured, *, max_pixels: int = DEFAULT_MAX_P
     return PixelSet(index=(rows, cols), coords=coords, factor=factor, albedo=factor.copy(),
                     projector_depth=np.zeros(len(rows)), measured=[f[:, rows, cols] for f in measured.frames],
                     sequences=list(measured.sequences), extent=measured.extent, offset=measured.pattern.offset,
-                    amplitude=measured.pattern.amplitude, full_scale=full_scale), mask
+                    amplitude=measured.pattern.amplitude, full_scale=full_scale, shape=mask.shape), mask

@@ -12,7 +12,7 @@ two tilt parameters about the camera's optical axis, ``n_c = (a, b, -1) / |(a, b
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -20,17 +20,20 @@ from dptpu.fpp.calibration import Rig
 from dptpu.fpp.triangulate import camera_rays
 from dptpu.sim.raycast import project_to_projector
 
-__all__ = ["Reference", "parse_reference", "SurfaceHits", "surface_hits"]
+__all__ = ["Reference", "parse_reference", "load_scene_reference", "SurfaceHits", "surface_hits", "reference_hits",
+           "translated_pose", "posed_meshes"]
 
 
 @dataclass(frozen=True)
 class Reference:
     """A reference object: ``kind`` in {"sphere", "plane", "scene", "self"}; ``diameter`` (rig units) for a
-    sphere; ``path`` for a scene file."""
+    sphere; ``path`` for a scene file and, once loaded for a rig (:func:`load_scene_reference`), ``scene`` (its
+    :class:`~dptpu.sim.scenes.scene.Scene` at the file's pose)."""
 
     kind: str
     diameter: float | None = None
     path: str | None = None
+    scene: object = field(default=None, compare=False, repr=False)
 
     @property
     def pose_size(self) -> int:
@@ -64,10 +67,26 @@ def parse_reference(text) -> Reference:
     raise ValueError(f"--reference must be sphere:DIAMETER_MM, plane or scene:FILE; got {text!r}")
 
 
+def load_scene_reference(reference: Reference, rig: Rig) -> Reference:
+    """``reference`` with its scene file loaded for ``rig`` (``scene:FILE``; other kinds unchanged).
+
+    Raises
+    ------
+    FileNotFoundError, ValueError
+        No such file, or an invalid scene file (the message names the file and the key).
+    """
+    if reference.kind != "scene" or reference.scene is not None:
+        return reference
+    from dptpu.sim.scenes import load_scene_file
+
+    return replace(reference, scene=load_scene_file(reference.path, rig))
+
+
 @dataclass(frozen=True)
 class SurfaceHits:
     """Per pixel (H, W): ``points`` (H, W, 3), ``normals`` (H, W, 3) (unit, towards the camera),
-    ``projector_xy`` (H, W, 2), ``hit`` and ``lit`` (bool), ``projector_depth`` (H, W)."""
+    ``projector_xy`` (H, W, 2), ``hit`` and ``lit`` (bool), ``projector_depth`` (H, W); for a traced scene
+    also its ``samples`` (:class:`~dptpu.sim.raycast.SurfaceSamples`: the material at each pixel)."""
 
     points: np.ndarray
     normals: np.ndarray
@@ -75,6 +94,49 @@ class SurfaceHits:
     hit: np.ndarray
     lit: np.ndarray
     projector_depth: np.ndarray
+    samples: object = None
+
+
+def posed_meshes(reference: Reference, pose) -> tuple:
+    """The scene's meshes moved by the rigid transform ``pose`` (4, 4): ``X -> R X + t`` (world frame)."""
+    from dptpu.sim.scene_mesh import SceneMesh
+
+    pose = np.asarray(pose, dtype=np.float64)
+    R, t = pose[:3, :3], pose[:3, 3]
+    return tuple(SceneMesh(name=m.name, vertices=m.vertices @ R.T + t, triangles=m.triangles, material=m.material,
+                           albedo_texture=m.albedo_texture, uv=m.uv) for m in reference.scene.meshes)
+
+
+def reference_hits(rig: Rig, reference: Reference, pose) -> SurfaceHits:
+    """What each pixel sees of the reference at ``pose``: :func:`surface_hits` for the analytic shapes, the
+    twin's ray cast (:func:`dptpu.sim.raycast.trace`) of the scene's meshes moved by ``pose`` (4, 4) for a
+    scene."""
+    if reference.kind != "scene":
+        return surface_hits(rig, reference.kind, pose, diameter=reference.diameter)
+    from dptpu.sim.raycast import trace
+
+    if reference.scene is None:
+        raise ValueError(f"reference {reference.label!r}: the scene file is not loaded (load_scene_reference)")
+    samples = trace(rig, posed_meshes(reference, pose))
+    depth = (samples.points @ rig.projector.R.T + rig.projector.T)[..., 2]
+    return SurfaceHits(points=samples.points, normals=samples.normals, projector_xy=samples.projector_xy,
+                       hit=samples.hit, lit=samples.lit, projector_depth=depth, samples=samples)
+
+
+def translated_pose(rig: Rig, reference: Reference, pose, translation) -> np.ndarray:
+    """``pose`` of the reference moved by ``translation`` (3,) (world, rig units)."""
+    pose = np.array(pose, dtype=np.float64, copy=True)
+    translation = np.asarray(translation, dtype=np.float64)
+    if reference.kind == "sphere":
+        return pose + translation
+    if reference.kind == "plane":
+        normal = plane_normal(rig, pose[:2])
+        pose[2] += float(normal @ translation) / float(normal @ rig.camera.R.T[:, 2])
+        return pose
+    if reference.kind == "scene":
+        pose[:3, 3] += translation
+        return pose
+    raise ValueError(f"no pose to translate for reference {reference.label!r}")
 
 
 def plane_normal(rig: Rig, tilt) -> np.ndarray:

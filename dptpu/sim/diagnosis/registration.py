@@ -45,6 +45,7 @@ class Registration:
     diameter: float | None = None
     offset_px: float = 0.0
     order_errors: float = 0.0
+    pose_change: dict | None = None
 
 
 def initial_pose(rig: Rig, reference: Reference, measured_x: np.ndarray, mask: np.ndarray, axis: str = "x"):

@@ -92,8 +92,10 @@ def _rerender(diagnosis, extended_effects) -> dict:
     if measured.has_frames:
         kwargs = dict(bit_depth=measured.bit_depth, pattern=measured.pattern, seed=RERENDER_SEED)
         twin = render_twin(rig, reference, geometry.pose, diagnosis.material, measured.sequences, **kwargs)
+        reference_frame = diagnosis.pixels.motion_reference_frame if diagnosis.pixels is not None else 0.0
         extended = render_twin(extended_rig, reference, extended_pose, diagnosis.material, measured.sequences,
-                               effects=[e for e in effects if e.stage != "geometry"], **kwargs)
+                               effects=[e for e in effects if e.name != "lens_distortion"],
+                               reference_frame=reference_frame, **kwargs)
         out["intensity_rms_dn"] = {"twin": _intensity_rms(measured.frames, twin, mask),
                                    "extended_twin": _intensity_rms(measured.frames, extended, mask)}
         # how far measurement and extended twin each depart from the ideal twin (for noise: equal levels)
@@ -160,6 +162,8 @@ def write_report(diagnosis, out_dir, *, rerender: bool = True) -> dict:
                                   "order_errors_fraction": registration.order_errors,
                                   "geometry_pose": diagnosis.geometry.pose,
                                   "geometry_rms_px": diagnosis.geometry.rms_px}
+        if registration.pose_change is not None:
+            report["registration"]["pose_change"] = registration.pose_change
         residual = measured.projector_x - registration.model_x  # measured - twin, every valid pixel
         phase = decompose_phase(residual, measured.projector_x, frequency=measured.frequency, extent=measured.extent)
         decomposition["phase"] = phase["stats"]

@@ -1,7 +1,7 @@
 """Render the twin (and the extended twin) of the registered reference again, and decode it like the data.
 
 The registered analytic surface (:func:`dptpu.sim.diagnosis.reference.surface_hits`) stands in for the
-raycast trace (no facets): its points, normals, projector coordinates and visibility go through the twin's own
+raycast trace (no facets; a scene reference is traced at its registered pose): its points, normals, projector coordinates and visibility go through the twin's own
 image formation, :func:`dptpu.sim.image_formation.render_frames_float`, with the effects given, and the frames
 are quantized like a render (:func:`dptpu.sim.image_formation.quantize`). Decoding uses Eq. (2) and MF (a
 1-period sequence present) or heterodyne unwrapping, as :func:`dptpu.sim.diagnosis.measured.load_measured` does.
@@ -17,15 +17,20 @@ from dptpu.fpp.fitting import fit_sphere
 from dptpu.fpp.phase import wrapped_phase
 from dptpu.fpp.reconstruct import DEFAULT_MIN_MODULATION_FRACTION
 from dptpu.fpp.triangulate import Triangulator
+from dptpu.sim.effects import find_effect, parse_effects
+from dptpu.sim.effects.geometry import has_motion
 from dptpu.sim.image_formation import quantize, render_frames_float
 
-from .reference import surface_hits
+from .reference import reference_hits, surface_hits, translated_pose
 
 __all__ = ["analytic_samples", "render_twin", "decode", "sphere_rms_um"]
 
 
 def analytic_samples(rig, reference, pose, material):
-    """A :class:`~dptpu.sim.raycast.SurfaceSamples`-like namespace of the analytic reference surface."""
+    """A :class:`~dptpu.sim.raycast.SurfaceSamples`-like namespace of the analytic reference surface (a scene
+    reference: the twin's ray cast of its meshes at ``pose``)."""
+    if reference.kind == "scene":
+        return reference_hits(rig, reference, pose).samples
     hits = surface_hits(rig, reference.kind, pose, diameter=reference.diameter)
     shape = hits.lit.shape
     nan3 = np.where(hits.hit[..., None], 1.0, np.nan)
@@ -39,13 +44,43 @@ def analytic_samples(rig, reference, pose, material):
 
 
 def render_twin(rig, reference, pose, material, sequences, *, effects=(), seed: int = 0, bit_depth: int = 8,
-                pattern=None) -> list[np.ndarray]:
-    """Quantized frames (N, H, W) per sequence of the twin with ``effects``."""
-    samples = analytic_samples(rig, reference, pose, material)
+                pattern=None, reference_frame: float = 0.0) -> list[np.ndarray]:
+    """Quantized frames (N, H, W) per sequence of the twin with ``effects``.
+
+    ``motion`` on an analytic reference (no meshes to move) renders frame ``g`` (0-based over the sequences)
+    with the surface translated by ``(g - reference_frame) v``: ``pose`` is the pose at ``reference_frame``."""
     kwargs = {} if pattern is None else {"offset": pattern.offset, "amplitude": pattern.amplitude}
-    frames = render_frames_float(rig, samples, list(sequences), effects=list(effects), seed=seed,
+    parsed = parse_effects(list(effects))
+    motion = find_effect(parsed, "motion")
+    if motion is not None and reference.kind != "scene" and has_motion(parsed):
+        return _render_moving(rig, reference, pose, material, list(sequences), parsed, motion, seed=seed,
+                              bit_depth=bit_depth, reference_frame=reference_frame, **kwargs)
+    samples = analytic_samples(rig, reference, pose, material)
+    frames = render_frames_float(rig, samples, list(sequences), effects=parsed, seed=seed,
                                  bit_depth=bit_depth, **kwargs)
     return [quantize(f, bit_depth).astype(np.float64) for f in frames]
+
+
+def _render_moving(rig, reference, pose, material, sequences, effects, motion, *, seed, bit_depth,
+                   reference_frame, **kwargs) -> list[np.ndarray]:
+    """Frame by frame: each sequence rendered whole at each frame's pose, the frame of that step kept."""
+    if any(motion["angular_deg_per_frame"]):
+        raise ValueError("re-rendering an analytic reference takes the motion effect's translation only")
+    still = [e for e in effects if e.name != "motion"]
+    velocity = np.asarray(motion["velocity_per_frame"])
+    out, g = [], 0
+    for s, sequence in enumerate(sequences):
+        frames = None
+        for n in range(sequence.steps):
+            moved = translated_pose(rig, reference, pose, (g - reference_frame) * velocity)
+            samples = analytic_samples(rig, reference, moved, material)
+            rendered = render_frames_float(rig, samples, [sequence], effects=still, seed=seed + s,
+                                           bit_depth=bit_depth, **kwargs)[0]
+            frames = np.empty_like(rendered) if frames is None else frames
+            frames[n] = rendered[n]
+            g += 1
+        out.append(quantize(frames, bit_depth).astype(np.float64))
+    return out
 
 
 def decode(frames, sequences, *, bit_depth: int = 8) -> np.ndarray:

@@ -26,10 +26,14 @@ from .registry import find_effect
 __all__ = ["apply_camera_effects", "vignetting_factor", "gaussian_blur"]
 
 
-def vignetting_factor(shape, k1: float, k2: float) -> np.ndarray:
-    """``1 + k1 r^2 + k2 r^4`` (H, W), ``r`` = distance from the image centre over the half diagonal."""
+def vignetting_factor(shape, k1: float, k2: float, *, rows=None, cols=None) -> np.ndarray:
+    """``1 + k1 r^2 + k2 r^4`` (H, W), ``r`` = distance from the image centre over the half diagonal; with
+    ``rows`` and ``cols`` (P,) only at those pixels of an image of ``shape`` (P,)."""
     height, width = shape
-    v, u = np.mgrid[0:height, 0:width].astype(np.float64)
+    if rows is None:
+        v, u = np.mgrid[0:height, 0:width].astype(np.float64)
+    else:
+        v, u = np.asarray(rows, np.float64), np.asarray(cols, np.float64)
     r2 = ((u - (width - 1) / 2.0) ** 2 + (v - (height - 1) / 2.0) ** 2) / ((width / 2.0) ** 2 + (height / 2.0) ** 2)
     return 1.0 + k1 * r2 + k2 * r2 * r2
 
@@ -46,11 +50,12 @@ def gaussian_blur(image: np.ndarray, sigma_px: float) -> np.ndarray:
 
 
 def apply_camera_effects(frames: np.ndarray, *, effects, albedo, hit, full_scale: float, exposure: float,
-                         rng) -> np.ndarray:
+                         rng, vignetting_map=None) -> np.ndarray:
     """Camera-stage effects on one sequence's float frames (N, H, W), DN; returns a new array.
 
     ``albedo`` (H, W) and ``hit`` (H, W) are the surface samples' (for ambient light); ``rng`` a numpy Generator
-    (noise, drift jitter).
+    (noise, drift jitter); ``vignetting_map`` (H, W), optional, the ``vignetting`` factor when the frames are not
+    the whole image (a list of pixels: :func:`vignetting_factor` with ``rows, cols``).
     """
     frames = np.array(frames, dtype=np.float64, copy=True)
     effect = find_effect(effects, "ambient_light")
@@ -58,7 +63,8 @@ def apply_camera_effects(frames: np.ndarray, *, effects, albedo, hit, full_scale
         frames += full_scale * (exposure * effect["level"] * np.where(hit, albedo, 0.0) + effect["background"])
     effect = find_effect(effects, "vignetting")
     if effect is not None:
-        frames *= vignetting_factor(frames.shape[1:], effect["k1"], effect["k2"])
+        frames *= (vignetting_factor(frames.shape[1:], effect["k1"], effect["k2"]) if vignetting_map is None
+                   else vignetting_map)
     effect = find_effect(effects, "camera_defocus")
     if effect is not None and effect["sigma_px"] > 0:
         for n in range(len(frames)):

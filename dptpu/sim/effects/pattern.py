@@ -8,6 +8,7 @@ effects, in this order:
 - ``projector_pixelation``: ``c -> round(c)`` (the level of the micromirror under the point) and the level
   ``p -> round(p (2^b - 1)) / (2^b - 1)``;
 - ``projector_gamma``: ``p -> p ** gamma``;
+- ``projector_response``: ``p -> L(p)``, a monotone piecewise-linear lookup table (knots evenly spaced on [0, 1]);
 - ``projector_defocus``: Gaussian blur along the fringe axis of sigma ``s`` projector pixels: harmonic ``k`` of
   the (periodic) pattern is multiplied by ``exp(-k^2 (2 pi f s / W)^2 / 2) = exp(-2 pi^2 s^2 k^2 f^2 / W^2)``.
 
@@ -20,7 +21,8 @@ import numpy as np
 
 from .registry import find_effect
 
-__all__ = ["step_shifts", "pattern_levels", "defocus_attenuation", "projector_images", "FOURIER_SAMPLES"]
+__all__ = ["step_shifts", "pattern_levels", "defocus_attenuation", "projector_images", "response_levels",
+           "FOURIER_SAMPLES"]
 
 #: Samples of one period used for the Fourier series of a pointwise pattern chain.
 FOURIER_SAMPLES = 1024
@@ -58,7 +60,17 @@ def _pointwise(levels, effects):
     gamma = find_effect(effects, "projector_gamma")
     if gamma is not None:
         levels = np.power(np.clip(levels, 0.0, None), gamma["gamma"])
+    response = find_effect(effects, "projector_response")
+    if response is not None:
+        levels = response_levels(levels, response["levels"])
     return levels
+
+
+def response_levels(levels, knots) -> np.ndarray:
+    """``projector_response``: the piecewise-linear table ``knots`` (K,) at inputs ``k / (K - 1)`` applied to
+    ``levels`` (any shape, fractions of full scale; inputs outside [0, 1] take the end values)."""
+    knots = np.asarray(knots, dtype=np.float64)
+    return np.interp(levels, np.linspace(0.0, 1.0, len(knots)), knots)
 
 
 def defocus_sigma_px(effects, projector_depth):

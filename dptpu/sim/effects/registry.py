@@ -65,6 +65,9 @@ class Effect:
         return {self.name: {k: (list(v) if isinstance(v, tuple) else v) for k, v in self.params.items()}}
 
 
+#: Default ``projector_response``: an S-shaped response (smoothstep ``3p^2 - 2p^3``) at 11 knots.
+DEFAULT_RESPONSE_LEVELS = tuple(round(3 * x * x - 2 * x ** 3, 6) for x in (k / 10 for k in range(11)))
+
 _SPECS = [
     EffectSpec("phase_shift_error", "pattern", {"scale": ("num", 1.0), "errors_rad": ("list", []),
                                                  "sigma_rad": ("nonneg", 0.02)},
@@ -74,6 +77,9 @@ _SPECS = [
                "centre) and its level quantized to quantize_bits (0: not quantized)"),
     EffectSpec("projector_gamma", "pattern", {"gamma": ("pos", 2.2)},
                "projected level p -> p**gamma (intensity nonlinearity of the projector)"),
+    EffectSpec("projector_response", "pattern", {"levels": ("list", list(DEFAULT_RESPONSE_LEVELS))},
+               "projected level p -> a monotone piecewise-linear lookup table: levels[k] is the output at "
+               "input k/(K-1) (K = len(levels) >= 2 knots evenly spaced on [0, 1])"),
     EffectSpec("projector_defocus", "pattern", {"sigma_px": ("nonneg", 1.0), "focus_distance": ("nonneg", 0.0),
                                                  "sigma_px_per_unit": ("nonneg", 0.0)},
                "Gaussian blur of the pattern along the fringe axis, sigma in projector pixels "
@@ -148,6 +154,11 @@ def _entry(entry, where: str) -> Effect:
     values = {}
     for key, (kind, default) in spec.parameters.items():
         values[key] = _value(f"{where}.{name}.{key}", kind, params.get(key, default))
+    if name == "projector_response":
+        levels = np.asarray(values["levels"])
+        if levels.size < 2 or np.any(levels < 0) or np.any(np.diff(levels) < 0):
+            raise ValueError(f"{where}.{name}.levels: must be a non-decreasing list of >= 2 numbers >= 0 (the "
+                             f"output at inputs evenly spaced on [0, 1]); got {[float(v) for v in levels]!r}")
     return Effect(name, values)
 
 
