@@ -3,9 +3,22 @@
 A node whose parameters are wrong cannot start: its constructor raises ``ValueError`` (or ``OSError`` for a
 file it cannot open, ``ImportError`` for an optional part that is not installed) and the process prints one line
 naming the node and the problem and exits with code 2, which ``dptpu launch`` reports; it never shows a traceback.
+
+Two process-wide settings come with it:
+
+- :func:`keep_freed_memory`: a scanner node allocates and frees megabyte arrays for every scan (frames, phase
+  maps, clouds, ZeroMQ's receive buffers). glibc gives such blocks back to the kernel on ``free`` (``mmap``
+  above 128 KiB, heap trimming), so the next scan page-faults the same amount again: 4,000-6,000 faults and
+  20-28 ms of kernel time a scan in the phase and unwrap nodes at 640x480 (docs/benchmarks.md, "Run 5"). The
+  node keeps freed memory for reuse instead; its resident size stays at its peak (a few scans' worth).
+- ``DPTPU_PROFILE_DIR``: when set, the node's main thread runs under :mod:`cProfile` and writes
+  ``<dir>/<name>-<pid>.prof`` at exit (read it with ``python -m pstats``); how docs/benchmarks.md's per-node
+  breakdown was taken.
 """
 from __future__ import annotations
 
+import ctypes
+import os
 import sys
 from typing import Callable
 
@@ -13,10 +26,60 @@ import dptpu.graph as rclpy
 from dptpu.graph import ExternalShutdownException
 from dptpu.graph.node import Node
 
-__all__ = ["run_node", "SETUP_ERRORS"]
+__all__ = ["run_node", "spin_profiled", "keep_freed_memory", "SETUP_ERRORS", "PROFILE_ENV"]
 
 #: What a node's constructor raises for bad parameters, unreadable files or missing optional parts (exit code 2).
 SETUP_ERRORS = (ValueError, OSError, ImportError)
+#: Environment variable naming a folder for the nodes' cProfile output ("" or unset: no profiling).
+PROFILE_ENV = "DPTPU_PROFILE_DIR"
+
+# glibc mallopt parameters (malloc.h) and the values set by keep_freed_memory.
+_M_TRIM_THRESHOLD, _M_TOP_PAD, _M_MMAP_THRESHOLD = -1, -2, -3
+_MMAP_THRESHOLD_BYTES = 32 * 1024 * 1024   # glibc's largest (HEAP_MAX_SIZE / 2 on 64-bit): a 640x480x24 stack is 7 MB
+_TRIM_THRESHOLD_BYTES = 512 * 1024 * 1024  # free heap kept before trimming
+_TOP_PAD_BYTES = 16 * 1024 * 1024          # heap grown in 16 MiB steps
+
+
+def keep_freed_memory() -> bool:
+    """Make glibc's ``malloc`` keep freed blocks below 32 MiB for reuse instead of returning them to the kernel.
+
+    Sets ``M_MMAP_THRESHOLD`` to 32 MiB, ``M_TRIM_THRESHOLD`` to 512 MiB and ``M_TOP_PAD`` to 16 MiB with
+    ``mallopt`` (the same as the ``MALLOC_MMAP_THRESHOLD_``, ``MALLOC_TRIM_THRESHOLD_`` and ``MALLOC_TOP_PAD_``
+    environment variables, which win when set). Per-scan arrays are then recycled from the heap without page
+    faults. Not glibc (no ``mallopt``): nothing is changed.
+
+    Returns
+    -------
+    bool
+        True when the settings were applied.
+    """
+    if any(name in os.environ for name in ("MALLOC_MMAP_THRESHOLD_", "MALLOC_TRIM_THRESHOLD_", "MALLOC_TOP_PAD_")):
+        return False
+    try:
+        mallopt = ctypes.CDLL(None).mallopt
+    except (OSError, AttributeError):
+        return False
+    mallopt.argtypes = (ctypes.c_int, ctypes.c_int)
+    mallopt.restype = ctypes.c_int
+    return all(mallopt(param, value) == 1 for param, value in ((_M_MMAP_THRESHOLD, _MMAP_THRESHOLD_BYTES),
+                                                               (_M_TRIM_THRESHOLD, _TRIM_THRESHOLD_BYTES),
+                                                               (_M_TOP_PAD, _TOP_PAD_BYTES)))
+
+
+def spin_profiled(name: str, spin: Callable[[], None]) -> None:
+    """Call ``spin()``; under cProfile when ``DPTPU_PROFILE_DIR`` is set (``<dir>/<name>-<pid>.prof`` at exit)."""
+    folder = os.environ.get(PROFILE_ENV, "")
+    if not folder:
+        spin()
+        return
+    import cProfile
+
+    profiler = cProfile.Profile()
+    try:
+        profiler.runcall(spin)
+    finally:
+        os.makedirs(folder, exist_ok=True)
+        profiler.dump_stats(os.path.join(folder, f"{name}-{os.getpid()}.prof"))
 
 
 def run_node(name: str, make_node: Callable[[], Node], argv=None) -> int:
@@ -25,7 +88,7 @@ def run_node(name: str, make_node: Callable[[], Node], argv=None) -> int:
     Parameters
     ----------
     name : str
-        The node's short name, for the error line (``cloud: error: ...``).
+        The node's short name, for the error line (``cloud: error: ...``) and the profile's file name.
     make_node : callable
         Builds the node (its class); called after ``rclpy.init`` so it sees ``--ros-args``.
     argv : list of str, optional
@@ -36,6 +99,7 @@ def run_node(name: str, make_node: Callable[[], Node], argv=None) -> int:
     int
         0 after a clean stop, 2 when the node could not start.
     """
+    keep_freed_memory()
     rclpy.init(args=sys.argv if argv is None else argv)
     try:
         node = make_node()
@@ -44,7 +108,7 @@ def run_node(name: str, make_node: Callable[[], Node], argv=None) -> int:
         rclpy.try_shutdown()
         return 2
     try:
-        rclpy.spin(node)
+        spin_profiled(name, lambda: rclpy.spin(node))
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     finally:

@@ -66,6 +66,7 @@ from dptpu.graph.node import Node
 from dptpu.graph.qos import QoSProfile
 from dptpu.messages import AbsolutePhase, Image, PointCloud2, ScanStatus, Trigger
 
+from .node_main import keep_freed_memory, spin_profiled
 from .scan_metrics import scan_metrics
 
 __all__ = ["ScanMonitorNode", "main"]
@@ -396,6 +397,7 @@ class ScanMonitorNode(Node):
 
 def main(argv=None) -> int:
     """``python -m dptpu.nodes.scan_monitor [--ros-args ...]``: run until ``scans`` were reported (0) or Ctrl-C."""
+    keep_freed_memory()
     rclpy.init(args=sys.argv if argv is None else argv)
     try:
         node = ScanMonitorNode()
@@ -403,9 +405,12 @@ def main(argv=None) -> int:
         print(f"scan_monitor: error: {exc}", file=sys.stderr)
         rclpy.try_shutdown()
         return 2
-    try:
+    def spin() -> None:
         while rclpy.ok() and not node.finished:
             rclpy.spin_once(node, timeout_sec=0.1)
+
+    try:
+        spin_profiled("scan_monitor", spin)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     finally:
