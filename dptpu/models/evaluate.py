@@ -19,7 +19,7 @@ import numpy as np
 from .inference import FringeOrderModel
 from .samples import list_samples, read_sample
 
-__all__ = ["Row", "median_order", "evaluate_dataset", "write_table", "format_summary"]
+__all__ = ["Row", "median_order", "solver_names", "evaluate_dataset", "write_table", "format_summary"]
 
 
 @dataclass(frozen=True)
@@ -47,11 +47,20 @@ def median_order(order: np.ndarray, valid: np.ndarray) -> np.ndarray:
     return np.where(valid, np.rint(np.median(stack, axis=0)), order).astype(np.int32)
 
 
+def solver_names(models) -> list[str]:
+    """Solver name of each loaded model: its metadata kind (``dptpu``, ``unet``), or the file stem if two share one."""
+    kinds = [m.kind for m in models]
+    return [k if kinds.count(k) == 1 else Path(m.path).stem for k, m in zip(kinds, models)]
+
+
 def evaluate_dataset(data_dir, models=(), *, threads: int | None = None) -> list[Row]:
-    """Accuracy rows for every (method, frequency, noise) group of ``data_dir`` and every solver."""
-    loaded = [FringeOrderModel.load(p, threads=threads) for p in models]
-    names = [m.kind for m in loaded]
-    names = [n if names.count(n) == 1 else Path(m.path).stem for n, m in zip(names, loaded)]
+    """Accuracy rows for every (method, frequency, noise) group of ``data_dir`` and every solver.
+
+    ``models`` are ONNX paths or already loaded :class:`FringeOrderModel` objects; a model runs only on the
+    methods of its training set (:attr:`FringeOrderModel.trained_methods`): no row for the others.
+    """
+    loaded = [m if isinstance(m, FringeOrderModel) else FringeOrderModel.load(m, threads=threads) for m in models]
+    names = solver_names(loaded)
     correct: dict = defaultdict(int)
     pixels: dict = defaultdict(int)
     for path in list_samples(data_dir):
