@@ -4,6 +4,9 @@
 [--frequency F] --out DIR`` (:mod:`dptpu.sim.diagnosis`, docs/sim-to-real.md): registration, residuals and
 their decomposition (PNG figures), candidate effects ranked by BIC, the extended rig, the re-render and
 ``report.json`` / ``report.md``.
+
+``dptpu twin finetune --measured DATA --extended RIG --model BASE --out DIR``
+(:mod:`dptpu.sim.diagnosis.downstream`): the downstream gain of the extended twin on measured data.
 """
 from __future__ import annotations
 
@@ -38,6 +41,30 @@ def register(subparsers) -> None:
     diagnose.add_argument("--no-rerender", action="store_true", help="skip rendering the twins again")
     diagnose.add_argument("--out", required=True, help="output folder")
     diagnose.set_defaults(func=run_diagnose)
+
+    finetune = twin_subparsers.add_parser(
+        "finetune", help="downstream gain: fine-tune DP-TPU on the extended and on the baseline twin, score on "
+                         "measured data",
+        description="Build the network's inputs from measured data (CFPE frames or the dptpu-sphere phase), render "
+                    "two twin sets of the same scenes (baseline rig, extended rig), fine-tune the base model on "
+                    "each with the same budget, and compare fringe-order accuracy (and the sphere's 3D error). "
+                    "Writes downstream.json and report.md. See docs/sim-to-real.md, 'Downstream gain'.")
+    finetune.add_argument("--measured", required=True, help="../shared/data/cfpe or ../shared/data/dptpu-sphere")
+    finetune.add_argument("--extended", required=True,
+                          help="extended_rig.yaml or extended_effects.yaml of 'dptpu twin diagnose'")
+    finetune.add_argument("--rig", default=None, help="rig for an effects file (default nominal)")
+    finetune.add_argument("--model", required=True, help="base model: exported .onnx or a training .ckpt")
+    finetune.add_argument("--scenes", type=int, default=8, help="twin scenes per training set (default 8)")
+    finetune.add_argument("--size", default="320x240", help="twin camera WIDTHxHEIGHT (default 320x240)")
+    finetune.add_argument("--epochs", type=int, default=60, help="fine-tune epochs, the same for both (default 60)")
+    finetune.add_argument("--batch", type=int, default=4)
+    finetune.add_argument("--lr", type=float, default=3e-4)
+    finetune.add_argument("--cfpe-scenes", default="01,04,06,08")
+    finetune.add_argument("--cfpe-low", default="het12", choices=("het12", "beat123"))
+    finetune.add_argument("--seed", type=int, default=0)
+    finetune.add_argument("--threads", type=int, default=1, help="torch and onnxruntime threads (default 1)")
+    finetune.add_argument("--out", required=True, help="output folder")
+    finetune.set_defaults(func=run_finetune)
 
 
 def run_diagnose(args) -> int:
@@ -77,4 +104,30 @@ def run_diagnose(args) -> int:
     if "sphere_rms_um" in report:
         summary["sphere_rms_um"] = report["sphere_rms_um"]
     print(json.dumps(summary, indent=2))
+    return 0
+
+
+def run_finetune(args) -> int:
+    import sys
+
+    import torch
+
+    from dptpu.sim.diagnosis.downstream import DownstreamOptions, run_downstream
+    from dptpu.sim.diagnosis.finetune import FinetuneOptions
+
+    try:
+        width, height = (int(v) for v in args.size.lower().split("x"))
+    except ValueError:
+        raise ValueError(f"--size must be WIDTHxHEIGHT (e.g. 320x240); got {args.size!r}") from None
+    if args.threads < 1:
+        raise ValueError(f"--threads must be >= 1; got {args.threads}")
+    torch.set_num_threads(args.threads)
+    options = DownstreamOptions(scenes=args.scenes, size=(width, height), seed=args.seed,
+                                cfpe_scenes=tuple(s.strip() for s in args.cfpe_scenes.split(",") if s.strip()),
+                                cfpe_low=args.cfpe_low,
+                                finetune=FinetuneOptions(epochs=args.epochs, batch=args.batch, lr=args.lr,
+                                                         seed=args.seed))
+    report = run_downstream(args.measured, args.extended, args.out, model=args.model, base_rig=args.rig,
+                            options=options, threads=args.threads, log=lambda text: print(text, file=sys.stderr))
+    print(json.dumps(report["summary"], indent=2))
     return 0
