@@ -2,21 +2,36 @@
 
 Each configuration runs ``launch/sim_rig.yaml`` as real processes (projector on the emulated trigger box, sim,
 phase, unwrap, cloud, scan monitor) with the sim as fast as possible (no frame-rate limit, 100 us per pattern on
-the emulated box), ``--in-flight`` scans started ahead of the last one reported (scan on demand, so the graph
-is never overrun), ground truth off (the monitor only times). After ``--warmup`` scans, ``--scans`` scans are
-timed:
+the emulated box) and ground truth off (the monitor only times), twice:
 
-- ``scans_per_s``: ``(n - 1) / (t_n - t_1)`` over the clouds' arrival times at the monitor;
-- ``latency_ms_p50`` / ``latency_ms_p99``: from the scan's last Trigger (the stamp its frames and cloud carry)
-  to its cloud's arrival at the monitor; ``latency_from_first_trigger_ms_p50`` adds the projection itself;
-- ``node_duration_ms_p50``: each node's median ``ScanStatus.duration_s`` (where the time goes);
-- ``camera_limit_ratio``: ``scans_per_s`` over what the paper's camera allows, the Basler acA640-750 at 750
-  frames/s: 31.25 scans/s at 24 frames (2 x 12 steps), 125 at 6 frames (2 x 3 steps).
+1. **Throughput** (``--in-flight`` scans, default 4): the monitor keeps that many scans started ahead of the last
+   one it reported (scan on demand: a scan starts only when an earlier one is reported, so the graph is never
+   overrun and no scan is dropped). Two in flight leave the graph idle between a report and the next start (the
+   service call, the projection, the first frames) and cap the rate near ``2 / latency`` by construction; four
+   keep every stage busy, so the graph, not the bench, is the bottleneck. The phase node's frame queue (100
+   frames) holds four 24-frame scans: more in flight would drop frames, so the bench stays at four.
+   ``scans_per_s = (n - 1) / (t_n - t_1)`` over the arrival times of the ``--scans`` timed clouds at the monitor
+   (after ``--warmup`` scans).
+2. **Latency** at a pace the graph sustains: the projector starts its own scans every ``1 / (f * scans_per_s)``
+   seconds (``f = --latency-load``, default 0.8), as a camera-paced rig that projects continuously does, and the
+   monitor starts none. ``latency_ms_p50`` / ``latency_ms_p99`` over the timed scans: from the scan's last
+   Trigger (the stamp its frames and cloud carry) to its cloud's arrival at the monitor. (The throughput run's
+   latencies, which include the queueing of four scans in flight, are ``throughput.latency_ms_p50`` / ``p99``.)
+   ``--latency-load 0`` skips this run and reports the throughput run's latencies.
+
+Every timed scan must be complete: the phase node never mixes two scans and drops an incomplete one with a
+ScanStatus, the monitor reports a scan ``failed`` or ``lost`` otherwise; ``scans_failed`` and ``scans_lost``
+count those among the timed scans (``warmup_failed`` the others), and ``valid_points_min`` is the smallest cloud.
+
+Further figures: ``node_duration_ms_p50`` (each node's median ``ScanStatus.duration_s``, from the throughput
+run), ``camera_limit_ratio``: ``scans_per_s`` over what the paper's camera allows, the Basler acA640-750 at 750
+frames/s: 31.25 scans/s at 24 frames (2 x 12 steps), 125 at 6 frames (2 x 3 steps).
 
 Configurations: 2 x 12-step (``64x12,1x12``) and 2 x 3-step (``64x3,1x3``), MF, classical and, when a DP-TPU
 model is available (``dptpu.models.inference.shipped_model_path()`` or ``--model``), DP-TPU. Run::
 
-    dptpu bench pipeline [--json] [--size 640x480] [--scans 30] [--warmup 5] [--in-flight 2] [--steps 12,3]
+    dptpu bench pipeline [--json] [--size 640x480] [--scans 60] [--warmup 10] [--in-flight 4]
+                         [--latency-load 0.8] [--steps 12,3] [--model FILE.onnx] [--classical-only]
     python benchmarks/pipeline_bench.py [same options]
 
 Results and the machine they were taken on: docs/benchmarks.md, "bench pipeline".
@@ -42,6 +57,8 @@ SIM_RIG = REPO_ROOT / "launch" / "sim_rig.yaml"
 CAMERA_FRAMES_PER_S = 750.0
 SEQUENCES = {12: "64x12,1x12", 3: "64x3,1x3"}
 DOMAIN_ID = 97
+#: Frames the phase node's subscription queues (``frame_queue_depth``): scans in flight x frames must fit.
+PHASE_FRAME_QUEUE = 100
 
 
 def camera_limit_scans_per_s(frames_per_scan: int) -> float:
@@ -49,46 +66,86 @@ def camera_limit_scans_per_s(frames_per_scan: int) -> float:
     return CAMERA_FRAMES_PER_S / frames_per_scan
 
 
-def run_configuration(*, steps: int, model: str, size: str, scans: int, warmup: int, in_flight: int,
-                      timeout_s: float) -> dict:
-    """Launch the sim rig for one configuration and time it; the figures of the module docstring."""
-    sequence = SEQUENCES[steps]
-    frames = sum(int(entry.split("x")[1]) for entry in sequence.split(","))
+def launch_sim_rig(*, sequence: str, model: str, size: str, scans: int, timeout_s: float,
+                   pacing: list[str]) -> dict:
+    """Run the sim rig until ``scans`` scans were reported; the monitor's summary (``totals``, ``scans``).
+
+    ``pacing`` holds the launch arguments that start the scans (``in_flight:=N``, or ``in_flight:=0
+    projector_scans:=-1 scan_period:=S``).
+    """
     folder = Path(tempfile.mkdtemp(prefix="dpb", dir="/tmp"))
     summary = folder / "summary.json"
     env = dict(os.environ, DPTPU_DISCOVERY_DIR=str(folder / "d"), DPTPU_DOMAIN_ID=str(DOMAIN_ID),
                PYTHONPATH=str(REPO_ROOT) + os.pathsep + os.environ.get("PYTHONPATH", ""))
     command = [sys.executable, "-c", "import sys; from dptpu.cli.main import main; sys.exit(main())", "launch",
-               str(SIM_RIG), f"scans:={warmup + scans}", f"size:={size}", f"sequence:={sequence}", "method:=mf",
-               f"model:={model}", "ground_truth:=false", "exposure_us:=100", f"in_flight:={in_flight}", "ply_dir:=",
-               f"summary:={summary}", "scenes:=random:1,random:2", "source:=raycast"]
-    started = time.monotonic()
+               str(SIM_RIG), f"scans:={scans}", f"size:={size}", f"sequence:={sequence}", "method:=mf",
+               f"model:={model}", "ground_truth:=false", "exposure_us:=100", "ply_dir:=", f"summary:={summary}",
+               "scenes:=random:1,random:2", "source:=raycast", *pacing]
     try:
         done = subprocess.run(command, cwd=folder, env=env, capture_output=True, text=True, timeout=timeout_s)
         if done.returncode != 0 or not summary.is_file():
             raise RuntimeError(f"the sim rig exited with {done.returncode}: {done.stderr[-2000:]}")
-        report = json.loads(summary.read_text())
+        return json.loads(summary.read_text())
     finally:
         shutil.rmtree(folder, ignore_errors=True)
-    records = [r for r in report["scans"] if r["outcome"] == "ok"]
-    timed = records[-scans:] if len(records) > scans else records  # the monitor keeps the last 200 records
-    arrivals = np.array([r["cloud_arrival_unix_s"] for r in timed])
-    latency = np.array([r["latency_ms"] for r in timed])
-    first = np.array([r.get("latency_from_first_trigger_ms", np.nan) for r in timed])
-    scans_per_s = (len(arrivals) - 1) / (arrivals[-1] - arrivals[0]) if len(arrivals) > 1 else float("nan")
+
+
+def timed_figures(report: dict, scans: int) -> dict:
+    """Rate, latency and outcomes of the last ``scans`` reported scans of a monitor summary."""
+    records = sorted(report["scans"], key=lambda r: r["sequence_id"])  # a lost scan is reported seconds late
+    timed = records[-scans:]  # the last scans started (the monitor keeps the last 200 records)
+    ok = [r for r in timed if r["outcome"] == "ok"]
+    arrivals = np.array([r["cloud_arrival_unix_s"] for r in ok])
+    latency = np.array([r["latency_ms"] for r in ok])
+    rate = (len(arrivals) - 1) / (arrivals[-1] - arrivals[0]) if len(arrivals) > 1 else float("nan")
+    first = np.array([r.get("latency_from_first_trigger_ms", np.nan) for r in ok])
+    totals = report["totals"]
+    return {
+        "scans_timed": len(ok), "scans_per_s": round(float(rate), 3),
+        "latency_ms_p50": round(float(np.percentile(latency, 50)), 1) if ok else None,
+        "latency_ms_p99": round(float(np.percentile(latency, 99)), 1) if ok else None,
+        "latency_from_first_trigger_ms_p50": round(float(np.nanpercentile(first, 50)), 1)
+        if np.isfinite(first).any() else None,
+        "scans_failed": sum(r["outcome"] == "failed" for r in timed),
+        "scans_lost": sum(r["outcome"] == "lost" for r in timed),
+        "warmup_failed": int(totals["failed"] + totals["lost"]) - sum(r["outcome"] != "ok" for r in timed),
+        "valid_points_min": int(min(r["valid_points"] for r in ok)) if ok else 0,
+        "node_duration_ms_p50": _node_durations_ms(ok),
+    }
+
+
+def run_configuration(*, steps: int, model: str, size: str, scans: int, warmup: int, in_flight: int,
+                      latency_load: float, timeout_s: float) -> dict:
+    """Launch the sim rig for one configuration (throughput run, then latency run); the module docstring's
+    figures."""
+    sequence = SEQUENCES[steps]
+    frames = sum(int(entry.split("x")[1]) for entry in sequence.split(","))
+    started = time.monotonic()
+    common = {"sequence": sequence, "model": model, "size": size, "scans": warmup + scans, "timeout_s": timeout_s}
+    throughput = timed_figures(launch_sim_rig(pacing=[f"in_flight:={in_flight}"], **common), scans)
+    rate = throughput["scans_per_s"]
+    latency = throughput
+    if latency_load > 0 and np.isfinite(rate) and rate > 0:
+        period_s = 1.0 / (latency_load * rate)
+        latency = timed_figures(launch_sim_rig(pacing=["in_flight:=0", "projector_scans:=-1",
+                                                       f"scan_period:={period_s:.6f}"], **common), scans)
+        latency["scan_period_s"] = round(period_s, 5)
     return {
         "configuration": f"2 x {steps}-step, {'DP-TPU' if model != 'none' else 'classical'} MF",
         "sequence": sequence, "frames_per_scan": frames, "method": "mf", "model": model, "size": size,
-        "in_flight": in_flight, "scans_timed": int(len(timed)),
-        "scans_failed": int(report["totals"]["failed"]), "scans_lost": int(report["totals"]["lost"]),
-        "scans_per_s": round(float(scans_per_s), 3),
-        "latency_ms_p50": round(float(np.percentile(latency, 50)), 1),
-        "latency_ms_p99": round(float(np.percentile(latency, 99)), 1),
-        "latency_from_first_trigger_ms_p50": round(float(np.nanpercentile(first, 50)), 1)
-        if np.isfinite(first).any() else None,
-        "node_duration_ms_p50": _node_durations_ms(timed),
+        "in_flight": in_flight, "latency_load": latency_load if latency is not throughput else None,
+        "scans_timed": min(throughput["scans_timed"], latency["scans_timed"]),
+        "scans_failed": throughput["scans_failed"] + (latency["scans_failed"] if latency is not throughput else 0),
+        "scans_lost": throughput["scans_lost"] + (latency["scans_lost"] if latency is not throughput else 0),
+        "scans_per_s": rate,
+        "latency_ms_p50": latency["latency_ms_p50"],
+        "latency_ms_p99": latency["latency_ms_p99"],
+        "latency_from_first_trigger_ms_p50": latency["latency_from_first_trigger_ms_p50"],
+        "node_duration_ms_p50": throughput["node_duration_ms_p50"],
         "camera_limit_scans_per_s": camera_limit_scans_per_s(frames),
-        "camera_limit_ratio": round(float(scans_per_s / camera_limit_scans_per_s(frames)), 4),
+        "camera_limit_ratio": round(float(rate / camera_limit_scans_per_s(frames)), 4),
+        "throughput": throughput,
+        "latency": latency if latency is not throughput else None,
         "wall_s": round(time.monotonic() - started, 1),
     }
 
@@ -114,13 +171,18 @@ def dptpu_model(explicit: str | None) -> str | None:
 
 
 def run(args) -> int:
-    steps = [int(s) for s in str(args.steps).split(",")]
-    if any(s not in SEQUENCES for s in steps):
+    """Run the configurations of ``args`` (see :func:`build_parser`); print the report; 0, or 2 for bad options."""
+    steps = [int(s) for s in str(args.steps).split(",") if s.strip().isdigit()]
+    if not steps or any(s not in SEQUENCES for s in steps):
         print(f"dptpu bench pipeline: error: --steps takes 12 and/or 3; got {args.steps}", file=sys.stderr)
         return 2
-    if not 2 <= args.scans <= 200 or args.warmup < 0 or args.in_flight < 1:
+    most_frames = max(2 * s for s in steps)
+    if not 2 <= args.scans <= 200 or args.warmup < 0 or not 1 <= args.in_flight <= PHASE_FRAME_QUEUE // most_frames \
+            or not 0 <= args.latency_load < 1:
         print("dptpu bench pipeline: error: --scans must be 2..200 (the monitor keeps 200 records), --warmup >= 0, "
-              f"--in-flight >= 1; got {args.scans}, {args.warmup}, {args.in_flight}", file=sys.stderr)
+              f"--in-flight 1..{PHASE_FRAME_QUEUE // most_frames} (the phase node queues {PHASE_FRAME_QUEUE} frames, "
+              f"{most_frames} a scan), --latency-load in [0, 1); got {args.scans}, {args.warmup}, {args.in_flight}, "
+              f"{args.latency_load}", file=sys.stderr)
         return 2
     model = dptpu_model(args.model)
     models = ["none"] + ([model] if model and not args.classical_only else [])
@@ -128,13 +190,14 @@ def run(args) -> int:
     for step in steps:
         for which in models:
             results.append(run_configuration(steps=step, model=which, size=args.size, scans=args.scans,
-                                             warmup=args.warmup, in_flight=args.in_flight, timeout_s=args.timeout))
+                                             warmup=args.warmup, in_flight=args.in_flight,
+                                             latency_load=args.latency_load, timeout_s=args.timeout))
             if not args.json:
                 r = results[-1]
                 print(f"{r['configuration']:<28} {r['scans_per_s']:7.2f} scans/s  "
                       f"latency p50 {r['latency_ms_p50']:7.1f} "
                       f"ms  p99 {r['latency_ms_p99']:7.1f} ms  camera_limit_ratio {r['camera_limit_ratio']:.3f} "
-                      f"({r['scans_timed']} scans)", flush=True)
+                      f"({r['scans_timed']} scans, {r['scans_failed']} failed, {r['scans_lost']} lost)", flush=True)
     report = {"benchmark": "pipeline", "machine": {"cpus": os.cpu_count(), "platform": platform.platform(),
                                                    "python": platform.python_version(),
                                                    "load_average": list(os.getloadavg())},
@@ -149,16 +212,30 @@ def run(args) -> int:
 def add_arguments(parser) -> None:
     parser.add_argument("--json", action="store_true", help="print the report as one JSON object")
     parser.add_argument("--size", default="640x480", help="camera size WIDTHxHEIGHT (default 640x480)")
-    parser.add_argument("--scans", type=int, default=30, help="timed scans per configuration (default 30)")
-    parser.add_argument("--warmup", type=int, default=5, help="scans before timing starts (default 5)")
-    parser.add_argument("--in-flight", type=int, default=2, help="scans started ahead (default 2)")
+    parser.add_argument("--scans", type=int, default=60, help="timed scans per run (default 60)")
+    parser.add_argument("--warmup", type=int, default=10, help="scans before timing starts (default 10)")
+    parser.add_argument("--in-flight", type=int, default=4,
+                        help="throughput run: scans started ahead of the last one reported (default 4)")
+    parser.add_argument("--latency-load", type=float, default=0.8,
+                        help="latency run: the projector's own scans at this fraction of the measured throughput "
+                             "(default 0.8; 0 = no latency run, latencies of the throughput run)")
     parser.add_argument("--steps", default="12,3", help="sequences: 12 (2 x 12-step), 3 (2 x 3-step); default 12,3")
     parser.add_argument("--model", default=None, help="DP-TPU .onnx model (default: the shipped one, if any)")
     parser.add_argument("--classical-only", action="store_true", help="skip DP-TPU even when a model exists")
-    parser.add_argument("--timeout", type=float, default=600.0, help="seconds per configuration (default 600)")
+    parser.add_argument("--timeout", type=float, default=600.0, help="seconds per launch (default 600)")
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The command line of ``dptpu bench pipeline``."""
+    parser = argparse.ArgumentParser(prog="dptpu bench pipeline", description=__doc__.split("\n")[0])
+    add_arguments(parser)
+    return parser
+
+
+def main(argv=None) -> int:
+    """``dptpu bench pipeline ARGS`` / ``python benchmarks/pipeline_bench.py ARGS``; the exit code."""
+    return run(build_parser().parse_args(argv))
 
 
 if __name__ == "__main__":
-    main_parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    add_arguments(main_parser)
-    sys.exit(run(main_parser.parse_args()))
+    sys.exit(main())

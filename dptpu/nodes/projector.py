@@ -18,7 +18,8 @@ name                               type                      what
                                                              (ERROR, with the reason: partial sequence,
                                                              port lost, box silent, box abort)
 ``~/start_scan``                   std_srvs/Trigger (srv)    queue one scan; ``success`` false, with the
-                                                             reason, when the box is not connected or busy
+                                                             reason, when the box is not connected or
+                                                             ``max_waiting_scans`` scans already wait
 =================================  ========================  ==============================================
 
 Parameters:
@@ -38,6 +39,7 @@ name                     default            meaning
 ``scans``                0                  scans started by the node itself: 0 none (service only),
                                             N > 0 that many, -1 forever
 ``period_s``             0.0                least time from one scan's start to the next (0: back to back)
+``max_waiting_scans``    1                  ``~/start_scan`` requests queued while a scan runs
 ``min_subscribers``      1                  the node's own scans start only once ``/projector/trigger``
                                             has this many subscriptions (a scan nobody hears is lost)
 ``frame_id``             ``"projector"``    ``header.frame_id`` of Trigger and PatternSequence
@@ -83,6 +85,7 @@ class ProjectorNode(Node):
         self.shift_sign = self.declare_parameter("shift_sign", -1).value
         self.scans = self.declare_parameter("scans", 0).value
         self.period_s = self.declare_parameter("period_s", 0.0).value
+        max_waiting = self.declare_parameter("max_waiting_scans", 1).value
         self.min_subscribers = self.declare_parameter("min_subscribers", 1).value
         self.frame_id = self.declare_parameter("frame_id", "projector").value
         reply_timeout_s = self.declare_parameter("reply_timeout_s", 1.0).value
@@ -91,6 +94,8 @@ class ProjectorNode(Node):
         max_s = self.declare_parameter("reconnect_max_s", 5.0).value
         if self.shift_sign not in (-1, 1):
             raise ValueError(f"parameter shift_sign must be -1 or +1; got {self.shift_sign}")
+        if max_waiting < 1:
+            raise ValueError(f"parameter max_waiting_scans must be >= 1; got {max_waiting}")
         self.spec = SequenceSpec(fringe_axis, tuple(projector_size), exposure_us, parse_sequence_spec(sequence_text))
 
         self.trigger_pub = self.create_publisher(Trigger, "/projector/trigger", 100)
@@ -98,17 +103,20 @@ class ProjectorNode(Node):
             PatternSequence, "/projector/pattern_sequence", QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL))
         self.status_pub = self.create_publisher(ScanStatus, "/scanner/status", 20)
         self.start_service = self.create_service(TriggerService, "~/start_scan", self.on_start_scan)
-        self.auto_timer = self.create_timer(max(self.period_s, 0.01), self.on_auto_timer) if self.scans else None
+        # checked often enough that a scan starts within 5 ms (or a tenth of the period) of when it is due
+        self.auto_timer = self.create_timer(min(0.005, self.period_s / 10) if self.period_s > 0 else 0.005,
+                                            self.on_auto_timer) if self.scans else None
 
         self._lock = threading.Lock()
         self._next_sequence_id = 1
         self._scan_started: dict[int, float] = {}   # sequence_id -> monotonic start, for ScanStatus.duration_s
         self._auto_started = 0
-        self._last_auto_start = -float("inf")
+        self._next_auto_start = -float("inf")  # monotonic s when the next of the node's own scans is due
         self.sequence_pub.publish(self.pattern_sequence())
         self.link = ProjectorLink(port, self.spec, logger=self.get_logger(), on_pattern=self.on_pattern,
                                   on_scan_end=self.on_scan_end, baudrate=baudrate, reply_timeout_s=reply_timeout_s,
-                                  ack_timeout_s=ack_timeout_s, initial_s=initial_s, max_s=max_s)
+                                  ack_timeout_s=ack_timeout_s, initial_s=initial_s, max_s=max_s,
+                                  max_waiting=max_waiting)
         self.link.start()
 
     # --- callbacks ---------------------------------------------------------------------------------
@@ -126,13 +134,17 @@ class ProjectorNode(Node):
             self.auto_timer.cancel()
             self.get_logger().info(f"started the {self.scans} scan(s) asked for by the scans parameter")
             return
-        if not self.link.connected or self.link.busy or time.monotonic() - self._last_auto_start < self.period_s \
+        now_s = time.monotonic()
+        if not self.link.connected or self.link.busy or now_s < self._next_auto_start \
                 or self.trigger_pub.get_subscription_count() < self.min_subscribers:
             return
         _, reason = self.start_scan()
         if not reason:
             self._auto_started += 1
-            self._last_auto_start = time.monotonic()
+            # one period after this scan was due (no drift from the timer's ticks); after now when it was late by
+            # a whole period (the box was busy)
+            due_s = self._next_auto_start if self._next_auto_start > now_s - self.period_s else now_s
+            self._next_auto_start = due_s + self.period_s
 
     def on_pattern(self, sequence_id: int, pattern_index: int) -> None:
         """Link thread: the box acknowledged pattern ``pattern_index`` of scan ``sequence_id``."""

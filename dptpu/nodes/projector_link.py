@@ -60,11 +60,15 @@ class ProjectorLink:
         Longest silence during a scan beyond one pattern exposure.
     initial_s, max_s : float
         Reconnection backoff (see :func:`backoff_delay_s`).
+    max_waiting : int
+        Scan requests that may wait while a scan runs (>= 1); one more is refused.
     """
 
     def __init__(self, port: str, sequence: SequenceSpec, *, logger, on_pattern, on_scan_end,
                  baudrate: int = 115200, reply_timeout_s: float = 1.0, ack_timeout_s: float = 0.5,
-                 initial_s: float = 0.5, max_s: float = 5.0):
+                 initial_s: float = 0.5, max_s: float = 5.0, max_waiting: int = 1):
+        if not isinstance(max_waiting, int) or max_waiting < 1:
+            raise ValueError(f"max_waiting must be an integer >= 1; got {max_waiting!r}")
         self.port_name = port
         self.sequence = sequence
         self.logger = logger
@@ -83,7 +87,7 @@ class ProjectorLink:
         self._port = None
         self._emulator: TriggerBoxEmulator | None = None
         self._buffer = b""
-        self._requests: queue.Queue = queue.Queue(maxsize=1)
+        self._requests: queue.Queue = queue.Queue(maxsize=max_waiting)
         self._connected = threading.Event()
         self._busy = threading.Event()
         self._stop = threading.Event()
@@ -115,7 +119,8 @@ class ProjectorLink:
         try:
             self._requests.put_nowait(scan_id)
         except queue.Full:
-            return "a scan is already waiting to start"
+            waiting = self._requests.maxsize
+            return f"{waiting} scan{'s are' if waiting > 1 else ' is'} already waiting to start"
         return ""
 
     # --- the link thread -------------------------------------------------------------------------

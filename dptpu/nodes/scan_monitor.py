@@ -73,6 +73,7 @@ __all__ = ["ScanMonitorNode", "main"]
 
 _GRACE_S = 1.0  # how long a scan whose cloud arrived waits for its absolute phase and ground truth
 _KEPT_RECORDS = 200  # per-scan records kept for the summary file (totals cover every scan)
+_HEARD_RECHECK_S = 1.0  # how long a seen subscriber count of the Triggers is trusted
 
 
 @dataclass
@@ -135,6 +136,8 @@ class ScanMonitorNode(Node):
         self.start_client = self.create_client(TriggerService, start_service) if self.start_scans else None
         self.scans_started = 0
         self._start_call = None
+        self._triggers_heard = False
+        self._heard_checked_s = -math.inf
         self._progress_s = time.monotonic()
         self.timer = self.create_timer(0.1, self.on_timer)
 
@@ -219,9 +222,13 @@ class ScanMonitorNode(Node):
         """Call ``start_service`` while fewer than ``start_scans`` scans are in flight."""
         if self.start_client is None or self.trigger_sub is None or self.finished or self._start_call is not None:
             return
-        if self.count_subscribers(self.trigger_sub.topic_name) < 2:  # the camera (sim) must hear the Triggers too
-            return
         now_s = time.monotonic()
+        if now_s >= self._heard_checked_s + _HEARD_RECHECK_S:  # a graph snapshot costs ~1 ms: once a second at most
+            # the camera (sim) must hear the Triggers too
+            self._triggers_heard = self.count_subscribers(self.trigger_sub.topic_name) >= 2
+            self._heard_checked_s = now_s if self._triggers_heard else -math.inf
+        if not self._triggers_heard:
+            return
         if self.scans_started > self.reported and now_s - self._progress_s > 2 * self.scan_timeout_s:
             self.get_logger().warning(f"{self.scans_started - self.reported} started scan(s) never showed up; "
                                       "starting new ones")
