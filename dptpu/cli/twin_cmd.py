@@ -1,7 +1,7 @@
 """``dptpu twin ...``: hold measured data against the digital twin.
 
-``dptpu twin diagnose --measured PATH --rig RIG [--reference sphere:DIAMETER_MM | plane] [--self-reference]
-[--frequency F] --out DIR`` (:mod:`dptpu.sim.diagnosis`, docs/sim-to-real.md): registration, residuals and
+``dptpu twin diagnose --measured PATH --rig RIG [--reference sphere:DIAMETER_MM | plane | scene:FILE]
+[--self-reference] [--frequency F] --out DIR`` (:mod:`dptpu.sim.diagnosis`, docs/sim-to-real.md): registration, residuals and
 their decomposition (PNG figures), candidate effects ranked by BIC, the extended rig, the re-render and
 ``report.json`` / ``report.md``.
 
@@ -28,7 +28,9 @@ def register(subparsers) -> None:
     diagnose.add_argument("--rig", default=None,
                           help="dptpu-rig/1 or OpenCV rig file, 'CAM.mat,PRJ.mat' (Bouguet) or 'nominal'; "
                                "optional with --self-reference")
-    diagnose.add_argument("--reference", default=None, help="sphere:DIAMETER_MM or plane")
+    diagnose.add_argument("--reference", default=None,
+                          help="sphere:DIAMETER_MM, plane or scene:FILE (a dptpu scene YAML, docs/twin.md: its pose "
+                               "is registered from the data by ICP)")
     diagnose.add_argument("--self-reference", action="store_true",
                           help="no calibration or reference object: the data's own 12-step phase is the reference")
     diagnose.add_argument("--frequency", type=float, default=None,
@@ -76,7 +78,7 @@ def run_diagnose(args) -> int:
     if args.self_reference and args.reference:
         raise ValueError("give either --reference or --self-reference, not both")
     if not args.self_reference and not args.reference:
-        raise ValueError("--reference sphere:DIAMETER_MM | plane is required (or --self-reference)")
+        raise ValueError("--reference sphere:DIAMETER_MM | plane | scene:FILE is required (or --self-reference)")
     if args.rig is None and not args.self_reference:
         raise ValueError("--rig is required with --reference")
     if args.rounds < 1:

@@ -1,5 +1,6 @@
 """Hidden-effect fixtures: "measured" captures of the standard sphere and a plane rendered by the twin with
-exactly one effect switched on, chosen and sized by a seed (``numpy.random.default_rng(seed)``).
+exactly one effect switched on, chosen and sized by a seed (``numpy.random.default_rng(seed)``): the 8 effects the issue requires and the
+twin's grid and motion effects (vignetting, camera_defocus, projector_pixelation, motion).
 
 The diagnosis sees only the frames (the capture declares the projected pattern's offset and amplitude, as the
 capture format allows) and the baseline rig. ``MAIN`` names each effect's main parameter and how it is compared:
@@ -33,6 +34,10 @@ MAIN = {
     "intensity_drift": ("rate_per_frame", 0.0, 0.2),
     "phase_shift_error": ("scale", 1.0, 0.2),
     "saturation": ("exposure_gain", 1.0, 0.2),
+    "vignetting": ("k1", 0.0, 0.2),
+    "camera_defocus": ("sigma_px", 0.0, 0.2),
+    "projector_pixelation": ("quantize_bits", None, 0.0),  # a discrete parameter: exactly the hidden value
+    "motion": ("velocity_per_frame", 0.0, 0.2),  # |fitted - true| / |true| of the velocity vector
 }
 
 
@@ -59,19 +64,34 @@ def hidden_effect(name: str, seed: int, magnitude: float = 1.0, scene: str = "pl
         return {name: {"scale": 1.0 + sign * 0.008 * u, "sigma_rad": 0.0}}
     if name == "saturation":  # sized past the gain at which the brightest pixel starts to clip
         return {name: {"exposure_gain": CLIP_ONSET_GAIN[scene] * (1.0 + 0.4 * u)}}
+    if name == "vignetting":  # the sphere covers the middle of the image only: it needs a larger k1
+        return {name: {"k1": -(0.3 if scene == "plane" else 0.5) * u, "k2": 0.0}}
+    if name == "camera_defocus":  # below ~0.3 px the twin's blur changes no pixel (neighbour weight 4e-6 at 0.2)
+        return {name: {"sigma_px": 0.3 + 0.5 * u}}
+    if name == "projector_pixelation":  # no size: the staircase is one projector pixel; the level bits vary
+        return {name: {"quantize_bits": int(rng.choice([0, 5, 6]))}}
+    if name == "motion":  # mostly along the camera axis (a sphere sliding sideways barely changes a pixel's view)
+        direction = np.array([0.0, 0.0, 1.0]) if scene == "plane" else np.array([*rng.uniform(-0.3, 0.3, 2), 1.0])
+        return {name: {"velocity_per_frame": (sign * 0.03 * u * direction).tolist(),
+                       "angular_deg_per_frame": [0.0, 0.0, 0.0]}}
     raise ValueError(f"no hidden-effect recipe for {name!r}")
 
 
-def main_value(name: str, parameters: dict) -> float:
+def main_value(name: str, parameters: dict):
     value = parameters[MAIN[name][0]]
+    if name == "motion":
+        return np.asarray(value, dtype=np.float64)
     return float(value[0] if isinstance(value, (list, tuple)) else value)
 
 
 def relative_error(name: str, true: dict, fitted: dict) -> float:
-    """``|fitted - true| / |true - neutral|`` of the main parameter."""
+    """``|fitted - true| / |true - neutral|`` of the main parameter (a vector: its norm; a discrete parameter:
+    0 when equal, 1 otherwise)."""
     neutral = MAIN[name][1]
     t, f = main_value(name, true), main_value(name, fitted)
-    return abs(f - t) / abs(t - neutral)
+    if neutral is None:
+        return 0.0 if f == t else 1.0
+    return float(np.linalg.norm(f - t) / np.linalg.norm(t - neutral))
 
 
 def render_measured(folder, scene: str, effect=None, *, seed: int = 0):

@@ -147,14 +147,16 @@ def render_pixels(pixels: PixelSet, effects=(), *, seed: int = 0, factor=None, o
     step = None if velocity is None else pixels.motion_jacobian @ velocity  # (P,) px per frame
     out, frame = [], 0
     for sequence, coord, extra in zip(pixels.sequences, pixels.coords, offsets):
-        shifts = step_shifts(sequence.steps, sequence.shift_sign, effects, rng)
-        frames = np.empty((sequence.steps, pixels.size))
-        for n in range(sequence.steps):
-            c = coord if step is None else coord + (frame - pixels.motion_reference_frame) * step
-            frame += 1
-            frames[n] = pixels.full_scale * factor * pattern_levels(
-                c, frequency=sequence.frequency, extent=pixels.extent, shift=shifts[n], offset=pixels.offset,
-                amplitude=pixels.amplitude, phase_offset=sequence.phase_offset + extra, effects=effects, sigma_px=sigma)
+        shifts = step_shifts(sequence.steps, sequence.shift_sign, effects, rng)[:, None]  # (N, 1)
+        c = coord[None, :]
+        if step is not None:
+            frames_index = frame + np.arange(sequence.steps)[:, None] - pixels.motion_reference_frame
+            c = c + frames_index * step[None, :]
+        frame += sequence.steps
+        frames = pixels.full_scale * factor * pattern_levels(
+            c, frequency=sequence.frequency, extent=pixels.extent, shift=shifts, offset=pixels.offset,
+            amplitude=pixels.amplitude, phase_offset=sequence.phase_offset + extra, effects=effects, sigma_px=sigma)
+        frames = np.broadcast_to(frames, (sequence.steps, pixels.size))
         frames = apply_camera_effects(frames[:, :, None], effects=effects, albedo=pixels.albedo[:, None], hit=hit,
                                       full_scale=pixels.full_scale, exposure=1.0, rng=rng,
                                       vignetting_map=vignetting_map)[:, :, 0]
@@ -175,13 +177,12 @@ def _render_grid(pixels: PixelSet, effects, *, seed: int, factor, offsets) -> li
     ratio = np.where(pixels.factor > 0, factor / np.where(pixels.factor > 0, pixels.factor, 1.0), 0.0)
     out = []
     for sequence, coord, extra in zip(pixels.sequences, grid.coords, offsets):
-        shifts = step_shifts(sequence.steps, sequence.shift_sign, effects, rng)
+        shifts = step_shifts(sequence.steps, sequence.shift_sign, effects, rng)[:, None]  # (N, 1)
         frames = np.zeros((sequence.steps,) + grid.factor.shape)
-        for n in range(sequence.steps):
-            frames[n][lit] = pixels.full_scale * grid.factor[lit] * pattern_levels(
-                coord[lit], frequency=sequence.frequency, extent=pixels.extent, shift=shifts[n],
-                offset=pixels.offset, amplitude=pixels.amplitude, phase_offset=sequence.phase_offset + extra,
-                effects=effects, sigma_px=sigma)
+        frames[:, lit] = pixels.full_scale * grid.factor[lit] * pattern_levels(
+            coord[lit][None, :], frequency=sequence.frequency, extent=pixels.extent, shift=shifts,
+            offset=pixels.offset, amplitude=pixels.amplitude, phase_offset=sequence.phase_offset + extra,
+            effects=effects, sigma_px=sigma)
         frames = apply_camera_effects(frames, effects=effects, albedo=grid.albedo, hit=grid.hit,
                                       full_scale=pixels.full_scale, exposure=1.0, rng=rng)
         out.append(frames[:, rows, cols] * ratio[None, :])

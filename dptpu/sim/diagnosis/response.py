@@ -5,7 +5,7 @@ The table holds ``K`` knots ``l_k`` at inputs ``k / (K - 1)`` and is linear betw
 definition, :func:`dptpu.sim.effects.pattern.response_levels`), so a model value is linear in the knots:
 ``M_v = FS R_q s_q sum_k w_k(p_v) l_k`` with ``w_k`` the hat functions at the ideal level ``p_v`` of the value
 (Eq. (1) at the pixel's projector coordinate). Monotone: ``l = C d`` with ``C`` the cumulative sum and the
-increments ``d >= 0`` (bounded linear least squares, :func:`scipy.optimize.lsq_linear`). The per-pixel gain
+increments ``d >= 0`` (non-negative least squares, :func:`scipy.optimize.nnls`). The per-pixel gain
 ``s_q`` and the table are fitted in turn (a few alternations from the ideal table); the scale they share is
 fixed by ``L(p_max) = p_max`` at the brightest projected level. Only the knots whose hat functions reach the
 projected range ``[offset - amplitude, offset + amplitude]`` are free (the others repeat the nearest free one);
@@ -17,7 +17,7 @@ offsets fitted, :func:`dptpu.sim.diagnosis.forward.intensity_residual`).
 from __future__ import annotations
 
 import numpy as np
-from scipy.optimize import lsq_linear
+from scipy.optimize import nnls
 
 from dptpu.sim.effects.pattern import pattern_levels
 
@@ -49,6 +49,16 @@ def _hat_weights(levels: np.ndarray, knots: int) -> np.ndarray:
     weights[rows, left] = 1.0 - t
     weights[rows, left + 1] = t
     return weights
+
+
+def _nonnegative_lsq(design: np.ndarray, target: np.ndarray) -> np.ndarray:
+    """``argmin |A d - b|`` over ``d >= 0``, on the normal equations (``A^T A = L L^T``: the same problem as
+    ``|L^T d - L^-1 A^T b|``, K x K instead of V x K)."""
+    normal = design.T @ design
+    normal += 1e-12 * np.trace(normal) * np.eye(len(normal))
+    lower = np.linalg.cholesky(normal)
+    rhs = np.linalg.solve(lower, design.T @ target)
+    return nnls(lower.T, rhs)[0]
 
 
 def _ideal_levels(pixels: PixelSet) -> list:
@@ -91,7 +101,7 @@ def fit_response(pixels: PixelSet, *, base=(), refine: int = 1, rss_before: floa
         scale = np.concatenate([np.repeat((pixels.full_scale * pixels.factor * gains)[None, :], s, axis=0).ravel()
                                 for s in steps])
         design = (folded * scale[:, None]) @ cumulative
-        increments = lsq_linear(design, measured, bounds=(0.0, np.inf), method="bvls").x
+        increments = _nonnegative_lsq(design, measured)
         table = cumulative @ increments
         model, start = [], 0
         for lv in levels:

@@ -17,7 +17,6 @@ displacement (rig units).
 from __future__ import annotations
 
 import numpy as np
-from scipy.optimize import minimize_scalar
 
 from dptpu.fpp.triangulate import Triangulator
 
@@ -106,35 +105,37 @@ def register_scene(rig, reference, measured_x: np.ndarray, mask: np.ndarray, *, 
 
 
 def fit_scene_lens_distortion(rig, reference, measured_x: np.ndarray, registration: Registration, *,
-                              bounds=(-1.0, 1.0)) -> tuple[dict, Registration]:
+                              step: float = 0.01, iterations: int = 3) -> tuple[dict, Registration]:
     """Camera ``k1`` the calibration lacks, on the phase residual with the registered pose held (a traced
-    scene has no cheap pose derivative): grid, then bounded Brent. Returns the entry and the geometry with it."""
+    scene has no cheap pose derivative): Gauss-Newton with the derivative of one forward difference (the
+    coordinate is nearly linear in ``k1`` at these sizes), ``iterations`` + 1 traces. Returns the entry and the
+    geometry with it."""
     mask = registration.mask
     target = measured_x[mask]
 
     def residual(k1):
         hits = reference_hits(add_camera_k1(rig, [k1]), reference, registration.pose)
         r = hits.projector_xy[..., 0][mask] - target
-        return np.where(np.isfinite(r) & hits.lit[mask], r, 0.0)
+        return np.where(np.isfinite(r) & hits.lit[mask], r, np.nan)
 
-    def rss(k1):
-        r = residual(k1)
-        return float(np.sum(r * r))
-
-    grid = np.unique(np.append(np.linspace(*bounds, 9), 0.0))
-    values = [rss(v) for v in grid]
-    best = int(np.argmin(values))
-    k1, best_rss = float(grid[best]), float(values[best])
-    left, right = grid[max(best - 1, 0)], grid[min(best + 1, len(grid) - 1)]
-    solution = minimize_scalar(rss, bounds=(left, right), method="bounded", options={"xatol": 1e-5})
-    if solution.fun < best_rss:
-        k1, best_rss = float(solution.x), float(solution.fun)
-    rss0 = rss(0.0)
-    n = int(mask.sum())
+    r0 = residual(0.0)
+    derivative = (residual(step) - r0) / step
+    ok = np.isfinite(r0) & np.isfinite(derivative)
+    rss0 = float(np.sum(r0[ok] ** 2))
+    k1, r, best_rss = 0.0, r0, rss0
+    for _ in range(iterations):
+        good = ok & np.isfinite(r)
+        trial = k1 - float(np.sum(r[good] * derivative[good]) / max(np.sum(derivative[good] ** 2), 1e-300))
+        r_trial = residual(trial)
+        rss = float(np.sum(np.where(ok & np.isfinite(r_trial), r_trial, r0) ** 2 * ok))
+        if rss >= best_rss:
+            break
+        k1, r, best_rss = trial, r_trial, rss
+    n = int(ok.sum())
     fitted_rig = add_camera_k1(rig, [k1])
-    model_x, r, _ = _compare(fitted_rig, reference, registration.pose, measured_x, mask, 0)
+    model_x, full, _ = _compare(fitted_rig, reference, registration.pose, measured_x, mask, 0)
     fitted = Registration(pose=registration.pose, extra=np.array([k1]), rig=fitted_rig, model_x=model_x,
-                          residual_px=np.where(mask, r, np.nan), rms_px=float(np.sqrt(best_rss / max(n, 1))),
+                          residual_px=np.where(mask, full, np.nan), rms_px=float(np.sqrt(best_rss / max(n, 1))),
                           pixels=n, mask=mask)
     before, after = float(np.sqrt(rss0 / n)), float(np.sqrt(best_rss / n))
     entry = {"name": "lens_distortion", "parameters": {"camera": [k1, 0.0, 0.0, 0.0, 0.0], "projector": [0.0] * 5},

@@ -94,8 +94,9 @@ def pattern_levels(coord, *, frequency: float, extent: float, shift: float, offs
         Projector coordinate along the fringe axis, projector pixels (0-based centres).
     frequency, extent : float
         ``f`` periods across ``W = extent`` pixels.
-    shift : float
-        Phase shift of this step, radians (from :func:`step_shifts`).
+    shift : float or ndarray
+        Phase shift of this step, radians (from :func:`step_shifts`); an array broadcast against ``coord``
+        (e.g. (N, 1) against (1, P)) evaluates several steps at once.
     offset, amplitude : float
         Ideal level ``offset + amplitude cos(theta)``.
     effects : tuple of Effect
