@@ -38,7 +38,7 @@ def projector_coordinate(absolute_phase: np.ndarray, frequency: float, extent: f
         raise ValueError(f"frequency must be a positive number of periods; got {frequency}")
     if not np.isfinite(extent) or extent <= 0:
         raise ValueError(f"projector extent must be positive pixels; got {extent}")
-    return np.asarray(absolute_phase, dtype=np.float64) * (extent / (2.0 * np.pi * frequency))
+    return np.multiply(absolute_phase, extent / (2.0 * np.pi * frequency), dtype=np.float64)  # one pass
 
 
 def _axis_index(axis: str) -> int:
@@ -157,7 +157,8 @@ class Triangulator:
             points[..., k] += self.origin[k]
         return points
 
-    def camera_points(self, projector_coord: np.ndarray, *, scale: float = 1.0, dtype=np.float32) -> np.ndarray:
+    def camera_points(self, projector_coord: np.ndarray, *, scale: float = 1.0, dtype=np.float32,
+                      out: np.ndarray | None = None) -> np.ndarray:
         """3D points in the camera frame, ``(R X + T) * scale``, (H, W, 3) of ``dtype``; the cloud's output.
 
         Parameters
@@ -168,6 +169,9 @@ class Triangulator:
             Factor from rig units to the output's, e.g. ``rig.scale_to_m`` for metres.
         dtype : numpy dtype
             Output dtype (float32 by default, as PointCloud2 and depth images carry).
+        out : ndarray (H, W, 3) of ``dtype``, optional
+            Where to write the points; may be a strided view, e.g. the x, y, z channels of an (H, W, C) point
+            cloud buffer, so the cloud is filled without a copy.
 
         Returns
         -------
@@ -185,7 +189,13 @@ class Triangulator:
             self._rays_camera_cast[key] = np.ascontiguousarray(rays_camera.T.reshape(self._rays_planar.shape),
                                                                dtype=dtype)
         rays = self._rays_camera_cast[key]
-        points = np.empty(self.rays.shape, dtype=dtype)  # (H, W, 3)
+        if out is None:
+            points = np.empty(self.rays.shape, dtype=dtype)  # (H, W, 3)
+        elif out.shape != self.rays.shape or out.dtype != np.dtype(dtype):
+            raise ValueError(f"out must be an array of shape {self.rays.shape} and dtype {np.dtype(dtype)}; got "
+                             f"{out.shape} {out.dtype}")
+        else:
+            points = out
         for k in range(3):
             np.multiply(t, rays[k], out=points[..., k])
         return points

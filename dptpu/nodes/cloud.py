@@ -135,6 +135,8 @@ class CloudNode(Node):
         if self.ply_dir and self.ply_every:
             import open3d  # noqa: F401 -- loaded now (seconds), not in the first scan's callback
         self._triangulators: dict[str, Triangulator] = {}
+        if not self.use_camera_info:
+            self._triangulator("x")  # the per-rig tables now (~0.3-2 s at 640x480), not in the first scan
         self._phase_maps: OrderedDict[int, PhaseMaps] = OrderedDict()
         self._waiting: dict[int, tuple[AbsolutePhase, float]] = {}  # sequence_id -> (scan, deadline), monotonic s
         self.scans_published = 0
@@ -168,6 +170,7 @@ class CloudNode(Node):
             return
         self.rig = Rig(camera=camera, projector=self.rig.projector, units=self.rig.units, effects=self.rig.effects)
         self._triangulators.clear()
+        self._triangulator("x")  # the per-rig tables now (~0.3-2 s at 640x480), not in the first scan
         self.get_logger().info(f"camera intrinsics from CameraInfo: {msg.width}x{msg.height}")
 
     def on_phase_maps(self, msg: PhaseMaps) -> None:
@@ -192,10 +195,18 @@ class CloudNode(Node):
             self._triangulate(self._waiting.pop(sequence_id)[0])
 
     def _triangulate(self, msg: AbsolutePhase) -> None:
-        """Triangulate one scan; publish its cloud, depth image and status."""
+        """Triangulate one scan; publish its cloud, depth image and status.
+
+        The cloud is one fresh (H, W, 5) float32 buffer filled in place (x, y, z by the triangulation, then the
+        intensity and quality channels) and published without a copy; the depth image is its z channel made
+        contiguous (one (H, W) copy).
+        """
         try:
-            phase, nan_pixels = self._checked_phase(msg)
-            points = camera_points_m(self._triangulator(msg.fringe_axis), phase, msg.frequency, self._extent_px(msg))
+            coord, nan_pixels = self._projector_coordinate(msg)
+            triangulator = self._triangulator(msg.fringe_axis)
+            cloud = np.empty((*coord.shape, len(FIELDS)), dtype=np.float32)  # (H, W, 5): x y z intensity quality
+            triangulator.camera_points(coord, scale=triangulator.rig.scale_to_m, dtype=np.float32,
+                                       out=cloud[..., :3])  # metres, NaN where invalid or behind the camera
         except ValueError as exc:
             self.scans_rejected += 1
             reason = f"cannot triangulate scan {msg.sequence_id}: {exc}"
@@ -204,9 +215,13 @@ class CloudNode(Node):
             return
         header = Header(stamp=msg.header.stamp, frame_id=self.frame_id)
         intensity = self._intensity(msg)
-        cloud = np.concatenate([points, intensity[..., None], msg.reliability[..., None]], axis=-1)  # (H, W, 5)
+        if intensity is None:
+            cloud[..., 3] = np.nan
+        else:
+            cloud[..., 3] = intensity
+        cloud[..., 4] = msg.reliability
         self.points_publisher.publish(PointCloud2.from_array(cloud, FIELDS, header=header, is_dense=False))
-        depth_m = np.ascontiguousarray(points[..., 2])  # (H, W)
+        depth_m = np.ascontiguousarray(cloud[..., 2])  # (H, W) metres
         self.depth_publisher.publish(Image.from_array(depth_m, "32FC1", header=header))
         self.scans_published += 1
         valid_points = int(np.count_nonzero(np.isfinite(depth_m)))
@@ -214,10 +229,10 @@ class CloudNode(Node):
         if nan_pixels:
             self.pixels_nan += nan_pixels
             reasons.append(f"{nan_pixels} pixels marked valid had a non-finite absolute phase; treated as invalid")
-        if not np.isfinite(intensity).any():
+        if intensity is None:
             reasons.append(f"no PhaseMaps of scan {msg.sequence_id} seen: intensity NaN")
         if self.ply_dir and self.ply_every and (self.scans_published - 1) % self.ply_every == 0:
-            reasons += self._snapshot(msg.sequence_id, points, intensity)
+            reasons += self._snapshot(msg.sequence_id, cloud[..., :3], cloud[..., 3])
         if reasons:
             self.get_logger().warning(f"scan {msg.sequence_id}: {'; '.join(reasons)}", throttle_duration_sec=1.0)
         self._status(msg, ScanStatus.WARN if reasons else ScanStatus.OK, "done", "; ".join(reasons),
@@ -226,19 +241,26 @@ class CloudNode(Node):
     # -- helpers ---------------------------------------------------------------------------------------------
 
     def _triangulator(self, axis: str) -> Triangulator:
+        """The rig's triangulation tables for ``axis`` (rays, projector distortion), made once per rig."""
         if axis not in self._triangulators:
             self._triangulators[axis] = Triangulator(self.rig, axis=axis, distortion=self.distortion)
         return self._triangulators[axis]
 
-    def _checked_phase(self, msg: AbsolutePhase) -> tuple[np.ndarray, int]:
-        """The absolute phase with NaN where invalid or not finite, and how many pixels marked valid were not
-        finite; ValueError when it does not fit the rig's camera."""
+    def _projector_coordinate(self, msg: AbsolutePhase) -> tuple[np.ndarray, int]:
+        """Projector coordinate (H, W) float64 of the scan, NaN where invalid or not finite, and how many pixels
+        marked valid were not finite; ValueError when the scan does not fit the rig."""
         width, height = self.rig.camera.size
-        if msg.absolute_phase.shape != (height, width):
-            raise ValueError(f"absolute_phase is {msg.absolute_phase.shape[1]}x{msg.absolute_phase.shape[0]} pixels; "
+        phase = msg.absolute_phase
+        if phase.shape != (height, width):
+            raise ValueError(f"absolute_phase is {phase.shape[1]}x{phase.shape[0]} pixels; "
                              f"the rig's camera is {width}x{height}")
-        usable = msg.valid & np.isfinite(msg.absolute_phase)
-        return np.where(usable, msg.absolute_phase, np.nan), int(np.count_nonzero(msg.valid & ~usable))
+        coord = projector_coordinate(phase, msg.frequency, self._extent_px(msg))  # (H, W) float64 projector pixels
+        mask = np.isfinite(coord)
+        np.logical_and(mask, msg.valid, out=mask)  # (H, W) usable pixels
+        nan_pixels = int(np.count_nonzero(msg.valid)) - int(np.count_nonzero(mask))
+        np.logical_not(mask, out=mask)  # (H, W) pixels to blank
+        np.copyto(coord, np.nan, where=mask)
+        return coord, nan_pixels
 
     def _extent_px(self, msg: AbsolutePhase) -> int:
         """Projector pixels along the fringe axis: the rig's; ValueError when the message says otherwise."""
@@ -248,14 +270,15 @@ class CloudNode(Node):
                              f"{rig_size[0]}x{rig_size[1]}")
         return rig_size[0] if msg.fringe_axis == "x" else rig_size[1]
 
-    def _intensity(self, msg: AbsolutePhase) -> np.ndarray:
-        """Modulation (H, W) float32 of the scan's unwrapped frequency, NaN when its PhaseMaps was not seen."""
+    def _intensity(self, msg: AbsolutePhase) -> np.ndarray | None:
+        """Modulation (H, W) float32 of the scan's unwrapped frequency (a view of its PhaseMaps), None when its
+        PhaseMaps was not seen."""
         maps = self._phase_maps.get(msg.sequence_id)
         if maps is not None and maps.modulation.shape[1:] == msg.absolute_phase.shape:
             for index, frequency in enumerate(maps.frequencies):
                 if same_frequency(float(frequency), msg.frequency):
                     return maps.modulation[index]
-        return np.full(msg.absolute_phase.shape, np.nan, dtype=np.float32)
+        return None
 
     def _snapshot(self, sequence_id: int, points: np.ndarray, intensity: np.ndarray) -> list[str]:
         path = Path(self.ply_dir) / f"scan_{sequence_id:08d}.ply"

@@ -1,8 +1,12 @@
 """Phase node: assembles the fringe frames of each scan and publishes its wrapped phase maps.
 
 Frames are collected per ``sequence_id`` (:mod:`dptpu.nodes.sequence_assembler`); a complete scan gives one
-wrapped phase, modulation and quality mask per frequency by least squares (Eq. (2) of the paper,
-:func:`dptpu.fpp.phase.wrapped_phase` and :func:`dptpu.fpp.phase.quality_mask`). An incomplete scan is
+wrapped phase, modulation and quality mask per frequency by least squares (Eq. (2) of the paper). The sums of
+Eq. (2) are accumulated frame by frame as the frames arrive (:func:`dptpu.fpp.phase.accumulate_frame`, one
+fused pass per sum over the received image, no copy of it), so a scan's maps are ready right after its last
+frame: the arctangent and the masks are all that is left (:func:`dptpu.fpp.phase.maps_from_sums`; the same
+numbers as :func:`dptpu.fpp.phase.wrapped_phase` and :func:`dptpu.fpp.phase.quality_mask` on the stacked
+frames, :func:`scan_phase_maps`, which a scan whose accumulation went wrong falls back to). An incomplete scan is
 dropped ``timeout_s`` after its first frame, an inconsistent one at once; either way a ``ScanStatus``
 (ERROR, ``failed``) says why, and frames of two scans are never mixed.
 
@@ -48,10 +52,11 @@ from dptpu.graph.node import Node
 from dptpu.graph.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from dptpu.messages import FringeFrame, Header, PatternSequence, PhaseMaps, ScanStatus, Time
 
-from .sequence_assembler import AssembledScan, DroppedScan, FrameInfo, RejectedFrame, ScanLayout, SequenceAssembler
+from .sequence_assembler import (AssembledScan, DroppedScan, FrameInfo, FrameSlot, RejectedFrame, ScanLayout,
+                                 SequenceAssembler)
 from .node_main import run_node
 
-__all__ = ["PhaseNode", "scan_phase_maps", "main"]
+__all__ = ["PhaseNode", "ScanSums", "scan_phase_maps", "main"]
 
 _TWO_PI = 2.0 * np.pi
 DEFAULT_FRAME_ID = "scanner_optical_frame"
@@ -78,6 +83,59 @@ def scan_phase_maps(scan: AssembledScan, *, min_modulation: float, saturation_le
         phases.append(np.where(phase32 >= _TWO_PI, np.float32(0.0), phase32))
         modulations.append(maps.modulation.astype(np.float32, copy=False))
     return np.stack(phases), np.stack(modulations), valid
+
+
+class ScanSums:
+    """The Eq. (2) sums of one scan's entries, accumulated frame by frame, and the brightest value of each pixel.
+
+    ``sums[entry_start]`` is the (3, H, W) float32 ``B sin(psi)``, ``B cos(psi)``, ``A`` of the entry starting at
+    that pattern index; ``slots`` records where each added frame was put, so :meth:`maps` can check them against
+    the scan's final layout.
+    """
+
+    def __init__(self):
+        self.sums: dict[int, np.ndarray] = {}
+        self.slots: dict[int, FrameSlot] = {}  # pattern_index -> where it was added
+        self.brightest: np.ndarray | None = None  # (H, W) max over the frames, for the saturation mask
+
+    def add(self, pattern_index: int, image: np.ndarray, slot: FrameSlot) -> None:
+        """Add frame ``pattern_index`` (H, W) at ``slot``."""
+        sums = self.sums.get(slot.entry_start)
+        if sums is None:
+            sums = self.sums[slot.entry_start] = np.zeros((3, *image.shape), dtype=np.float32)
+        fpp_phase.accumulate_frame(sums, image, fpp_phase.phase_weights(slot.steps, slot.step,
+                                                                       shift_sign=slot.shift_sign,
+                                                                       phase_offset=slot.phase_offset))
+        if self.brightest is None:
+            self.brightest = image.copy()
+        else:
+            np.maximum(self.brightest, image, out=self.brightest)
+        self.slots[int(pattern_index)] = slot
+
+    def maps(self, scan: AssembledScan, *, min_modulation: float, saturation_level: float | None):
+        """Wrapped phase (F, H, W), modulation (F, H, W) and validity (H, W) of ``scan``, as
+        :func:`scan_phase_maps` gives them; None when a frame was added at another place than the scan's final
+        layout says (the caller then computes the maps from the frames)."""
+        for pattern_index, slot in self.slots.items():
+            if slot != scan.slot(pattern_index):
+                return None
+        if len(self.slots) != scan.frame_count or self.brightest is None:
+            return None
+        starts = np.cumsum((0, *scan.layout.steps[:-1]))
+        height, width = self.brightest.shape
+        phases = np.empty((len(starts), height, width), dtype=np.float32)
+        modulations = np.empty((len(starts), height, width), dtype=np.float32)
+        valid = np.ones((height, width), dtype=bool)
+        for index, start in enumerate(starts):
+            maps = fpp_phase.maps_from_sums(self.sums[int(start)])
+            phases[index] = maps.phase  # in [0, 2*pi) in float32
+            modulations[index] = maps.modulation
+            valid &= maps.modulation >= min_modulation  # NaN compares False
+        if saturation_level is None and np.issubdtype(self.brightest.dtype, np.integer):
+            saturation_level = np.iinfo(self.brightest.dtype).max
+        if saturation_level is not None:
+            valid &= self.brightest < saturation_level  # no frame at the saturation level
+        return phases, modulations, valid
 
 
 class PhaseNode(Node):
@@ -110,6 +168,7 @@ class PhaseNode(Node):
         self.scans_published = 0
         self.scans_dropped = 0
         self.frames_rejected = 0
+        self._sums: dict[int, ScanSums] = {}  # sequence_id -> the Eq. (2) sums of a scan being assembled
         self._decode_errors_reported = 0
         self._frame_id = DEFAULT_FRAME_ID  # the camera's, from its latest frame
 
@@ -153,7 +212,11 @@ class PhaseNode(Node):
                           pattern_count=trigger.pattern_count, frequency=trigger.frequency, steps=trigger.steps,
                           step=trigger.step, image=image, stamp_ns=msg.image.header.stamp.to_ns())
         self._frame_id = msg.image.header.frame_id or DEFAULT_FRAME_ID
-        for event in self.assembler.add(frame, now_s):
+        events = self.assembler.add(frame, now_s)
+        slot = self.assembler.slot(frame.sequence_id, frame.pattern_index)  # None unless kept by a pending scan
+        if slot is not None:
+            self._sums.setdefault(frame.sequence_id, ScanSums()).add(frame.pattern_index, image, slot)
+        for event in events:
             self._report(event)
 
     def on_timer(self) -> None:
@@ -167,6 +230,7 @@ class PhaseNode(Node):
         if isinstance(event, AssembledScan):
             self._publish_scan(event)
         elif isinstance(event, DroppedScan):
+            self._sums.pop(event.sequence_id, None)
             self.scans_dropped += 1
             self.get_logger().warning(f"scan {event.sequence_id} dropped: {event.reason}")
             self._status(event.sequence_id, ScanStatus.ERROR, "failed", event.reason, event.first_arrival_s,
@@ -179,9 +243,18 @@ class PhaseNode(Node):
 
     def _publish_scan(self, scan: AssembledScan) -> None:
         saturation = self.saturation_level if self.saturation_level > 0 else None
+        sums = self._sums.pop(scan.sequence_id, ScanSums())
         try:
-            phases, modulation, valid = scan_phase_maps(scan, min_modulation=self.min_modulation,
-                                                        saturation_level=saturation)
+            pattern_index = 0
+            for images in scan.images:
+                for image in images:  # the frame that completed the scan (normally the only one not added yet)
+                    if pattern_index not in sums.slots:
+                        sums.add(pattern_index, image, scan.slot(pattern_index))
+                    pattern_index += 1
+            maps = sums.maps(scan, min_modulation=self.min_modulation, saturation_level=saturation)
+            if maps is None:
+                maps = scan_phase_maps(scan, min_modulation=self.min_modulation, saturation_level=saturation)
+            phases, modulation, valid = maps
         except ValueError as exc:
             self._report(DroppedScan(scan.sequence_id, f"phase computation refused the frames: {exc}",
                                      scan.frame_count, scan.frame_count, scan.first_arrival_s))

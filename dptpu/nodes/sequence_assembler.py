@@ -4,8 +4,9 @@ A scan is every pattern of one projector sequence: entries (frequencies) x phase
 1 x 4 = 8 frames. The camera publishes one :class:`~dptpu.messages.FringeFrame` per pattern, carrying the
 :class:`~dptpu.messages.Trigger` it answers (``sequence_id``, ``pattern_index``, ``pattern_count``,
 ``frequency``, ``steps``, ``step``). :class:`SequenceAssembler` collects them per ``sequence_id`` and
-hands out an :class:`AssembledScan` (one ``(N, H, W)`` stack per entry, in step order) once every pattern
-is there.
+hands out an :class:`AssembledScan` (the frames of each entry, in step order, as received) once every
+pattern is there; :meth:`SequenceAssembler.slot` tells where a frame it kept sits, so a caller can work on each
+frame as it arrives (the phase node accumulates Eq. (2) per frame).
 
 Where the layout comes from (the first that applies, fixed per scan when its first frame arrives):
 
@@ -36,10 +37,12 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from functools import cached_property
 
 import numpy as np
 
-__all__ = ["FrameInfo", "ScanLayout", "AssembledScan", "DroppedScan", "RejectedFrame", "SequenceAssembler"]
+__all__ = ["FrameInfo", "FrameSlot", "ScanLayout", "AssembledScan", "DroppedScan", "RejectedFrame",
+           "SequenceAssembler"]
 
 _FREQUENCY_RELATIVE_TOLERANCE = 1e-6
 
@@ -64,7 +67,7 @@ class FrameInfo:
     steps, step : int
         ``N`` of the entry (0 = unknown) and the phase step ``n`` in ``[0, N)``.
     image : ndarray (H, W)
-        The camera frame, digital numbers (uint8 or uint16); kept by reference until the scan is stacked.
+        The camera frame, digital numbers (uint8 or uint16); kept by reference (no copy) until the scan is handed out.
     stamp_ns : int
         Exposure start, ns since the epoch.
     """
@@ -152,16 +155,28 @@ class ScanLayout:
                    fringe_axis=sequence.fringe_axis, projector_size=sequence.projector_size)
 
 
+@dataclass(frozen=True)
+class FrameSlot:
+    """Where a frame sits in its scan: the entry starting at pattern ``entry_start`` (``steps`` frames), phase step
+    ``step``, the entry's ``phase_offset`` and the scan's ``shift_sign`` (what Eq. (2) weighs the frame by)."""
+
+    entry_start: int
+    steps: int
+    step: int
+    phase_offset: float
+    shift_sign: int
+
+
 @dataclass(frozen=True, eq=False)
 class AssembledScan:
-    """Every frame of one scan, stacked per entry.
+    """Every frame of one scan, per entry.
 
     Attributes
     ----------
     sequence_id : int
     layout : ScanLayout
-    stacks : tuple of ndarray
-        One ``(N_e, H, W)`` array per entry, step order ``n = 0..N_e-1``, the frames' dtype.
+    images : tuple of tuple of ndarray
+        Per entry, its ``N_e`` frames (H, W) in step order ``n = 0..N_e-1``, as received (not copied).
     first_stamp_ns, last_stamp_ns : int
         Earliest and latest exposure start of the scan's frames.
     first_arrival_s : float
@@ -170,14 +185,25 @@ class AssembledScan:
 
     sequence_id: int
     layout: ScanLayout
-    stacks: tuple
+    images: tuple
     first_stamp_ns: int
     last_stamp_ns: int
     first_arrival_s: float
 
+    @cached_property
+    def stacks(self) -> tuple:
+        """One ``(N_e, H, W)`` array per entry, step order, the frames' dtype (stacked on first use: a copy)."""
+        return tuple(np.stack(entry) for entry in self.images)
+
     @property
     def frame_count(self) -> int:
-        return sum(stack.shape[0] for stack in self.stacks)
+        return sum(len(entry) for entry in self.images)
+
+    def slot(self, pattern_index: int) -> FrameSlot:
+        """:class:`FrameSlot` of pattern ``pattern_index`` by the scan's layout."""
+        entry, step = self.layout.locate(int(pattern_index))
+        return FrameSlot(entry_start=sum(self.layout.steps[:entry]), steps=self.layout.steps[entry], step=step,
+                         phase_offset=self.layout.phase_offsets[entry], shift_sign=self.layout.shift_sign)
 
 
 @dataclass(frozen=True)
@@ -313,6 +339,21 @@ class SequenceAssembler:
         first = scan.first_arrival_s if scan else now_s
         return self._finish_dropped(int(sequence_id), reason, expected, received, first, now_s)
 
+    def slot(self, sequence_id: int, pattern_index: int) -> FrameSlot | None:
+        """Where frame ``pattern_index`` of pending scan ``sequence_id`` sits (:class:`FrameSlot`), by the scan's
+        layout or, for a scan laid out by its triggers, by the frame's own trigger; None when the scan is not
+        pending or does not hold that frame (refused, failed, or completed: see :meth:`AssembledScan.slot`)."""
+        scan = self._pending.get(int(sequence_id))
+        frame = scan.frames.get(int(pattern_index)) if scan is not None else None
+        if frame is None:
+            return None
+        if scan.layout is not None:
+            entry, step = scan.layout.locate(int(pattern_index))
+            return FrameSlot(entry_start=int(pattern_index) - step, steps=scan.layout.steps[entry], step=step,
+                             phase_offset=scan.layout.phase_offsets[entry], shift_sign=scan.layout.shift_sign)
+        return FrameSlot(entry_start=int(frame.pattern_index) - int(frame.step), steps=int(frame.steps),
+                         step=int(frame.step), phase_offset=0.0, shift_sign=self._geometry["shift_sign"])
+
     # -- internals --------------------------------------------------------------------------------------
 
     def _fail_new_or_pending(self, sequence_id, now_s, frame, reason) -> list:
@@ -394,14 +435,14 @@ class SequenceAssembler:
         layout = scan.layout if scan.layout is not None else self._layout_from_triggers(scan)
         if isinstance(layout, str):
             return self.fail(scan.sequence_id, layout, now_s)
-        stacks, index = [], 0
+        images, index = [], 0
         for steps in layout.steps:
-            stacks.append(np.stack([scan.frames[index + n].image for n in range(steps)]))  # (N, H, W)
+            images.append(tuple(scan.frames[index + n].image for n in range(steps)))  # N_e frames (H, W)
             index += steps
         stamps = [f.stamp_ns for f in scan.frames.values()]
         del self._pending[scan.sequence_id]
         self._finished[scan.sequence_id] = (now_s, "completed")
-        return AssembledScan(sequence_id=scan.sequence_id, layout=layout, stacks=tuple(stacks),
+        return AssembledScan(sequence_id=scan.sequence_id, layout=layout, images=tuple(images),
                              first_stamp_ns=min(stamps), last_stamp_ns=max(stamps),
                              first_arrival_s=scan.first_arrival_s)
 

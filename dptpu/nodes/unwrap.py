@@ -165,15 +165,14 @@ class UnwrapNode(Node):
             self._status(msg, ScanStatus.ERROR, "failed", reason, started_s)
             return
         f_h = float(msg.frequencies[high])
-        with np.errstate(invalid="ignore"):
-            on_projector = (result.absolute_phase >= 0.0) & (result.absolute_phase < _TWO_PI * f_h)
-        valid = result.valid & msg.valid & on_projector & (result.reliability >= self.min_reliability)
+        valid = self._valid_pixels(result, msg.valid, f_h)
+        shape = valid.shape
         absolute = AbsolutePhase(
             header=msg.header, sequence_id=msg.sequence_id, frequency=f_h, fringe_axis=msg.fringe_axis,
             projector_width=msg.projector_width, projector_height=msg.projector_height,
-            absolute_phase=np.where(valid, result.absolute_phase, np.nan).astype(np.float32),
-            fringe_order=np.where(valid, result.fringe_order, 0).astype(np.int32), valid=valid,
-            reliability=np.where(valid, result.reliability, 0.0).astype(np.float32),
+            absolute_phase=_masked(result.absolute_phase, valid, np.full(shape, np.nan, dtype=np.float32)),
+            fringe_order=_masked(result.fringe_order, valid, np.zeros(shape, dtype=np.int32)), valid=valid,
+            reliability=_masked(result.reliability, valid, np.zeros(shape, dtype=np.float32)),
             method="dptpu" if self.model is not None else self.method)
         self.absolute_publisher.publish(absolute)
         self.scans_published += 1
@@ -186,6 +185,17 @@ class UnwrapNode(Node):
                      total_pixels=int(valid.size))
 
     # -- helpers ---------------------------------------------------------------------------------------------
+
+    def _valid_pixels(self, result: tpu.Unwrapped, valid_in: np.ndarray, f_h: float) -> np.ndarray:
+        """(H, W) bool: valid in the PhaseMaps and for the method, on the projector (``0 <= Psi < 2*pi*f_h``) and
+        at least ``min_reliability``; in place, a few passes over (H, W)."""
+        valid = np.logical_and(result.valid, valid_in)
+        with np.errstate(invalid="ignore"):  # NaN phase where the method refused a pixel: False
+            valid &= result.absolute_phase >= 0.0
+            valid &= result.absolute_phase < _TWO_PI * f_h
+            if self.min_reliability > 0:  # reliability is in [0, 1] (0 where invalid): >= 0 always holds
+                valid &= result.reliability >= self.min_reliability
+        return valid
 
     def _unwrap(self, msg: PhaseMaps):
         """``(Unwrapped, index of the high frequency, NaN pixels marked valid)``; ValueError for unusable maps."""
@@ -214,6 +224,12 @@ class UnwrapNode(Node):
             header=Header(stamp=self.get_clock().now().to_msg(), frame_id=""), sequence_id=msg.sequence_id,
             level=level, state=state, reason=reason, node=self.get_fully_qualified_name(),
             decode_errors=decode_errors, duration_s=time.monotonic() - started_s, **counts))
+
+
+def _masked(values: np.ndarray, valid: np.ndarray, out: np.ndarray) -> np.ndarray:
+    """``out`` (filled with the value of invalid pixels) with ``values`` cast to its dtype where ``valid``."""
+    np.copyto(out, values, where=valid, casting="unsafe")
+    return out
 
 
 def _finite(valid, phases) -> np.ndarray:
