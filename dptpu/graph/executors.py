@@ -158,7 +158,7 @@ class Executor:
         self._is_shutdown = False
         self._lease = None  # SocketLease with the context's runtime, made on the first wait
         self._last_poll = 0.0
-        self._entity_cache: tuple = ((), [], [])  # (the nodes' _work tuples, their entities, the timers among them)
+        self._entity_cache: tuple = ([], [], [])  # (the nodes' _work tuples, their entities, the timers among them)
         self._context._track_executor(self)
 
     @property
@@ -223,11 +223,16 @@ class Executor:
     # -- finding work ---------------------------------------------------------------------------------
 
     def _node_entities(self) -> tuple:
-        """``(entities, timers)`` of this executor's nodes (rebuilt only when a node's entities changed)."""
-        with self._nodes_lock:
-            works = tuple(node._work for node in self._nodes)
+        """``(entities, timers)`` of this executor's nodes (rebuilt only when a node's entities changed).
+
+        Each node keeps its entities in one tuple (``node._work``), replaced when they change; the list
+        of those tuples is compared with the cached one element by element (identity first, in C).
+        """
+        works = [node._work for node in self._nodes]  # a list read without the lock: a stale view is harmless
         cached_works, entities, timers = self._entity_cache
-        if len(works) != len(cached_works) or not all(a is b for a, b in zip(works, cached_works)):
+        if works != cached_works:
+            with self._nodes_lock:
+                works = [node._work for node in self._nodes]
             entities = [entity for work in works for entity in work]
             timers = [entity for entity in entities if hasattr(entity, "_deadline")]
             self._entity_cache = (works, entities, timers)
@@ -245,14 +250,16 @@ class Executor:
     def _take_ready(self):
         """``(entity, work, group)`` of one ready callback whose group may run now, or None."""
         with self._take_lock:
-            entities = self._entities()
-            if not entities:
+            entities = self._node_entities()[0]
+            if self._tasks:
+                entities = self._entities()
+            count = len(entities)
+            if not count:
                 return None
             now = time.monotonic()
-            count = len(entities)
             start = self._round_robin % count
-            for offset in range(count):
-                entity = entities[(start + offset) % count]
+            for index in range(start, start + count):
+                entity = entities[index % count]
                 if not entity._ready(now):
                     continue
                 group = entity.callback_group
@@ -263,7 +270,7 @@ class Executor:
                     if group is not None:
                         group.ending_execution(entity)
                     continue
-                self._round_robin = (start + offset + 1) % count
+                self._round_robin = (index + 1) % count
                 return entity, work, group
         return None
 
@@ -303,6 +310,8 @@ class Executor:
         if runtime is None or self._is_shutdown:
             return None
         lease = self._lease
+        if lease is not None and lease.runtime is runtime:
+            return lease
         if lease is None or lease.runtime is not runtime:
             with self._nodes_lock:
                 lease = self._lease
@@ -350,10 +359,10 @@ class Executor:
         while True:
             if self._is_shutdown or not self._context.ok():
                 return None
-            generation = self._wake.generation()
+            generation = self._wake._generation
             lease = self._current_lease()
             if lease is not None and lease.state == BUSY and time.monotonic() - self._last_poll > _PUMP_INTERVAL_S:
-                self._poll(lease, self._wake.generation(), 0.0)  # busy with callbacks: take in what arrived
+                self._poll(lease, self._wake._generation, 0.0)  # busy with callbacks: take in what arrived
             found = self._take_ready()
             if found is not None:
                 return found
@@ -363,7 +372,7 @@ class Executor:
                 if now >= deadline:
                     return None
                 wait = min(wait, deadline - now)
-            timer_deadline = self._next_deadline()
+            timer_deadline = self._next_deadline() if self._entity_cache[2] else None
             if timer_deadline is not None:
                 wait = min(wait, max(0.0, timer_deadline - now))
             if wait > 0:

@@ -10,6 +10,11 @@ The socket is XPUB so the publisher sees each subscriber connect and leave: that
 the HISTORY flag; subscribers drop what they already have by sequence number, and VOLATILE ones drop
 all replays). A TRANSIENT_LOCAL publisher handles those events before each send and the runtime's I/O
 thread every 25 ms; other publishers when asked for their subscriber count, and once a second.
+
+A TRANSIENT_LOCAL publisher's socket is in ``XPUB_MANUAL`` mode: a newcomer's subscription takes
+effect only when the publisher, holding its lock, reads the event, subscribes that pipe and replays the
+history at once. So the replay always reaches a late subscriber before any live message (with
+automatic subscriptions, ZeroMQ could apply the subscription inside the send of a live message).
 """
 
 from __future__ import annotations
@@ -85,6 +90,11 @@ class Publisher:
             sock.setsockopt(zmq.SNDHWM, pipe_high_water_mark(resolved))
             sock.setsockopt(zmq.RCVHWM, 1000)
             sock.setsockopt(zmq.XPUB_VERBOSER, 1)
+            if self._transient:
+                # subscriptions take effect only when _handle_events_locked applies them, right before the
+                # replay: without it the socket could apply a newcomer's subscription inside the send of a
+                # live message, which then reached the newcomer before the replay (docs/graph.md)
+                sock.setsockopt(zmq.XPUB_MANUAL, 1)
             sock.setsockopt(zmq.LINGER, PUBLISHER_LINGER_MS)
             configure_server(sock, runtime.transport)
             self.endpoints = bind_endpoints(sock, runtime.transport, runtime.ipc_dir, "p" + self.gid.hex()[:15])
@@ -164,9 +174,13 @@ class Publisher:
             except zmq.Again:
                 break
             if event[:1] == b"\x01":
+                if self._transient:  # XPUB_MANUAL: subscribe the pipe the event came from, now
+                    sock.setsockopt(zmq.SUBSCRIBE, event[1:])
                 self._subscriber_count += 1
                 replay = True
             elif event[:1] == b"\x00":
+                if self._transient:
+                    sock.setsockopt(zmq.UNSUBSCRIBE, event[1:])
                 self._subscriber_count = max(0, self._subscriber_count - 1)
         if replay and self._history:
             for seq, stamp_ns, frames in self._history:

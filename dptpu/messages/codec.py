@@ -117,6 +117,9 @@ class _ArrayRef:
     def __init__(self, index: int):
         self.index = index
 
+    def __repr__(self) -> str:
+        return f"<array reference {self.index}>"
+
 
 _packers = threading.local()  # one reusable msgpack.Packer per thread (a Packer is not thread-safe)
 
@@ -126,6 +129,69 @@ def _packb(value) -> bytes:
     if packer is None:
         packer = _packers.packer = msgpack.Packer(use_bin_type=True)
     return packer.pack(value)
+
+
+#: Header array references of the first array frames, made once (``msgpack.ExtType`` is immutable).
+_ARRAY_REFS = tuple(msgpack.ExtType(ARRAY_REF_EXT_CODE, _INDEX.pack(index)) for index in range(64))
+#: The header's last key, packed: the header is ``prefix + fields + _ARRAYS_KEY + descriptors``.
+_ARRAYS_KEY = msgpack.packb("arrays", use_bin_type=True)
+
+
+class _Plan:
+    """What the codec needs of one message class, worked out once per class (the schema is fixed).
+
+    Attributes
+    ----------
+    prefix : bytes
+        The packed header up to the value of ``"fields"``: a 5-entry msgpack map header, then
+        ``"wire"``, ``"type"`` and ``"version"`` with their values and the key ``"fields"``. The
+        header is ``prefix + packb(fields) + packb("arrays") + packb(descriptors)``, byte for byte what
+        ``packb`` of the whole header map gives.
+    flat : tuple or None
+        For a class whose fields are all scalars and bulk arrays, one entry per field:
+        ``(name, is_array, python_type, low, high, dtype, ndim, dtype_str)``; None otherwise (nested
+        messages or sequences take the general path).
+    array_entries : tuple
+        The entries of ``flat`` that are bulk arrays, in field order (empty when not flat).
+    checks : bool
+        Whether the class overrides ``Message.check_consistency`` (else calling it is skipped).
+    """
+
+    __slots__ = ("prefix", "flat", "array_entries", "checks")
+
+    def __init__(self, cls: type):
+        header_start = {"wire": WIRE_VERSION, "type": cls.TYPE_NAME, "version": cls.SCHEMA_VERSION}
+        packed = msgpack.packb(header_start, use_bin_type=True)
+        # a 3-entry fixmap (0x83) becomes the 5-entry header (0x85); then the key "fields"
+        self.prefix = b"\x85" + packed[1:] + msgpack.packb("fields", use_bin_type=True)
+        flat = []
+        for spec in cls.FIELDS:
+            if spec.kind == SCALAR:
+                python_type, low, high = _SCALAR_CHECKS[spec.primitive]
+                flat.append((spec.name, False, python_type, low, high, None, 0, None))
+            elif spec.kind == ARRAY:
+                flat.append((spec.name, True, None, None, None, spec.dtype, len(spec.axes), spec.dtype.str))
+            else:
+                flat = None
+                break
+        self.array_entries = tuple(entry for entry in flat if entry[1]) if flat is not None else ()
+        if len(self.array_entries) > len(_ARRAY_REFS):
+            flat, self.array_entries = None, ()
+        self.flat = tuple(flat) if flat is not None else None
+        self.checks = getattr(cls, "check_consistency", None) is not Message.check_consistency
+
+
+_PLANS: dict = {}  # message class -> _Plan (registration is permanent, so is a plan)
+
+
+def _plan(cls: type) -> _Plan | None:
+    """The class's plan, or None when ``cls`` is not a registered message class."""
+    plan = _PLANS.get(cls)
+    if plan is None:
+        if not (isinstance(cls, type) and issubclass(cls, Message) and is_registered(getattr(cls, "TYPE_NAME", None))):
+            return None
+        plan = _PLANS[cls] = _Plan(cls)
+    return plan
 
 
 # --------------------------------------------------------------------------------------------------
@@ -155,25 +221,57 @@ def encode(topic, msg: Message) -> list:
         A field of the wrong type, dtype, number of dimensions or range, or fields that contradict
         each other (``check_consistency``); the message names the field, e.g. ``Image.height``.
     """
-    topic_bytes = _topic_bytes(topic)
+    topic_bytes = topic if type(topic) is bytes and topic else _topic_bytes(topic)
     cls = type(msg)
-    if not isinstance(msg, Message) or not is_registered(getattr(cls, "TYPE_NAME", None)):
+    plan = _PLANS.get(cls) or _plan(cls)
+    if plan is None or not isinstance(msg, Message):
         raise EncodeError(f"msg must be a registered message (e.g. sensor_msgs Image); got {cls.__name__}")
     arrays: list[np.ndarray] = []
-    try:
-        encoded_fields = _encode_fields(msg, cls.__name__, arrays)
-    except EncodeError as error:
-        raise EncodeError(f"cannot encode {cls.TYPE_NAME}: {error}") from None
-    header = {
-        "wire": WIRE_VERSION,
-        "type": cls.TYPE_NAME,
-        "version": cls.SCHEMA_VERSION,
-        "fields": encoded_fields,
-        "arrays": [[array.dtype.str, list(array.shape)] for array in arrays],
-    }
-    frames = [topic_bytes, _packb(header)]
-    frames.extend(memoryview(array.reshape(-1).view(np.uint8)) for array in arrays)
+    encoded_fields = _encode_flat(msg, plan, arrays) if plan.flat is not None else None
+    if encoded_fields is None:  # nested fields, or a field the fast path does not accept: check each one
+        arrays.clear()
+        try:
+            encoded_fields = _encode_fields(msg, cls.__name__, arrays)
+        except EncodeError as error:
+            raise EncodeError(f"cannot encode {cls.TYPE_NAME}: {error}") from None
+        descriptors = [[array.dtype.str, list(array.shape)] for array in arrays]
+    else:
+        descriptors = [[entry[7], list(array.shape)] for entry, array in zip(plan.array_entries, arrays)] \
+            if arrays else []
+    packer = getattr(_packers, "packer", None)
+    if packer is None:
+        packer = _packers.packer = msgpack.Packer(use_bin_type=True)
+    frames = [topic_bytes, b"".join((plan.prefix, packer.pack(encoded_fields), _ARRAYS_KEY, packer.pack(descriptors)))]
+    for array in arrays:
+        frames.append(memoryview(array.reshape(-1).view(np.uint8)))
     return frames
+
+
+def _encode_flat(msg: Message, plan: _Plan, arrays: list) -> dict | None:
+    """The header fields of a message of a flat class (scalars and arrays only), collecting its arrays;
+    None as soon as a field is not exactly of its declared kind (then the general path checks and
+    raises, or converts, e.g. a numpy integer or a big-endian array)."""
+    out = {}
+    for name, is_array, python_type, low, high, dtype, ndim, _dtype_str in plan.flat:
+        value = getattr(msg, name)
+        if is_array:
+            if type(value) is not np.ndarray or value.ndim != ndim or (value.dtype is not dtype
+                                                                        and value.dtype != dtype):
+                return None
+            if not value.flags.c_contiguous:
+                value = np.ascontiguousarray(value)  # one copy into C order
+            out[name] = _ARRAY_REFS[len(arrays)]
+            arrays.append(value)
+        elif type(value) is python_type and (low is None or low <= value <= high):
+            out[name] = value
+        else:
+            return None
+    if plan.checks:
+        try:
+            msg.check_consistency()
+        except ValueError:
+            return None  # the general path raises it with the field's place
+    return out
 
 
 def _topic_bytes(topic) -> bytes:
@@ -340,6 +438,10 @@ def decode(frames, *, expected_type=None, limits: DecodeLimits = DEFAULT_LIMITS)
     if not isinstance(limits, DecodeLimits):
         raise ValueError(f"limits must be a DecodeLimits; got {type(limits).__name__}")
     expected = _expected_class(expected_type)
+    decoded = _decode_well_formed(frames, expected, limits)
+    if decoded is not None:
+        return decoded
+    # the general path: checks everything one by one and names the first problem
     topic = cls = None
     try:
         views = _frame_views(frames, limits)
@@ -348,11 +450,14 @@ def decode(frames, *, expected_type=None, limits: DecodeLimits = DEFAULT_LIMITS)
         cls = _header_class(header, expected, len(views) - 2)
         arrays = [_array_view(index, descriptor, view, limits)
                   for index, (descriptor, view) in enumerate(zip(header["arrays"], views[2:]))]
-        used = [False] * len(arrays)
-        msg = _decode_fields(cls, header["fields"], arrays, used, cls.__name__)
-        if not all(used):
-            raise DecodeError(f"array frame(s) {[i for i, u in enumerate(used) if not u]} are not referenced by "
-                              "any field")
+        plan = _PLANS.get(cls) or _plan(cls)
+        msg = _decode_flat(cls, plan, header["fields"], arrays) if plan.flat is not None else None
+        if msg is None:  # nested fields, or anything the fast path does not accept: check each one
+            used = [False] * len(arrays)
+            msg = _decode_fields(cls, header["fields"], arrays, used, cls.__name__)
+            if not all(used):
+                raise DecodeError(f"array frame(s) {[i for i, u in enumerate(used) if not u]} are not referenced "
+                                  "by any field")
     except DecodeError as error:
         context = "cannot decode message"
         if topic is not None:
@@ -361,6 +466,135 @@ def decode(frames, *, expected_type=None, limits: DecodeLimits = DEFAULT_LIMITS)
             context += f" of type {cls.TYPE_NAME}"
         raise DecodeError(f"{context}: {error}") from None
     return topic, msg
+
+
+def _decode_well_formed(frames, expected, limits: DecodeLimits):
+    """``(topic, msg)`` of a well-formed message of a flat type (scalars and arrays), or None.
+
+    The fast path for the common case: the same checks as the general path, in one function, but it
+    only says yes or no; for anything else (a nested type, a malformed or oversized message, an
+    unexpected type) it returns None and the general path decodes the message or raises the
+    DecodeError that names the problem. It must never accept what the general path rejects.
+
+    The header is unpacked with ``ext_hook=slice``, a C constructor, instead of the checking hook:
+    an extension value becomes ``slice(code, data)``, which only an array field accepts, and only as
+    a 4-byte reference of code ``ARRAY_REF_EXT_CODE``; anywhere else it fails a type check.
+    """
+    try:
+        count = len(frames)
+        if type(frames) not in (list, tuple) or not 2 <= count <= limits.max_frames:
+            return None
+        views = []
+        total = 0
+        for frame in frames:
+            view = memoryview(frame) if type(frame) is bytes else getattr(frame, "buffer", None)
+            if type(view) is not memoryview or view.format != "B" or view.ndim != 1:
+                return None
+            total += view.nbytes
+            views.append(view)
+        topic_view, header_view = views[0], views[1]
+        if (total > limits.max_total_bytes or not 0 < topic_view.nbytes <= limits.max_topic_bytes
+                or header_view.nbytes > limits.max_header_bytes):
+            return None
+        header = msgpack.unpackb(header_view, raw=False, strict_map_key=True, use_list=True, ext_hook=slice)
+        if type(header) is not dict or header.keys() != _HEADER_KEY_SET:
+            return None
+        wire, type_name, version, raw, descriptors = (header["wire"], header["type"], header["version"],
+                                                       header["fields"], header["arrays"])
+        if type(wire) is not int or wire != WIRE_VERSION or type(type_name) is not str or not is_registered(type_name):
+            return None
+        cls = lookup(type_name)
+        plan = _PLANS.get(cls) or _plan(cls)
+        if (plan is None or plan.flat is None or (expected is not None and cls is not expected)
+                or type(version) is not int or version != cls.SCHEMA_VERSION or type(descriptors) is not list
+                or len(descriptors) != count - 2 or len(descriptors) != len(plan.array_entries)
+                or type(raw) is not dict or raw.keys() != cls.FIELD_NAMES):
+            return None
+        arrays = []
+        max_ndim, max_elements, max_bytes = limits.max_ndim, limits.max_dims_product, limits.max_array_bytes
+        for descriptor, view in zip(descriptors, views[2:]):
+            if type(descriptor) is not list or len(descriptor) != 2:
+                return None
+            dtype_name, shape = descriptor
+            dtype = ALLOWED_DTYPES.get(dtype_name) if type(dtype_name) is str else None
+            if dtype is None or type(shape) is not list or len(shape) > max_ndim:
+                return None
+            elements = 1
+            for size in shape:
+                if type(size) is not int or not 0 <= size <= max_elements:
+                    return None
+                elements *= size
+                if elements > max_elements:
+                    return None
+            nbytes = elements * dtype.itemsize
+            if nbytes != view.nbytes or nbytes > max_bytes:
+                return None
+            values = np.frombuffer(view, dtype=dtype)  # read-only when the buffer is (a received frame)
+            if len(shape) != 1:
+                values = values.reshape(shape)
+            if not view.readonly:
+                values.flags.writeable = False
+            arrays.append(values)
+        fields = {}
+        used = 0  # bit mask of the array frames referenced so far
+        for name, is_array, python_type, low, high, dtype, ndim, _dtype_str in plan.flat:
+            value = raw[name]
+            if is_array:
+                if (type(value) is not slice or value.start != ARRAY_REF_EXT_CODE or type(value.stop) is not bytes
+                        or len(value.stop) != _INDEX.size):
+                    return None
+                index = _INDEX.unpack(value.stop)[0]
+                if index >= len(arrays) or used >> index & 1:
+                    return None
+                array = arrays[index]
+                if array.ndim != ndim or (array.dtype is not dtype and array.dtype != dtype):
+                    return None
+                used |= 1 << index
+                fields[name] = array
+            elif type(value) is python_type and (low is None or low <= value <= high):
+                fields[name] = value
+            else:
+                return None
+        msg = cls(**fields)
+        if plan.checks:
+            msg.check_consistency()
+        return str(topic_view, "utf-8"), msg
+    except Exception:  # noqa: BLE001 -- anything unexpected: the general path decides and names it
+        return None
+
+
+def _decode_flat(cls: type, plan: _Plan, raw, arrays: list):
+    """The message of a flat class (scalars and arrays only) when every field is exactly as declared
+    and every array frame is referenced once; else None, and :func:`_decode_fields` finds and names
+    the problem. Accepts exactly what that general path accepts."""
+    if type(raw) is not dict or raw.keys() != cls.FIELD_NAMES or len(arrays) != len(plan.array_entries):
+        return None
+    values = {}
+    used = 0  # bit mask of the array frames referenced so far
+    for name, is_array, python_type, low, high, dtype, ndim, _dtype_str in plan.flat:
+        value = raw[name]
+        if is_array:
+            if type(value) is not _ArrayRef:
+                return None
+            index = value.index
+            if index >= len(arrays) or used >> index & 1:
+                return None
+            array = arrays[index]
+            if array.ndim != ndim or (array.dtype is not dtype and array.dtype != dtype):
+                return None
+            used |= 1 << index
+            values[name] = array
+        elif type(value) is python_type and (low is None or low <= value <= high):
+            values[name] = value
+        else:
+            return None
+    msg = cls(**values)
+    if plan.checks:
+        try:
+            msg.check_consistency()
+        except ValueError:
+            return None
+    return msg
 
 
 _EXPECTED_CLASSES: set = set()  # message classes already accepted as expected_type (registration is permanent)
@@ -392,7 +626,12 @@ def _frame_views(frames, limits: DecodeLimits) -> list[memoryview]:
         raise DecodeError(f"too many frames: {len(frames)} > max_frames {limits.max_frames}")
     views, total = [], 0
     for index, frame in enumerate(frames):
-        view = _byte_view(frame, index)
+        if type(frame) is bytes:
+            view = memoryview(frame)
+        else:
+            view = getattr(frame, "buffer", None)  # a zmq.Frame: its memoryview, format "B"
+            if type(view) is not memoryview or view.format != "B" or view.ndim != 1:
+                view = _byte_view(frame, index)
         total += view.nbytes
         if total > limits.max_total_bytes:
             raise DecodeError(f"frames hold more than max_total_bytes {limits.max_total_bytes} bytes")
@@ -423,7 +662,7 @@ def _decode_topic(view: memoryview, limits: DecodeLimits) -> str:
     if view.nbytes == 0:
         raise DecodeError("topic frame is empty")
     try:
-        return bytes(view).decode("utf-8")
+        return str(view, "utf-8")
     except UnicodeDecodeError:
         raise DecodeError("topic frame is not valid UTF-8") from None
 

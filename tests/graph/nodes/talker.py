@@ -1,6 +1,6 @@
 """Test node: publishes ``String(data=f"{prefix}{i}")`` for i = 0..count-1, then lingers.
 
-Prints JSON lines on stdout: ``{"event": "ready"}`` once the publisher exists, ``{"event": "published",
+Prints JSON lines on stdout: ``{"event": "ready", "topic": ..., "endpoints": [...]}`` once the publisher exists, ``{"event": "published",
 "count": n}`` when done. Options come before ``--ros-args``.
 """
 
@@ -38,7 +38,7 @@ def main(argv=None):
                      durability=DurabilityPolicy.TRANSIENT_LOCAL if options.transient_local
                      else DurabilityPolicy.VOLATILE)
     publisher = node.create_publisher(String, options.topic, qos)
-    emit(event="ready", topic=publisher.topic_name)
+    emit(event="ready", topic=publisher.topic_name, endpoints=publisher.endpoints)
     try:
         if options.wait_subs and not publisher.wait_for_subscriptions(options.wait_subs, timeout_sec=10.0):
             emit(event="error", reason="subscriptions did not connect")
