@@ -28,11 +28,10 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from ._lsq_phase import _weights, angle_0_2pi_float32, angle_0_2pi_float64, phase_sums
+from ._lsq_phase import angle_0_2pi_float32, angle_0_2pi_float64, phase_sums
 from .checks import check_image_stack
 
-__all__ = ["PhaseMaps", "wrapped_phase", "quality_mask", "check_bit_depth", "phase_weights", "accumulate_frame",
-           "maps_from_sums"]
+__all__ = ["PhaseMaps", "wrapped_phase", "quality_mask", "check_bit_depth", "sequence_sums", "maps_from_sums"]
 
 _TWO_PI = 2.0 * np.pi
 #: Integer image dtypes whose values float32 holds exactly: their sums are computed in float32.
@@ -126,52 +125,28 @@ def wrapped_phase(images, *, shift_sign=-1, phase_offset=0.0, bit_depth=None, dt
                      background=background.astype(dtype, copy=False))
 
 
-def phase_weights(steps: int, step: int, *, shift_sign: int = -1, phase_offset: float = 0.0) -> np.ndarray:
-    """The weights of image ``step`` of an ``steps``-step sequence in the sums of Eq. (2), (3,) float64.
+def sequence_sums(images, *, shift_sign=-1, phase_offset=0.0) -> np.ndarray:
+    """The sums of Eq. (2) of an 8/16-bit (N, H, W) stack: ``B sin(psi)``, ``B cos(psi)``, ``A`` as one (3, H, W)
+    float32 array; :func:`maps_from_sums` turns them into the maps, the two together being :func:`wrapped_phase`
+    (the same sums; OpenCV's magnitude and angle kernels may round 1 ulp apart on other memory alignment).
 
-    ``(-(2/N) sin(delta_n), (2/N) cos(delta_n), 1/N)`` with ``delta_n = phase_offset + shift_sign*2*pi*n/N``:
-    image ``n`` adds ``weights * I_n`` to ``(B sin(psi), B cos(psi), A)`` (see :func:`accumulate_frame`).
+    For a caller that works sequence by sequence as images arrive (the phase node computes each entry's sums as
+    soon as its images are in, so after a scan's last image only its last entry is left). ``images``,
+    ``shift_sign`` and ``phase_offset`` as in :func:`wrapped_phase`; the dtype must be uint8, int8, uint16 or
+    int16 (ValueError otherwise).
     """
-    if not (isinstance(steps, numbers.Integral) and steps >= 3 and isinstance(step, numbers.Integral)
-            and 0 <= step < steps):
-        raise ValueError(f"steps must be an integer >= 3 and step in [0, steps); got steps {steps!r}, step {step!r}")
+    images = check_image_stack(images)
+    if images.dtype not in _FLOAT32_EXACT:
+        raise ValueError(f"images must be 8- or 16-bit integers for float32 sums; got {images.dtype}")
     if shift_sign not in (-1, 1):
         raise ValueError(f"shift_sign must be -1 or +1; got {shift_sign!r}")
-    return _weights(int(steps), int(shift_sign), float(phase_offset), "<f8")[:, int(step)]
-
-
-def accumulate_frame(sums: np.ndarray, image: np.ndarray, weights: np.ndarray) -> None:
-    """Add one image's share of Eq. (2) to running sums, in place: ``sums[k] += weights[k] * image``.
-
-    The incremental form of :func:`wrapped_phase`: once every image ``n`` of a sequence was added with
-    ``phase_weights(N, n, ...)`` to zeroed sums, :func:`maps_from_sums` gives its maps (equal to
-    :func:`wrapped_phase`'s up to float32 rounding of the summation order, about 1e-6 relative), so a scan's
-    phase is ready right after its last image arrives.
-
-    Parameters
-    ----------
-    sums : ndarray (3, H, W) float32
-        ``B sin(psi)``, ``B cos(psi)``, ``A`` so far (zeros before the first image); updated in place.
-    image : ndarray (H, W)
-        uint8 or uint16 (one fused OpenCV pass per sum, no float copy of the image), or any real dtype.
-    weights : ndarray (3,)
-        :func:`phase_weights` of the image.
-    """
-    if sums.ndim != 3 or sums.shape[0] != 3 or sums.dtype != np.float32 or sums.shape[1:] != image.shape:
-        raise ValueError(f"sums must be a (3, H, W) float32 array with (H, W) = the image's {image.shape}; got "
-                         f"{sums.shape} {sums.dtype}")
-    if image.dtype in (np.uint8, np.uint16):
-        for row in range(3):
-            cv2.addWeighted(image, float(weights[row]), sums[row], 1.0, 0.0, dst=sums[row], dtype=cv2.CV_32F)
-        return
-    for row in range(3):
-        sums[row] += (float(weights[row]) * np.asarray(image, dtype=np.float64)).astype(np.float32)
+    return phase_sums(images, shift_sign=shift_sign, phase_offset=float(phase_offset), dtype=np.float32)
 
 
 def maps_from_sums(sums: np.ndarray) -> PhaseMaps:
     """Phase in ``[0, 2*pi)``, modulation ``B`` and background ``A`` (H, W) float32 from the sums of Eq. (2).
 
-    ``sums`` (3, H, W) float32 holds ``B sin(psi)``, ``B cos(psi)`` and ``A`` (:func:`accumulate_frame`).
+    ``sums`` (3, H, W) float32 holds ``B sin(psi)``, ``B cos(psi)`` and ``A`` (:func:`sequence_sums`).
     """
     sine, cosine, background = sums
     modulation = cv2.magnitude(cosine, sine)  # B = hypot(B sin(psi), B cos(psi))

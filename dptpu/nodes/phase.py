@@ -1,12 +1,15 @@
 """Phase node: assembles the fringe frames of each scan and publishes its wrapped phase maps.
 
 Frames are collected per ``sequence_id`` (:mod:`dptpu.nodes.sequence_assembler`); a complete scan gives one
-wrapped phase, modulation and quality mask per frequency by least squares (Eq. (2) of the paper). The sums of
-Eq. (2) are accumulated frame by frame as the frames arrive (:func:`dptpu.fpp.phase.accumulate_frame`, one
-fused pass per sum over the received image, no copy of it), so a scan's maps are ready right after its last
-frame: the arctangent and the masks are all that is left (:func:`dptpu.fpp.phase.maps_from_sums`; the same
-numbers as :func:`dptpu.fpp.phase.wrapped_phase` and :func:`dptpu.fpp.phase.quality_mask` on the stacked
-frames, :func:`scan_phase_maps`, which a scan whose accumulation went wrong falls back to). An incomplete scan is
+wrapped phase, modulation and quality mask per frequency by least squares (Eq. (2) of the paper). The work
+is done as the frames arrive (:class:`ScanSums`): each frame goes into its entry's stack, and an entry's Eq. (2)
+sums are computed the moment its last frame is in (:func:`dptpu.fpp.phase.sequence_sums`, one float32 matrix
+product), so after a scan's last frame only its last entry's sums, the arctangents and the masks are left
+(:func:`dptpu.fpp.phase.maps_from_sums`; the same numbers as :func:`dptpu.fpp.phase.wrapped_phase` and
+:func:`dptpu.fpp.phase.quality_mask`, :func:`scan_phase_maps`, which a scan placed otherwise than its final
+layout falls back to). Sums accumulated frame by frame (three fused passes per frame) would leave even less
+after the last frame but cost 1.4x the CPU of the matrix product at 640x480 (docs/benchmarks.md, Run 5), and
+on a machine the graph keeps busy the CPU is the limit. An incomplete scan is
 dropped ``timeout_s`` after its first frame, an inconsistent one at once; either way a ``ScanStatus``
 (ERROR, ``failed``) says why, and frames of two scans are never mixed.
 
@@ -86,7 +89,9 @@ def scan_phase_maps(scan: AssembledScan, *, min_modulation: float, saturation_le
 
 
 class ScanSums:
-    """The Eq. (2) sums of one scan's entries, accumulated frame by frame, and the brightest value of each pixel.
+    """One scan's entries worked on as their frames arrive: each frame is copied into its entry's (N, H, W) stack
+    and the brightest value of each pixel is kept; an entry's Eq. (2) sums are computed the moment its last frame
+    is in (:func:`dptpu.fpp.phase.sequence_sums`), so after the scan's last frame only its last entry is left.
 
     ``sums[entry_start]`` is the (3, H, W) float32 ``B sin(psi)``, ``B cos(psi)``, ``A`` of the entry starting at
     that pattern index; ``slots`` records where each added frame was put, so :meth:`maps` can check them against
@@ -97,37 +102,45 @@ class ScanSums:
         self.sums: dict[int, np.ndarray] = {}
         self.slots: dict[int, FrameSlot] = {}  # pattern_index -> where it was added
         self.brightest: np.ndarray | None = None  # (H, W) max over the frames, for the saturation mask
+        self._stacks: dict[int, np.ndarray] = {}  # entry_start -> (N, H, W) frames of an entry not complete yet
+        self._filled: dict[int, int] = {}  # entry_start -> frames in its stack
 
     def add(self, pattern_index: int, image: np.ndarray, slot: FrameSlot) -> None:
-        """Add frame ``pattern_index`` (H, W) at ``slot``."""
-        sums = self.sums.get(slot.entry_start)
-        if sums is None:
-            sums = self.sums[slot.entry_start] = np.zeros((3, *image.shape), dtype=np.float32)
-        fpp_phase.accumulate_frame(sums, image, fpp_phase.phase_weights(slot.steps, slot.step,
-                                                                       shift_sign=slot.shift_sign,
-                                                                       phase_offset=slot.phase_offset))
+        """Add frame ``pattern_index`` (H, W) at ``slot``; computes its entry's sums when it completes the entry."""
+        start = slot.entry_start
+        stack = self._stacks.get(start)
+        if stack is None:
+            stack = self._stacks[start] = np.empty((slot.steps, *image.shape), dtype=image.dtype)
+            self._filled[start] = 0
+        stack[slot.step] = image
+        self._filled[start] += 1
         if self.brightest is None:
             self.brightest = image.copy()
         else:
             np.maximum(self.brightest, image, out=self.brightest)
         self.slots[int(pattern_index)] = slot
+        if self._filled[start] == slot.steps:  # every step of the entry (a step added twice fails the scan first)
+            self.sums[start] = fpp_phase.sequence_sums(self._stacks.pop(start), shift_sign=slot.shift_sign,
+                                                       phase_offset=slot.phase_offset)
 
     def maps(self, scan: AssembledScan, *, min_modulation: float, saturation_level: float | None):
         """Wrapped phase (F, H, W), modulation (F, H, W) and validity (H, W) of ``scan``, as
         :func:`scan_phase_maps` gives them; None when a frame was added at another place than the scan's final
         layout says (the caller then computes the maps from the frames)."""
+        if len(self.slots) != scan.frame_count or self.brightest is None:
+            return None
         for pattern_index, slot in self.slots.items():
             if slot != scan.slot(pattern_index):
                 return None
-        if len(self.slots) != scan.frame_count or self.brightest is None:
+        starts = [int(start) for start in np.cumsum((0, *scan.layout.steps[:-1]))]
+        if any(start not in self.sums for start in starts):
             return None
-        starts = np.cumsum((0, *scan.layout.steps[:-1]))
         height, width = self.brightest.shape
         phases = np.empty((len(starts), height, width), dtype=np.float32)
         modulations = np.empty((len(starts), height, width), dtype=np.float32)
         valid = np.ones((height, width), dtype=bool)
         for index, start in enumerate(starts):
-            maps = fpp_phase.maps_from_sums(self.sums[int(start)])
+            maps = fpp_phase.maps_from_sums(self.sums[start])
             phases[index] = maps.phase  # in [0, 2*pi) in float32
             modulations[index] = maps.modulation
             valid &= maps.modulation >= min_modulation  # NaN compares False

@@ -1,6 +1,6 @@
-"""The phase node's per-frame path: Eq. (2) accumulated as frames arrive (dptpu/nodes/phase.py ScanSums,
-dptpu/fpp/phase.py accumulate_frame / maps_from_sums) gives the maps of the stacked frames, and the cloud's
-in-place triangulation (Triangulator.camera_points(out=...)) the points of the plain call."""
+"""The phase node's per-frame path: each entry's Eq. (2) sums computed as soon as its frames are in
+(dptpu/nodes/phase.py ScanSums, dptpu/fpp/phase.py sequence_sums / maps_from_sums) give the maps of the stacked
+frames, and the cloud's in-place triangulation (Triangulator.camera_points(out=...)) the points of the plain call."""
 from __future__ import annotations
 
 import numpy as np
@@ -85,12 +85,14 @@ def test_frames_added_at_another_place_than_the_final_layout_fall_back_to_the_st
     assert sums.maps(scan, min_modulation=5.0, saturation_level=None) is None
 
 
-def test_accumulate_frame_refuses_sums_of_another_shape():
-    with pytest.raises(ValueError, match=r"sums must be a \(3, H, W\) float32 array"):
-        fpp_phase.accumulate_frame(np.zeros((3, 4, 5), np.float32), np.zeros((4, 6), np.uint8),
-                                   fpp_phase.phase_weights(4, 0))
-    with pytest.raises(ValueError, match="step in"):
-        fpp_phase.phase_weights(4, 4)
+def test_sequence_sums_and_maps_from_sums_are_wrapped_phase():
+    images, _ = fringe_images(6.0, 7, dtype=np.uint16, shift_sign=1, phase_offset=-0.4)
+    maps = fpp_phase.maps_from_sums(fpp_phase.sequence_sums(images, shift_sign=1, phase_offset=-0.4))
+    reference = fpp_phase.wrapped_phase(images, shift_sign=1, phase_offset=-0.4, dtype=np.float32)
+    for name in ("phase", "modulation", "background"):  # the same sums; OpenCV's kernels may round 1 ulp apart
+        np.testing.assert_allclose(getattr(maps, name), getattr(reference, name), rtol=1e-6, atol=1e-6)
+    with pytest.raises(ValueError, match="8- or 16-bit integers"):
+        fpp_phase.sequence_sums(images.astype(np.float32))
 
 
 def test_camera_points_written_into_a_cloud_buffer_equal_the_plain_call():
