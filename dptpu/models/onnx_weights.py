@@ -3,13 +3,15 @@
 Fine-tuning needs the trained weights in torch, and a shipped model may exist only as its ``.onnx`` file
 (:mod:`dptpu.models.export`). Most initializers keep their ``state_dict`` names (``stem.0.weight``); the exporter
 constant-folds the channel norms' ``weight[None, :, None, None]`` into anonymous ``(1, C, 1, 1)`` initializers
-(``onnx::Mul_2727``). Their names are recovered by exporting a network of the same architecture whose unnamed
-parameters hold marker values (each a distinct ramp) and reading which anonymous initializer holds which marker.
+(``onnx::Mul_2727``), and a parameter the forward pass multiplies by a constant into its product. Their names
+are recovered by exporting a network of the same architecture whose unnamed parameters hold marker values (each a
+distinct ramp) and reading which anonymous initializer holds which marker, and times what.
 The result is checked end to end: the torch network must reproduce onnxruntime's output on a test input
 (:data:`MAX_ABS_DIFFERENCE`), else ValueError.
 """
 from __future__ import annotations
 
+import functools
 import json
 import tempfile
 from pathlib import Path
@@ -40,30 +42,60 @@ def _metadata(proto, path: Path) -> tuple[str, dict, dict]:
         json.loads(metadata.get("training", "{}"))
 
 
-def _folded_names(kind: str, config: dict, keys: list[str]) -> dict:
-    """``{onnx initializer name: state_dict key}`` for the parameters the exporter folds, by marker values."""
+def _folded_names(kind: str, config: dict, keys: list[str]) -> list:
+    """``[(state_dict key, flat indices, scale) or None]`` for the anonymous initializers of an export, in graph
+    order (:func:`_folded_names_cached`)."""
+    return list(_folded_names_cached(kind, json.dumps(config, sort_keys=True), tuple(keys)))
+
+
+@functools.lru_cache(maxsize=8)
+def _folded_names_cached(kind: str, config_json: str, keys: tuple) -> tuple:
+    """Export a network whose parameters ``keys`` hold markers and read what each anonymous initializer holds.
+
+    Element ``i`` of the ``j``-th parameter holds ``offset_j + i + 0.5`` (distinct half-integers, exact in float32).
+    An anonymous initializer is either a copy of elements of one parameter (a reshape, or a slice such as
+    ``weight[:, :1]``: every value is a marker, ``scale`` 1) or the whole parameter times a constant (a gain the
+    forward pass multiplies by: ``scale = value / marker`` is the same for every element; a half-integer times a
+    scale is no marker). The anonymous names (``onnx::Mul_N``) depend on what the exporter traced before in the
+    process, so they are matched by their position among the anonymous initializers, which the architecture fixes.
+    """
     from .export import export_onnx
     import onnx
 
-    model = build_model(kind, config)
+    model = build_model(kind, json.loads(config_json))
     state = model.state_dict()
-    markers = {}
+    markers, owner, offset = {}, {}, 0
     with torch.no_grad():
-        for index, key in enumerate(keys):
+        for key in keys:
             size = state[key].numel()
-            marker = 1000.0 * (index + 1) + np.arange(size, dtype=np.float64) / 64.0  # exact in float32
+            marker = offset + np.arange(size, dtype=np.float64) + 0.5
             state[key].copy_(torch.from_numpy(marker.astype(np.float32)).reshape(state[key].shape))
-            markers[key] = marker
+            markers[key] = (offset, marker)
+            offset += size
     with tempfile.TemporaryDirectory() as folder:
         path = export_onnx(model, Path(folder) / "markers.onnx")
         found = _initializers(onnx.load(str(path)))
-    names = {}
+    starts = np.array([markers[k][0] for k in keys])
+    matches = []
     for name, values in found.items():
+        if name in state:
+            continue
         flat = values.astype(np.float64).ravel()
-        for key, marker in markers.items():
-            if flat.shape == marker.shape and np.array_equal(flat, marker):
-                names[name] = key
-    return names
+        match = None
+        whole = np.floor(flat)
+        if flat.size and np.all(flat - whole == 0.5) and np.all((whole >= 0) & (whole < offset)):
+            which = np.searchsorted(starts, whole, side="right") - 1  # parameter of each element
+            if np.all(which == which[0]):
+                key = keys[int(which[0])]
+                match = (key, (whole - markers[key][0]).astype(np.int64), 1.0)
+        if match is None:
+            for key, (_, marker) in markers.items():
+                if flat.shape == marker.shape:
+                    ratio = flat / marker
+                    if ratio[0] != 0 and np.max(np.abs(ratio / ratio[0] - 1.0)) < 1e-6:
+                        match = (key, np.arange(flat.size), float(ratio[0]))
+        matches.append(match)
+    return tuple(matches)
 
 
 def _check_against_onnxruntime(model: nn.Module, path: Path) -> float:
@@ -113,10 +145,19 @@ def load_onnx_model(path) -> tuple[nn.Module, dict]:
     state = model.state_dict()
     found = _initializers(proto)
     missing = [key for key in state if key not in found]
-    names = _folded_names(kind, config or None, missing) if missing else {}
-    by_key = {key: found[name] for name, key in names.items() if name in found}
-    by_key.update({key: found[key] for key in state if key in found})
-    unresolved = [key for key in state if key not in by_key]
+    anonymous = [name for name in found if name not in state]
+    matches = _folded_names(kind, config or None, missing) if missing else []
+    by_key = {key: np.asarray(found[key], np.float64).ravel() for key in state if key in found}
+    filled = {key: np.zeros(state[key].numel(), bool) for key in missing}
+    if len(matches) == len(anonymous):
+        for name, match in zip(anonymous, matches):
+            if match is None:
+                continue
+            key, indices, scale = match
+            values = by_key.setdefault(key, np.zeros(state[key].numel()))
+            values[indices] = np.asarray(found[name], np.float64).ravel() / scale
+            filled[key][indices] = True
+    unresolved = [key for key in state if key not in by_key or (key in filled and not filled[key].all())]
     if unresolved:
         raise ValueError(f"{path}: parameters {unresolved[:4]}{' ...' if len(unresolved) > 4 else ''} not found "
                          "among the ONNX initializers (an exporter other than this torch's?); pass the training "

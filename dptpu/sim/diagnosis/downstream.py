@@ -16,6 +16,7 @@
 """
 from __future__ import annotations
 
+import copy
 import json
 import time
 from dataclasses import asdict, dataclass, field, replace
@@ -29,7 +30,7 @@ from .measured_pair import MeasuredPair, order_accuracy
 from .twin_pairs import CFPE_DESIGN, SPHERE_DESIGN, write_twin_set
 
 __all__ = ["DownstreamOptions", "measured_kind", "measured_pairs", "split_rigs", "evaluate_orders",
-           "run_downstream", "write_downstream_report", "SIGMAS"]
+           "run_downstream", "compare_finetunes", "twin_set_pairs", "write_downstream_report", "SIGMAS"]
 
 #: The paper's camera noise levels, DN (1 sigma, 2 sigma).
 SIGMAS = (1.5693, 3.1386)
@@ -156,7 +157,7 @@ def _model_orders(models: dict, pair: MeasuredPair, threads: int) -> dict:
     return orders
 
 
-def _twin_pairs(data_dir) -> list[MeasuredPair]:
+def twin_set_pairs(data_dir) -> list[MeasuredPair]:
     """Held-out twin samples as pairs (their label is the reference)."""
     from dptpu.models.samples import list_samples, read_sample
 
@@ -194,17 +195,36 @@ def run_downstream(measured, extended, out_dir, *, model, base_rig=None,
     """
     log = log or (lambda text: None)
     started = time.perf_counter()
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
     design, pairs, rig = measured_pairs(measured, options)
     log(f"{len(pairs)} measured pairs ({design.name}), {time.perf_counter() - started:.0f} s")
     baseline_rig, extended_rig = split_rigs(extended, base_rig)
+    report = compare_finetunes(pairs, design, baseline_rig, extended_rig, out_dir, model=model, options=options,
+                               sphere_rig=rig, threads=threads, log=log)
+    report.update({"measured": str(measured), "extended": str(extended),
+                   "seconds": round(time.perf_counter() - started, 1)})
+    write_downstream_report(report, out_dir)
+    return report
+
+
+def compare_finetunes(pairs: list, design, baseline_rig, extended_rig, out_dir, *, model,
+                      options: DownstreamOptions = DownstreamOptions(), sphere_rig=None, threads: int = 1,
+                      log=None) -> dict:
+    """Steps 2-4 of the module docstring on given measured ``pairs``; returns the report dict (not written).
+
+    ``design`` (:class:`~.twin_pairs.PairDesign`) is how the pairs were built; ``baseline_rig`` and
+    ``extended_rig`` differ only by their effects; ``sphere_rig`` (the real rig) adds the sphere's 3D errors.
+    """
+    log = log or (lambda text: None)
+    started = time.perf_counter()
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
     sets, heldout = {}, {}
     for name, twin in (("baseline", baseline_rig), ("extended", extended_rig)):
         sets[name] = write_twin_set(twin, design, out / f"twin_{name}", scenes=options.scenes, size=options.size,
                                     noise=options.noise, seed=options.seed)
-        heldout[name] = write_twin_set(twin, design, out / f"heldout_{name}", scenes=options.heldout_scenes,
-                                       size=options.size, noise=options.noise, seed=options.seed + 1000)
+        if options.heldout_scenes > 0:
+            heldout[name] = write_twin_set(twin, design, out / f"heldout_{name}", scenes=options.heldout_scenes,
+                                           size=options.size, noise=options.noise, seed=options.seed + 1000)
         log(f"twin set {name}: {options.scenes} scenes, {time.perf_counter() - started:.0f} s")
     start = load_start_model(model)
     base_onnx = Path(model)
@@ -215,16 +235,17 @@ def run_downstream(measured, extended, out_dir, *, model, base_rig=None,
     models = {"base": str(base_onnx)}
     runs = {}
     for name in ("baseline", "extended"):
-        fresh = load_start_model(model)  # the same start weights for both fine-tunes
+        fresh = (copy.deepcopy(start[0]), *start[1:])  # the same start weights for both
         runs[name] = finetune(fresh, sets[name], out / f"finetuned_{name}.onnx", options.finetune)
         models[f"finetuned_{name}"] = runs[name]["onnx"]
         log(f"fine-tune on the {name} twin: {runs[name]['epochs']} epochs, {runs[name]['seconds']:.0f} s")
-    rows = [evaluate_orders(pair, _model_orders(models, pair, threads), rig) for pair in pairs]
-    twin_rows = {name: [evaluate_orders(p, _model_orders(models, p, threads)) for p in _twin_pairs(heldout[name])]
+    rows = [evaluate_orders(pair, _model_orders(models, pair, threads), sphere_rig) for pair in pairs]
+    twin_rows = {name: [evaluate_orders(p, _model_orders(models, p, threads)) for p in twin_set_pairs(heldout[name])]
                  for name in heldout}
-    report = {
-        "measured": str(measured), "design": design.as_dict(), "extended": str(extended),
-        "effects": {"baseline": list(baseline_rig.effects), "extended": [dict(e) for e in extended_rig.effects]},
+    return {
+        "design": design.as_dict(),
+        "effects": {"baseline": [dict(e) for e in baseline_rig.effects],
+                    "extended": [dict(e) for e in extended_rig.effects]},
         "base_model": str(model), "start": start[3], "models": models,
         "options": json.loads(json.dumps(asdict(options), default=str)), "finetune_runs": runs,
         "measured_results": rows,
@@ -232,8 +253,6 @@ def run_downstream(measured, extended, out_dir, *, model, base_rig=None,
                          for name, rs in twin_rows.items()},
         "summary": _summary(rows, twin_rows), "seconds": round(time.perf_counter() - started, 1),
     }
-    write_downstream_report(report, out)
-    return report
 
 
 def _mean(values) -> float:
@@ -256,9 +275,9 @@ def _summary(rows: list, twin_rows: dict) -> dict:
 def _markdown(report: dict) -> str:
     names = ["classical", *MODEL_NAMES]
     lines = ["## Downstream gain", "",
-             f"Measured data `{report['measured']}`, pair design `{report['design']['name']}` "
+             f"Measured data `{report.get('measured', 'given pairs')}`, pair design `{report['design']['name']}` "
              f"(f_h = {report['design']['frequencies'][0]:.4g}, low phase `{report['design']['low']}`); extended twin "
-             f"`{report['extended']}`: effects {report['effects']['extended']}. Base model `{report['base_model']}`; "
+             f"`{report.get('extended', '')}`: effects {report['effects']['extended']}. Base model `{report['base_model']}`; "
              "both fine-tunes from its weights with the same budget "
              f"({report['finetune_runs']['baseline']['steps']} steps: {report['finetune_runs']['baseline']['seconds']:.0f} s "
              f"and {report['finetune_runs']['extended']['seconds']:.0f} s).", "",
