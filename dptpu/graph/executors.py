@@ -158,7 +158,8 @@ class Executor:
         self._is_shutdown = False
         self._lease = None  # SocketLease with the context's runtime, made on the first wait
         self._last_poll = 0.0
-        self._entity_cache: tuple = ([], [], [])  # (the nodes' _work tuples, their entities, the timers among them)
+        # (the nodes' _work tuples, their entities, the timers among them, their ready queues)
+        self._entity_cache: tuple = ([], [], [], [])
         self._context._track_executor(self)
 
     @property
@@ -223,20 +224,24 @@ class Executor:
     # -- finding work ---------------------------------------------------------------------------------
 
     def _node_entities(self) -> tuple:
-        """``(entities, timers)`` of this executor's nodes (rebuilt only when a node's entities changed).
+        """``(entities, timers, queues)`` of this executor's nodes (rebuilt only when a node's entities changed).
 
         Each node keeps its entities in one tuple (``node._work``), replaced when they change; the list
         of those tuples is compared with the cached one element by element (identity first, in C).
+        ``queues[i]`` is entity ``i``'s ``_ready_queue`` (subscriptions, services: the deque whose
+        contents make it ready; clients: an empty tuple), else None: an empty one is skipped without
+        calling ``_ready``, which keeps the scan cheap on nodes with many idle services.
         """
         works = [node._work for node in self._nodes]  # a list read without the lock: a stale view is harmless
-        cached_works, entities, timers = self._entity_cache
-        if works != cached_works:
+        cache = self._entity_cache
+        if works != cache[0]:
             with self._nodes_lock:
                 works = [node._work for node in self._nodes]
             entities = [entity for work in works for entity in work]
             timers = [entity for entity in entities if hasattr(entity, "_deadline")]
-            self._entity_cache = (works, entities, timers)
-        return entities, timers
+            queues = [getattr(entity, "_ready_queue", None) for entity in entities]
+            cache = self._entity_cache = (works, entities, timers, queues)
+        return cache[1], cache[2], cache[3]
 
     def _entities(self) -> list:
         entities = self._node_entities()[0]
@@ -250,16 +255,22 @@ class Executor:
     def _take_ready(self):
         """``(entity, work, group)`` of one ready callback whose group may run now, or None."""
         with self._take_lock:
-            entities = self._node_entities()[0]
+            entities, _timers, queues = self._node_entities()
             if self._tasks:
                 entities = self._entities()
+                queues = None
             count = len(entities)
             if not count:
                 return None
             now = time.monotonic()
             start = self._round_robin % count
             for index in range(start, start + count):
-                entity = entities[index % count]
+                index %= count
+                if queues is not None:
+                    queue = queues[index]
+                    if queue is not None and not queue:
+                        continue  # nothing queued: not ready
+                entity = entities[index]
                 if not entity._ready(now):
                     continue
                 group = entity.callback_group
@@ -372,7 +383,7 @@ class Executor:
                 if now >= deadline:
                     return None
                 wait = min(wait, deadline - now)
-            timer_deadline = self._next_deadline() if self._entity_cache[2] else None
+            timer_deadline = self._next_deadline() if self._entity_cache[2] else None  # no timers: no deadline
             if timer_deadline is not None:
                 wait = min(wait, max(0.0, timer_deadline - now))
             if wait > 0:

@@ -37,6 +37,8 @@ PUBLISHER_LINGER_MS = 200
 
 
 _MORE = zmq.SNDMORE | zmq.NOBLOCK
+#: pyzmq's compiled ``Socket.send`` (``zmq.Socket.send`` only adds the routing-id and group options, unused here).
+_backend_send = zmq.backend.Socket.send
 
 
 def _send(sock, frames: list, envelope: bytes) -> None:
@@ -45,12 +47,12 @@ def _send(sock, frames: list, envelope: bytes) -> None:
     The topic and header (bytes) are copied into ZeroMQ; the arrays' memoryviews go without a copy
     (pyzmq still copies those below its 64 kB copy threshold, which is cheaper for small ones).
     """
-    send = sock.send
-    send(frames[0], _MORE)
-    send(frames[1], _MORE)
+    send = _backend_send
+    send(sock, frames[0], _MORE)
+    send(sock, frames[1], _MORE)
     for index in range(2, len(frames)):
-        send(frames[index], _MORE, copy=False)
-    send(envelope, zmq.NOBLOCK)
+        send(sock, frames[index], _MORE, copy=False)
+    send(sock, envelope, zmq.NOBLOCK)
 
 
 class Publisher:

@@ -119,6 +119,7 @@ class Service:
         self.qos_profile = qos_profile
         self.callback_group = callback_group
         self._requests: deque = deque()
+        self._ready_queue = self._requests  # the executor skips this service while it is empty
         self._lock = threading.Lock()
         self.request_count = 0
         self.malformed_count = 0
@@ -323,6 +324,8 @@ class Client:
             future.set_exception(ServiceCallError(f"undecodable response from {self.srv_name}: {exc}"))
             return
         future.set_result(response)
+
+    _ready_queue = ()  # never ready: responses complete futures on the I/O thread
 
     def _ready(self, now: float) -> bool:
         return False

@@ -68,6 +68,7 @@ class Subscription:
         self._reliable = resolved.reliability == ReliabilityPolicy.RELIABLE
         self._transient = resolved.durability.name == "TRANSIENT_LOCAL"
         self._queue: deque = deque()
+        self._ready_queue = self._queue  # the executor skips this subscription while it is empty
         self._lock = threading.Lock()
         self._last_seq: dict[bytes, int] = {}
         self.received_count = 0

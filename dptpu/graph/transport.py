@@ -82,20 +82,25 @@ class Envelope(NamedTuple):
     gid: bytes
 
 
+_new_tuple = tuple.__new__
+
+
 def pack_envelope(flags: int, seq: int, stamp_ns: int, gid: bytes) -> bytes:
     return _ENVELOPE.pack(_MAGIC, _ENVELOPE_VERSION, flags, 0, seq, stamp_ns, gid)
 
 
 def unpack_envelope(frame) -> Envelope:
     """Parse the last frame of a message; raise :class:`EnvelopeError` when it is not an envelope."""
-    data = frame.bytes if hasattr(frame, "bytes") else bytes(frame)
-    if len(data) != ENVELOPE_SIZE:
-        raise EnvelopeError(f"envelope frame must have {ENVELOPE_SIZE} bytes; got {len(data)}")
-    magic, version, flags, _reserved, seq, stamp_ns, gid = _ENVELOPE.unpack(data)
+    data = getattr(frame, "buffer", frame)  # a zmq.Frame's memoryview (no copy), or bytes
+    try:
+        magic, version, flags, _reserved, seq, stamp_ns, gid = _ENVELOPE.unpack(data)
+    except (struct.error, TypeError):
+        size = memoryview(data).nbytes if isinstance(data, (bytes, bytearray, memoryview)) else "?"
+        raise EnvelopeError(f"envelope frame must have {ENVELOPE_SIZE} bytes; got {size}") from None
     if magic != _MAGIC or version != _ENVELOPE_VERSION:
         raise EnvelopeError(f"envelope has magic {magic!r} version {version}; expected {_MAGIC!r} version "
                             f"{_ENVELOPE_VERSION}")
-    return Envelope(flags, seq, stamp_ns, gid)
+    return _new_tuple(Envelope, (flags, seq, stamp_ns, gid))  # Envelope(...) without its Python __new__
 
 
 # --------------------------------------------------------------------------------------------------
