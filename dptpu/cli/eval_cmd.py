@@ -80,7 +80,13 @@ def _load_models(args) -> list:
 
 
 def run_unwrap(args) -> int:
-    from dptpu.models.unwrap_eval import DEFAULT_SEED, EVAL_FREQUENCIES, EVAL_NOISE, UnwrapEvalSpec, run_unwrap_eval
+    from dptpu.models.unwrap_eval import (
+        DEFAULT_SEED,
+        EVAL_FREQUENCIES,
+        EVAL_NOISE,
+        UnwrapEvalSpec,
+        run_unwrap_eval,
+    )
     from dptpu.sim.rig import parse_size
 
     models = _load_models(args)

@@ -34,20 +34,21 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 from fractions import Fraction
+from itertools import pairwise
 
 import numpy as np
 
 __all__ = [
-    "Unwrapped",
     "NTLookupTable",
-    "unwrap",
-    "unwrap_mf",
-    "unwrap_with_reference",
-    "unwrap_mw",
-    "unwrap_heterodyne",
-    "nt_period_pair",
+    "Unwrapped",
     "nt_lookup_table",
+    "nt_period_pair",
+    "unwrap",
+    "unwrap_heterodyne",
+    "unwrap_mf",
+    "unwrap_mw",
     "unwrap_nt",
+    "unwrap_with_reference",
 ]
 
 TWO_PI = 2.0 * np.pi
@@ -638,12 +639,11 @@ def _as_phase_map(name, values, *, wrapped) -> np.ndarray:
         raise ValueError(f"{name} is all NaN; there is no pixel to unwrap")
     if np.isinf(low) or np.isinf(high):
         raise ValueError(f"{name} must not contain inf; mark invalid pixels with NaN instead")
-    if wrapped:
-        if low < -_WRAP_TOLERANCE_RAD or high >= TWO_PI + _WRAP_TOLERANCE_RAD:
-            raise ValueError(
-                f"{name} must be a wrapped phase in [0, 2*pi); got values in [{low:.6g}, {high:.6g}]"
-                " (map a phase in (-pi, pi] with np.mod(psi, 2*pi))"
-            )
+    if wrapped and (low < -_WRAP_TOLERANCE_RAD or high >= TWO_PI + _WRAP_TOLERANCE_RAD):
+        raise ValueError(
+            f"{name} must be a wrapped phase in [0, 2*pi); got values in [{low:.6g}, {high:.6g}]"
+            " (map a phase in (-pi, pi] with np.mod(psi, 2*pi))"
+        )
     return array
 
 
@@ -700,13 +700,13 @@ def _beat_tree(freqs):
     Level ``L`` holds ``|f_i - f_(i+1)|`` of neighbours of level ``L - 1``; the single node of the
     last level must lie in (0, 1].
     """
-    for a, b in zip(freqs[:-1], freqs[1:]):
+    for a, b in pairwise(freqs):
         if a == b:
             raise ValueError(f"unwrap_heterodyne needs distinct frequencies; got {a:g} twice")
     levels = [list(freqs)]
     while len(levels[-1]) > 1:
         prev = levels[-1]
-        beats = [abs(a - b) for a, b in zip(prev[:-1], prev[1:])]
+        beats = [abs(a - b) for a, b in pairwise(prev)]
         if 0.0 in beats:
             raise ValueError(
                 f"heterodyne beat tree level {len(levels)}: values {_fmt(prev)} contain two equal "

@@ -19,7 +19,7 @@ import numpy as np
 from .inference import FringeOrderModel
 from .samples import list_samples, read_sample
 
-__all__ = ["Row", "median_order", "solver_names", "evaluate_dataset", "write_table", "format_summary"]
+__all__ = ["Row", "evaluate_dataset", "format_summary", "median_order", "solver_names", "write_table"]
 
 
 @dataclass(frozen=True)

@@ -21,8 +21,22 @@ from pathlib import Path
 from .evaluate import Row, evaluate_dataset, format_summary, solver_names, write_table
 from .unwrap_eval_plots import accuracy_heatmap, error_versus_frequency, write_png
 
-__all__ = ["EVAL_FREQUENCIES", "EVAL_NOISE", "EVAL_METHODS", "DEFAULT_SEED", "RENDERERS", "GOALS", "UnwrapEvalSpec",
-           "spec_from_dataset", "make_test_set", "error_ratio", "goal_checks", "format_report", "run_unwrap_eval", "UnwrapEvalResult"]
+__all__ = [
+    "DEFAULT_SEED",
+    "EVAL_FREQUENCIES",
+    "EVAL_METHODS",
+    "EVAL_NOISE",
+    "GOALS",
+    "RENDERERS",
+    "UnwrapEvalResult",
+    "UnwrapEvalSpec",
+    "error_ratio",
+    "format_report",
+    "goal_checks",
+    "make_test_set",
+    "run_unwrap_eval",
+    "spec_from_dataset",
+]
 
 #: The paper's target domain: f_h = 16..96 step 4.
 EVAL_FREQUENCIES = tuple(float(f) for f in range(16, 97, 4))

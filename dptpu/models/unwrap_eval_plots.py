@@ -11,8 +11,14 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-__all__ = ["heatmap_size", "accuracy_heatmap", "error_plot_size", "error_versus_frequency", "write_png",
-           "SOLVER_COLOURS"]
+__all__ = [
+    "SOLVER_COLOURS",
+    "accuracy_heatmap",
+    "error_plot_size",
+    "error_versus_frequency",
+    "heatmap_size",
+    "write_png",
+]
 
 # Heatmap layout, pixels.
 _LABEL_W, _CELL_W, _CELL_H, _TITLE_H, _HEADER_H, _BAR_H, _MARGIN = 130, 46, 24, 28, 22, 44, 10
@@ -57,7 +63,7 @@ def heatmap_size(n_frequencies: int, n_rows: int, n_solvers: int) -> tuple[int, 
 
 def _colour(accuracy: float) -> tuple[int, int, int]:
     level = np.clip((accuracy - _ACCURACY_FLOOR) / (1.0 - _ACCURACY_FLOOR), 0.0, 1.0)
-    pixel = cv2.applyColorMap(np.array([[int(round(255 * level))]], np.uint8), cv2.COLORMAP_VIRIDIS)[0, 0]
+    pixel = cv2.applyColorMap(np.array([[round(255 * float(level))]], np.uint8), cv2.COLORMAP_VIRIDIS)[0, 0]
     return tuple(int(v) for v in pixel)
 
 
@@ -157,11 +163,14 @@ def error_versus_frequency(rows) -> np.ndarray:
             left, top = col * _PANEL_W + _AXIS_L, _LEGEND_H + row * _PANEL_H + _AXIS_T
             right, bottom = (col + 1) * _PANEL_W - _AXIS_R, _LEGEND_H + (row + 1) * _PANEL_H - _AXIS_B
 
-            def to_px(f, error):
+            box = (left, top, right, bottom)
+
+            def to_px(f, error, box=box):
+                x0, y0, x1, y1 = box
                 log = np.log10(max(100.0 * error, 10 ** _LOG_ERR_MIN))
-                u = left + (right - left) * ((f - f_lo) / span if len(frequencies) > 1 else 0.5)
-                v = bottom - (bottom - top) * (log - _LOG_ERR_MIN) / (_LOG_ERR_MAX - _LOG_ERR_MIN)
-                return int(round(u)), int(round(v))
+                u = x0 + (x1 - x0) * ((f - f_lo) / span if len(frequencies) > 1 else 0.5)
+                v = y1 - (y1 - y0) * (log - _LOG_ERR_MIN) / (_LOG_ERR_MAX - _LOG_ERR_MIN)
+                return round(float(u)), round(float(v))
 
             _text(image, f"{method.upper()}, {_noise_label(noise, noises)}", (left, top - 10), 0.45)
             for k in range(int(_LOG_ERR_MIN), int(_LOG_ERR_MAX) + 1):

@@ -21,10 +21,27 @@ from pathlib import Path
 
 import numpy as np
 
-from dptpu.fpp.calibration import DeviceModel, Rig, load_bouguet_pair, load_opencv_rig, load_rig
+from dptpu.fpp.calibration import (
+    DeviceModel,
+    Rig,
+    load_bouguet_pair,
+    load_opencv_rig,
+    load_rig,
+)
 
-__all__ = ["DEFAULT_CAMERA_SIZE", "DEFAULT_PROJECTOR_SIZE", "DYNAMIC_PROJECTOR_SIZE", "RIG_PRESETS", "load_twin_rig",
-           "nominal_rig", "dynamic_rig", "resize_camera", "parse_size", "working_point", "working_distance"]
+__all__ = [
+    "DEFAULT_CAMERA_SIZE",
+    "DEFAULT_PROJECTOR_SIZE",
+    "DYNAMIC_PROJECTOR_SIZE",
+    "RIG_PRESETS",
+    "dynamic_rig",
+    "load_twin_rig",
+    "nominal_rig",
+    "parse_size",
+    "resize_camera",
+    "working_distance",
+    "working_point",
+]
 
 #: The DP-TPU rig: Basler acA640-750um camera and DLP4500 projector, (width, height) pixels.
 DEFAULT_CAMERA_SIZE = (640, 480)

@@ -15,10 +15,17 @@ import pytest
 
 from dptpu.models.evaluate import Row
 from dptpu.models.inference import FringeOrderModel, shipped_model_path
-from dptpu.models.unwrap_eval import (DEFAULT_SEED, UnwrapEvalSpec, error_ratio, goal_checks, make_test_set,
-                                      run_unwrap_eval, spec_from_dataset)
-from dptpu.models.unwrap_eval_plots import error_plot_size, heatmap_size
 from dptpu.models.samples import list_samples, read_sample
+from dptpu.models.unwrap_eval import (
+    DEFAULT_SEED,
+    UnwrapEvalSpec,
+    error_ratio,
+    goal_checks,
+    make_test_set,
+    run_unwrap_eval,
+    spec_from_dataset,
+)
+from dptpu.models.unwrap_eval_plots import error_plot_size, heatmap_size
 
 FREQUENCIES = (16.0, 56.0, 96.0)
 NOISE = (1.5693, 3.1386)
@@ -58,7 +65,7 @@ def test_test_set_is_the_unseen_rig_with_unseen_scenes(evaluation):
 
 
 def test_table_has_the_columns_and_one_row_per_group_and_solver(evaluation, models):
-    result, out = evaluation
+    _, out = evaluation
     with (out / "table.csv").open() as handle:
         table = list(csv.reader(handle))
     assert table[0] == ["method", "frequency", "noise", "solver", "accuracy", "pixels"]
