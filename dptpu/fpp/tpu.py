@@ -159,11 +159,8 @@ class NTLookupTable:
             half the adjacent gap outside). Negative outside every entry's cell.
         """
         key_px = np.asarray(key_px, dtype=np.float64)
-        keys = self.key_px
-        upper = np.clip(np.searchsorted(keys, key_px), 1, keys.size - 1)  # keys[upper-1] <= key < keys[upper]
-        lower = upper - 1
-        index = np.where(key_px - keys[lower] <= keys[upper] - key_px, lower, upper)
         low_edge, high_edge = self._cell_edges
+        index = np.searchsorted(low_edge[1:], key_px, side="right")  # low_edge[index] <= key < high_edge[index]
         margin_px = np.minimum(key_px - low_edge[index], high_edge[index] - key_px)
         return index, margin_px
 
