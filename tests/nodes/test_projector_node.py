@@ -10,6 +10,8 @@ from __future__ import annotations
 import signal
 import time
 
+import numpy as np
+
 from dptpu.graph.interfaces import Trigger as TriggerService
 from dptpu.graph.qos import DurabilityPolicy, QoSProfile
 from dptpu.messages import PatternSequence, ScanStatus, Trigger
@@ -167,3 +169,29 @@ def test_bad_sequence_parameter_exits_with_code_2_naming_it(spawn_node):
     node = spawn_node(NODE, "--ros-args", "-p", "port:=loop://", "-p", "sequence:=96x2")
     assert node.wait(timeout=20) == 2
     assert "sequence entry '96x2' needs frequency > 0 and steps >= 3" in node.stderr
+
+
+def test_start_requests_wait_up_to_max_waiting_scans_while_a_scan_runs(spawn_node, probe):
+    triggers = probe.subscribe(Trigger, "/projector/trigger")
+    status = probe.subscribe(ScanStatus, "/scanner/status")
+    node = start_projector(spawn_node, "loop://", "-p", "max_waiting_scans:=2", "-p", "exposure_us:=100000")
+    assert node.wait_for_stderr("7 patterns loaded", timeout=15)
+    assert call_start_scan(probe).success
+    triggers.wait_for(lambda t: t.sequence_id == 1)  # scan 1 is on screen (0.7 s): the queue is empty
+    responses = [call_start_scan(probe) for _ in range(3)]
+    assert [(r.success, r.message) for r in responses[:2]] == [(True, "scan 2 queued"), (True, "scan 3 queued")]
+    assert (responses[2].success, responses[2].message) == (False, "2 scans are already waiting to start")
+    done = status.wait_for(lambda s: s.sequence_id == 3, timeout=10.0)
+    assert (done.state, done.frames_received) == ("done", 7)
+    assert sorted({s.sequence_id for s in status.messages}) == [1, 2, 3]  # the refused request started nothing
+
+
+def test_own_scans_start_at_least_period_s_apart(spawn_node, probe):
+    triggers = probe.subscribe(Trigger, "/projector/trigger")
+    node = start_projector(spawn_node, "loop://", "-p", "scans:=3", "-p", "period_s:=0.3")
+    assert node.wait_for_stderr("started the 3 scan(s)", timeout=20)
+    triggers.wait_for(lambda _: sum(t.pattern_index == 0 for t in triggers.messages) >= 3, timeout=5.0)
+    firsts = sorted((t.sequence_id, t.header.stamp.to_ns()) for t in triggers.messages if t.pattern_index == 0)
+    assert [sequence_id for sequence_id, _ in firsts] == [1, 2, 3]
+    gaps_s = np.diff([stamp for _, stamp in firsts]) * 1e-9
+    assert (gaps_s > 0.3 - 0.01).all(), gaps_s  # each started one period after the previous one was due
