@@ -26,6 +26,7 @@ import weakref
 from concurrent.futures import ThreadPoolExecutor
 
 import zmq
+from zmq import zmq_poll
 
 from .context import get_default_context
 from .lease import BUSY
@@ -98,7 +99,8 @@ class WakeSignal:
             self._waiters += 1
         try:
             # whole ms, rounded up: zmq_poll truncates, and waking early would spin until the deadline
-            ready = (poller or self._pipe_poller).poll(None if timeout is None else math.ceil(timeout * 1000.0))
+            # zmq_poll on the Poller's own item list (what Poller.poll calls, less one Python frame)
+            ready = zmq_poll((poller or self._pipe_poller).sockets, -1 if timeout is None else math.ceil(timeout * 1000.0))
         finally:
             with self._lock:
                 self._waiters -= 1

@@ -22,6 +22,7 @@ from __future__ import annotations
 import threading
 import uuid
 from collections import deque
+from functools import partial
 
 import zmq
 
@@ -172,14 +173,14 @@ class Subscription:
         if self.raw:
             views = [frame.buffer for frame in frames]
             self.taken_count += 1
-            return lambda: self.callback(views)
+            return partial(self.callback, views)
         try:
             _, msg = decode(frames, expected_type=self.msg_type)
         except DecodeError as exc:
             self._malformed(str(exc))
             return None
         self.taken_count += 1
-        return lambda: self.callback(msg)
+        return partial(self.callback, msg)  # a C-level call, no Python frame of its own
 
     def _describe(self) -> str:
         return f"subscription callback on topic {self.topic_name}"

@@ -437,7 +437,7 @@ def decode(frames, *, expected_type=None, limits: DecodeLimits = DEFAULT_LIMITS)
     """
     if not isinstance(limits, DecodeLimits):
         raise ValueError(f"limits must be a DecodeLimits; got {type(limits).__name__}")
-    expected = _expected_class(expected_type)
+    expected = expected_type if expected_type in _EXPECTED_CLASSES else _expected_class(expected_type)
     decoded = _decode_well_formed(frames, expected, limits)
     if decoded is not None:
         return decoded
