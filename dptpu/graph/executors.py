@@ -100,7 +100,8 @@ class WakeSignal:
         try:
             # whole ms, rounded up: zmq_poll truncates, and waking early would spin until the deadline
             # zmq_poll on the Poller's own item list (what Poller.poll calls, less one Python frame)
-            ready = zmq_poll((poller or self._pipe_poller).sockets, -1 if timeout is None else math.ceil(timeout * 1000.0))
+            timeout_ms = -1 if timeout is None else math.ceil(timeout * 1000.0)
+            ready = zmq_poll((poller or self._pipe_poller).sockets, timeout_ms)
         finally:
             with self._lock:
                 self._waiters -= 1

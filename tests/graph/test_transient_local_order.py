@@ -1,11 +1,12 @@
 """TRANSIENT_LOCAL: a late subscriber gets the replay of the last message BEFORE any live message.
 
-The publisher is a real process publishing at about 5 kHz; the late subscribers are bare ZeroMQ SUB sockets of
+The publisher is a real process publishing as fast as it can; the late subscribers are bare ZeroMQ SUB sockets of
 this process (what a subscription opens), which show each message's envelope: a subscriber must see the replay
 (HISTORY flag) first and then the live messages from the next sequence number on, without a gap.
 Without ``XPUB_MANUAL`` the publisher's socket could apply a newcomer's subscription inside the ``send`` of a
 live message, after the publisher had looked for newcomers: the live message then arrived first and the
-subscription dropped the replay as already seen (measured at full publishing rate before the fix: 16 and 36 of 400 joins; 0 after).
+subscription dropped the replay as already seen (measured at full publishing rate before the fix: 16 and 36 of
+400 joins; 0 after).
 """
 from __future__ import annotations
 

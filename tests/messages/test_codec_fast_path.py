@@ -6,14 +6,15 @@ off; both must give an equal message, or the same ``DecodeError`` text.
 """
 from __future__ import annotations
 
+import re
+
 import msgpack
 import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from dptpu.messages import DecodeError, DecodeLimits, Message, decode, encode
-from dptpu.messages import codec
+from dptpu.messages import DecodeError, DecodeLimits, Message, codec, decode, encode
 from dptpu.messages.registry import is_registered, lookup
 from dptpu.messages.schema import array, message, scalar
 
@@ -114,7 +115,7 @@ def test_malformed_headers_get_the_general_paths_error(change, match):
     change(header)
     frames[1] = msgpack.packb(header, use_bin_type=True)
     outcome = _same_outcome(frames, limits=LIMITS)
-    assert outcome[0] == "error" and __import__("re").search(match, outcome[1]), outcome
+    assert outcome[0] == "error" and re.search(match, outcome[1]), outcome
 
 
 VALUES = st.none() | st.booleans() | st.integers(-2, 2**33) | st.floats(allow_nan=False) | st.text(max_size=6) \
