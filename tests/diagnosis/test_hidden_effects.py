@@ -56,3 +56,25 @@ def test_control_without_effect_names_none(tmp_path, scene):
     # the baseline twin explains the frames to their quantization (0.29 DN RMS)
     rms = np.sqrt(np.mean(np.concatenate([r.ravel() for r in result.residual_before]) ** 2))
     assert rms < 0.35
+
+
+def test_lookup_table_response_beats_the_power_law_on_an_s_curve(tmp_path):
+    """An S-shaped projector response (the effect's default, smoothstep at 11 knots): the monotone table is
+    named, the power law it beats by BIC is not, and the fitted curve has the hidden shape."""
+    from dptpu.sim.effects import parse_effects
+    from dptpu.sim.effects.pattern import response_levels
+
+    effect = {"projector_response": {}}
+    result = _diagnose(tmp_path, "plane", effect, 7)
+    assert result.cause == "projector_response"
+    entry = result.effects[0]
+    gamma = next(e for e in result.effects if e["name"] == "projector_gamma")
+    assert not gamma["named"]
+    assert entry["evidence"]["delta_bic_over_best_single"] > 1000
+    assert entry["gain"] > 0.9 and gamma["gain"] < 0.5
+    truth = parse_effects([effect])[0]["levels"]
+    p = np.linspace(0.06, 0.94, 45)  # the projected range, offset 0.5 +- amplitude 0.45
+    fitted = response_levels(p, entry["parameters"]["levels"])
+    hidden = response_levels(p, truth)
+    scale = hidden[-1] / fitted[-1]  # the table's scale is the gain's business
+    assert np.abs(fitted * scale - hidden).max() < 0.02

@@ -66,7 +66,7 @@ PHOTOMETRIC = (
     Candidate("projector_pixelation", "quantize_bits", (0, 10), None, {}, values=(0, 4, 5, 6, 7, 8, 10),
               needs="reference"),
     Candidate("vignetting", "k1", (-0.6, 0.6), 0.0, {"k2": 0.0}, per_pixel_gain=False, needs="reference"),
-    Candidate("camera_defocus", "sigma_px", (0.0, 3.0), 0.0, {}, needs="reference"),
+    Candidate("camera_defocus", "sigma_px", (0.0, 3.0), 0.0, {}, grid=5, needs="reference"),
 )
 
 #: Why an effect cannot be fitted from the data's own phase (self-reference) or from a phase file.
