@@ -64,7 +64,10 @@ class FringeOrderModel:
         path : path
             ``.onnx`` file from :func:`dptpu.models.export.export_onnx`.
         threads : int, optional
-            onnxruntime intra-op threads (default: onnxruntime's choice).
+            onnxruntime intra-op threads (default: onnxruntime's choice). Idle threads sleep instead of
+            spinning (``session.intra_op.allow_spinning = 0``): on a machine shared with the scanner's
+            other nodes, spinning threads steal the cores they wait for (480x640 on 2 threads of a loaded
+            2-core machine: 320 ms with spinning, 165 ms without; docs/benchmarks.md, "bench model").
         """
         import onnxruntime as ort
 
@@ -75,6 +78,7 @@ class FringeOrderModel:
         if threads is not None:
             options.intra_op_num_threads = int(threads)
         options.log_severity_level = 3
+        options.add_session_config_entry("session.intra_op.allow_spinning", "0")
         try:
             session = ort.InferenceSession(str(path), sess_options=options, providers=["CPUExecutionProvider"])
         except Exception as exc:  # onnxruntime raises its own exception types for corrupt files

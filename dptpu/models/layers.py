@@ -31,8 +31,9 @@ class ChannelNorm(nn.Module):
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
         mean = x.mean(dim=1, keepdim=True)  # (B, 1, H, W)
-        var = (x - mean).pow(2).mean(dim=1, keepdim=True)
-        x = (x - mean) / torch.sqrt(var + self.eps)
+        centered = x - mean
+        var = (centered * centered).mean(dim=1, keepdim=True)
+        x = centered / torch.sqrt(var + self.eps)
         return x * self.weight[None, :, None, None] + self.bias[None, :, None, None]
 
 
@@ -48,18 +49,6 @@ class ConvMLP(nn.Module):
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
         return self.fc2(F.gelu(self.dw(self.fc1(x))))
-
-
-def _neighbours(x: torch.Tensor, kernel: int) -> torch.Tensor:
-    """The ``kernel x kernel`` neighbourhood of every pixel, ``(B, C, H, W) -> (B, kernel**2, C, H, W)``.
-
-    Zero padding; built from slices of the padded map (exports as Pad + Slice, unlike ``unfold``).
-    """
-    r = kernel // 2
-    height, width = x.shape[-2], x.shape[-1]
-    padded = F.pad(x, (r, r, r, r))
-    return torch.stack([padded[:, :, dy:dy + height, dx:dx + width]
-                        for dy in range(kernel) for dx in range(kernel)], dim=1)
 
 
 class ConvSelfAttention(nn.Module):
@@ -81,12 +70,17 @@ class ConvSelfAttention(nn.Module):
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
         b, c, h, w = x.shape
-        k2 = self.kernel * self.kernel
-        weights = self.attn(x).reshape(b, self.heads, k2, h, w).softmax(dim=2)  # (B, heads, k2, H, W)
-        values = _neighbours(self.value(x), self.kernel)  # (B, k2, C, H, W)
-        values = values.reshape(b, k2, self.heads, c // self.heads, h, w).permute(0, 2, 1, 3, 4, 5)
-        out = (weights.unsqueeze(3) * values).sum(dim=2)  # (B, heads, C/heads, H, W)
-        return self.proj(out.reshape(b, c, h, w))
+        k2, r = self.kernel * self.kernel, self.kernel // 2
+        logits = self.attn(x).reshape(b, self.heads, k2, h, w)  # (B, heads, k2, H, W)
+        # softmax over the window axis written out: onnxruntime's Softmax on a middle axis transposes
+        weights = torch.exp(logits - logits.amax(dim=2, keepdim=True))
+        weights = weights / weights.sum(dim=2, keepdim=True)
+        padded = F.pad(self.value(x), (r, r, r, r)).reshape(b, self.heads, c // self.heads, h + 2 * r, w + 2 * r)
+        out = 0
+        for index in range(k2):  # weighted sum of the shifted value maps (slices, no 6-D transpose)
+            dy, dx = divmod(index, self.kernel)
+            out = out + weights[:, :, index:index + 1] * padded[:, :, :, dy:dy + h, dx:dx + w]
+        return self.proj(out.reshape(b, c, h, w))  # out: (B, heads, C/heads, H, W)
 
 
 def _attention(q: torch.Tensor, k: torch.Tensor, v: torch.Tensor, heads: int) -> torch.Tensor:
@@ -100,7 +94,7 @@ def _attention(q: torch.Tensor, k: torch.Tensor, v: torch.Tensor, heads: int) ->
     q = q.reshape(b, heads, d, nq).transpose(2, 3)  # (B, heads, Nq, d)
     k = k.reshape(b, heads, d, nk)  # (B, heads, d, Nk)
     v = v.reshape(b, heads, d, nk).transpose(2, 3)  # (B, heads, Nk, d)
-    attn = (torch.matmul(q, k) * (d ** -0.5)).softmax(dim=-1)  # (B, heads, Nq, Nk)
+    attn = torch.matmul(q * (d ** -0.5), k).softmax(dim=-1)  # (B, heads, Nq, Nk); scale the smaller q
     return torch.matmul(attn, v).transpose(2, 3).reshape(b, c, nq)
 
 
@@ -109,7 +103,8 @@ class RecursiveAtrousSelfAttention(nn.Module):
 
     Queries come from one depthwise 3x3 kernel applied at dilations 1, 3 and 5 (shared weights, summed:
     multi-scale context at no extra parameters); keys and values from the map average-pooled by
-    ``reduction`` (global attention at a bounded cost); the attention is applied ``recursions`` times with
+    ``reduction`` (global attention at a bounded cost; ``ceil_mode``: a partial window at the border
+    averages the pixels it has, so a map smaller than ``reduction`` still gives one key); the attention is applied ``recursions`` times with
     the same weights, feeding ``x + previous output`` back in.
     """
 
@@ -128,7 +123,7 @@ class RecursiveAtrousSelfAttention(nn.Module):
         b, c, h, w = x.shape
         q = sum(F.conv2d(x, self.query_dw, padding=d, dilation=d, groups=c) for d in self.dilations)
         q = self.query(q).reshape(b, c, h * w)
-        pooled = F.avg_pool2d(x, self.reduction) if self.reduction > 1 else x
+        pooled = F.avg_pool2d(x, self.reduction, ceil_mode=True) if self.reduction > 1 else x  # any size
         k, v = self.key_value(pooled).flatten(2).chunk(2, dim=1)  # each (B, C, N/r^2)
         return self.proj(_attention(q, k, v, self.heads).reshape(b, c, h, w))
 
@@ -159,14 +154,14 @@ class MixAttention(nn.Module):
     pre-norm residual cross attention and a Mix-FFN.
     """
 
-    def __init__(self, channels: int, mixed_channels: int, heads: int):
+    def __init__(self, channels: int, mixed_channels: int, heads: int, mlp_ratio: int = 2):
         super().__init__()
         self.heads = heads
         self.norm_q, self.norm_kv = ChannelNorm(channels), ChannelNorm(mixed_channels)
         self.query = nn.Conv2d(channels, channels, 1)
         self.key_value = nn.Conv2d(mixed_channels, 2 * channels, 1)
         self.proj = nn.Conv2d(channels, channels, 1)
-        self.norm_mlp, self.mlp = ChannelNorm(channels), ConvMLP(channels, 2)
+        self.norm_mlp, self.mlp = ChannelNorm(channels), ConvMLP(channels, mlp_ratio)
 
     def forward(self, query: torch.Tensor, mixed: torch.Tensor) -> torch.Tensor:
         b, c, h, w = query.shape

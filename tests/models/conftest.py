@@ -14,8 +14,7 @@ torch = pytest.importorskip("torch", reason="the DP-TPU tests need torch (the 't
 torch.set_num_threads(1)
 
 #: A tiny DP-TPU architecture (a few thousand parameters).
-TINY_DPTPU = {"widths": [8, 8, 8, 8], "depths": [1, 1, 1, 1], "heads": [1, 1, 1, 2], "decoder_width": 8,
-              "stem_width": 4}
+TINY_DPTPU = {"widths": [8, 8, 8, 8], "depths": [1, 1, 1, 1], "heads": [1, 1, 1, 2], "decoder_width": 8}
 TINY_UNET = {"widths": [4, 4, 8, 8, 8]}
 
 
@@ -29,11 +28,13 @@ def tiny_dataset(tmp_path_factory):
 
 
 def randomize_head(model, seed=0):
-    """Give the zero-initialized last layer of DP-TPU random weights, so its output differs from its input."""
+    """Give the zero-initialized last layers of DP-TPU (correction and gate) random weights, so its output
+    differs from its input (the gate is scaled by GATE_GAIN, so its weights get a smaller spread)."""
     generator = torch.Generator().manual_seed(seed)
     with torch.no_grad():
-        for p in model.head[-1].parameters():
-            p.copy_(torch.randn(p.shape, generator=generator) * 0.5)
+        for layer, spread in ((model.head_correction, 0.5), (model.head_gate, 0.05)):
+            for p in layer.parameters():
+                p.copy_(torch.randn(p.shape, generator=generator) * spread)
     return model
 
 

@@ -1,9 +1,12 @@
-"""DP-TPU and U-Net architectures: output shapes for odd input sizes, the residual start, config checks."""
+"""DP-TPU and U-Net architectures: output shapes for odd input sizes, the residual start, the stride-4
+consistency features and the reference that repairs isolated wrong orders, config checks."""
+import numpy as np
 import pytest
 import torch
 
 from dptpu.models.factory import build_model
-from dptpu.models.network import DPTPUConfig, DPTPUNet, median3x3, network_inputs
+from dptpu.models.network import (GATE_GAIN, DPTPUConfig, DPTPUNet, median3x3, median9, network_features,
+                                  patch_median)
 from dptpu.models.unet_baseline import UNetBaseline
 
 from .conftest import TINY_DPTPU, TINY_UNET, phase_inputs, randomize_head
@@ -55,19 +58,12 @@ def test_unet_ignores_the_coarse_order_and_frequency():
         assert torch.equal(model(high, low, coarse, frequency), model(high, low, coarse * 0 + 7, frequency * 2))
 
 
-def test_inputs_are_scaled_to_unit_range_and_flag_an_order_off_its_neighbours():
-    high = torch.full((1, 1, 5, 5), torch.pi)
-    low = torch.full((1, 1, 5, 5), torch.pi / 2)
-    coarse = torch.full((1, 1, 5, 5), 16.0)
-    coarse[0, 0, 2, 2] = 17.0  # one order off
-    coarse[0, 0, 0, 4] = 40.0  # far off: clipped
-    x = network_inputs(high, low, coarse, torch.tensor([64.0]))
-    assert torch.allclose(x[0, :, 4, 0], torch.tensor([0.5, 0.25, 0.25, 0.0]))
-    assert float(x[0, 3, 2, 2]) == pytest.approx(1.0) and float(x[0, 3, 0, 4]) == pytest.approx(4.0)
-    assert float(x[0, 2, 2, 2]) == pytest.approx(17.0 / 64.0)
-
-
-def test_median3x3_is_the_median_of_each_window():
+def test_median9_and_median3x3_are_exact_medians():
+    generator = torch.Generator().manual_seed(0)
+    values = [torch.randn(3, 5, 7, generator=generator) for _ in range(9)]
+    assert torch.equal(median9(values), torch.stack(values).median(dim=0).values)
+    ties = [torch.tensor([1.0, 2.0])] * 5 + [torch.tensor([0.0, 9.0])] * 4
+    assert median9(ties).tolist() == [1.0, 2.0]
     x = torch.arange(20, dtype=torch.float32).reshape(1, 1, 4, 5) ** 2 % 11
     got = median3x3(x)[0, 0]
     padded = torch.nn.functional.pad(x, (1, 1, 1, 1), mode="replicate")[0, 0]
@@ -76,9 +72,60 @@ def test_median3x3_is_the_median_of_each_window():
     assert torch.equal(got, expected)
 
 
+def _ramp(height=32, width=64, errors=()):
+    """A smooth absolute phase u = 3.3 + 0.1 x + 0.05 y (periods), its psi_h and true / coarse orders.
+
+    ``errors``: (row, col, offset) of isolated wrong coarse orders.
+    """
+    y, x = np.mgrid[0:height, 0:width].astype(np.float64)
+    u = 3.3 + 0.1 * x + 0.05 * y
+    label = np.floor(u)
+    psi_h = 2 * np.pi * (u - label)
+    coarse = label.copy()
+    for row, col, offset in errors:
+        coarse[row, col] += offset
+    as_tensor = lambda a: torch.from_numpy(a.astype(np.float32))[None, None]  # noqa: E731
+    return as_tensor(psi_h), as_tensor(coarse), label
+
+
+def test_features_flag_an_isolated_wrong_order_and_a_wrong_patch_by_their_offset_in_periods():
+    psi_h, coarse, _ = _ramp(errors=[(5, 9, 1), (6, 30, -3)])
+    coarse[..., 16:20, 40:44] += 2  # a whole 4x4 patch two orders off
+    full, stride4, deviation = network_features(psi_h, psi_h * 0 + 1.0, coarse, torch.tensor([64.0]))
+    assert [m.shape for m in full] == [(1, 1, 32, 64)] * 5
+    assert stride4.shape == (1, 2, 8, 16) and deviation.shape == (1, 1, 32, 64)
+    assert torch.allclose(full[0][0, 0], torch.sin(psi_h[0, 0]), atol=1e-6)
+    assert torch.allclose(full[3][0, 0], torch.cos(torch.tensor(1.0)).expand(32, 64), atol=1e-6)
+    # r - u_c: about -1 / +3 at the two isolated pixels (the patch medians ignore them), |.| < 0.3 elsewhere
+    assert float(deviation[0, 0, 5, 9]) == pytest.approx(-1.0, abs=0.3)
+    assert float(deviation[0, 0, 6, 30]) == pytest.approx(3.0, abs=0.3)
+    # the wrong patch: its median is 2 periods above the 3x3 median of the patch medians
+    assert float(stride4[0, 1, 4, 10]) == pytest.approx(2.0, abs=0.3)
+    assert float(stride4[0, 1, 2, 2]) == pytest.approx(0.0, abs=0.3)
+    assert float(stride4[0, 0, 2, 2]) == pytest.approx(float(patch_median(psi_h / (2 * np.pi) + coarse)[0][0, 0, 2, 2])
+                                                       / 64.0)
+
+
+def test_the_reference_alone_repairs_isolated_wrong_orders_on_a_smooth_surface():
+    """Gate g = 1 everywhere (u = r): rounding r - psi_h/2pi gives the true order at every pixel of a
+    smooth ramp, including 12 isolated pixels whose coarse order is off by -5 to +7 (the order is decided
+    against each pixel's own psi_h)."""
+    rng = np.random.default_rng(1)
+    errors = [(int(r), int(c), int(o)) for r, c, o in zip(rng.integers(2, 30, 12), rng.integers(2, 62, 12),
+                                                          rng.choice([-5, -1, 1, 2, 7], 12))]
+    psi_h, coarse, label = _ramp(errors=errors)
+    torch.manual_seed(0)
+    model = build_model("dptpu", TINY_DPTPU).eval()
+    with torch.no_grad():
+        model.head_gate.bias.fill_(1.0 / GATE_GAIN)
+        out = model(psi_h, psi_h * 0 + 1.0, coarse, torch.tensor([64.0]))[0, 0].numpy()
+    assert np.mean(coarse[0, 0].numpy() == label) < 0.995
+    assert np.array_equal(np.rint(out), label)
+
+
 def test_default_config_is_small_enough_for_cpu_training():
     parameters = sum(p.numel() for p in DPTPUNet().parameters())
-    assert 50_000 < parameters < 500_000
+    assert parameters == 36_777  # widths 8/16/24/32, decoder 8 (docs/network.md)
 
 
 def test_bad_config_names_the_field():
@@ -88,3 +135,7 @@ def test_bad_config_names_the_field():
         DPTPUConfig.from_dict({"depth": [1, 1, 1, 1]})
     with pytest.raises(ValueError, match="model kind must be one of dptpu, unet"):
         build_model("resnet")
+    with pytest.raises(ValueError, match="config of architecture 1 \\(it has stem_width\\).*retrain"):
+        build_model("dptpu", {"widths": [16, 32, 48, 64], "stem_width": 8})
+    with pytest.raises(ValueError, match="reductions must be 3 integers >= 1"):
+        DPTPUConfig(reductions=(8, 4))
