@@ -4,9 +4,13 @@ A dataset is ``scenes`` random scenes (:func:`dptpu.sim.scenes.random_scene`) ti
 frequency, method and noise level; each combination of each scene is one sample file
 (:mod:`dptpu.sim.dataset_samples` computes them). docs/dataset.md is the format's specification::
 
-    DIR/dataset.yaml                    format: dptpu-dataset/1, how the set was made, count, shards
+    DIR/dataset.yaml                    format: dptpu-dataset/1, how the set was made, count, shards, rigs
     DIR/rig.yaml                        the rig rendered (dptpu-rig/1, camera at the dataset's size)
+    DIR/rig-<name>.yaml                 several rigs: one file per rig instead of rig.yaml
     DIR/samples/<shard>-<index>.npz     one sample: <shard> = the shard that wrote it, <index> = global index
+
+Several rigs (e.g. ``nominal`` and ``wide``, so that the labels cover the whole fringe-order range) split the
+scenes: scene ``i`` is rendered with rig ``i % len(rigs)``, and each sample records its rig's name (``rig``).
 
 Sample ``index = scene_index * per_scene + combination`` with combinations ordered frequency, method, noise
 (innermost); scene ``i`` has the seed ``scene_seed(seed, i)``. Shard ``I`` of ``N`` renders the scenes
@@ -33,15 +37,30 @@ from dptpu.fpp.calibration import Rig, load_rig, save_rig
 
 from .dataset_samples import METHODS, check_combination, low_frequency, scene_samples
 
-__all__ = ["DATASET_FORMAT", "DatasetSpec", "Dataset", "open_dataset", "write_dataset", "scene_seed",
-           "parse_shard", "sample_name", "SAMPLE_ARRAYS", "SAMPLE_SCALARS"]
+__all__ = [
+    "DATASET_FORMAT",
+    "SAMPLE_ARRAYS",
+    "SAMPLE_RIG",
+    "SAMPLE_SCALARS",
+    "Dataset",
+    "DatasetSpec",
+    "open_dataset",
+    "parse_shard",
+    "sample_name",
+    "scene_rig",
+    "scene_seed",
+    "write_dataset",
+]
 
 DATASET_FORMAT = "dptpu-dataset/1"
 #: Array keys of a sample file, each (H, W).
 SAMPLE_ARRAYS = ("wrapped_high", "wrapped_low", "coarse_order", "label_order", "valid")
 #: Scalar keys of a sample file.
 SAMPLE_SCALARS = ("frequency_high", "frequency_low", "method", "noise_sigma", "scene_seed", "label_rejected")
+#: Optional scalar key: the name of the sample's rig (written since multi-rig datasets; older samples lack it).
+SAMPLE_RIG = "rig"
 _NAME = re.compile(r"^(\d+)-(\d{6,})\.npz$")
+_RIG_NAME = re.compile(r"^[A-Za-z0-9_.+-]+$")
 
 
 @dataclass(frozen=True)
@@ -136,13 +155,48 @@ def sample_name(shard: int, index: int) -> str:
     return f"{int(shard)}-{int(index):06d}.npz"
 
 
+def scene_rig(scene_index: int, rig_count: int) -> int:
+    """Index of the rig that renders scene ``scene_index`` of a dataset of ``rig_count`` rigs (round robin)."""
+    return int(scene_index) % int(rig_count)
+
+
+def _named_rigs(rig) -> list[tuple[str, Rig]]:
+    """``[(name, Rig), ...]`` from a Rig, a mapping name -> Rig or a sequence of Rigs or (name, Rig) pairs."""
+    if isinstance(rig, Rig):
+        return [("rig", rig)]
+    items = list(rig.items()) if isinstance(rig, dict) else list(rig)
+    named = []
+    for k, item in enumerate(items):
+        name, value = item if isinstance(item, tuple) else (f"rig{k}", item)
+        if not isinstance(value, Rig):
+            raise TypeError(f"rigs must be Rig objects; rig {k} ({name!r}) is a {type(value).__name__}")
+        if not _RIG_NAME.match(str(name)):
+            raise ValueError(f"rig names must be letters, digits, '_', '.', '+' or '-'; got {name!r}")
+        named.append((str(name), value))
+    if not named:
+        raise ValueError("a dataset needs at least one rig")
+    names = [n for n, _ in named]
+    if len(set(names)) != len(names):
+        raise ValueError(f"rig names must be distinct; got {names}")
+    return named
+
+
 # --------------------------------------------------------------------------------------------------
 # Writing
 # --------------------------------------------------------------------------------------------------
 
-def _document(spec: DatasetSpec, shards: int) -> dict:
+def _rig_files(names: list[str]) -> list[str]:
+    """``rig.yaml`` for one rig (the original layout), ``rig-<name>.yaml`` for several."""
+    return ["rig.yaml"] if len(names) == 1 else [f"rig-{name}.yaml" for name in names]
+
+
+def _document(spec: DatasetSpec, shards: int, names: list[str]) -> dict:
     low = {m: {f"{f:g}": low_frequency(m, f) for f in spec.frequencies} for m in spec.methods}
-    return {"format": DATASET_FORMAT, "rig": "rig.yaml", "frequencies": list(spec.frequencies),
+    files = _rig_files(names)
+    rigs = [{"name": name, "file": file, "scenes": len(range(k, spec.scenes, len(names)))}
+            for k, (name, file) in enumerate(zip(names, files))]
+    return {"format": DATASET_FORMAT, "rig": files[0], "rigs": rigs,
+            "rig_of_scene": "rigs[scene_index % len(rigs)]", "frequencies": list(spec.frequencies),
             "methods": list(spec.methods), "low_frequencies": low, "input_steps": spec.input_steps,
             "label_steps": spec.label_steps, "noise": list(spec.noise), "size": list(spec.size), "seed": spec.seed,
             "scenes": spec.scenes, "meshes": spec.meshes, "count": spec.count, "per_scene": spec.per_scene,
@@ -151,7 +205,7 @@ def _document(spec: DatasetSpec, shards: int) -> dict:
 
 
 _SAME_KEYS = ("frequencies", "methods", "input_steps", "label_steps", "noise", "size", "seed", "scenes", "meshes",
-              "shards")
+              "shards", "rigs")
 
 
 def _write_text_atomic(path: Path, text: str) -> None:
@@ -160,10 +214,12 @@ def _write_text_atomic(path: Path, text: str) -> None:
     os.replace(tmp, path)
 
 
-def _prepare_folder(out: Path, spec: DatasetSpec, rig: Rig, shards: int) -> None:
+def _prepare_folder(out: Path, spec: DatasetSpec, rigs: list[tuple[str, Rig]], shards: int) -> list[Path]:
+    """Create the folder, write the rig files and ``dataset.yaml``; returns the rig files in rig order."""
     out.mkdir(parents=True, exist_ok=True)
     (out / "samples").mkdir(exist_ok=True)
-    document = _document(spec, shards)
+    names = [name for name, _ in rigs]
+    document = _document(spec, shards, names)
     existing = out / "dataset.yaml"
     if existing.is_file():
         try:
@@ -173,13 +229,19 @@ def _prepare_folder(out: Path, spec: DatasetSpec, rig: Rig, shards: int) -> None
         if old.get("format") != DATASET_FORMAT:
             raise ValueError(f"{existing}: exists and is not a {DATASET_FORMAT} file; choose another --out")
         for key in _SAME_KEYS:
+            if key == "rigs" and "rigs" not in old and len(names) == 1:
+                continue  # a one-rig folder written before datasets recorded their rigs
             if old.get(key) != document[key]:
                 raise ValueError(f"{existing}: {key} is {old.get(key)!r} but this run has {document[key]!r}; one "
                                  f"folder holds one dataset (choose another --out)")
-    tmp = out / f".rig.{os.getpid()}.yaml"
-    save_rig(rig, tmp)
-    os.replace(tmp, out / "rig.yaml")
+    paths = []
+    for (_, rig), file in zip(rigs, _rig_files(names)):
+        tmp = out / f".{file}.{os.getpid()}.tmp.yaml"
+        save_rig(rig, tmp)
+        os.replace(tmp, out / file)
+        paths.append(out / file)
     _write_text_atomic(existing, yaml.safe_dump(document, sort_keys=False, default_flow_style=None))
+    return paths
 
 
 def _save_sample(path: Path, sample: dict) -> None:
@@ -191,7 +253,7 @@ def _save_sample(path: Path, sample: dict) -> None:
 
 def _render_scene(job) -> int:
     """Worker: render scene ``scene_index`` and write its samples; returns the number written."""
-    rig_path, spec_dict, scene_index, shard, samples_dir = job
+    rig_path, rig_name, spec_dict, scene_index, shard, samples_dir = job
     from .scenes import random_scene
 
     spec = DatasetSpec(**spec_dict)
@@ -201,6 +263,7 @@ def _render_scene(job) -> int:
     samples = scene_samples(rig, scene, scene_seed=seed, frequencies=spec.frequencies, methods=spec.methods,
                             noise_sigmas=spec.noise, input_steps=spec.input_steps, label_steps=spec.label_steps)
     for j, sample in enumerate(samples):
+        sample[SAMPLE_RIG] = np.str_(rig_name)
         _save_sample(Path(samples_dir) / sample_name(shard, scene_index * spec.per_scene + j), sample)
     return len(samples)
 
@@ -237,14 +300,16 @@ class _Progress:
         self.stream.flush()
 
 
-def write_dataset(rig: Rig, spec: DatasetSpec, out_dir, *, shard=(0, 1), workers: int = 1,
+def write_dataset(rig, spec: DatasetSpec, out_dir, *, shard=(0, 1), workers: int = 1,
                   progress: bool = True) -> Path:
     """Render the samples of shard ``shard`` of the dataset ``spec`` into ``out_dir``.
 
     Parameters
     ----------
-    rig : Rig
-        The twin's rig; its camera is resized to ``spec.size`` (``K`` scaled) and written as ``rig.yaml``.
+    rig : Rig, dict of str to Rig, or sequence of Rig or of (name, Rig)
+        The twin's rig or rigs; cameras are resized to ``spec.size`` (``K`` scaled). One rig is written as
+        ``rig.yaml`` (its name ``"rig"`` unless given); several as ``rig-<name>.yaml`` (default names ``rig0``,
+        ``rig1``, ...), and scene ``i`` is rendered with rig ``i % len(rigs)`` (:func:`scene_rig`).
     spec : DatasetSpec
     out_dir : path-like
         The dataset folder (created). A folder holding another dataset (a different ``dataset.yaml``) is refused;
@@ -269,26 +334,30 @@ def write_dataset(rig: Rig, spec: DatasetSpec, out_dir, *, shard=(0, 1), workers
     """
     from .rig import resize_camera
 
+    rigs = _named_rigs(rig)
     index, total = shard
     if not (0 <= int(index) < int(total)):
         raise ValueError(f"shard must be (I, N) with 0 <= I < N; got {shard}")
     if int(workers) < 1:
         raise ValueError(f"--workers must be >= 1; got {workers}")
-    for f in spec.frequencies:
-        for method in spec.methods:
-            check_combination(method, f, rig.projector.size[0])
+    for _, one in rigs:
+        for f in spec.frequencies:
+            for method in spec.methods:
+                check_combination(method, f, one.projector.size[0])
     if spec.meshes is not None and not Path(spec.meshes).is_dir():
         raise FileNotFoundError(f"{spec.meshes}: no such meshes folder")
-    rig = resize_camera(rig, spec.size) if tuple(rig.camera.size) != tuple(spec.size) else rig
+    rigs = [(name, resize_camera(one, spec.size) if tuple(one.camera.size) != tuple(spec.size) else one)
+            for name, one in rigs]
     out = Path(out_dir)
-    _prepare_folder(out, spec, rig, int(total))
+    rig_paths = _prepare_folder(out, spec, rigs, int(total))
     samples_dir = out / "samples"
     spec_dict = asdict(spec)
     jobs = []
     for scene_index in range(int(index), spec.scenes, int(total)):
         names = [samples_dir / sample_name(index, scene_index * spec.per_scene + j) for j in range(spec.per_scene)]
         if not all(p.is_file() for p in names):
-            jobs.append((str(out / "rig.yaml"), spec_dict, scene_index, int(index), str(samples_dir)))
+            k = scene_rig(scene_index, len(rigs))
+            jobs.append((str(rig_paths[k]), rigs[k][0], spec_dict, scene_index, int(index), str(samples_dir)))
     bar = _Progress(len(jobs), enabled=progress)
     try:
         if int(workers) == 1 or len(jobs) <= 1:
@@ -335,7 +404,10 @@ class Dataset(Sequence):
             raise TypeError(f"dataset indices must be integers or slices; got {type(index).__name__}")
         if not -len(self) <= index < len(self):
             raise IndexError(f"sample {index} out of range for {len(self)} samples")
-        return read_sample(self.paths[index])
+        sample = read_sample(self.paths[index])
+        if sample[SAMPLE_RIG] is None:
+            sample[SAMPLE_RIG] = self.rig_names[0]  # a one-rig folder from before samples named their rig
+        return sample
 
     @property
     def missing(self) -> int:
@@ -344,12 +416,33 @@ class Dataset(Sequence):
 
     @property
     def rig(self) -> Rig:
-        """The rig the samples were rendered with."""
+        """The (first) rig the samples were rendered with."""
         return load_rig(self.root / str(self.meta.get("rig", "rig.yaml")))
+
+    @property
+    def rig_names(self) -> list[str]:
+        """Names of the rigs in ``dataset.yaml`` order; ``["rig"]`` for folders that do not list them."""
+        return [str(entry["name"]) for entry in self._rig_entries()]
+
+    @property
+    def rigs(self) -> dict:
+        """``{name: Rig}`` of every rig of the dataset, in ``dataset.yaml`` order."""
+        return {str(e["name"]): load_rig(self.root / str(e["file"])) for e in self._rig_entries()}
+
+    def _rig_entries(self) -> list[dict]:
+        entries = self.meta.get("rigs")
+        if entries is None:
+            return [{"name": "rig", "file": str(self.meta.get("rig", "rig.yaml"))}]
+        if not isinstance(entries, list) or not all(isinstance(e, dict) and "name" in e and "file" in e
+                                                    for e in entries) or not entries:
+            raise ValueError(f"{self.root / 'dataset.yaml'}: rigs must be a list of {{name, file}} entries; "
+                             f"got {entries!r}")
+        return entries
 
 
 def read_sample(path) -> dict:
-    """One sample file as a dict: arrays ``(H, W)`` (SAMPLE_ARRAYS) and Python scalars (SAMPLE_SCALARS)."""
+    """One sample file as a dict: arrays ``(H, W)`` (SAMPLE_ARRAYS), Python scalars (SAMPLE_SCALARS) and ``rig``
+    (the rig's name, str, or None for samples written before datasets named their rigs)."""
     path = Path(path)
     try:
         archive = np.load(path, allow_pickle=False)
@@ -366,6 +459,7 @@ def read_sample(path) -> dict:
             sample[key] = float(archive[key])
         for key in ("scene_seed", "label_rejected"):
             sample[key] = int(archive[key])
+        sample[SAMPLE_RIG] = str(archive[SAMPLE_RIG]) if SAMPLE_RIG in archive.files else None
     return sample
 
 

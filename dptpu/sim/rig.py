@@ -9,7 +9,8 @@ model of Table 1). Sources:
 - a Bouguet toolbox pair ``"CAM.mat,PRJ.mat"`` (or a 2-tuple), camera 640x480 and projector 912x1140 by default
   (the DP-TPU rig);
 - ``"nominal"``: :func:`nominal_rig`, a DP-TPU-like rig built from round numbers (no data needed);
-- ``"dynamic"``: :func:`dynamic_rig`, the paper's second ("dynamic", unseen) rig from its published numbers.
+- ``"dynamic"``: :func:`dynamic_rig`, the paper's second ("dynamic", unseen) rig from its published numbers;
+- ``"wide"``: :func:`wide_rig`, a training rig whose camera sees the whole projector width (every fringe order).
 
 Convention: pixel centres are 0-based (ARCHITECTURE.md); resizing the camera keeps the image's outer edges
 fixed, so pixel ``u`` of the original maps to ``(u + 0.5) * s - 0.5`` of the resized image.
@@ -39,6 +40,7 @@ __all__ = [
     "nominal_rig",
     "parse_size",
     "resize_camera",
+    "wide_rig",
     "working_distance",
     "working_point",
 ]
@@ -57,7 +59,7 @@ def load_twin_rig(source, *, camera_size=None, projector_size=None, size=None) -
     ----------
     source : str, path-like, tuple of two paths, or Rig
         ``dptpu-rig/1`` or OpenCV rig file; ``"CAM.mat,PRJ.mat"`` or ``(CAM.mat, PRJ.mat)`` (Bouguet toolbox, world
-        frame = calibration view 1); ``"nominal"`` (:func:`nominal_rig`) or ``"dynamic"`` (:func:`dynamic_rig`); a :class:`Rig` is passed through.
+        frame = calibration view 1); ``"nominal"`` (:func:`nominal_rig`), ``"dynamic"`` (:func:`dynamic_rig`) or ``"wide"`` (:func:`wide_rig`); a :class:`Rig` is passed through.
     camera_size, projector_size : (int, int), optional
         ``(width, height)`` of the devices when the source does not hold them (Bouguet files, OpenCV rig files
         without ``cam_size``/``proj_size``); default 640x480 and 912x1140.
@@ -89,7 +91,7 @@ def load_twin_rig(source, *, camera_size=None, projector_size=None, size=None) -
             path = Path(text)
             if not path.exists():
                 raise FileNotFoundError(f"{path}: no such rig file (give a dptpu-rig/1 or OpenCV rig file, "
-                                        "'CAM.mat,PRJ.mat', 'nominal' or 'dynamic')")
+                                        "'CAM.mat,PRJ.mat', 'nominal', 'dynamic' or 'wide')")
             if path.suffix.lower() == ".mat":
                 raise ValueError(f"{path}: a Bouguet calibration needs both files: 'CAM.mat,PRJ.mat'")
             try:
@@ -212,8 +214,49 @@ def dynamic_rig(*, distance_mm: float = 600.0, angle_deg: float = 10.07, focal_l
     return rig if tuple(camera_size) == DEFAULT_CAMERA_SIZE else resize_camera(rig, camera_size)
 
 
+def wide_rig(*, distance_mm: float = 700.0, angle_deg: float = 8.0, camera_focal_px: float = 1000.0,
+             camera_size=DEFAULT_CAMERA_SIZE) -> Rig:
+    """A training rig whose camera sees the whole projector width, so that labels span every fringe order.
+
+    The nominal rig's camera (f = 2600 px) sees only the middle ~47 % of the projector's width, so its samples
+    never hold orders near 0 or near ``f_h - 1`` (docs/model-eval.md). This rig keeps the nominal rig's projector
+    (DLP4500 intrinsics, 912x1140, ``k1 = -0.05``) and gives the camera a short lens: ``f = 1000`` px at 640x480
+    (a 4.8 mm lens on 4.8 um pixels), ``k1 = -0.08``, a 700 mm working distance and 8 deg between the axes.
+    At 700 mm the camera's field is 448 mm wide and the projector's 368 mm (the camera sees 122 % of the
+    projector's width); a background plane at 1.12-1.25 times the distance (:func:`dptpu.sim.scenes.random_scene`)
+    still shows both projector edges. It is not the unseen test rig (:func:`dynamic_rig`: 600 mm, 10.07 deg,
+    f = 3896 px, a 1024x768 projector). At 320x240 a period of ``f_h = 80`` is about 3.3 camera pixels.
+
+    Parameters
+    ----------
+    distance_mm : float
+        Where the optical axes cross on the camera axis, mm.
+    angle_deg : float
+        Angle between the optical axes, degrees; the projector sits to the camera's left.
+    camera_focal_px : float
+        Camera focal length in pixels at 640x480.
+    camera_size : (int, int)
+        Camera ``(width, height)``; other sizes rescale ``K`` (:func:`resize_camera`).
+
+    Returns
+    -------
+    Rig
+        Units mm; world frame = the camera's.
+    """
+    a = np.radians(angle_deg)
+    R_p = np.array([[np.cos(a), 0.0, -np.sin(a)], [0.0, 1.0, 0.0], [np.sin(a), 0.0, np.cos(a)]])  # axis +x turned
+    centre = np.array([-distance_mm * np.tan(a), 0.0, 0.0])
+    f = float(camera_focal_px)
+    camera = DeviceModel(K=[[f, 0.0, 319.5], [0.0, f, 239.5], [0.0, 0.0, 1.0]],
+                         dist=[-0.08, 0.0, 0.0, 0.0, 0.0], R=np.eye(3), T=np.zeros(3), size=DEFAULT_CAMERA_SIZE)
+    projector = DeviceModel(K=[[1736.0, 0.0, 455.5], [0.0, 3473.0, 569.5], [0.0, 0.0, 1.0]],
+                            dist=[-0.05, 0.0, 0.0, 0.0, 0.0], R=R_p, T=-R_p @ centre, size=DEFAULT_PROJECTOR_SIZE)
+    rig = Rig(camera=camera, projector=projector, units="mm")
+    return rig if tuple(camera_size) == DEFAULT_CAMERA_SIZE else resize_camera(rig, camera_size)
+
+
 #: Rigs that ``load_twin_rig`` (and ``--rig`` of the sim commands) builds by name.
-RIG_PRESETS = {"nominal": nominal_rig, "dynamic": dynamic_rig}
+RIG_PRESETS = {"nominal": nominal_rig, "dynamic": dynamic_rig, "wide": wide_rig}
 
 
 def _principal_ray(device: DeviceModel) -> tuple[np.ndarray, np.ndarray]:

@@ -4,8 +4,17 @@ import pytest
 import yaml
 
 from dptpu.cli.main import main
-from dptpu.sim.dataset import (DATASET_FORMAT, SAMPLE_ARRAYS, SAMPLE_SCALARS, DatasetSpec, open_dataset,
-                               parse_shard, scene_seed, write_dataset)
+from dptpu.sim.dataset import (
+    DATASET_FORMAT,
+    SAMPLE_ARRAYS,
+    SAMPLE_RIG,
+    SAMPLE_SCALARS,
+    DatasetSpec,
+    open_dataset,
+    parse_shard,
+    scene_seed,
+    write_dataset,
+)
 from dptpu.sim.raycast import trace
 from dptpu.sim.rig import nominal_rig
 from dptpu.sim.scenes import random_scene
@@ -42,13 +51,14 @@ def test_files_and_keys_are_as_documented(dataset_dir):
     assert len(dataset) == 24 and dataset.missing == 0
     assert dataset.rig.camera.size == SIZE
     with np.load(dataset.paths[0]) as archive:
-        assert set(archive.files) == set(SAMPLE_ARRAYS + SAMPLE_SCALARS)
+        assert set(archive.files) == set(SAMPLE_ARRAYS + SAMPLE_SCALARS + (SAMPLE_RIG,))
         dtypes = {k: archive[k].dtype for k in SAMPLE_ARRAYS}
     assert dtypes == {"wrapped_high": np.float32, "wrapped_low": np.float32, "coarse_order": np.float32,
                       "label_order": np.int16, "valid": np.bool_}
     sample = dataset[13]  # scene 1, combination 1: f 32, mf, noise 3.1386
     assert (sample["frequency_high"], sample["method"], sample["noise_sigma"]) == (32.0, "mf", 3.1386)
-    assert sample["scene_seed"] == scene_seed(5, 1)
+    assert sample["scene_seed"] == scene_seed(5, 1) and sample["rig"] == "rig"  # an unnamed Rig
+    assert meta["rigs"] == [{"name": "rig", "file": "rig.yaml", "scenes": 2}] and dataset.rig_names == ["rig"]
     lows = {(s["method"], s["frequency_high"]): s["frequency_low"] for s in dataset}
     assert lows == {("mf", 32.0): 1.0, ("mf", 64.0): 1.0, ("mw", 32.0): 31.0, ("mw", 64.0): 63.0,
                     ("nt", 32.0): 10.9, ("nt", 64.0): 10.9}
