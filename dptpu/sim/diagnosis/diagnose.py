@@ -1,11 +1,13 @@
 """The diagnosis: hold measured data against the twin, name what differs, extend the twin, measure the gain.
 
 1. Read the data (:mod:`.measured`): raw frames or a phase file.
-2. Register the reference object (:mod:`.registration`), or, with self-reference, take the data's own phase
-   (:mod:`.pixels`).
-3. Fit every candidate effect with the twin in the loop (:mod:`.candidates`, :mod:`.noise`) and score it
-   (:mod:`.selection`): geometric ones on the phase residual, photometric ones on the intensity residual over
-   the geometry of the best geometric model, the random part on what the best deterministic model leaves.
+2. Register the reference object (:mod:`.registration`; a scene file: :mod:`.scene_registration`), or, with
+   self-reference, take the data's own phase (:mod:`.pixels`).
+3. Fit every candidate effect with the twin in the loop (:mod:`.candidates`, :mod:`.motion`, :mod:`.response`,
+   :mod:`.noise`) and score it (:mod:`.selection`): geometric ones on the phase residual, photometric ones on
+   the intensity residual over the geometry of the best geometric model, the random part on what the best
+   deterministic model leaves. A candidate the data cannot show is reported with the reason
+   (:data:`~.candidates.NOT_IDENTIFIABLE`).
 4. Rank: named (significant) deterministic effects by gain, then the noise; the cause is the first named one,
    or ``"none"``. With ``rounds > 1`` further photometric effects are added greedily on top of the cause.
 5. Extend: the rig plus the named effects (the cause, and the noise when it is named too), rendered again.
@@ -18,13 +20,19 @@ import numpy as np
 
 from dptpu.fpp.calibration import Rig
 
-from .candidates import (NOT_IDENTIFIABLE, PHOTOMETRIC, fit_geometric_extra, fit_lens_distortion, fit_photometric,
-                         not_identifiable)
+from .candidates import (
+    NOT_IDENTIFIABLE,
+    PHOTOMETRIC,
+    fit_geometric_extra,
+    fit_lens_distortion,
+    fit_photometric,
+    not_identifiable,
+)
 from .forward import intensity_residual
 from .measured import Measured, load_measured
+from .motion import fit_motion, identifiable_directions
 from .noise import fit_sensor_noise
 from .pixels import DEFAULT_MAX_PIXELS, erode_mask, reference_pixels, self_reference_pixels
-from .motion import fit_motion, identifiable_directions
 from .reference import Reference, load_scene_reference, parse_reference
 from .registration import register_robust
 from .response import fit_response
@@ -127,7 +135,7 @@ def diagnose(measured, rig: Rig, *, reference=None, self_reference: bool = False
     rig : Rig
         The baseline rig (its effects are ignored: the baseline twin is ideal).
     reference : str or Reference, optional
-        ``sphere:DIAMETER_MM`` or ``plane``; required unless ``self_reference``.
+        ``sphere:DIAMETER_MM``, ``plane`` or ``scene:FILE``; required unless ``self_reference``.
     self_reference : bool
         No reference object: the data's own phase is the reference (raw frames needed).
     frequency : float, optional
