@@ -223,7 +223,8 @@ def compare_finetunes(pairs: list, design, baseline_rig, extended_rig, out_dir, 
         sets[name] = write_twin_set(twin, design, out / f"twin_{name}", scenes=options.scenes, size=options.size,
                                     noise=options.noise, seed=options.seed)
         if options.heldout_scenes > 0:
-            heldout[name] = write_twin_set(twin, design, out / f"heldout_{name}", scenes=options.heldout_scenes,
+            heldout[name] = write_twin_set(twin, replace(design, max_correction=None), out / f"heldout_{name}",
+                                           scenes=options.heldout_scenes,
                                            size=options.size, noise=options.noise, seed=options.seed + 1000)
         log(f"twin set {name}: {options.scenes} scenes, {time.perf_counter() - started:.0f} s")
     start = load_start_model(model)
