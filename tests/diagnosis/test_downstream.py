@@ -141,3 +141,12 @@ def test_sphere_pair_reference_is_the_measured_sphere():
     # the synthesized 1-sigma low phase breaks the classical MF order (96 x its noise) on some pixels
     accuracy = np.mean(pair.coarse_order[pair.valid] == pair.reference_order[pair.valid])
     assert 0.7 < accuracy < 0.95
+
+
+def test_cli_refuses_a_folder_that_is_no_measured_data(tmp_path, capsys):
+    from dptpu.cli.main import main
+
+    code = main(["twin", "finetune", "--measured", str(tmp_path), "--extended", "x.yaml", "--model", "y.onnx",
+                 "--out", str(tmp_path / "out")])
+    assert code == 2
+    assert f"{tmp_path}: neither a CFPE folder" in capsys.readouterr().err
