@@ -103,8 +103,8 @@ class ProjectorNode(Node):
             PatternSequence, "/projector/pattern_sequence", QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL))
         self.status_pub = self.create_publisher(ScanStatus, "/scanner/status", 20)
         self.start_service = self.create_service(TriggerService, "~/start_scan", self.on_start_scan)
-        # checked often enough that a scan starts within 5 ms (or a tenth of the period) of when it is due
-        self.auto_timer = self.create_timer(min(0.005, self.period_s / 10) if self.period_s > 0 else 0.005,
+        # checked often enough that a scan starts within 10 ms (or a tenth of the period) of when it is due
+        self.auto_timer = self.create_timer(min(0.01, self.period_s / 10) if self.period_s > 0 else 0.01,
                                             self.on_auto_timer) if self.scans else None
 
         self._lock = threading.Lock()
