@@ -57,6 +57,8 @@ def register(subparsers) -> None:
     parser.add_argument("--lambda-fourier", type=float, default=0.1,
                         help="weight of the Fourier term, lambda2 of Eq. 15 (default 0.1; 0 = ablation)")
     parser.add_argument("--lambda-mse", type=float, default=0.9, help="weight of the MSE term (default 0.9)")
+    parser.add_argument("--huber", type=float, metavar="ORDERS",
+                        help="Huber threshold of the spatial term in fringe orders (default: plain MSE, the paper)")
     parser.add_argument("--threads", type=int, metavar="N", help="torch intra-op threads per process")
     parser.add_argument("--time-limit-min", type=float, metavar="M",
                         help="stop after the first epoch that ends past M minutes")
@@ -111,7 +113,8 @@ def run_train(args: argparse.Namespace) -> int:
         torch.set_num_threads(args.threads)
     options = TrainOptions(
         data_dir=args.data, out=args.out, epochs=args.epochs, batch=args.batch, crop=args.crop, seed=args.seed,
-        model=args.model, config=args.config, lr=args.lr, loss=LossWeights(args.lambda_mse, args.lambda_fourier),
+        model=args.model, config=args.config, lr=args.lr,
+        loss=LossWeights(args.lambda_mse, args.lambda_fourier, args.huber),
         checkpoint=args.checkpoint, resume=args.resume,
         time_limit_s=None if args.time_limit_min is None else 60.0 * args.time_limit_min, progress=not args.quiet)
     result = train(options)

@@ -25,16 +25,25 @@ __all__ = ["LossWeights", "LossTerms", "fringe_order_loss", "mse_term", "fourier
 
 @dataclass(frozen=True)
 class LossWeights:
-    """``lambda1`` (MSE) and ``lambda2`` (Fourier) of Eq. (15)."""
+    """``lambda1`` (MSE) and ``lambda2`` (Fourier) of Eq. (15), and an optional Huber threshold.
+
+    ``huber`` (fringe orders, None = the paper's plain MSE): the spatial term becomes the Huber loss
+    ``2 * (|d| * huber - huber**2 / 2)`` for ``|d| > huber`` (equal to ``d**2`` below it, with a
+    continuous slope), so pixels whose classical order is tens of orders off (NT where its key is
+    ambiguous) cannot dominate the gradient. Not in the paper; see docs/network.md.
+    """
 
     mse: float = 0.9
     fourier: float = 0.1
+    huber: float | None = None
 
     def __post_init__(self):
         for name in ("mse", "fourier"):
             value = getattr(self, name)
             if not (value >= 0.0) or value != value:
                 raise ValueError(f"loss weight {name} must be >= 0; got {value!r}")
+        if self.huber is not None and not (self.huber > 0):
+            raise ValueError(f"Huber threshold must be > 0 fringe orders; got {self.huber!r}")
 
 
 @dataclass(frozen=True)
@@ -53,11 +62,19 @@ def _masked_error(pred: torch.Tensor, target: torch.Tensor, valid: torch.Tensor)
     return (pred - target) * valid.to(pred.dtype)  # (B, 1, H, W), 0 at invalid pixels
 
 
-def mse_term(pred: torch.Tensor, target: torch.Tensor, valid: torch.Tensor) -> torch.Tensor:
-    """Eq. (16) over valid pixels: ``sum(d**2) / n_valid`` (fringe orders squared); 0 if none is valid."""
+def mse_term(pred: torch.Tensor, target: torch.Tensor, valid: torch.Tensor, huber: float | None = None
+             ) -> torch.Tensor:
+    """Eq. (16) over valid pixels: ``sum(d**2) / n_valid`` (fringe orders squared); 0 if none is valid.
+
+    With ``huber``, ``d**2`` is replaced by ``2 * (huber * |d| - huber**2 / 2)`` where ``|d| > huber``.
+    """
     d = _masked_error(pred, target, valid)
     n_valid = valid.sum()
-    return (d * d).sum() / n_valid.clamp(min=1)
+    if huber is None:
+        return (d * d).sum() / n_valid.clamp(min=1)
+    size = d.abs()
+    squared = torch.where(size <= huber, d * d, 2.0 * huber * size - huber * huber)
+    return squared.sum() / n_valid.clamp(min=1)
 
 
 def fourier_term(pred: torch.Tensor, target: torch.Tensor, valid: torch.Tensor) -> torch.Tensor:
@@ -90,7 +107,7 @@ def fringe_order_loss(pred: torch.Tensor, target: torch.Tensor, valid: torch.Ten
     -------
     LossTerms
     """
-    mse = mse_term(pred, target, valid)
+    mse = mse_term(pred, target, valid, weights.huber)
     total = weights.mse * mse
     fourier_value = 0.0
     if weights.fourier > 0.0:

@@ -9,22 +9,24 @@ Architecture 2 (``DPTPUConfig.architecture``), built for speed: nothing but elem
 full resolution; every convolution and attention works at stride 4 or coarser.
 
 1. **Full-resolution inputs** (elementwise): ``sin psi_h, cos psi_h, sin psi_l, cos psi_l`` (smooth under
-   a strided convolution, unlike ``psi / 2pi`` with its wraps), the coarse absolute phase in periods
-   ``u_c = k_c + psi_h / 2pi`` scaled by ``1 / f_h`` (``[0, 1)`` for a right order: one model serves every
-   frequency), a validity flag (the inference wrapper feeds 0 at invalid pixels), and the deviation of
-   ``u_c`` from a smooth robust reference ``r`` (below), clipped to +-4 periods: an order off by ``n``
-   stands out by ``n`` whatever the frequency.
-2. **x4 down**: a 4x4 stride-4 patch embedding (convolution) of those seven maps, plus one stride-4
-   consistency map (each patch's median of ``u_c`` minus the median of its 3x3 neighbourhood of patch
-   medians). The patch median is the median of 9 of the patch's 16 pixels (rows and columns 0, 2, 3),
-   computed by a min/max sorting network (cheap elementwise ops at stride 4); ``r`` is the bilinear x4
-   upsampling of the patch medians, a smooth estimate of ``u`` that isolated wrong orders do not move.
+   a strided convolution, unlike ``psi / 2pi`` with its wraps) and the deviation ``r - u_c`` of the
+   coarse absolute phase in periods ``u_c = k_c + psi_h / 2pi`` from a smooth robust reference ``r``
+   (below), clipped to +-4 periods: an order off by ``n`` stands out by ``n`` whatever the frequency.
+2. **x4 down**: a 4x4 stride-4 patch embedding (convolution) of those five maps, plus two stride-4 maps:
+   the patch median ``m`` of ``u_c`` scaled by ``1 / f_h`` (``[0, 1)`` for a right order: one model
+   serves every frequency), and ``m`` minus the median of its 3x3 neighbourhood of patch medians (a whole
+   patch off). ``m`` is the median of 9 of the patch's 16 pixels (rows and columns 0, 2, 3) by a min/max
+   sorting network (cheap elementwise ops at stride 4), invalid pixels (``u_c = 0``) standing in as
+   ``+-FILL`` alternately; patches with fewer than 5 valid samples get weight 0. ``r`` is the bilinear
+   x4 upsampling of the weighted medians divided by that of the weights (normalized convolution): a
+   smooth estimate of ``u`` that isolated wrong orders and mask borders do not move.
 3. **Encoder** (Lite Vision Transformer) at strides 4/8/16/32: Convolutional Self-Attention (CSA) in
    stage 1, Recursive Atrous Self-Attention (RASA) in stages 2-4 (:mod:`dptpu.models.layers`).
 4. **Decoder** (U-MixFormer): deepest stage first, each stage's features are the queries of a cross
-   attention whose keys and values are the mix of all four stages pooled to stride 32 (decoded stages
-   replace their encoder maps); the four maps are upsampled to stride 4 and summed.
-5. **x4 up** (depth-to-space): a 1x1 convolution to 2 x 16 channels, pixel-shuffled to two full-resolution
+   attention whose keys and values are the mix of all four stages pooled to stride
+   ``32 * decoder_pool`` (decoded stages replace their encoder maps); the four maps are upsampled to
+   stride 4 and summed.
+5. **x4 up** (depth-to-space): two 1x1 convolutions to 16 channels each, pixel-shuffled to two full-resolution
    maps ``a`` and ``g`` (each pixel of a patch has its own channel, so an edge can fall anywhere in it).
    The prediction is the absolute phase in periods::
 
@@ -36,7 +38,7 @@ full resolution; every convolution and attention works at stride 4 or coarser.
    order against the pixel's own ``psi_h``, so a ``u`` within half a period of the truth gives every
    pixel its right order, noisy or not.
 
-The last 1x1 convolution starts at zero (``a = g = 0``), so the untrained network returns the classical
+The last two 1x1 convolutions start at zero (``a = g = 0``), so the untrained network returns the classical
 order exactly; training learns where and by how much it is wrong (residual form of the paper's
 continuous fringe-order output). ``g`` is that layer's output times ``GATE_GAIN`` so that AdamW reaches
 ``g = 1`` in tens of steps.
@@ -45,8 +47,8 @@ Any input size: the forward pass pads height and width to a multiple of 32 (edge
 the output back.
 
 Convention: images are ``(B, 1, H, W)`` float32, ``frequency_high`` is ``(B,)`` float32 (periods across
-the projector); invalid pixels must carry 0 in all three images (the inference wrapper and the training
-loader do that).
+the projector); invalid pixels must carry 0 in all three images (the inference wrapper and
+:func:`dptpu.models.samples.read_sample` do that).
 """
 from __future__ import annotations
 

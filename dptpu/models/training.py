@@ -250,6 +250,6 @@ def _options_record(options: TrainOptions, world: int) -> dict:
     record = {k: (str(v) if isinstance(v, Path) else v) for k, v in asdict(options).items()
               if k not in ("progress", "config")}
     record["crop"] = list(options.crop) if options.crop else None
-    record["loss"] = {"mse": options.loss.mse, "fourier": options.loss.fourier}
+    record["loss"] = {"mse": options.loss.mse, "fourier": options.loss.fourier, "huber": options.loss.huber}
     record["world_size"] = world
     return json.loads(json.dumps(record, default=str))

@@ -72,3 +72,16 @@ def test_gradient_flows_and_shape_errors_name_the_shapes():
         mse_term(target, target[..., :8], valid)
     with pytest.raises(ValueError, match="loss weight fourier must be >= 0"):
         LossWeights(fourier=-1.0)
+
+
+def test_huber_variant_is_the_square_below_the_threshold_and_linear_above():
+    """Errors 0.5 and 3 orders with threshold 1: 0.25 and 2*1*3 - 1 = 5, mean 2.625 (plain MSE: 4.625)."""
+    target = torch.zeros(1, 1, 1, 2)
+    pred = torch.tensor([[[[0.5, -3.0]]]])
+    valid = torch.ones(1, 1, 1, 2, dtype=torch.bool)
+    assert float(mse_term(pred, target, valid, huber=1.0)) == pytest.approx(2.625)
+    assert float(mse_term(pred, target, valid)) == pytest.approx(4.625)
+    terms = fringe_order_loss(pred, target, valid, LossWeights(mse=1.0, fourier=0.0, huber=1.0))
+    assert terms.mse == pytest.approx(2.625)
+    with pytest.raises(ValueError, match="Huber threshold must be > 0 fringe orders; got 0"):
+        LossWeights(huber=0)
