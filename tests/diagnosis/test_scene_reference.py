@@ -69,6 +69,7 @@ def test_scene_reference_continues_as_for_a_sphere(moved_scene):
     report = write_report(result, root / "out")
     assert report["reference"].startswith("scene:")
     assert report["registration"]["pose_change"]["rotation_deg"] > 0.5
+    assert "Scene pose change" in (root / "out" / "report.md").read_text()
     again = report["rerender"]["intensity_rms_dn"]
     assert again["extended_twin"] < 0.2 * again["twin"]
 

@@ -210,13 +210,17 @@ def write_report(diagnosis, out_dir, *, rerender: bool = True) -> dict:
 
 
 def _markdown(report: dict) -> str:
-    lines = [f"# Sim-to-real diagnosis", "", f"- measured: `{report['measured']}`",
+    lines = ["# Sim-to-real diagnosis", "", f"- measured: `{report['measured']}`",
              f"- reference: `{report['reference']}`", f"- **cause: {report['cause']}**",
              f"- extended rig: `{report['extended_rig']}`", ""]
     if "registration" in report:
         r = report["registration"]
         lines += [f"Registration: pose {r['pose']}, phase RMS {r['rms_px']} projector px over {r['pixels']} pixels.",
                   ""]
+        if "pose_change" in r:
+            change = r["pose_change"]
+            lines += [f"Scene pose change (about its centroid): rotation {change['rotation_deg']} deg about "
+                      f"{change['rotation_axis']}, centroid moved by {change['centroid_translation']}.", ""]
     lines += ["## Candidates, ranked", "",
               "| effect | named | parameters | residual before | after | gain | dBIC | domain |",
               "|---|---|---|---|---|---|---|---|"]
