@@ -78,3 +78,18 @@ def test_analytic_sphere_matches_the_twin_ray_cast():
 def test_bad_reference_names_the_option(text, message):
     with pytest.raises(ValueError, match=message):
         parse_reference(text)
+
+
+def test_projector_response_is_the_piecewise_linear_table():
+    from dptpu.sim.effects import parse_effects
+    from dptpu.sim.effects.pattern import pattern_levels
+
+    table = [0.0, 0.1, 0.5, 0.9, 1.0]  # at inputs 0, 0.25, 0.5, 0.75, 1
+    effects = parse_effects([{"projector_response": {"levels": table}}])
+    # coordinates 0, 0.5, 1 of one period over 4 px: levels 1, 0.5 + 0.5 cos(pi/4), 0.5
+    out = pattern_levels(np.array([0.0, 0.5, 1.0]), frequency=1, extent=4, shift=0.0, offset=0.5, amplitude=0.5,
+                         effects=effects)
+    p = 0.5 + 0.5 * np.cos(np.pi / 4)
+    np.testing.assert_allclose(out, [1.0, 0.9 + (p - 0.75) / 0.25 * 0.1, 0.5], atol=1e-12)
+    with pytest.raises(ValueError, match=r"projector_response.levels: must be a non-decreasing list"):
+        parse_effects([{"projector_response": {"levels": [0.5, 0.2]}}])
