@@ -2,12 +2,13 @@
 
 Fine-tuning needs the trained weights in torch, and a shipped model may exist only as its ``.onnx`` file
 (:mod:`dptpu.models.export`). Most initializers keep their ``state_dict`` names (``stem.0.weight``); the exporter
-constant-folds the channel norms' ``weight[None, :, None, None]`` into anonymous ``(1, C, 1, 1)`` initializers
-(``onnx::Mul_2727``), and a parameter the forward pass multiplies by a constant into its product. Their names
-are recovered by exporting a network of the same architecture whose unnamed parameters hold marker values (each a
-distinct ramp) and reading which anonymous initializer holds which marker, and times what.
-The result is checked end to end: the torch network must reproduce onnxruntime's output on a test input
-(:data:`MAX_ABS_DIFFERENCE`), else ValueError.
+constant-folds others into anonymous initializers (``onnx::Mul_2727``): a channel norm's
+``weight[None, :, None, None]``, a slice ``weight[:, :1]``, a parameter times a constant gain; and it merges equal
+constants into one, read through ``Identity`` nodes. They are recovered by exporting a network of the same
+architecture whose parameters hold marker values (distinct half-integers) and reading, at each use of an
+initializer by a node (the nodes of two exports of one architecture are the same, their anonymous names are not),
+which parameter elements it holds and times what. The result is checked end to end: the torch network must
+reproduce onnxruntime's output on a test input (:data:`MAX_ABS_DIFFERENCE`), else ValueError.
 """
 from __future__ import annotations
 
@@ -42,9 +43,31 @@ def _metadata(proto, path: Path) -> tuple[str, dict, dict]:
         json.loads(metadata.get("training", "{}"))
 
 
+def _anonymous_uses(proto, state) -> list:
+    """``[((node index, op type, input slot), initializer name)]`` of every use of an initializer that is not a
+    ``state_dict`` entry (of every initializer when ``state`` is None), in graph order. The nodes of two exports of one architecture are the same; their
+    anonymous names are not (they count what the exporter traced before), and equal constants (e.g. the norms of
+    an untrained network, all ones) are merged into one initializer read through ``Identity`` nodes, which are
+    resolved and not counted."""
+    initializers = {init.name for init in proto.graph.initializer}
+    alias = {node.output[0]: node.input[0] for node in proto.graph.node
+             if node.op_type == "Identity" and node.input and node.input[0] in initializers}
+    anonymous = initializers if state is None else {name for name in initializers if name not in state}
+    uses, index = [], 0
+    for node in proto.graph.node:
+        if node.op_type == "Identity" and node.output and node.output[0] in alias:
+            continue
+        for slot, name in enumerate(node.input):
+            name = alias.get(name, name)
+            if name in anonymous:
+                uses.append(((index, node.op_type, slot), name))
+        index += 1
+    return uses
+
+
 def _folded_names(kind: str, config: dict, keys: list[str]) -> list:
-    """``[(state_dict key, flat indices, scale) or None]`` for the anonymous initializers of an export, in graph
-    order (:func:`_folded_names_cached`)."""
+    """``[(use, (state_dict key, flat indices, scale) or None)]`` for the uses of anonymous initializers of an
+    export (:func:`_anonymous_uses`, :func:`_folded_names_cached`)."""
     return list(_folded_names_cached(kind, json.dumps(config, sort_keys=True), tuple(keys)))
 
 
@@ -74,9 +97,10 @@ def _folded_names_cached(kind: str, config_json: str, keys: tuple) -> tuple:
             offset += size
     with tempfile.TemporaryDirectory() as folder:
         path = export_onnx(model, Path(folder) / "markers.onnx")
-        found = _initializers(onnx.load(str(path)))
+        proto = onnx.load(str(path))
+        found = _initializers(proto)
     starts = np.array([markers[k][0] for k in keys])
-    matches = []
+    matches = {}
     for name, values in found.items():
         if name in state:
             continue
@@ -94,8 +118,8 @@ def _folded_names_cached(kind: str, config_json: str, keys: tuple) -> tuple:
                     ratio = flat / marker
                     if ratio[0] != 0 and np.max(np.abs(ratio / ratio[0] - 1.0)) < 1e-6:
                         match = (key, np.arange(flat.size), float(ratio[0]))
-        matches.append(match)
-    return tuple(matches)
+        matches[name] = match
+    return tuple((use, matches[name]) for use, name in _anonymous_uses(proto, state))
 
 
 def _check_against_onnxruntime(model: nn.Module, path: Path) -> float:
@@ -145,18 +169,18 @@ def load_onnx_model(path) -> tuple[nn.Module, dict]:
     state = model.state_dict()
     found = _initializers(proto)
     missing = [key for key in state if key not in found]
-    anonymous = [name for name in found if name not in state]
+    uses = dict(_anonymous_uses(proto, None))  # a constant may be merged with a named one (zeros, ones)
     matches = _folded_names(kind, config or None, missing) if missing else []
     by_key = {key: np.asarray(found[key], np.float64).ravel() for key in state if key in found}
     filled = {key: np.zeros(state[key].numel(), bool) for key in missing}
-    if len(matches) == len(anonymous):
-        for name, match in zip(anonymous, matches):
-            if match is None:
-                continue
-            key, indices, scale = match
-            values = by_key.setdefault(key, np.zeros(state[key].numel()))
-            values[indices] = np.asarray(found[name], np.float64).ravel() / scale
-            filled[key][indices] = True
+    for use, match in matches:
+        name = uses.get(use)
+        if match is None or name is None or found[name].size != len(match[1]):
+            continue
+        key, indices, scale = match
+        values = by_key.setdefault(key, np.zeros(state[key].numel()))
+        values[indices] = np.asarray(found[name], np.float64).ravel() / scale
+        filled[key][indices] = True
     unresolved = [key for key in state if key not in by_key or (key in filled and not filled[key].all())]
     if unresolved:
         raise ValueError(f"{path}: parameters {unresolved[:4]}{' ...' if len(unresolved) > 4 else ''} not found "

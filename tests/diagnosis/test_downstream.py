@@ -48,6 +48,19 @@ def test_onnx_weights_round_trip(base_onnx):
     assert training["max_abs_difference"] < 1e-4
 
 
+def test_onnx_weights_of_an_untrained_network(tmp_path):
+    """Untrained norms are all ones and zeros: the exporter merges them (Identity nodes); still recovered."""
+    from dptpu.models.export import export_onnx
+    from dptpu.models.factory import build_model
+    from dptpu.models.onnx_weights import load_onnx_model
+
+    model = build_model("dptpu")
+    recovered, training = load_onnx_model(export_onnx(model, tmp_path / "fresh.onnx"))
+    for key, value in model.state_dict().items():
+        assert np.array_equal(recovered.state_dict()[key].numpy(), value.numpy()), key
+    assert training["max_abs_difference"] == 0.0
+
+
 def test_onnx_weights_refuses_a_foreign_file(tmp_path):
     from dptpu.models.onnx_weights import load_onnx_model
 
