@@ -58,7 +58,13 @@ import torch
 from torch import nn
 from torch.nn import functional as F
 
-from .layers import ChannelNorm, ConvSelfAttention, EncoderBlock, MixAttention, RecursiveAtrousSelfAttention
+from .layers import (
+    ChannelNorm,
+    ConvSelfAttention,
+    EncoderBlock,
+    MixAttention,
+    RecursiveAtrousSelfAttention,
+)
 
 __all__ = ["ARCHITECTURE", "DPTPUConfig", "DPTPUNet", "network_features", "patch_median", "median9", "median3x3",
            "PAD_MULTIPLE", "PATCH", "GATE_GAIN", "TWO_PI", "pad_to_multiple"]
@@ -230,7 +236,7 @@ def network_features(wrapped_high, wrapped_low, coarse_order, frequency_high):
     median, weight = patch_median(periods)  # (B, 1, H/4, W/4)
     # r: bilinear x4 upsampling of the medians of the patches with enough valid pixels, normalized by the
     # upsampled weights (normalized convolution); 0 far inside invalid areas
-    upsample = lambda x: F.interpolate(x, scale_factor=PATCH, mode="bilinear", align_corners=False)  # noqa: E731
+    upsample = lambda x: F.interpolate(x, scale_factor=PATCH, mode="bilinear", align_corners=False)
     reference = upsample(median) / torch.clamp(upsample(weight), min=1e-6)
     deviation = reference - periods
     full = [torch.sin(wrapped_high), torch.cos(wrapped_high), torch.sin(wrapped_low), torch.cos(wrapped_low),

@@ -5,8 +5,15 @@ import pytest
 import torch
 
 from dptpu.models.factory import build_model
-from dptpu.models.network import (GATE_GAIN, DPTPUConfig, DPTPUNet, median3x3, median9, network_features,
-                                  patch_median)
+from dptpu.models.network import (
+    GATE_GAIN,
+    DPTPUConfig,
+    DPTPUNet,
+    median3x3,
+    median9,
+    network_features,
+    patch_median,
+)
 from dptpu.models.unet_baseline import UNetBaseline
 
 from .conftest import TINY_DPTPU, TINY_UNET, phase_inputs, randomize_head
@@ -84,7 +91,7 @@ def _ramp(height=32, width=64, errors=()):
     coarse = label.copy()
     for row, col, offset in errors:
         coarse[row, col] += offset
-    as_tensor = lambda a: torch.from_numpy(a.astype(np.float32))[None, None]  # noqa: E731
+    as_tensor = lambda a: torch.from_numpy(a.astype(np.float32))[None, None]
     return as_tensor(psi_h), as_tensor(coarse), label
 
 
