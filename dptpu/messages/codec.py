@@ -535,26 +535,9 @@ def _decode_well_formed(frames, expected, limits: DecodeLimits):
             if not view.readonly:
                 values.flags.writeable = False
             arrays.append(values)
-        fields = {}
-        used = 0  # bit mask of the array frames referenced so far
-        for name, is_array, python_type, low, high, dtype, ndim, _dtype_str in plan.flat:
-            value = raw[name]
-            if is_array:
-                if (type(value) is not slice or value.start != ARRAY_REF_EXT_CODE or type(value.stop) is not bytes
-                        or len(value.stop) != _INDEX.size):
-                    return None
-                index = _INDEX.unpack(value.stop)[0]
-                if index >= len(arrays) or used >> index & 1:
-                    return None
-                array = arrays[index]
-                if array.ndim != ndim or (array.dtype is not dtype and array.dtype != dtype):
-                    return None
-                used |= 1 << index
-                fields[name] = array
-            elif type(value) is python_type and (low is None or low <= value <= high):
-                fields[name] = value
-            else:
-                return None
+        fields = _flat_fields(plan, raw, arrays, _slice_reference_index)
+        if fields is None:
+            return None
         msg = cls(**fields)
         if plan.checks:
             msg.check_consistency()
@@ -569,15 +552,31 @@ def _decode_flat(cls: type, plan: _Plan, raw, arrays: list):
     the problem. Accepts exactly what that general path accepts."""
     if type(raw) is not dict or raw.keys() != cls.FIELD_NAMES or len(arrays) != len(plan.array_entries):
         return None
+    values = _flat_fields(plan, raw, arrays, _array_ref_index)
+    if values is None:
+        return None
+    msg = cls(**values)
+    if plan.checks:
+        try:
+            msg.check_consistency()
+        except ValueError:
+            return None
+    return msg
+
+
+def _flat_fields(plan: _Plan, raw: dict, arrays: list, reference_index) -> dict | None:
+    """The constructor arguments of a flat message when every field is exactly as declared and every
+    array frame is referenced at most once (the caller checks the count); else None.
+
+    ``reference_index(value)`` is the array frame an array field's header value refers to, or None when
+    the value is no array reference (the two decoders unpack extension values differently)."""
     values = {}
     used = 0  # bit mask of the array frames referenced so far
     for name, is_array, python_type, low, high, dtype, ndim, _dtype_str in plan.flat:
         value = raw[name]
         if is_array:
-            if type(value) is not _ArrayRef:
-                return None
-            index = value.index
-            if index >= len(arrays) or used >> index & 1:
+            index = reference_index(value)
+            if index is None or index >= len(arrays) or used >> index & 1:
                 return None
             array = arrays[index]
             if array.ndim != ndim or (array.dtype is not dtype and array.dtype != dtype):
@@ -588,13 +587,20 @@ def _decode_flat(cls: type, plan: _Plan, raw, arrays: list):
             values[name] = value
         else:
             return None
-    msg = cls(**values)
-    if plan.checks:
-        try:
-            msg.check_consistency()
-        except ValueError:
-            return None
-    return msg
+    return values
+
+
+def _slice_reference_index(value) -> int | None:
+    """Array frame of a header value unpacked with ``ext_hook=slice``: ``slice(code, 4-byte index)``."""
+    if (type(value) is not slice or value.start != ARRAY_REF_EXT_CODE or type(value.stop) is not bytes
+            or len(value.stop) != _INDEX.size):
+        return None
+    return _INDEX.unpack(value.stop)[0]
+
+
+def _array_ref_index(value) -> int | None:
+    """Array frame of a header value unpacked by :func:`_ext_hook`: an :class:`_ArrayRef`."""
+    return value.index if type(value) is _ArrayRef else None
 
 
 _EXPECTED_CLASSES: set = set()  # message classes already accepted as expected_type (registration is permanent)
