@@ -31,7 +31,11 @@ def test_shipped_capture_decodes_to_its_ground_truth(folder):
     both = valid & result.valid
     x_p = result.absolute_phase * capture.projector_size[0] / (2 * np.pi * 64.0)
     assert np.median(np.abs(x_p - truth["projector_x"])[both]) < 0.05  # projector px (measured 0.008-0.017)
-    assert np.mean(result.fringe_order[both] == truth["fringe_order_64"][both]) > 0.97  # measured 97.2-99.9 %
+    # NT 64 / 10.9 tolerates 12.6 mrad of phase error (fpp.tpu.unwrap_nt); Cycles' sampling noise on the dark
+    # objects of the random scenes exceeds it on a few percent of the pixels. The lookup now decodes every pixel
+    # (measured 93.4 / 99.7 / 96.2 / 98.4 %; MF 64 / 1 on the same frames 93.1 / 99.4 / 94.7 / 97.2 %), where the
+    # old integer key rejected the uncertain ones instead.
+    assert np.mean(result.fringe_order[both] == truth["fringe_order_64"][both]) > 0.92
     three_step = wrapped_phase(stacks[64.0][::4]).phase  # frames 0, 4, 8: the 3-step sequence
     difference = np.angle(np.exp(1j * (three_step - psi[64.0])))[valid]
     assert np.median(np.abs(difference)) < 0.05  # radians
