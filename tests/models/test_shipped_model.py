@@ -8,10 +8,11 @@ noise (1.5693 gray levels, 3-step inputs), for every method the model was traine
   training renderer and rig, dataset seed 900; the training set used seed 100, the model card's held-out
   set seed 200);
 - analytic step scenes (:mod:`dptpu.models.toy_dataset`, a renderer the model never saw), at 2 sigma
-  (3.1386 gray levels). Measured with the shipped model (2026-11-23, seeds 900001-900004, 120x160): at 2 sigma
-  MF classical 62.4 / 48.2 / 60.1 / 63.1 % -> 78.3 / 86.4 / 89.6 / 83.9 %, MW 48.1 / 36.0 / 45.0 / 48.4 % ->
-  78.5 / 84.5 / 92.4 / 83.6 %; at 1 sigma it does NOT beat classical MF on these scenes (90.7 / 78.5 / 90.2 /
-  91.8 % -> 80.2 / 87.8 / 94.1 / 85.0 %; the previous architecture-1 model: 98.7 / 98.3 / 98.9 / 99.6 %), see
+  (3.1386 gray levels). Measured with the shipped model (2026-11-23, trained on the nominal + wide rigs,
+  seeds 900001-900004, 120x160): at 2 sigma MF classical 62.4 / 48.2 / 60.1 / 63.1 % -> 86.8 / 86.1 / 94.8 /
+  86.3 %, MW 48.1 / 36.0 / 45.0 / 48.4 % -> 85.6 / 82.2 / 91.6 / 85.2 %; at 1 sigma it beats classical MF on
+  only two of the four scenes (90.7 / 78.5 / 90.2 / 91.8 % -> 88.3 / 88.2 / 96.8 / 87.2 %; the previous
+  architecture-1 model: 98.7 / 98.3 / 98.9 / 99.6 %), see
   dptpu/models/README.md.
 """
 import numpy as np
