@@ -13,7 +13,8 @@ the emulated box) and ground truth off (the monitor only times), twice:
    ``scans_per_s = (n - 1) / (t_n - t_1)`` over the arrival times of the ``--scans`` timed clouds at the monitor
    (after ``--warmup`` scans).
 2. **Latency** at a pace the graph sustains: the projector starts its own scans every ``1 / (f * scans_per_s)``
-   seconds (``f = --latency-load``, default 0.5), as a camera-paced rig that projects continuously does, and the
+   seconds (``f = --latency-load``, default 0.5; ``scans_per_s`` capped at the camera limit below, since a
+   rate taken from a few scans can be wild), as a camera-paced rig that projects continuously does, and the
    monitor starts none. 0.5 leaves room for the other jobs of a shared machine: at 0.8 under a load average of
    11 on 2 cores the graph fell behind now and then, frames overflowed the phase node's queue and scans failed
    as incomplete (which is what a camera-paced rig does when overrun, and what the run reports). ``latency_ms_p50`` / ``latency_ms_p99`` over the timed scans: from the scan's last
@@ -128,7 +129,9 @@ def run_configuration(*, steps: int, model: str, size: str, scans: int, warmup: 
     rate = throughput["scans_per_s"]
     latency = throughput
     if latency_load > 0 and np.isfinite(rate) and rate > 0:
-        period_s = 1.0 / (latency_load * rate)
+        # paced at a share of the measured rate, never above the camera's own limit: a rate taken from a few
+        # scans can be wild (two clouds arriving together), and no projector starts scans faster than that
+        period_s = 1.0 / (latency_load * min(rate, camera_limit_scans_per_s(frames)))
         latency = timed_figures(launch_sim_rig(pacing=["in_flight:=0", "projector_scans:=-1",
                                                        f"scan_period:={period_s:.6f}"], **common), scans)
         latency["scan_period_s"] = round(period_s, 5)

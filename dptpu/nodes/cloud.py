@@ -32,6 +32,8 @@ name                   default                   meaning
 ``ply_every``          0                         write scan 1, 1 + n, 1 + 2n, ... as PLY (0 = none)
 ``intensity_wait_s``   0.2                       how long a scan may wait for its PhaseMaps (published first, but the two
                                                  topics race); only while a PhaseMaps publisher is connected
+``camera_info_wait_s`` 5.0                       with ``use_camera_info``: how long a scan may wait for the first CameraInfo
+                                                 (at most 8 scans wait; a scan that waited in vain fails with the reason)
 ====================== ========================= ============================================================================
 
 Fields of the cloud: ``x, y, z`` NaN where the pixel is invalid (``is_dense`` false); ``intensity`` the fringe
@@ -64,6 +66,8 @@ DEFAULT_FRAME_ID = "scanner_optical_frame"
 STATUS_QOS = QoSProfile(depth=50)
 LATCHED_QOS = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
 _PHASE_MAPS_KEPT = 4
+#: Scans held at most while the first CameraInfo is awaited (each a full-size AbsolutePhase).
+_CAMERA_INFO_WAITING_MAX = 8
 
 
 def camera_points_m(triangulator: Triangulator, absolute_phase: np.ndarray, frequency: float,
@@ -125,12 +129,15 @@ class CloudNode(Node):
         self.ply_dir = self.declare_parameter("ply_dir", "").value
         self.ply_every = self.declare_parameter("ply_every", 0).value
         self.intensity_wait_s = self.declare_parameter("intensity_wait_s", 0.2).value
+        self.camera_info_wait_s = self.declare_parameter("camera_info_wait_s", 5.0).value
         if not rig_path:
             raise ValueError("parameter rig must name a dptpu-rig/1 calibration file (-p rig:=calibration.yaml)")
         if self.ply_every < 0:
             raise ValueError(f"parameter ply_every must be >= 0 (0 = no PLY); got {self.ply_every}")
         if not self.intensity_wait_s > 0:
             raise ValueError(f"parameter intensity_wait_s must be > 0 seconds; got {self.intensity_wait_s}")
+        if not self.camera_info_wait_s > 0:
+            raise ValueError(f"parameter camera_info_wait_s must be > 0 seconds; got {self.camera_info_wait_s}")
         self.rig = load_rig(rig_path)
         if self.ply_dir and self.ply_every:
             import open3d  # noqa: F401 -- loaded now (seconds), not in the first scan's callback
@@ -139,6 +146,8 @@ class CloudNode(Node):
             self._triangulator("x")  # the per-rig tables now (~0.3-2 s at 640x480), not in the first scan
         self._phase_maps: OrderedDict[int, PhaseMaps] = OrderedDict()
         self._waiting: dict[int, tuple[AbsolutePhase, float]] = {}  # sequence_id -> (scan, deadline), monotonic s
+        self._camera_info_seen = not self.use_camera_info
+        self._waiting_for_camera_info: OrderedDict[int, tuple[AbsolutePhase, float]] = OrderedDict()  # same
         self.scans_published = 0
         self.scans_rejected = 0
         self.ply_written = 0
@@ -172,6 +181,9 @@ class CloudNode(Node):
         self._triangulators.clear()
         self._triangulator("x")  # the per-rig tables now (~0.3-2 s at 640x480), not in the first scan
         self.get_logger().info(f"camera intrinsics from CameraInfo: {msg.width}x{msg.height}")
+        self._camera_info_seen = True
+        while self._waiting_for_camera_info:
+            self.on_absolute_phase(self._waiting_for_camera_info.popitem(last=False)[1][0])
 
     def on_phase_maps(self, msg: PhaseMaps) -> None:
         """Keep the last few scans' PhaseMaps for their modulation (the cloud's intensity)."""
@@ -182,7 +194,14 @@ class CloudNode(Node):
             self._triangulate(self._waiting.pop(msg.sequence_id)[0])
 
     def on_absolute_phase(self, msg: AbsolutePhase) -> None:
-        """Triangulate one scan now, or once its PhaseMaps arrived (at most ``intensity_wait_s`` later)."""
+        """Triangulate one scan now, or once its PhaseMaps arrived (at most ``intensity_wait_s`` later); with
+        ``use_camera_info``, not before the first CameraInfo (at most ``camera_info_wait_s``)."""
+        if not self._camera_info_seen:
+            self._waiting_for_camera_info[msg.sequence_id] = (msg, time.monotonic() + self.camera_info_wait_s)
+            while len(self._waiting_for_camera_info) > _CAMERA_INFO_WAITING_MAX:
+                self._fail_waiting(self._waiting_for_camera_info.popitem(last=False)[1][0],
+                                   f"more than {_CAMERA_INFO_WAITING_MAX} scans waiting for the first CameraInfo")
+            return
         if msg.sequence_id in self._phase_maps or self._subscriptions_in[1].get_publisher_count() == 0:
             self._triangulate(msg)
         else:
@@ -193,6 +212,16 @@ class CloudNode(Node):
         now_s = time.monotonic()
         for sequence_id in [i for i, (_, deadline) in self._waiting.items() if deadline <= now_s]:
             self._triangulate(self._waiting.pop(sequence_id)[0])
+        for sequence_id in [i for i, (_, deadline) in self._waiting_for_camera_info.items() if deadline <= now_s]:
+            self._fail_waiting(self._waiting_for_camera_info.pop(sequence_id)[0],
+                               f"no CameraInfo on /camera/camera_info within {self.camera_info_wait_s:g} s")
+
+    def _fail_waiting(self, msg: AbsolutePhase, why: str) -> None:
+        """Report a scan that could not be triangulated while it waited (logged, a failed ScanStatus)."""
+        self.scans_rejected += 1
+        reason = f"cannot triangulate scan {msg.sequence_id}: {why}"
+        self.get_logger().warning(reason)
+        self._status(msg, ScanStatus.ERROR, "failed", reason)
 
     def _triangulate(self, msg: AbsolutePhase) -> None:
         """Triangulate one scan; publish its cloud, depth image and status.

@@ -126,6 +126,29 @@ def test_camera_info_supplies_the_camera_intrinsics(harness, tmp_path, scene):
     assert np.abs(cloud.to_array(["x", "y", "z"]) - scene.points_mm * 1e-3).max() < MAX_POINT_ERROR_M
 
 
+def test_a_scan_before_the_first_camera_info_waits_for_it_or_fails_with_the_reason(harness, tmp_path, scene):
+    true_camera = scene.rig.camera
+    wrong = DeviceModel(K=true_camera.K * [[2], [2], [1]], dist=np.zeros(5), R=true_camera.R, T=true_camera.T,
+                        size=(320, 240))  # the rig file's camera: another size than the frames
+    rig_path = save_rig(Rig(camera=wrong, projector=scene.rig.projector, units="mm"), tmp_path / "rig.yaml")
+    node = harness.start(CloudNode, rig=str(rig_path), use_camera_info=True, camera_info_wait_s=0.5)
+    info = harness.publisher(CameraInfo, "/camera/camera_info",
+                             QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL))
+    source = harness.publisher(AbsolutePhase, "/scanner/absolute_phase")
+    points = harness.collect(PointCloud2, "/scanner/points")
+    status = harness.collect(ScanStatus, "/scanner/status")
+    harness.connect()
+    source.publish(absolute_phase(scene, sequence_id=1))  # no CameraInfo yet: waits 0.5 s, then fails
+    (failed,) = harness.wait(status, 1)
+    assert failed.state == "failed" and failed.reason == (
+        "cannot triangulate scan 1: no CameraInfo on /camera/camera_info within 0.5 s")
+    source.publish(absolute_phase(scene, sequence_id=2))  # waits, and is triangulated once the CameraInfo is in
+    info.publish(CameraInfo.from_intrinsics(true_camera.K, true_camera.dist, 160, 120))
+    (cloud,) = harness.wait(points, 1)
+    assert np.abs(cloud.to_array(["x", "y", "z"]) - scene.points_mm * 1e-3).max() < MAX_POINT_ERROR_M
+    assert node.scans_rejected == 1 and node.scans_published == 1
+
+
 def test_ply_snapshots_every_nth_scan_through_open3d(harness, tmp_path, scene):
     import open3d as o3d
 
