@@ -87,7 +87,7 @@ def _folded_names_cached(kind: str, config_json: str, keys: tuple) -> tuple:
 
     model = build_model(kind, json.loads(config_json))
     state = model.state_dict()
-    markers, owner, offset = {}, {}, 0
+    markers, offset = {}, 0
     with torch.no_grad():
         for key in keys:
             size = state[key].numel()
