@@ -82,7 +82,8 @@ def spin_profiled(name: str, spin: Callable[[], None]) -> None:
         profiler.dump_stats(os.path.join(folder, f"{name}-{os.getpid()}.prof"))
 
 
-def run_node(name: str, make_node: Callable[[], Node], argv=None) -> int:
+def run_node(name: str, make_node: Callable[[], Node], argv=None, *, spin: Callable[[Node], None] | None = None,
+             on_exit: Callable[[Node], None] | None = None) -> int:
     """Run one node in this process until Ctrl-C, SIGTERM or shutdown; return the process exit code.
 
     Parameters
@@ -93,6 +94,10 @@ def run_node(name: str, make_node: Callable[[], Node], argv=None) -> int:
         Builds the node (its class); called after ``rclpy.init`` so it sees ``--ros-args``.
     argv : list of str, optional
         The command line (default ``sys.argv``), with ``--ros-args -p name:=value -r from:=to ...``.
+    spin : callable, optional
+        ``spin(node)`` runs the node (default ``rclpy.spin(node)``: until Ctrl-C, SIGTERM or shutdown).
+    on_exit : callable, optional
+        ``on_exit(node)`` runs after spinning, however it ended, before the node is destroyed.
 
     Returns
     -------
@@ -108,10 +113,12 @@ def run_node(name: str, make_node: Callable[[], Node], argv=None) -> int:
         rclpy.try_shutdown()
         return 2
     try:
-        spin_profiled(name, lambda: rclpy.spin(node))
+        spin_profiled(name, lambda: (spin or rclpy.spin)(node))
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     finally:
+        if on_exit is not None:
+            on_exit(node)
         node.destroy_node()
         rclpy.try_shutdown()
     return 0

@@ -60,13 +60,12 @@ from pathlib import Path
 import numpy as np
 
 import dptpu.graph as rclpy
-from dptpu.graph import ExternalShutdownException
 from dptpu.graph.interfaces import Trigger as TriggerService
 from dptpu.graph.node import Node
 from dptpu.graph.qos import QoSProfile
 from dptpu.messages import AbsolutePhase, Image, PointCloud2, ScanStatus, Trigger
 
-from .node_main import keep_freed_memory, spin_profiled
+from .node_main import run_node
 from .scan_metrics import scan_metrics
 
 __all__ = ["ScanMonitorNode", "main"]
@@ -404,30 +403,18 @@ class ScanMonitorNode(Node):
 
 def main(argv=None) -> int:
     """``python -m dptpu.nodes.scan_monitor [--ros-args ...]``: run until ``scans`` were reported (0) or Ctrl-C."""
-    keep_freed_memory()
-    rclpy.init(args=sys.argv if argv is None else argv)
-    try:
-        node = ScanMonitorNode()
-    except ValueError as exc:
-        print(f"scan_monitor: error: {exc}", file=sys.stderr)
-        rclpy.try_shutdown()
-        return 2
-    def spin() -> None:
+
+    def spin(node: ScanMonitorNode) -> None:
         while rclpy.ok() and not node.finished:
             rclpy.spin_once(node, timeout_sec=0.1)
 
-    try:
-        spin_profiled("scan_monitor", spin)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    finally:
+    def on_exit(node: ScanMonitorNode) -> None:
         if node.summary_path:
             node.write_summary()
         if not node.finished and node.reported:
             print(node.summary_line(), flush=True)
-        node.destroy_node()
-        rclpy.try_shutdown()
-    return 0
+
+    return run_node("scan_monitor", ScanMonitorNode, argv, spin=spin, on_exit=on_exit)
 
 
 if __name__ == "__main__":
