@@ -45,10 +45,12 @@ import argparse
 import json
 import os
 import platform
+import re
 import shutil
 import subprocess
 import sys
 import tempfile
+import threading
 import time
 from pathlib import Path
 
@@ -70,11 +72,13 @@ def camera_limit_scans_per_s(frames_per_scan: int) -> float:
 
 
 def launch_sim_rig(*, sequence: str, model: str, size: str, scans: int, timeout_s: float,
-                   pacing: list[str]) -> dict:
+                   pacing: list[str], cpu_window: tuple[int, int] | None = None) -> dict:
     """Run the sim rig until ``scans`` scans were reported; the monitor's summary (``totals``, ``scans``).
 
     ``pacing`` holds the launch arguments that start the scans (``in_flight:=N``, or ``in_flight:=0
-    projector_scans:=-1 scan_period:=S``).
+    projector_scans:=-1 scan_period:=S``). With ``cpu_window = (a, b)`` the summary also holds
+    ``cpu_ms_per_scan``: each process's CPU time (user + system, every thread, ``/proc/<pid>/stat``) from the
+    monitor's ``a``-th reported scan to its ``b``-th, divided by ``b - a`` (:func:`cpu_per_scan_ms`).
     """
     folder = Path(tempfile.mkdtemp(prefix="dpb", dir="/tmp"))
     summary = folder / "summary.json"
@@ -84,13 +88,67 @@ def launch_sim_rig(*, sequence: str, model: str, size: str, scans: int, timeout_
                str(SIM_RIG), f"scans:={scans}", f"size:={size}", f"sequence:={sequence}", "method:=mf",
                f"model:={model}", "ground_truth:=false", "exposure_us:=100", "ply_dir:=", f"summary:={summary}",
                "scenes:=random:1,random:2", "source:=raycast", *pacing]
+    process = subprocess.Popen(command, cwd=folder, env=env, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE,
+                               stderr=subprocess.STDOUT, text=True)
+    killer = threading.Timer(timeout_s, process.kill)
+    killer.start()
+    pids = {"launch": process.pid}
+    reported, samples, tail = 0, [], []
     try:
-        done = subprocess.run(command, cwd=folder, env=env, capture_output=True, text=True, timeout=timeout_s)
-        if done.returncode != 0 or not summary.is_file():
-            raise RuntimeError(f"the sim rig exited with {done.returncode}: {done.stderr[-2000:]}")
-        return json.loads(summary.read_text())
+        for line in process.stdout:  # the launch's prefixed lines, as they come
+            tail = (tail + [line])[-40:]
+            started = _STARTED.search(line)
+            if started:
+                pids[started.group(1)] = int(started.group(2))
+            elif _REPORTED.match(line):
+                reported += 1
+                if cpu_window is not None and reported in cpu_window:
+                    samples.append((reported, time.monotonic(), cpu_times_s(pids)))
+        returncode = process.wait()
+    finally:
+        killer.cancel()
+        if process.poll() is None:
+            process.kill()
+            process.wait()
+    try:
+        if returncode != 0 or not summary.is_file():
+            raise RuntimeError(f"the sim rig exited with {returncode}: {''.join(tail)[-2000:]}")
+        report = json.loads(summary.read_text())
     finally:
         shutil.rmtree(folder, ignore_errors=True)
+    if len(samples) == 2:
+        report["cpu_ms_per_scan"] = cpu_per_scan_ms(samples[0], samples[1])
+    return report
+
+
+_STARTED = re.compile(r"^\[launch\] started '([\w.-]+)' \(pid (\d+)\)")
+_REPORTED = re.compile(r"^\[scan_monitor\] scan \d+\b[^:]*: (ok|FAILED|LOST)\b")
+
+
+def cpu_times_s(pids: dict[str, int]) -> dict[str, tuple[int, float]]:
+    """``{name: (pid, user + system CPU seconds)}`` of the processes still alive (``/proc/<pid>/stat``; Linux)."""
+    ticks_per_s = os.sysconf("SC_CLK_TCK")
+    times = {}
+    for name, pid in pids.items():
+        try:
+            fields = Path(f"/proc/{pid}/stat").read_text().rpartition(")")[2].split()
+        except OSError:
+            continue
+        times[name] = (pid, (int(fields[11]) + int(fields[12])) / ticks_per_s)  # utime, stime (fields 14, 15)
+    return times
+
+
+def cpu_per_scan_ms(first: tuple, last: tuple) -> dict:
+    """Each process's CPU ms per scan between two samples ``(reported scans, monotonic s, cpu_times_s())``; a
+    process respawned in between (another pid) is left out. ``total`` sums them; ``scans`` and ``window_s``
+    describe the window."""
+    (count0, time0, cpu0), (count1, time1, cpu1) = first, last
+    scans = count1 - count0
+    figures = {name: round(1e3 * (cpu1[name][1] - cpu0[name][1]) / scans, 1) for name in cpu1
+               if name in cpu0 and cpu0[name][0] == cpu1[name][0]}
+    figures["total"] = round(sum(figures.values()), 1)
+    figures.update(scans=scans, window_s=round(time1 - time0, 2))
+    return figures
 
 
 def timed_figures(report: dict, scans: int) -> dict:
@@ -125,7 +183,9 @@ def run_configuration(*, steps: int, model: str, size: str, scans: int, warmup: 
     frames = sum(int(entry.split("x")[1]) for entry in sequence.split(","))
     started = time.monotonic()
     common = {"sequence": sequence, "model": model, "size": size, "scans": warmup + scans, "timeout_s": timeout_s}
-    throughput = timed_figures(launch_sim_rig(pacing=[f"in_flight:={in_flight}"], **common), scans)
+    throughput_report = launch_sim_rig(pacing=[f"in_flight:={in_flight}"], cpu_window=(warmup + 1, warmup + scans - 1),
+                                       **common)
+    throughput = timed_figures(throughput_report, scans)
     rate = throughput["scans_per_s"]
     latency = throughput
     if latency_load > 0 and np.isfinite(rate) and rate > 0:
@@ -147,6 +207,7 @@ def run_configuration(*, steps: int, model: str, size: str, scans: int, warmup: 
         "latency_ms_p99": latency["latency_ms_p99"],
         "latency_from_first_trigger_ms_p50": latency["latency_from_first_trigger_ms_p50"],
         "node_duration_ms_p50": throughput["node_duration_ms_p50"],
+        "cpu_ms_per_scan": throughput_report.get("cpu_ms_per_scan"),
         "camera_limit_scans_per_s": camera_limit_scans_per_s(frames),
         "camera_limit_ratio": round(float(rate / camera_limit_scans_per_s(frames)), 4),
         "throughput": throughput,
