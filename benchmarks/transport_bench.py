@@ -132,6 +132,8 @@ class IntegrityCheck:
         self.shape = tuple(shape)
         self.received = self.timed = self.full_checks = self.failures = self.gaps = 0
         self.last_seq = None
+        # CPU time over the timed messages: this (main) thread's, and the whole process's (with libzmq's I/O thread)
+        self.timed_cpu_start = self.timed_cpu_end = self.timed_process_cpu_start = self.timed_process_cpu_end = None
 
     def check(self, seq: int, phase: int, pool_index: int, frames: np.ndarray) -> None:
         self.received += 1
@@ -139,7 +141,10 @@ class IntegrityCheck:
             self.gaps += 1
         self.last_seq = seq
         if phase == STOP:
+            self.timed_cpu_end, self.timed_process_cpu_end = time.thread_time(), time.process_time()
             return
+        if phase == TIMED and self.timed_cpu_start is None:
+            self.timed_cpu_start, self.timed_process_cpu_start = time.thread_time(), time.process_time()
         ok = frames.shape == self.shape and frames.dtype == np.uint8 and 0 <= pool_index < POOL_SIZE
         if ok and phase == WARMUP:
             self.full_checks += 1
@@ -150,8 +155,13 @@ class IntegrityCheck:
         self.failures += not ok
 
     def report(self) -> dict:
-        return {"received": self.received, "timed": self.timed, "full_checks": self.full_checks,
-                "failures": self.failures, "sequence_gaps": self.gaps}
+        report = {"received": self.received, "timed": self.timed, "full_checks": self.full_checks,
+                  "failures": self.failures, "sequence_gaps": self.gaps}
+        if self.timed_cpu_start is not None and self.timed_cpu_end is not None and self.timed > 1:
+            # the receiving thread's own CPU a message (decode, executor, callback), without libzmq's I/O thread
+            report["main_thread_cpu_us_per_message"] = (self.timed_cpu_end - self.timed_cpu_start) / self.timed * 1e6
+            report["cpu_us_per_message"] = (self.timed_process_cpu_end - self.timed_process_cpu_start) / self.timed * 1e6
+        return report
 
 
 def _emit(**fields) -> None:
@@ -660,6 +670,14 @@ def measure(args) -> dict:
     }
 
 
+def _receiver_cpu(figures: dict) -> str:
+    """The receiver's CPU a timed message: the whole process, and its receiving thread alone (no libzmq I/O thread)."""
+    receiver = figures["receiver"]
+    if "cpu_us_per_message" not in receiver:
+        return "n/a"
+    return f"{receiver['cpu_us_per_message']:.0f} us/msg, {receiver['main_thread_cpu_us_per_message']:.0f} in its thread"
+
+
 def format_report(report: dict) -> str:
     t, lat = report["throughput"], report["latency"]
     pinned = report["pinned"]
@@ -672,9 +690,11 @@ def format_report(report: dict) -> str:
         f"(a) throughput, {shape} uint8 = {t['message_bytes']} bytes, {t['messages_per_round']} messages x "
         f"{t['rounds']} rounds, window {t['window']}",
         f"    raw pyzmq PUB/SUB : {t['raw']['mb_per_s']:9.1f} MB/s  ({t['raw']['messages_per_s']:.1f} msg/s, "
-        f"sender CPU {t['raw']['sender_cpu_us_per_message']:.0f} us/msg)",
+        f"sender CPU {t['raw']['sender_cpu_us_per_message']:.0f} us/msg, "
+        f"receiver CPU {_receiver_cpu(t['raw'])})",
         f"    ours (graph)      : {t['ours']['mb_per_s']:9.1f} MB/s  ({t['ours']['messages_per_s']:.1f} msg/s, "
-        f"sender CPU {t['ours']['sender_cpu_us_per_message']:.0f} us/msg)",
+        f"sender CPU {t['ours']['sender_cpu_us_per_message']:.0f} us/msg, "
+        f"receiver CPU {_receiver_cpu(t['ours'])})",
         f"    throughput_ratio  : {report['throughput_ratio']:.3f}  (goal >= {THROUGHPUT_GOAL})",
         f"(b) round trip, {lat['payload_bytes']}-byte payload, {lat['ours']['round_trips']} round trips each",
         f"    raw pyzmq         : p50 {lat['raw']['p50_us']:8.1f} us  p99 {lat['raw']['p99_us']:8.1f} us",
@@ -700,7 +720,7 @@ def _child_main(options) -> int:
             os.sched_setaffinity(0, cpus)
     options.shape = tuple(int(n) for n in options.shape.split(","))
     result = ROLES[options.role](options)
-    _emit(**result, cpu_s=time.process_time(), wall_s=time.monotonic() - _STARTED)
+    _emit(**result, cpu_s=time.process_time(), main_thread_cpu_s=time.thread_time(), wall_s=time.monotonic() - _STARTED)
     return 0
 
 
