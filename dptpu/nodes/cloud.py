@@ -15,7 +15,8 @@ topic                       type          dir   notes
 ``/camera/camera_info``     CameraInfo    in    transient local, only with ``use_camera_info``
 ``/scanner/points``         PointCloud2   out   organized H x W; float32 x, y, z (m), intensity (DN), quality
 ``/scanner/depth``          Image         out   32FC1, z in metres, NaN where invalid
-``/scanner/status``         ScanStatus    out   one per scan: ``done`` (OK, WARN) or ``failed``
+``/scanner/status``         ScanStatus    out   one per scan: ``done`` (OK, WARN) or ``failed``; ``duration_s`` =
+                                                 ``header.stamp`` - the scan's stamp (its cloud's), to the ns
 =========================== ============= ===== ==================================================================
 
 Parameters
@@ -54,12 +55,20 @@ from dptpu.fpp.calibration import DeviceModel, Rig, load_rig
 from dptpu.fpp.triangulate import Triangulator, projector_coordinate
 from dptpu.graph.node import Node
 from dptpu.graph.qos import DurabilityPolicy, QoSProfile
-from dptpu.messages import AbsolutePhase, CameraInfo, Header, Image, PhaseMaps, PointCloud2, ScanStatus
+from dptpu.messages import (
+    AbsolutePhase,
+    CameraInfo,
+    Header,
+    Image,
+    PhaseMaps,
+    PointCloud2,
+    ScanStatus,
+)
 
-from .sequence_assembler import same_frequency
 from .node_main import run_node
+from .sequence_assembler import same_frequency
 
-__all__ = ["CloudNode", "FIELDS", "camera_points_m", "write_ply", "main"]
+__all__ = ["FIELDS", "CloudNode", "camera_points_m", "main", "write_ply"]
 
 FIELDS = ("x", "y", "z", "intensity", "quality")
 DEFAULT_FRAME_ID = "scanner_optical_frame"

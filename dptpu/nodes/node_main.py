@@ -13,25 +13,28 @@ Two process-wide settings come with it:
   node keeps freed memory for reuse instead; its resident size stays at its peak (a few scans' worth).
 - ``DPTPU_PROFILE_DIR``: when set, the node's main thread runs under :mod:`cProfile` and writes
   ``<dir>/<name>-<pid>.prof`` at exit (read it with ``python -m pstats``); how docs/benchmarks.md's per-node
-  breakdown was taken.
+  breakdown was taken. It counts the main thread's CPU time (``time.thread_time``: no waits, and no time lost
+  to other processes on a busy machine), or the wall clock with ``DPTPU_PROFILE_CLOCK=wall``.
 """
 from __future__ import annotations
 
 import ctypes
 import os
 import sys
-from typing import Callable
+from collections.abc import Callable
 
 import dptpu.graph as rclpy
 from dptpu.graph import ExternalShutdownException
 from dptpu.graph.node import Node
 
-__all__ = ["run_node", "spin_profiled", "keep_freed_memory", "SETUP_ERRORS", "PROFILE_ENV"]
+__all__ = ["PROFILE_CLOCK_ENV", "PROFILE_ENV", "SETUP_ERRORS", "keep_freed_memory", "run_node", "spin_profiled"]
 
 #: What a node's constructor raises for bad parameters, unreadable files or missing optional parts (exit code 2).
 SETUP_ERRORS = (ValueError, OSError, ImportError)
 #: Environment variable naming a folder for the nodes' cProfile output ("" or unset: no profiling).
 PROFILE_ENV = "DPTPU_PROFILE_DIR"
+#: ``wall``: the profile counts wall-clock time (waits included); default ``cpu``: the main thread's CPU time.
+PROFILE_CLOCK_ENV = "DPTPU_PROFILE_CLOCK"
 
 # glibc mallopt parameters (malloc.h) and the values set by keep_freed_memory.
 _M_TRIM_THRESHOLD, _M_TOP_PAD, _M_MMAP_THRESHOLD = -1, -2, -3
@@ -67,14 +70,18 @@ def keep_freed_memory() -> bool:
 
 
 def spin_profiled(name: str, spin: Callable[[], None]) -> None:
-    """Call ``spin()``; under cProfile when ``DPTPU_PROFILE_DIR`` is set (``<dir>/<name>-<pid>.prof`` at exit)."""
+    """Call ``spin()``; under cProfile when ``DPTPU_PROFILE_DIR`` is set (``<dir>/<name>-<pid>.prof`` at exit), timed
+    by the main thread's CPU clock (``DPTPU_PROFILE_CLOCK=wall``: the wall clock)."""
     folder = os.environ.get(PROFILE_ENV, "")
     if not folder:
         spin()
         return
     import cProfile
+    import time
 
-    profiler = cProfile.Profile()
+    # the main thread's CPU time (no waits, no time lost to other processes) unless DPTPU_PROFILE_CLOCK=wall
+    clock = time.perf_counter if os.environ.get(PROFILE_CLOCK_ENV, "cpu") == "wall" else time.thread_time
+    profiler = cProfile.Profile(clock)
     try:
         profiler.runcall(spin)
     finally:

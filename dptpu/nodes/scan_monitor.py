@@ -1,9 +1,13 @@
 """Scan monitor: one status line per scan (points, fringe-order accuracy and depth RMS against the twin's ground
 truth, latency), PLY files of the first clouds, and the end of the launch after ``scans`` scans.
 
-The monitor is the sim rig's robot: it subscribes to the clouds and to the sim node's ground truth, reports each
-scan once, when its cloud arrived (``ok``), when a node reported it failed (``FAILED``, with the node and the
-reason), or when nothing more came for ``scan_timeout_s`` (``LOST``). Figures:
+The monitor is the sim rig's robot: it subscribes to the clouds and the scan statuses (and, with ground truth, to
+the absolute phase and the sim node's truth), reports each scan once, when its cloud arrived (``ok``), when a node
+reported it failed (``FAILED``, with the node and the reason), or when nothing more came for ``scan_timeout_s``
+(``LOST``). A cloud carries its scan's stamp, not its ``sequence_id``: with ground truth the scan's AbsolutePhase
+(same stamp) names it, without it the cloud node's ``done`` ScanStatus does (its ``header.stamp`` minus its
+``duration_s`` is the scan's stamp, to the nanosecond; docs/nodes.md), so a monitor without ground truth takes
+no full-size map but the clouds. Figures:
 :mod:`dptpu.nodes.scan_metrics`. With ``scans:=N`` it prints a summary after N scans and exits with code 0; in a
 launch file as ``required: true`` that stops the whole graph cleanly (docs/launch.md). Run it as
 ``python -m dptpu.nodes.scan_monitor --ros-args -p scans:=10`` or from ``launch/sim_rig.yaml``. Design:
@@ -13,7 +17,8 @@ A line looks like::
 
     scan 3 sphere: ok, 1,327 points, fringe orders 100.00 %, depth RMS 0.052 mm, latency 184 ms
 
-Latency is from the scan's last Trigger (the stamp its frames and cloud carry) to the cloud's arrival here.
+Latency is from the scan's last frame (the stamp its cloud carries; the sim stamps a frame with its Trigger's
+stamp) to the cloud's arrival here.
 
 Topics (defaults; remappable)
 
@@ -21,13 +26,14 @@ Topics (defaults; remappable)
 topic                         type              dir   notes
 ============================= ================= ===== ============================================================
 ``/scanner/points``           PointCloud2       in    the clouds (x, y, z in metres)
-``/scanner/absolute_phase``   AbsolutePhase     in    for the fringe-order accuracy
-``/sim/ground_truth``         AbsolutePhase     in    the sim node's truth (``ground_truth`` true)
-``/sim/ground_truth_depth``   Image 32FC1       in    the sim node's true depth, metres
-``/scanner/status``           ScanStatus        in    failures of every node
-``/projector/trigger``        Trigger           in    subscribed once clouds, absolute phase (and truth) have
-                                                      publishers, so a projector with ``min_subscribers: 2`` waits
-                                                      for the monitor too; gives each scan's first Trigger
+``/scanner/status``           ScanStatus        in    failures of every node; the cloud node's names each cloud's scan
+``/scanner/absolute_phase``   AbsolutePhase     in    ``ground_truth`` true: for the fringe-order accuracy
+``/sim/ground_truth``         AbsolutePhase     in    ``ground_truth`` true: the sim node's truth
+``/sim/ground_truth_depth``   Image 32FC1       in    ``ground_truth`` true: the sim node's true depth, metres
+``/projector/trigger``        Trigger           in    ``trigger_latency`` true: subscribed once the clouds, the
+                                                      statuses (and the absolute phase and truth) have publishers,
+                                                      so a projector with ``min_subscribers: 2`` waits for the
+                                                      monitor too; gives each scan's first Trigger
 ============================= ================= ===== ============================================================
 
 Parameters
@@ -45,15 +51,18 @@ name                 default  meaning
                               next scan starts when one was reported, so a slow machine is never overrun);
                               0 = start none (the projector runs its own scans)
 ``start_service``    ``/projector/start_scan``  the projector's std_srvs/Trigger service
+``trigger_latency``  true     take the Triggers (every pattern's) for ``latency_from_first_trigger_ms``; false:
+                              clouds and statuses only, as a robot subscribes (``dptpu bench pipeline``'s
+                              throughput run: 24 messages a 2 x 12-step scan less, ~3 ms of CPU)
 ==================== ======== ==================================================================================
 """
 from __future__ import annotations
 
 import json
 import math
-from array import array
 import sys
 import time
+from array import array
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -73,6 +82,7 @@ __all__ = ["ScanMonitorNode", "main"]
 _GRACE_S = 1.0  # how long a scan whose cloud arrived waits for its absolute phase and ground truth
 _KEPT_RECORDS = 200  # per-scan records kept for the summary file (totals cover every scan)
 _HEARD_RECHECK_S = 1.0  # how long a seen subscriber count of the Triggers is trusted
+_STAMP_MATCH_NS = 1000  # a cloud's stamp and the scan stamp its cloud node's status gives (float64 s) may differ
 
 
 @dataclass
@@ -106,6 +116,7 @@ class ScanMonitorNode(Node):
         self.summary_path = self.declare_parameter("summary", "").value
         self.start_scans = self.declare_parameter("start_scans", 0).value
         start_service = self.declare_parameter("start_service", "/projector/start_scan").value
+        self.trigger_latency = self.declare_parameter("trigger_latency", True).value
         if self.scans < 0 or self.start_scans < 0:
             raise ValueError(f"parameters scans (0 = run until Ctrl-C) and start_scans (0 = none) must be >= 0; "
                              f"got {self.scans}, {self.start_scans}")
@@ -122,16 +133,20 @@ class ScanMonitorNode(Node):
         self._done_ids: dict[int, float] = {}  # reported sequence_id -> when (late messages are ignored)
         self._truths: dict[int, AbsolutePhase] = {}
         self._truth_depths: dict[int, Image] = {}  # stamp ns -> depth image
-        self._orphan_clouds: list = []  # (cloud, arrival ns, arrival s) whose AbsolutePhase has not come yet
+        self._orphan_clouds: list = []  # (cloud, arrival ns, arrival s) whose scan is not known yet
+        self._stamp_ids: dict[int, int] = {}  # scan stamp ns -> sequence_id, from the cloud node's done statuses
 
         self.cloud_sub = self.create_subscription(PointCloud2, "/scanner/points", self.on_cloud, 10)
-        self.phase_sub = self.create_subscription(AbsolutePhase, "/scanner/absolute_phase", self.on_absolute_phase, 10)
         self.status_sub = self.create_subscription(ScanStatus, "/scanner/status", self.on_status, QoSProfile(depth=200))
-        self.truth_sub = self.truth_depth_sub = None
+        self.phase_sub = self.truth_sub = self.truth_depth_sub = None
         if self.use_truth:
+            self.phase_sub = self.create_subscription(AbsolutePhase, "/scanner/absolute_phase",
+                                                      self.on_absolute_phase, 10)
             self.truth_sub = self.create_subscription(AbsolutePhase, "/sim/ground_truth", self.on_truth, 10)
             self.truth_depth_sub = self.create_subscription(Image, "/sim/ground_truth_depth", self.on_truth_depth, 10)
         self.trigger_sub = None
+        self._trigger_topic = self.resolve_topic_name("/projector/trigger")
+        self._outputs_ready = False  # the clouds and statuses (and truth) have publishers
         self.start_client = self.create_client(TriggerService, start_service) if self.start_scans else None
         self.scans_started = 0
         self._start_call = None
@@ -148,29 +163,28 @@ class ScanMonitorNode(Node):
             scan.first_trigger_ns = msg.header.stamp.to_ns()
 
     def on_cloud(self, msg: PointCloud2) -> None:
-        # a cloud carries its scan's stamp, not its sequence_id: match it to the AbsolutePhase or truth of that stamp
+        # a cloud carries its scan's stamp, not its sequence_id: the scan is named by the AbsolutePhase of that
+        # stamp (ground truth on) or by the cloud node's done status (off); the two topics race
         stamp_ns = msg.header.stamp.to_ns()
         arrival_ns, arrival_s = time.time_ns(), time.monotonic()
-        scan = next((s for s in self._pending.values()
-                     if s.absolute_phase is not None and s.absolute_phase.header.stamp.to_ns() == stamp_ns), None)
+        if self.use_truth:
+            scan = next((s for s in self._pending.values() if s.absolute_phase is not None
+                         and s.absolute_phase.header.stamp.to_ns() == stamp_ns), None)
+        else:
+            sequence_id = self._id_of_stamp(stamp_ns)
+            scan = self._scan(sequence_id) if sequence_id is not None else None
         if scan is None:
             self._orphan_clouds.append((msg, arrival_ns, arrival_s))
             del self._orphan_clouds[:-8]
             return
-        scan.cloud, scan.cloud_arrival_ns, scan.cloud_arrival_s = msg, arrival_ns, arrival_s
-        scan.last_message_s = arrival_s
-        self._try_report(scan)
+        self._take_cloud(scan, (msg, arrival_ns, arrival_s))
 
     def on_absolute_phase(self, msg: AbsolutePhase) -> None:
         scan = self._scan(msg.sequence_id)
         if scan is None:
             return
         scan.absolute_phase = msg
-        stamp_ns = msg.header.stamp.to_ns()
-        for entry in list(self._orphan_clouds):
-            if entry[0].header.stamp.to_ns() == stamp_ns:
-                self._orphan_clouds.remove(entry)
-                scan.cloud, scan.cloud_arrival_ns, scan.cloud_arrival_s = entry
+        self._adopt_orphan(scan, msg.header.stamp.to_ns())
         self._try_report(scan)
 
     def on_truth(self, msg: AbsolutePhase) -> None:
@@ -194,21 +208,33 @@ class ScanMonitorNode(Node):
             if not scan.failure:
                 scan.failure = f"{msg.node}: {msg.reason}"
             self._report(scan)
-        else:
-            scan.seen[msg.node] = msg.state
-            scan.durations_s[msg.node] = float(msg.duration_s)
+            return
+        scan.seen[msg.node] = msg.state
+        scan.durations_s[msg.node] = float(msg.duration_s)
+        if not self.use_truth and msg.state == "done" and msg.total_pixels:
+            # the cloud node's: stamped when made, duration_s after the scan's stamp (docs/nodes.md)
+            stamp_ns = msg.header.stamp.to_ns() - round(float(msg.duration_s) * 1e9)
+            self._stamp_ids[stamp_ns] = msg.sequence_id
+            while len(self._stamp_ids) > 64:
+                self._stamp_ids.pop(next(iter(self._stamp_ids)))
+            self._adopt_orphan(scan, stamp_ns, _STAMP_MATCH_NS)
+            if scan.cloud is not None:
+                self._try_report(scan)
 
     def on_timer(self) -> None:
         """Report the scans that waited too long; take Triggers once the pipeline's outputs are there."""
-        if self.trigger_sub is None and self.cloud_sub.get_publisher_count() and self.phase_sub.get_publisher_count() \
-                and (self.truth_sub is None or self.truth_sub.get_publisher_count()):
-            self.trigger_sub = self.create_subscription(Trigger, "/projector/trigger", self.on_trigger, 200)
-            self.get_logger().info("clouds, absolute phase and ground truth have publishers: taking Triggers")
+        if not self._outputs_ready and self.cloud_sub.get_publisher_count() \
+                and self.status_sub.get_publisher_count() \
+                and all(sub is None or sub.get_publisher_count() for sub in (self.phase_sub, self.truth_sub)):
+            self._outputs_ready = True
+            if self.trigger_latency:
+                self.trigger_sub = self.create_subscription(Trigger, self._trigger_topic, self.on_trigger, 200)
+            self.get_logger().info("clouds, statuses" + (", absolute phase and ground truth" if self.use_truth else "")
+                                   + " have publishers" + (": taking Triggers" if self.trigger_latency else ""))
         now_s = time.monotonic()
         for scan in list(self._pending.values()):
-            if scan.cloud is not None and now_s - scan.cloud_arrival_s > _GRACE_S:
-                self._report(scan)
-            elif now_s - scan.last_message_s > self.scan_timeout_s:
+            if (scan.cloud is not None and now_s - scan.cloud_arrival_s > _GRACE_S) \
+                    or now_s - scan.last_message_s > self.scan_timeout_s:
                 self._report(scan)
         for sequence_id in [i for i, when in self._done_ids.items() if now_s - when > 4 * self.scan_timeout_s]:
             del self._done_ids[sequence_id]
@@ -219,12 +245,13 @@ class ScanMonitorNode(Node):
 
     def _start_more(self) -> None:
         """Call ``start_service`` while fewer than ``start_scans`` scans are in flight."""
-        if self.start_client is None or self.trigger_sub is None or self.finished or self._start_call is not None:
+        if self.start_client is None or not self._outputs_ready or self.finished or self._start_call is not None:
             return
         now_s = time.monotonic()
         if now_s >= self._heard_checked_s + _HEARD_RECHECK_S:  # a graph snapshot costs ~1 ms: once a second at most
-            # the camera (sim) must hear the Triggers too
-            self._triggers_heard = self.count_subscribers(self.trigger_sub.topic_name) >= 2
+            # the camera (sim) must hear the Triggers too (and this monitor, when it takes them)
+            heard_by = 2 if self.trigger_sub is not None else 1
+            self._triggers_heard = self.count_subscribers(self._trigger_topic) >= heard_by
             self._heard_checked_s = now_s if self._triggers_heard else -math.inf
         if not self._triggers_heard:
             return
@@ -261,10 +288,34 @@ class ScanMonitorNode(Node):
         scan.last_message_s = time.monotonic()
         return scan
 
+    def _id_of_stamp(self, stamp_ns: int) -> int | None:
+        """The sequence_id whose scan stamp (from the cloud node's done status) is ``stamp_ns``, or None."""
+        sequence_id = self._stamp_ids.get(stamp_ns)
+        if sequence_id is None:  # a duration of months is not exact in float64 ns
+            sequence_id = next((i for stamp, i in self._stamp_ids.items() if abs(stamp - stamp_ns) <= _STAMP_MATCH_NS),
+                               None)
+        return sequence_id
+
+    def _take_cloud(self, scan: _Scan, entry: tuple) -> None:
+        """``entry`` = (cloud, arrival ns, arrival monotonic s) is ``scan``'s cloud."""
+        scan.cloud, scan.cloud_arrival_ns, scan.cloud_arrival_s = entry
+        scan.last_message_s = max(scan.last_message_s, entry[2])
+        self._try_report(scan)
+
+    def _adopt_orphan(self, scan: _Scan, stamp_ns: int, tolerance_ns: int = 0) -> None:
+        """Give ``scan`` the cloud of ``stamp_ns`` (within ``tolerance_ns``) that arrived before the scan was known
+        (without reporting)."""
+        for entry in self._orphan_clouds:
+            if abs(entry[0].header.stamp.to_ns() - stamp_ns) <= tolerance_ns:
+                self._orphan_clouds.remove(entry)
+                scan.cloud, scan.cloud_arrival_ns, scan.cloud_arrival_s = entry
+                return
+
     def _try_report(self, scan: _Scan) -> None:
-        if scan.cloud is None or scan.absolute_phase is None:
+        if scan.cloud is None:
             return
-        if self.use_truth and (self._truth_of(scan) is None or scan.truth_depth is None):
+        if self.use_truth and (scan.absolute_phase is None or self._truth_of(scan) is None
+                               or scan.truth_depth is None):
             return
         self._report(scan)
 
@@ -310,13 +361,13 @@ class ScanMonitorNode(Node):
         self._start_more()
 
     def _figures(self, scan: _Scan, truth) -> dict:
-        xyz = scan.cloud.to_array(["x", "y", "z"])  # (H, W, 3) metres
+        xyz = scan.cloud.to_array(["x", "y", "z"]) if truth is not None else None  # (H, W, 3) metres
         figures = {"latency_ms": (scan.cloud_arrival_ns - scan.cloud.header.stamp.to_ns()) * 1e-6,
                    "cloud_arrival_unix_s": scan.cloud_arrival_ns * 1e-9}
         if scan.first_trigger_ns:
             figures["latency_from_first_trigger_ms"] = (scan.cloud_arrival_ns - scan.first_trigger_ns) * 1e-6
         phase = scan.absolute_phase
-        if truth is not None and scan.truth_depth is not None and phase is not None \
+        if xyz is not None and scan.truth_depth is not None and phase is not None \
                 and phase.absolute_phase.shape == truth.absolute_phase.shape == xyz.shape[:2]:
             same_frequency = math.isclose(phase.frequency, truth.frequency, rel_tol=1e-9)
             metrics = scan_metrics(xyz[..., 2], phase.absolute_phase if same_frequency else np.full_like(
@@ -325,8 +376,9 @@ class ScanMonitorNode(Node):
             figures.update(metrics.as_dict())
             figures["method"] = phase.method
         else:
-            figures["valid_points"] = int(np.count_nonzero(np.isfinite(xyz[..., 2])))
-            figures["total_pixels"] = int(xyz.shape[0] * xyz.shape[1])
+            depth_m = xyz[..., 2] if xyz is not None else scan.cloud.to_array(["z"])[..., 0]  # (H, W)
+            figures["valid_points"] = int(np.count_nonzero(np.isfinite(depth_m)))
+            figures["total_pixels"] = int(depth_m.size)
         return figures
 
     @staticmethod

@@ -6,7 +6,16 @@ import pytest
 
 from dptpu.fpp.calibration import DeviceModel, Rig, save_rig
 from dptpu.graph.qos import DurabilityPolicy, QoSProfile
-from dptpu.messages import AbsolutePhase, CameraInfo, Header, Image, PhaseMaps, PointCloud2, ScanStatus, Time
+from dptpu.messages import (
+    AbsolutePhase,
+    CameraInfo,
+    Header,
+    Image,
+    PhaseMaps,
+    PointCloud2,
+    ScanStatus,
+    Time,
+)
 from dptpu.nodes.cloud import FIELDS, CloudNode
 from dptpu.nodes.harness import NodeHarness
 from tests.nodes.test_cloud_scene import plane_scene
@@ -53,7 +62,7 @@ def start(harness, rig_path, **parameters):
 @pytest.mark.parametrize("world_pose", [False, True], ids=["world=camera", "world elsewhere"])
 def test_cloud_of_the_plane_is_in_the_camera_optical_frame_in_metres(harness, tmp_path, world_pose):
     scene = plane_scene(world_pose=world_pose)
-    node, source, maps, points, depth, status = start(harness, save_rig(scene.rig, tmp_path / "rig.yaml"))
+    _node, source, maps, points, depth, status = start(harness, save_rig(scene.rig, tmp_path / "rig.yaml"))
     modulation = np.linspace(10, 100, 2 * 120 * 160, dtype=np.float32).reshape(2, 120, 160)
     maps.publish(PhaseMaps(sequence_id=1, frequencies=np.array([16.0, 1.0]), modulation=modulation,
                            phases=np.zeros((2, 120, 160), np.float32), valid=np.ones((120, 160), bool)))
@@ -73,10 +82,13 @@ def test_cloud_of_the_plane_is_in_the_camera_optical_frame_in_metres(harness, tm
     assert np.array_equal(image.to_array(), xyz[..., 2])
     (ok,) = harness.wait(status, 1)
     assert (ok.level, ok.state, ok.valid_pixels, ok.total_pixels) == (ScanStatus.OK, "done", 19200, 19200)
+    # the contract the scan monitor names a cloud's scan by (docs/nodes.md): status stamp - duration = scan stamp,
+    # to the float64 spacing of the duration in ns (16 ns for the 3 years since STAMP; exact below 104 days)
+    assert abs(ok.header.stamp.to_ns() - round(ok.duration_s * 1e9) - STAMP.to_ns()) <= 16 and ok.sequence_id == 1
 
 
 def test_invalid_pixels_are_nan_and_the_frame_id_is_a_parameter(harness, tmp_path, scene):
-    node, source, maps, points, depth, status = start(harness, save_rig(scene.rig, tmp_path / "rig.yaml"),
+    node, source, _maps, points, _depth, status = start(harness, save_rig(scene.rig, tmp_path / "rig.yaml"),
                                                       frame_id="tool0_scanner")
     msg = absolute_phase(scene)
     msg.valid[:, :40] = False
@@ -96,11 +108,11 @@ def test_invalid_pixels_are_nan_and_the_frame_id_is_a_parameter(harness, tmp_pat
 
 
 def test_inconsistent_scans_are_reported_and_the_node_goes_on(harness, tmp_path, scene):
-    node, source, maps, points, depth, status = start(harness, save_rig(scene.rig, tmp_path / "rig.yaml"))
+    node, source, _maps, points, _depth, status = start(harness, save_rig(scene.rig, tmp_path / "rig.yaml"))
     source.publish(absolute_phase(scene, sequence_id=1, shape=(60, 80)))
     source.publish(absolute_phase(scene, sequence_id=2, projector=(1280, 800)))
     source.publish(absolute_phase(scene, sequence_id=3))
-    (cloud,) = harness.wait(points, 1)
+    (_cloud,) = harness.wait(points, 1)
     failed = [s for s in harness.wait(status, 3) if s.state == "failed"]
     assert [s.reason for s in failed] == [
         "cannot triangulate scan 1: absolute_phase is 80x60 pixels; the rig's camera is 160x120",
@@ -152,7 +164,7 @@ def test_a_scan_before_the_first_camera_info_waits_for_it_or_fails_with_the_reas
 def test_ply_snapshots_every_nth_scan_through_open3d(harness, tmp_path, scene):
     import open3d as o3d
 
-    node, source, maps, points, depth, status = start(harness, save_rig(scene.rig, tmp_path / "rig.yaml"),
+    node, source, _maps, points, _depth, _status = start(harness, save_rig(scene.rig, tmp_path / "rig.yaml"),
                                                       ply_dir=str(tmp_path / "ply"), ply_every=2)
     for sequence_id in (1, 2, 3):
         msg = absolute_phase(scene, sequence_id=sequence_id)
