@@ -18,7 +18,7 @@ Parameters
 =================== ========= ===================================================================================
 name                default   meaning
 =================== ========= ===================================================================================
-``method``          "mf"      ``mf`` (Eq. (5), needs a frequency <= 1), ``mw`` (Eqs. (6)-(7), needs
+``method``          "mf"      ``mf`` (Eq. (5) in float32, needs a frequency <= 1), ``mw`` (Eqs. (6)-(7), needs
                               ``0 < f_h - f_l <= 1``), ``nt`` (Eqs. (8)-(9)) or ``heterodyne`` (beat tree of all)
 ``model``           "none"    a DP-TPU ``.onnx`` model refining the classical fringe order (mf/mw/nt), ``shipped``
                               (the packaged model) or ``none``
@@ -43,10 +43,10 @@ from dptpu.graph.node import Node
 from dptpu.graph.qos import QoSProfile
 from dptpu.messages import AbsolutePhase, Header, PhaseMaps, ScanStatus
 
-from .sequence_assembler import same_frequency
 from .node_main import run_node
+from .sequence_assembler import same_frequency
 
-__all__ = ["UnwrapNode", "select_frequencies", "load_model", "refined", "METHODS", "main"]
+__all__ = ["METHODS", "UnwrapNode", "load_model", "main", "refined", "select_frequencies"]
 
 METHODS = ("mf", "mw", "nt", "heterodyne")
 STATUS_QOS = QoSProfile(depth=50)
@@ -166,13 +166,13 @@ class UnwrapNode(Node):
             return
         f_h = float(msg.frequencies[high])
         valid = self._valid_pixels(result, msg.valid, f_h)
-        shape = valid.shape
+        invalid = ~valid
         absolute = AbsolutePhase(
             header=msg.header, sequence_id=msg.sequence_id, frequency=f_h, fringe_axis=msg.fringe_axis,
             projector_width=msg.projector_width, projector_height=msg.projector_height,
-            absolute_phase=_masked(result.absolute_phase, valid, np.full(shape, np.nan, dtype=np.float32)),
-            fringe_order=_masked(result.fringe_order, valid, np.zeros(shape, dtype=np.int32)), valid=valid,
-            reliability=_masked(result.reliability, valid, np.zeros(shape, dtype=np.float32)),
+            absolute_phase=_masked_in_place(result.absolute_phase, invalid, np.nan, np.float32),
+            fringe_order=_masked_in_place(result.fringe_order, invalid, 0, np.int32), valid=valid,
+            reliability=_masked_in_place(result.reliability, invalid, 0.0, np.float32),
             method="dptpu" if self.model is not None else self.method)
         self.absolute_publisher.publish(absolute)
         self.scans_published += 1
@@ -206,6 +206,8 @@ class UnwrapNode(Node):
         nan_pixels = int(np.count_nonzero(msg.valid & ~valid))
         if self.method == "heterodyne":
             result = tpu.unwrap_heterodyne(phases, frequencies, valid=valid)
+        elif self.method == "mf":  # float32 maps in and out: Eq. (5) in float32
+            result = tpu.unwrap_mf_float32(phases[0], phases[1], frequencies[0], frequencies[1], valid=valid)
         else:
             extent = msg.extent_px if self.method == "nt" else None
             if self.method == "nt" and not extent:
@@ -226,9 +228,14 @@ class UnwrapNode(Node):
             decode_errors=decode_errors, duration_s=time.monotonic() - started_s, **counts))
 
 
-def _masked(values: np.ndarray, valid: np.ndarray, out: np.ndarray) -> np.ndarray:
-    """``out`` (filled with the value of invalid pixels) with ``values`` cast to its dtype where ``valid``."""
-    np.copyto(out, values, where=valid, casting="unsafe")
+def _masked_in_place(values: np.ndarray, invalid: np.ndarray, fill, dtype) -> np.ndarray:
+    """``values`` (H, W) as ``dtype`` with ``fill`` where ``invalid``: in place when it already has that dtype (the
+    arrays of one scan's result, which nothing else holds), else one new array."""
+    if values.dtype == dtype and values.flags.writeable:
+        np.copyto(values, fill, where=invalid)
+        return values
+    out = np.full(values.shape, fill, dtype=dtype)
+    np.copyto(out, values, where=~invalid, casting="unsafe")
     return out
 
 

@@ -89,6 +89,45 @@ def test_unwrap_mf_recovers_orders_with_unit_low_frequency(scene, f_h):
     assert_recovers_scene(result, scene, f_h)
 
 
+@pytest.mark.parametrize("f_h", [16, 64, 96])
+def test_unwrap_mf_float32_recovers_orders_of_float32_maps(scene, f_h):
+    psi_h, psi_l = wrapped(scene, f_h).astype(np.float32), wrapped(scene, 1.0).astype(np.float32)
+    result = tpu.unwrap_mf_float32(psi_h, psi_l, f_h, 1.0)
+    order, phase = expected_order_and_phase(scene, f_h)
+    assert result.valid.all() and result.fringe_order.dtype == np.int32
+    assert result.absolute_phase.dtype == result.reliability.dtype == np.float32
+    np.testing.assert_array_equal(result.fringe_order, order)
+    # float32 maps in (2.4e-7 rad) and float32 out: 2 ulps of 2*pi*f_h (3.1e-5 rad at f_h = 96)
+    ulp = np.spacing(np.float32(2 * np.pi * f_h))
+    assert np.abs(result.absolute_phase - phase).max() <= 2 * ulp
+    assert result.reliability.min() > 0.999
+
+
+def test_unwrap_mf_float32_matches_float64_away_from_half_integers(scene):
+    rng = np.random.default_rng(0)
+    f_h = 64
+    noise = lambda: rng.normal(0.0, 0.05, scene.shape)  # rad: q near half-integers
+    psi_h = np.mod(wrapped(scene, f_h) + noise(), 2 * np.pi).astype(np.float32)
+    psi_l = np.mod(wrapped(scene, 1.0) + noise(), 2 * np.pi).astype(np.float32)
+    psi_h[psi_h >= 2 * np.pi] = 0.0
+    psi_l[psi_l >= 2 * np.pi] = 0.0
+    psi_h[5, 7] = np.nan
+    exact = tpu.unwrap_mf(psi_h, psi_l, f_h)  # float64 on the same float32 maps
+    fast = tpu.unwrap_mf_float32(psi_h, psi_l, f_h)
+    np.testing.assert_array_equal(fast.valid, exact.valid)
+    assert not fast.valid[5, 7] and np.isnan(fast.absolute_phase[5, 7]) and fast.fringe_order[5, 7] == 0
+    # q in float32 within 1.4e-5 of float64 (the docstring's bound): the orders agree wherever the margin is larger
+    sure = exact.reliability > 2.8e-5
+    assert np.count_nonzero(exact.valid & ~sure) <= 2
+    np.testing.assert_array_equal(fast.fringe_order[sure], exact.fringe_order[sure])
+    assert np.abs(fast.reliability - exact.reliability).max() < 2.8e-5  # measured 1.3e-5
+    both = sure & exact.valid
+    ulp = np.spacing(np.float32(2 * np.pi * f_h))
+    assert np.abs(fast.absolute_phase[both] - exact.absolute_phase[both].astype(np.float32)).max() <= 2 * ulp
+    with pytest.raises(ValueError, match="psi_l must be a wrapped phase in"):
+        tpu.unwrap_mf_float32(psi_h, psi_l + np.float32(7.0), f_h)
+
+
 @pytest.mark.parametrize("f_h", HIGH_FREQUENCIES)
 def test_unwrap_mw_recovers_orders_with_unit_equivalent_frequency(scene, f_h):
     f_l = f_h - 1
