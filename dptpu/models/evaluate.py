@@ -3,7 +3,10 @@
 Solvers side by side: ``classical`` (the dataset's coarse order: Eq. (5), (7) or (9)), ``classical+median``
 (3x3 median filter of the classical order over valid pixels, the cheap fix users try first), and every
 ONNX model given (``dptpu`` / ``unet`` by their metadata kind, or the file stem if two share a kind), on
-the methods its training set had (its metadata's ``methods``).
+the methods its training set had (its metadata's ``methods``). A model's rounded order is post-processed
+by the neighbour consensus of :mod:`dptpu.models.consensus` (as ``dptpu unwrap`` does) unless
+``consensus=False``. ``vote_baseline=True`` adds the solver ``classical+vote``: the same consensus
+vote on the classical order alone (what the post-processing does without a network).
 
 Accuracy = share of valid pixels whose fringe order equals the label exactly.
 """
@@ -16,6 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .consensus import consensus_order
 from .inference import FringeOrderModel
 from .samples import list_samples, read_sample
 
@@ -53,11 +57,14 @@ def solver_names(models) -> list[str]:
     return [k if kinds.count(k) == 1 else Path(m.path).stem for k, m in zip(kinds, models)]
 
 
-def evaluate_dataset(data_dir, models=(), *, threads: int | None = None) -> list[Row]:
+def evaluate_dataset(data_dir, models=(), *, threads: int | None = None, consensus: bool = True,
+                     vote_baseline: bool = False) -> list[Row]:
     """Accuracy rows for every (method, frequency, noise) group of ``data_dir`` and every solver.
 
     ``models`` are ONNX paths or already loaded :class:`FringeOrderModel` objects; a model runs only on the
     methods of its training set (:attr:`FringeOrderModel.trained_methods`): no row for the others.
+    ``consensus``: post-process the models' orders (:func:`dptpu.models.consensus.consensus_order`);
+    ``vote_baseline``: add the solver ``classical+vote`` (module docstring).
     """
     loaded = [m if isinstance(m, FringeOrderModel) else FringeOrderModel.load(m, threads=threads) for m in models]
     names = solver_names(loaded)
@@ -73,11 +80,14 @@ def evaluate_dataset(data_dir, models=(), *, threads: int | None = None) -> list
         label = sample.label_order.astype(np.int32)
         coarse = np.rint(sample.coarse_order).astype(np.int32)
         solvers = {"classical": coarse, "classical+median": median_order(coarse, valid)}
+        if vote_baseline:
+            solvers["classical+vote"] = consensus_order(coarse, coarse, sample.wrapped_high, valid)
         for name, model in zip(names, loaded):
             if sample.method not in model.trained_methods:
                 continue  # the model was not trained for this method (no row, a blank in the summary)
-            solvers[name] = model.refine(sample.wrapped_high, sample.wrapped_low, sample.coarse_order,
-                                         sample.frequency_high, valid=valid)
+            order = model.refine(sample.wrapped_high, sample.wrapped_low, sample.coarse_order,
+                                 sample.frequency_high, valid=valid)
+            solvers[name] = consensus_order(order, coarse, sample.wrapped_high, valid) if consensus else order
         for name, order in solvers.items():
             correct[group + (name,)] += int(np.count_nonzero((order == label) & valid))
             pixels[group + (name,)] += n_valid

@@ -2,8 +2,9 @@
 
 ``dptpu unwrap --model PATH`` and the library call :func:`refine_capture_result`: the two-frequency result
 of MF, MW or NT gives the network its inputs (the wrapped phases of the high and the low sequence and the
-classical fringe order); the network's rounded order replaces the classical one on every pixel that
-passes the capture's quality mask (so NT pixels whose lookup key was rejected get an order too), and the
+classical fringe order); the network's rounded order, post-processed by the neighbour consensus of
+:mod:`dptpu.models.consensus` (full resolution, no ground truth), replaces the classical one on every
+pixel that passes the capture's quality mask (so NT pixels whose lookup key was rejected get an order too), and the
 absolute phase and validity are recomputed as ``unwrap_capture`` does: ``psi + 2*pi*k`` (Eq. (3)), valid
 where the quality mask holds and the phase lies on the projector, ``0 <= phi < 2*pi*f``. ``reliability``
 stays the classical method's margin (0 where the classical method rejected the pixel).
@@ -15,10 +16,11 @@ from pathlib import Path
 
 import numpy as np
 
+from .consensus import consensus_order
 from .inference import FringeOrderModel, shipped_model_path
 
-__all__ = ["REFINABLE_METHODS", "DEFAULT_MAX_PERIODS_PER_PIXEL", "resolve_model", "fringe_density",
-           "refine_capture_result"]
+__all__ = ["DEFAULT_MAX_PERIODS_PER_PIXEL", "REFINABLE_METHODS", "fringe_density", "refine_capture_result",
+           "resolve_model"]
 
 #: Classical methods whose result the network refines (the paper's three two-frequency methods).
 REFINABLE_METHODS = ("mf", "mw", "nt")
@@ -52,7 +54,7 @@ def resolve_model(value, method: str) -> FringeOrderModel | None:
     return FringeOrderModel.load(Path(value))
 
 
-def refine_capture_result(result, model: FringeOrderModel):
+def refine_capture_result(result, model: FringeOrderModel, *, consensus: bool = True):
     """A copy of a two-frequency ``CaptureResult`` with the network's fringe order.
 
     Parameters
@@ -61,6 +63,9 @@ def refine_capture_result(result, model: FringeOrderModel):
         From ``unwrap_capture(..., method="mf" | "mw" | "nt")``; carries ``wrapped_phases`` (high, low)
         and ``quality``.
     model : FringeOrderModel
+    consensus : bool
+        Post-process the rounded order with :func:`dptpu.models.consensus.consensus_order` (default; about
+        10-50 ms more for 480x640, docs/model-eval.md); False gives the network's rounded order alone.
 
     Returns
     -------
@@ -74,6 +79,9 @@ def refine_capture_result(result, model: FringeOrderModel):
     psi_h, psi_l = result.wrapped_phases
     quality = np.asarray(result.quality, dtype=bool)
     order = model.refine(psi_h, psi_l, result.fringe_order.astype(np.float64), result.frequency, valid=quality)
+    if consensus:
+        classical = np.where(result.valid, result.fringe_order, order)  # the network's where classical has none
+        order = consensus_order(order, classical, np.where(quality, psi_h, 0.0), quality)
     absolute = psi_h + 2.0 * np.pi * order  # Eq. (3), (H, W)
     with np.errstate(invalid="ignore"):
         valid = quality & (absolute >= 0.0) & (absolute < 2.0 * np.pi * result.frequency)
