@@ -17,8 +17,18 @@ The U-Net baseline ignores ``coarse_order`` and ``frequency_high``, so its graph
 as inputs (:mod:`dptpu.models.inference` feeds what the graph declares).
 
 ONNX metadata (``metadata_props``): ``dptpu_format`` (``dptpu-model/1``), ``kind``, ``config`` (JSON),
-``training`` (JSON: data, seed, epochs, ...). Opset 18, exported with the TorchScript-based exporter
-(``dynamo=False``), which handles the data-dependent padding in seconds.
+``training`` (JSON: data, seed, epochs, ...), and for the DP-TPU network ``graph`` (``dptpu-fast/1``). Opset 18.
+
+Two ways to write the graph (``graph=``):
+
+- ``"fast"`` (default for DP-TPU): :func:`dptpu.models.onnx_graph.build_dptpu_graph` writes the same function op
+  by op from the weights (space-to-depth layout at full resolution, folded linear maps, static reshapes; 480x640
+  about 30 % faster on onnxruntime, docs/benchmarks.md "bench model"). The raw parameters ride along under their
+  ``state_dict`` names in the model's ``training_info`` (ignored by onnxruntime), for
+  :func:`dptpu.models.onnx_weights.load_onnx_model`.
+- ``"torch"``: ``torch.onnx.export`` of the module with the TorchScript-based exporter (``dynamo=False``), which
+  handles the data-dependent padding in seconds. The U-Net baseline always goes this way; models shipped before
+  the fast graph have such a graph and still run.
 """
 from __future__ import annotations
 
@@ -27,27 +37,42 @@ import os
 import warnings
 from pathlib import Path
 
+import numpy as np
 import torch
 from torch import nn
 
 from .factory import build_model, model_config
+from .onnx_graph import GRAPH_FORMAT, build_dptpu_graph
 
-__all__ = ["MODEL_FORMAT", "INPUT_NAMES", "OUTPUT_NAME", "OPSET", "export_onnx", "load_checkpoint_model"]
+__all__ = [
+    "GRAPHS",
+    "INPUT_NAMES",
+    "MODEL_FORMAT",
+    "OPSET",
+    "OUTPUT_NAME",
+    "convert_onnx",
+    "export_onnx",
+    "load_checkpoint_model",
+]
 
 MODEL_FORMAT = "dptpu-model/1"
 INPUT_NAMES = ("wrapped_high", "wrapped_low", "coarse_order", "frequency_high")
 OUTPUT_NAME = "fringe_order"
 OPSET = 18
+#: Ways of writing the graph (module docstring); the first is the default for DP-TPU.
+GRAPHS = ("fast", "torch")
+#: Name of the ``training_info`` initialization graph that carries the raw parameters of a fast graph.
+PARAMETERS_GRAPH = "dptpu_parameters"
 
 
 def _example_inputs(height: int = 64, width: int = 96) -> tuple[torch.Tensor, ...]:
     generator = torch.Generator().manual_seed(0)
-    phase = lambda: torch.rand(2, 1, height, width, generator=generator) * 2 * torch.pi  # noqa: E731
+    phase = lambda: torch.rand(2, 1, height, width, generator=generator) * 2 * torch.pi
     return phase(), phase(), torch.randint(0, 60, (2, 1, height, width), generator=generator).float(), \
         torch.tensor([64.0, 48.0])
 
 
-def export_onnx(model: nn.Module, out, *, training: dict | None = None) -> Path:
+def export_onnx(model: nn.Module, out, *, training: dict | None = None, graph: str = "fast") -> Path:
     """Write ``model`` (eval mode) to the ONNX file ``out`` and return its path.
 
     Parameters
@@ -57,26 +82,25 @@ def export_onnx(model: nn.Module, out, *, training: dict | None = None) -> Path:
         Output ``.onnx`` file; its folder must exist. Written to a temporary name, then renamed.
     training : dict, optional
         Facts about the training run for the metadata (JSON-serializable).
+    graph : {"fast", "torch"}
+        How the DP-TPU graph is written (module docstring); the U-Net baseline is always traced.
     """
     import onnx
 
+    if graph not in GRAPHS:
+        raise ValueError(f"export graph must be one of {', '.join(GRAPHS)}; got {graph!r}")
     out = Path(out)
     if not out.parent.is_dir():
         raise FileNotFoundError(f"{out.parent}: output folder does not exist")
-    was_training = model.training
-    model.eval()
-    dynamic = {name: {0: "batch", 2: "height", 3: "width"} for name in INPUT_NAMES[:3]}
-    dynamic["frequency_high"] = {0: "batch"}
-    dynamic[OUTPUT_NAME] = {0: "batch", 2: "height", 3: "width"}
     tmp = out.with_name(out.name + ".tmp")
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        torch.onnx.export(model, _example_inputs(), str(tmp), input_names=list(INPUT_NAMES),
-                          output_names=[OUTPUT_NAME], dynamic_axes=dynamic, opset_version=OPSET, dynamo=False)
-    model.train(was_training)
-    proto = onnx.load(str(tmp))
     metadata = {"dptpu_format": MODEL_FORMAT, "kind": model.kind, "config": json.dumps(model_config(model)),
                 "training": json.dumps(training or {})}
+    if graph == "fast" and model.kind == "dptpu":
+        proto = _fast_model(model)
+        metadata["graph"] = GRAPH_FORMAT
+    else:
+        _trace(model, tmp)
+        proto = onnx.load(str(tmp))
     del proto.metadata_props[:]
     for key, value in metadata.items():
         entry = proto.metadata_props.add()
@@ -86,6 +110,50 @@ def export_onnx(model: nn.Module, out, *, training: dict | None = None) -> Path:
     return out
 
 
+def _trace(model: nn.Module, path: Path) -> None:
+    """``torch.onnx.export`` of ``model`` in eval mode to ``path`` (the ``"torch"`` graph)."""
+    was_training = model.training
+    model.eval()
+    dynamic = {name: {0: "batch", 2: "height", 3: "width"} for name in INPUT_NAMES[:3]}
+    dynamic["frequency_high"] = {0: "batch"}
+    dynamic[OUTPUT_NAME] = {0: "batch", 2: "height", 3: "width"}
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            torch.onnx.export(model, _example_inputs(), str(path), input_names=list(INPUT_NAMES),
+                              output_names=[OUTPUT_NAME], dynamic_axes=dynamic, opset_version=OPSET, dynamo=False)
+    finally:
+        model.train(was_training)
+
+
+def _fast_model(model: nn.Module):
+    """The ``"fast"`` ModelProto of a DPTPUNet: the graph of :func:`build_dptpu_graph` and, in ``training_info``,
+    the raw parameters under their ``state_dict`` names."""
+    from onnx import helper, numpy_helper
+
+    state = {key: value.detach().cpu().numpy().astype(np.float32) for key, value in model.state_dict().items()}
+    proto = helper.make_model(build_dptpu_graph(state, model.config),
+                              opset_imports=[helper.make_opsetid("", OPSET)], producer_name="dptpu")
+    proto.ir_version = 8  # onnxruntime >= 1.14 reads it
+    parameters = proto.training_info.add().initialization
+    parameters.name = PARAMETERS_GRAPH
+    parameters.initializer.extend(numpy_helper.from_array(value, name=key) for key, value in state.items())
+    return proto
+
+
+def convert_onnx(path, out, *, graph: str = "fast") -> Path:
+    """Write the model of the exported file ``path`` again with ``graph`` (e.g. a traced model as a fast one).
+
+    The weights are read back with :func:`dptpu.models.onnx_weights.load_onnx_model` (checked against
+    onnxruntime), the metadata's ``training`` is kept; returns ``out``.
+    """
+    from .onnx_weights import load_onnx_model
+
+    model, training = load_onnx_model(path)
+    training = {k: v for k, v in training.items() if k not in ("kind", "config", "max_abs_difference")}
+    return export_onnx(model, out, training=training, graph=graph)
+
+
 def load_checkpoint_model(path) -> tuple[nn.Module, dict]:
     """The network saved in a training checkpoint (eval mode) and the checkpoint dict."""
     path = Path(path)
@@ -93,7 +161,7 @@ def load_checkpoint_model(path) -> tuple[nn.Module, dict]:
         raise FileNotFoundError(f"{path}: no such checkpoint")
     try:
         checkpoint = torch.load(path, map_location="cpu", weights_only=True)
-    except Exception as exc:  # a truncated or foreign file
+    except Exception as exc:  # noqa: BLE001 - a truncated or foreign file raises many exception types
         raise ValueError(f"{path}: not a dptpu training checkpoint ({type(exc).__name__}: {exc})") from None
     if not isinstance(checkpoint, dict) or checkpoint.get("format") != "dptpu-checkpoint/1":
         raise ValueError(f"{path}: not a dptpu training checkpoint (format dptpu-checkpoint/1)")

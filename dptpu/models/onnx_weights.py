@@ -1,7 +1,9 @@
 """The torch network of an exported ONNX model: its weights copied back from the ONNX initializers.
 
 Fine-tuning needs the trained weights in torch, and a shipped model may exist only as its ``.onnx`` file
-(:mod:`dptpu.models.export`). Most initializers keep their ``state_dict`` names (``stem.0.weight``); the exporter
+(:mod:`dptpu.models.export`). A fast graph (``graph`` metadata ``dptpu-fast/1``) carries every parameter under its
+``state_dict`` name in the model's ``training_info``. In a traced graph most initializers keep their ``state_dict``
+names (``stem.0.weight``); the exporter
 constant-folds others into anonymous initializers (``onnx::Mul_2727``): a channel norm's
 ``weight[None, :, None, None]``, a slice ``weight[:, :1]``, a parameter times a constant gain; and it merges equal
 constants into one, read through ``Identity`` nodes. They are recovered by exporting a network of the same
@@ -23,16 +25,20 @@ from torch import nn
 
 from .factory import build_model
 
-__all__ = ["load_onnx_model", "MAX_ABS_DIFFERENCE"]
+__all__ = ["MAX_ABS_DIFFERENCE", "load_onnx_model"]
 
 #: Largest accepted difference (fringe orders) between the recovered torch network and onnxruntime.
 MAX_ABS_DIFFERENCE = 1e-3
 
 
 def _initializers(proto) -> dict:
+    """The graph's initializers and those of its ``training_info`` (where a fast graph keeps the raw parameters)."""
     from onnx import numpy_helper
 
-    return {init.name: numpy_helper.to_array(init) for init in proto.graph.initializer}
+    found = {init.name: numpy_helper.to_array(init) for init in proto.graph.initializer}
+    for info in proto.training_info:
+        found.update({init.name: numpy_helper.to_array(init) for init in info.initialization.initializer})
+    return found
 
 
 def _metadata(proto, path: Path) -> tuple[str, dict, dict]:
@@ -82,8 +88,9 @@ def _folded_names_cached(kind: str, config_json: str, keys: tuple) -> tuple:
     scale is no marker). The anonymous names (``onnx::Mul_N``) depend on what the exporter traced before in the
     process, so they are matched by their position among the anonymous initializers, which the architecture fixes.
     """
-    from .export import export_onnx
     import onnx
+
+    from .export import export_onnx
 
     model = build_model(kind, json.loads(config_json))
     state = model.state_dict()
@@ -96,7 +103,7 @@ def _folded_names_cached(kind: str, config_json: str, keys: tuple) -> tuple:
             markers[key] = (offset, marker)
             offset += size
     with tempfile.TemporaryDirectory() as folder:
-        path = export_onnx(model, Path(folder) / "markers.onnx")
+        path = export_onnx(model, Path(folder) / "markers.onnx", graph="torch")  # traced files need markers
         proto = onnx.load(str(path))
         found = _initializers(proto)
     starts = np.array([markers[k][0] for k in keys])
@@ -162,7 +169,7 @@ def load_onnx_model(path) -> tuple[nn.Module, dict]:
         raise FileNotFoundError(f"{path}: no such ONNX model")
     try:
         proto = onnx.load(str(path))
-    except Exception as exc:  # a truncated or foreign file
+    except Exception as exc:  # noqa: BLE001 - a truncated or foreign file raises many exception types
         raise ValueError(f"{path}: not a readable ONNX model ({type(exc).__name__}: {exc})") from None
     kind, config, training = _metadata(proto, path)
     model = build_model(kind, config or None)
