@@ -78,7 +78,7 @@ def refine_capture_result(result, model: FringeOrderModel, *, consensus: bool = 
                          f"wrapped phases; got method {result.method!r}")
     psi_h, psi_l = result.wrapped_phases
     quality = np.asarray(result.quality, dtype=bool)
-    order = model.refine(psi_h, psi_l, result.fringe_order.astype(np.float64), result.frequency, valid=quality)
+    order = model.refine(psi_h, psi_l, result.fringe_order, result.frequency, valid=quality)
     if consensus:
         classical = np.where(result.valid, result.fringe_order, order)  # the network's where classical has none
         order = consensus_order(order, classical, np.where(quality, psi_h, 0.0), quality)
