@@ -38,7 +38,12 @@ model is available (``dptpu.models.inference.shipped_model_path()`` or ``--model
 
     dptpu bench pipeline [--json] [--size 640x480] [--scans 60] [--warmup 10] [--in-flight 4]
                          [--latency-load 0.5] [--steps 12,3] [--model FILE.onnx] [--classical-only]
+    dptpu bench pipeline --floor [--json] [--size 640x480] [--steps 12,3]
     python benchmarks/pipeline_bench.py [same options]
+
+``--floor`` launches nothing: it times, in one process, the work of a scan that no graph can take away (frames in
+and the cloud out through ZeroMQ, the phase, the unwrapping, the triangulation; :func:`floor_ms_per_scan`), the
+lower bound of ``cpu_ms_per_scan["total"]``.
 
 Results and the machine they were taken on: docs/benchmarks.md, "bench pipeline".
 """
@@ -228,6 +233,102 @@ def _node_durations_ms(records) -> dict:
                                                 if node in r.get("node_durations_s", {})])), 1) for node in nodes}
 
 
+def floor_ms_per_scan(*, steps: int, size: str, repeats: int = 30) -> dict:
+    """The work of one scan that no graph can take away, in one process with the repo's fastest kernels (CPU ms).
+
+    What a scanner must do however it is built: take the scan's frames in through ZeroMQ (``transport_in``: the
+    camera's send and the scanner's receive of ``2 * steps`` mono8 frames, ipc PUSH/PULL, both sides' CPU), the
+    Eq. (2) sums and float32 arctangents of both entries with the modulation/saturation mask (``phase``,
+    :func:`dptpu.fpp.phase.sequence_sums`, :func:`~dptpu.fpp.phase.maps_from_sums`), Eq. (5) (``unwrap``,
+    :func:`dptpu.fpp.tpu.unwrap_mf_float32`), the triangulation with both lens distortions into float32 metres
+    (``triangulate``, :meth:`~dptpu.fpp.triangulate.Triangulator.camera_points` of the sim rig's rig at ``size``),
+    the (H, W, 5) cloud and its depth image (``assemble``), and both sent to one subscriber (``transport_out``,
+    both sides). No Python between processes, no messages but the frames and the outputs: a lower bound of
+    the graph's CPU per scan. The frames are an analytic ramp across the projector (64 and 1 periods), so the
+    triangulation converges as on a real scene. Median of ``repeats`` timings of each part (``time.process_time``,
+    every thread).
+    """
+    import cv2
+    import zmq
+
+    from dptpu.fpp import phase as fpp_phase
+    from dptpu.fpp import tpu
+    from dptpu.fpp.triangulate import Triangulator, projector_coordinate
+    from dptpu.sim.rig import load_twin_rig
+
+    width, height = (int(v) for v in size.lower().split("x"))
+    rig = load_twin_rig(REPO_ROOT / "launch" / "params" / "shipped_rig.yaml", size=(width, height))
+    triangulator = Triangulator(rig, axis="x")
+    extent = rig.projector.size[0]
+    rows, cols = np.mgrid[0:height, 0:width]
+    x_p = 40.0 + (extent - 80.0) * cols / width + 0.05 * rows  # (H, W) projector columns
+    stacks = []
+    for frequency in (64.0, 1.0):
+        n = np.arange(steps)[:, None, None]
+        phase = 2 * np.pi * frequency * x_p / extent
+        stacks.append(np.round(128 + 100 * np.cos(phase - 2 * np.pi * n / steps)).astype(np.uint8))  # (N, H, W)
+
+    context = zmq.Context()
+    sender, receiver = context.socket(zmq.PUSH), context.socket(zmq.PULL)
+    address = f"ipc:///tmp/dptpu-floor-{os.getpid()}"
+    receiver.bind(address)
+    sender.connect(address)
+
+    def transfer(arrays):
+        for array in arrays:
+            sender.send(array, copy=False)
+        for _ in arrays:
+            receiver.recv(copy=False)
+
+    frames = [frame for stack in stacks for frame in stack]
+    state = {}
+
+    def phase_step():
+        sums = [fpp_phase.sequence_sums(stack) for stack in stacks]
+        maps = [fpp_phase.maps_from_sums(s) for s in sums]
+        valid = np.ones((height, width), dtype=bool)
+        for m in maps:
+            valid &= m.modulation >= 10.0
+        valid &= np.maximum.reduce([stack.max(axis=0) for stack in stacks]) < 255
+        state["maps"], state["valid"] = maps, valid
+
+    def unwrap_step():
+        maps = state["maps"]
+        state["unwrapped"] = tpu.unwrap_mf_float32(maps[0].phase, maps[1].phase, 64.0, 1.0, valid=state["valid"])
+
+    def triangulate_step():
+        result = state["unwrapped"]
+        coord = projector_coordinate(result.absolute_phase, 64.0, extent)
+        state["xyz"] = [triangulator.camera_points(coord, scale=rig.scale_to_m, dtype=np.float32)]
+
+    def assemble_step():
+        xyz = state["xyz"][0]
+        channels = [np.ascontiguousarray(xyz[..., k]) for k in range(3)]
+        state["cloud"] = cv2.merge([*channels, state["maps"][0].modulation, state["unwrapped"].reliability])
+        state["depth"] = channels[2]
+
+    parts = {"transport_in": lambda: transfer(frames), "phase": phase_step, "unwrap": unwrap_step,
+             "triangulate": triangulate_step, "assemble": assemble_step,
+             "transport_out": lambda: transfer([state["cloud"], state["depth"]])}
+    times = {name: [] for name in parts}
+    try:
+        for _ in range(repeats + 2):  # two warm-ups
+            for name, part in parts.items():
+                started = time.process_time()
+                part()
+                times[name].append(time.process_time() - started)
+    finally:
+        sender.close(linger=0)
+        receiver.close(linger=0)
+        context.term()
+    figures = {name: round(1e3 * float(np.median(values[2:])), 2) for name, values in times.items()}
+    figures["total"] = round(sum(figures.values()), 2)
+    figures["cores_2_scans_per_s_max"] = round(2000.0 / figures["total"], 1)
+    figures.update(steps=steps, frames=2 * steps, size=size, valid_pixels=int(np.count_nonzero(
+        np.isfinite(state["depth"]))))
+    return figures
+
+
 def dptpu_model(explicit: str | None) -> str | None:
     """The DP-TPU model to time: ``--model``, else the shipped one, else None."""
     if explicit:
@@ -254,6 +355,21 @@ def run(args) -> int:
               f"{most_frames} a scan), --latency-load in [0, 1); got {args.scans}, {args.warmup}, {args.in_flight}, "
               f"{args.latency_load}", file=sys.stderr)
         return 2
+    if args.floor:
+        from dptpu.nodes.node_main import keep_freed_memory
+
+        keep_freed_memory()  # as every node does
+        report = {"benchmark": "pipeline-floor", "machine": {"cpus": os.cpu_count(), "platform": platform.platform(),
+                                                            "python": platform.python_version(),
+                                                            "load_average": list(os.getloadavg())},
+                  "floors": [floor_ms_per_scan(steps=step, size=args.size) for step in steps]}
+        print(json.dumps(report, indent=1) if args.json else "\n".join(
+            f"2 x {f['steps']}-step floor: {f['total']:.1f} ms CPU a scan (at most {f['cores_2_scans_per_s_max']} "
+            f"scans/s on 2 cores): " + ", ".join(f"{k} {f[k]:.2f}" for k in ("transport_in", "phase", "unwrap",
+                                                                            "triangulate", "assemble",
+                                                                            "transport_out"))
+            for f in report["floors"]))
+        return 0
     model = dptpu_model(args.model)
     models = ["none"] + ([model] if model and not args.classical_only else [])
     results = []
@@ -293,6 +409,9 @@ def add_arguments(parser) -> None:
     parser.add_argument("--model", default=None, help="DP-TPU .onnx model (default: the shipped one, if any)")
     parser.add_argument("--classical-only", action="store_true", help="skip DP-TPU even when a model exists")
     parser.add_argument("--timeout", type=float, default=600.0, help="seconds per launch (default 600)")
+    parser.add_argument("--floor", action="store_true",
+                        help="no graph: the CPU per scan of the work no graph can take away (frames in, phase, "
+                             "unwrap, triangulation, cloud and depth out), in one process")
 
 
 def build_parser() -> argparse.ArgumentParser:
