@@ -1,27 +1,30 @@
 """Speed of DP-TPU inference (onnxruntime) side by side with the classical unwrapping of the same input.
 
-Run it as ``python benchmarks/model_bench.py [--model PATH] [--threads 2] [--size 480x640] [--runs 30]
-[--json]`` or as ``dptpu bench model ...``. Not a test: nothing here asserts a time.
+Run it as ``python benchmarks/model_bench.py [--model PATH] [--baseline PATH] [--threads 2] [--size 480x640]
+[--runs 30] [--json]`` or as ``dptpu bench model ...``. Not a test: nothing here asserts a time.
 
 What is measured, in one run, on one synthetic input of ``--size`` (height x width, default 480x640):
 
 - ``inference``: :meth:`dptpu.models.inference.FringeOrderModel.predict` of the model (default: the shipped
   ``dptpu/models/dptpu.onnx``) in an onnxruntime session with ``--threads`` intra-op threads (default 2,
-  the issue's goal: <= 25 ms for 480x640 on 2 threads); the time of the ``session.run`` call plus the
-  float32 conversion of the inputs, i.e. the network alone, without the classical order before it or the
-  rounding after it;
-- ``refine``: :meth:`~dptpu.models.inference.FringeOrderModel.refine` (masking, network, rounding), what
-  ``dptpu unwrap`` adds to the classical unwrapping;
-- ``classical``: :func:`dptpu.fpp.tpu.unwrap_mf` (Eq. (5) of the paper) of the same wrapped phases.
+  the issue's goal: <= 25 ms for 480x640 on 2 threads) on float32 maps that are already masked (what the
+  float32 unwrapping of the scanner delivers), i.e. the network alone: the ``session.run`` call, without
+  the classical order before it or the rounding after it;
+- ``refine``: :meth:`~dptpu.models.inference.FringeOrderModel.refine` of float64 phase maps with NaN outside
+  the mask and the int32 classical order (masking, float32 casts, network, rounding), as
+  :func:`dptpu.models.refine.refine_capture_result` calls it for ``dptpu unwrap``;
+- ``classical``: :func:`dptpu.fpp.tpu.unwrap_mf` (Eq. (5) of the paper) of the same wrapped phases;
+- with ``--baseline PATH``, ``baseline_inference`` too: the same inference of a second model file (e.g. the
+  same weights in the traced graph, :func:`dptpu.models.export.convert_onnx`), interleaved run by run.
 
 The input is an analytic step scene (:func:`dptpu.models.toy_dataset.toy_sample`, MF, ``f_h = 96``,
 1 sigma noise, 3 steps). Each timing is ``--warmup`` untimed runs then ``--runs`` timed runs (wall clock,
 ``time.perf_counter``); the report gives p50 and p99 (nearest-rank) in milliseconds, interleaving the
-three timings run by run so that a load spike of the shared machine hits all three alike, and the load
+timings run by run so that a load spike of the shared machine hits all of them alike, and the load
 average of the machine at the start and end (``os.getloadavg``). ``*_cpu_ms_p50`` is the CPU time of the
 process during the call (``time.process_time``, all threads summed): on a loaded machine it is closer to
 what the call costs on idle cores than the wall clock (with 1 thread about equal to the idle wall time;
-with 2 threads at best twice it).
+with 2 threads at best twice it). ``*_ms_min`` (the fastest run) is what an idle machine would show.
 """
 from __future__ import annotations
 
@@ -68,8 +71,18 @@ def percentile_ms(seconds: list[float], q: float) -> float:
     return float(ordered[min(max(rank, 0), len(ordered) - 1)] * 1e3)
 
 
+def _graph(path) -> str:
+    """The ``graph`` metadata of a model file (``"torch"`` for a traced export, which has none)."""
+    import onnxruntime
+
+    options = onnxruntime.SessionOptions()
+    options.log_severity_level = 3
+    session = onnxruntime.InferenceSession(str(path), options, providers=["CPUExecutionProvider"])
+    return session.get_modelmeta().custom_metadata_map.get("graph", "torch")
+
+
 def run(model_path, *, size=DEFAULT_SIZE, threads: int = DEFAULT_THREADS, runs: int = DEFAULT_RUNS,
-        warmup: int = DEFAULT_WARMUP) -> dict:
+        warmup: int = DEFAULT_WARMUP, baseline=None) -> dict:
     """Time inference, refine and ``unwrap_mf`` on one input; returns the report dict (see module doc)."""
     from dptpu.fpp.tpu import unwrap_mf
     from dptpu.models.inference import FringeOrderModel
@@ -77,25 +90,24 @@ def run(model_path, *, size=DEFAULT_SIZE, threads: int = DEFAULT_THREADS, runs: 
 
     load_start = os.getloadavg()
     model = FringeOrderModel.load(model_path, threads=threads)
+    other = FringeOrderModel.load(baseline, threads=threads) if baseline is not None else None
     sample = toy_sample("mf", FREQUENCY_HIGH, shape=tuple(size), noise_sigma=1.5693, scene_seed=12345)
     valid = sample["valid"]
     psi_h = np.where(valid, sample["wrapped_high"], np.nan).astype(np.float64)
     psi_l = np.where(valid, sample["wrapped_low"], np.nan).astype(np.float64)
-    coarse = unwrap_mf(psi_h, psi_l, FREQUENCY_HIGH, 1.0, valid=valid).fringe_order.astype(np.float64)
-    clean = [np.where(valid, a, 0.0) for a in (psi_h, psi_l, coarse)]
+    coarse_order = unwrap_mf(psi_h, psi_l, FREQUENCY_HIGH, 1.0, valid=valid).fringe_order  # int32, as unwrap gives
+    coarse = coarse_order.astype(np.float64)
+    clean = [np.where(valid, a, 0.0).astype(np.float32) for a in (psi_h, psi_l, coarse)]
 
-    def infer():
-        return model.predict(*clean, FREQUENCY_HIGH)
-
-    def refine():
-        return model.refine(psi_h, psi_l, coarse, FREQUENCY_HIGH, valid=valid)
-
-    def classical():
-        return unwrap_mf(psi_h, psi_l, FREQUENCY_HIGH, 1.0, valid=valid)
-
-    timings = {"inference": [], "refine": [], "classical": []}
-    cpu = {"inference": [], "classical": []}
-    functions = {"inference": infer, "refine": refine, "classical": classical}
+    functions = {
+        "inference": lambda: model.predict(*clean, FREQUENCY_HIGH),
+        "refine": lambda: model.refine(psi_h, psi_l, coarse_order, FREQUENCY_HIGH, valid=valid),
+        "classical": lambda: unwrap_mf(psi_h, psi_l, FREQUENCY_HIGH, 1.0, valid=valid),
+    }
+    if other is not None:
+        functions["baseline_inference"] = lambda: other.predict(*clean, FREQUENCY_HIGH)
+    timings = {name: [] for name in functions}
+    cpu = {name: [] for name in functions}
     for _ in range(warmup):
         for function in functions.values():
             function()
@@ -104,26 +116,41 @@ def run(model_path, *, size=DEFAULT_SIZE, threads: int = DEFAULT_THREADS, runs: 
             start, start_cpu = time.perf_counter(), time.process_time()
             function()
             timings[name].append(time.perf_counter() - start)
-            if name in cpu:
-                cpu[name].append(time.process_time() - start_cpu)
+            cpu[name].append(time.process_time() - start_cpu)
     label = sample["label_order"]
-    refined = refine()
+    refined = functions["refine"]()
     report = {
-        "model": str(model_path), "kind": model.kind, "config": model.config, "size": list(size),
-        "threads": threads, "runs": runs, "warmup": warmup,
+        "model": str(model_path), "kind": model.kind, "graph": _graph(model_path), "config": model.config,
+        "size": list(size), "threads": threads, "runs": runs, "warmup": warmup,
         "inference_ms_p50": percentile_ms(timings["inference"], 50),
         "inference_ms_p99": percentile_ms(timings["inference"], 99),
+        "inference_ms_min": percentile_ms(timings["inference"], 0),
         "refine_ms_p50": percentile_ms(timings["refine"], 50),
         "classical_ms_p50": percentile_ms(timings["classical"], 50),
         "classical_ms_p99": percentile_ms(timings["classical"], 99),
+        "classical_ms_min": percentile_ms(timings["classical"], 0),
         "inference_cpu_ms_p50": percentile_ms(cpu["inference"], 50),
+        "refine_cpu_ms_p50": percentile_ms(cpu["refine"], 50),
         "classical_cpu_ms_p50": percentile_ms(cpu["classical"], 50),
         "accuracy_classical": float(np.mean(coarse[valid] == label[valid])),
         "accuracy_model": float(np.mean(refined[valid] == label[valid])),
+    }
+    if other is not None:
+        continuous = model.predict(*clean, FREQUENCY_HIGH)
+        reference = other.predict(*clean, FREQUENCY_HIGH)
+        report.update({
+            "baseline": str(baseline), "baseline_graph": _graph(baseline),
+            "baseline_inference_ms_p50": percentile_ms(timings["baseline_inference"], 50),
+            "baseline_inference_ms_p99": percentile_ms(timings["baseline_inference"], 99),
+            "baseline_inference_ms_min": percentile_ms(timings["baseline_inference"], 0),
+            "baseline_inference_cpu_ms_p50": percentile_ms(cpu["baseline_inference"], 50),
+            "baseline_max_abs_difference": float(np.max(np.abs(continuous - reference)[valid])),
+        })
+    report.update({
         "loadavg_start": [round(v, 2) for v in load_start],
         "loadavg_end": [round(v, 2) for v in os.getloadavg()],
         "cpu_count": os.cpu_count(), "python": platform.python_version(),
-    }
+    })
     try:
         import onnxruntime
 
@@ -137,6 +164,8 @@ def main(argv=None) -> int:
     parser = argparse.ArgumentParser(
         prog="dptpu bench model", description="DP-TPU inference (onnxruntime) vs classical unwrap_mf, same input")
     parser.add_argument("--model", default=None, help="ONNX model (default: the shipped dptpu/models/dptpu.onnx)")
+    parser.add_argument("--baseline", default=None, metavar="PATH",
+                        help="a second ONNX model whose inference is timed alongside (e.g. the traced graph)")
     parser.add_argument("--size", type=_size, default=DEFAULT_SIZE, metavar="HxW", help="input size (480x640)")
     parser.add_argument("--threads", type=_positive, default=DEFAULT_THREADS, help="onnxruntime intra-op threads")
     parser.add_argument("--runs", type=_positive, default=DEFAULT_RUNS, help="timed runs (default 30)")
@@ -150,7 +179,8 @@ def main(argv=None) -> int:
         print("no model: pass --model PATH (the package has no shipped dptpu/models/dptpu.onnx)", file=sys.stderr)
         return 2
     try:
-        report = run(model_path, size=args.size, threads=args.threads, runs=args.runs, warmup=max(args.warmup, 0))
+        report = run(model_path, size=args.size, threads=args.threads, runs=args.runs, warmup=max(args.warmup, 0),
+                     baseline=args.baseline)
     except ModelLoadError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
@@ -158,11 +188,16 @@ def main(argv=None) -> int:
         print(json.dumps(report, indent=2))
     else:
         h, w = report["size"]
-        print(f"model {report['model']} ({report['kind']}), {h}x{w}, {report['threads']} threads, "
+        print(f"model {report['model']} ({report['kind']}, graph {report['graph']}), {h}x{w}, {report['threads']} threads, "
               f"{report['runs']} runs, load average {report['loadavg_start']} -> {report['loadavg_end']}")
         print(f"  inference  p50 {report['inference_ms_p50']:8.1f} ms   p99 {report['inference_ms_p99']:8.1f} ms"
-              f"   CPU p50 {report['inference_cpu_ms_p50']:8.1f} ms")
-        print(f"  refine     p50 {report['refine_ms_p50']:8.1f} ms")
+              f"   CPU p50 {report['inference_cpu_ms_p50']:8.1f} ms   min {report['inference_ms_min']:8.1f} ms")
+        if "baseline" in report:
+            print(f"  baseline   p50 {report['baseline_inference_ms_p50']:8.1f} ms   p99 "
+                  f"{report['baseline_inference_ms_p99']:8.1f} ms   CPU p50 {report['baseline_inference_cpu_ms_p50']:8.1f}"
+                  f" ms   min {report['baseline_inference_ms_min']:8.1f} ms   ({report['baseline']}, graph "
+                  f"{report['baseline_graph']}; max |difference| {report['baseline_max_abs_difference']:.2g} orders)")
+        print(f"  refine     p50 {report['refine_ms_p50']:8.1f} ms   CPU p50 {report['refine_cpu_ms_p50']:8.1f} ms")
         print(f"  classical  p50 {report['classical_ms_p50']:8.1f} ms   p99 {report['classical_ms_p99']:8.1f} ms"
               f"   CPU p50 {report['classical_cpu_ms_p50']:8.1f} ms   (unwrap_mf)")
         print(f"  accuracy   classical {100 * report['accuracy_classical']:.2f} %   "

@@ -121,3 +121,20 @@ def test_shipped_model_gives_the_same_orders_as_its_other_graph(tmp_path):
     second = FringeOrderModel.load(other, threads=1).predict(*inputs, 96.0)
     assert np.abs(first - second)[valid].max() < 1e-3
     assert np.array_equal(np.rint(first)[valid], np.rint(second)[valid])
+
+
+def test_bench_model_times_the_fast_graph_beside_the_traced_one(tmp_path, capsys):
+    from dptpu.cli.main import main
+
+    model = _random_model(CONFIGS["heads-2-1"], seed=8)
+    fast = export_onnx(model, tmp_path / "fast.onnx")
+    traced = export_onnx(model, tmp_path / "traced.onnx", graph="torch")
+    code = main(["bench", "model", "--model", str(fast), "--baseline", str(traced), "--size", "40x56", "--runs", "2",
+                 "--warmup", "1", "--threads", "1", "--json"])
+    assert code == 0
+    report = json.loads(capsys.readouterr().out)
+    assert report["graph"] == GRAPH_FORMAT and report["baseline_graph"] == "torch"
+    assert report["size"] == [40, 56] and report["runs"] == 2
+    assert report["baseline_max_abs_difference"] < 1e-3
+    assert report["inference_ms_min"] <= report["inference_ms_p50"] <= report["inference_ms_p99"]
+    assert 0.0 <= report["accuracy_model"] <= 1.0 and 0.5 < report["accuracy_classical"] <= 1.0
