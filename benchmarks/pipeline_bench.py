@@ -177,6 +177,7 @@ def timed_figures(report: dict, scans: int) -> dict:
         if np.isfinite(first).any() else None,
         "scans_failed": sum(r["outcome"] == "failed" for r in timed),
         "scans_lost": sum(r["outcome"] == "lost" for r in timed),
+        "failure_reasons": [f"scan {r['sequence_id']}: {r.get('reason', '')}" for r in timed if r["outcome"] != "ok"],
         "warmup_failed": int(totals["failed"] + totals["lost"]) - sum(r["outcome"] != "ok" for r in timed),
         "valid_points_min": int(min(r["valid_points"] for r in ok)) if ok else 0,
         "node_duration_ms_p50": _node_durations_ms(ok),
@@ -211,6 +212,8 @@ def run_configuration(*, steps: int, model: str, size: str, scans: int, warmup: 
         "scans_timed": min(throughput["scans_timed"], latency["scans_timed"]),
         "scans_failed": throughput["scans_failed"] + (latency["scans_failed"] if latency is not throughput else 0),
         "scans_lost": throughput["scans_lost"] + (latency["scans_lost"] if latency is not throughput else 0),
+        "failure_reasons": throughput["failure_reasons"] + (latency["failure_reasons"] if latency is not throughput
+                                                            else []),
         "scans_per_s": rate,
         "latency_ms_p50": latency["latency_ms_p50"],
         "latency_ms_p99": latency["latency_ms_p99"],
