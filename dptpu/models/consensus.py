@@ -16,9 +16,9 @@ nothing but the measured wrapped phase ``psi_h`` and the orders themselves (no g
    periods per pixel, from wrapped differences of ``psi_h``, :func:`phase_gradient`), and so votes for
    the order ``rint(U_q - G_p . (q - p) - psi_h(p) / 2pi)``. Both the current orders and the classical
    ones vote (a wrong strip of the network along an edge is outvoted where the classical orders of the
-   strip are mostly right). Of the pixel's order ``k`` and ``k +- 1``, the one with most votes wins
-   (``k`` on ties; the pixel's own order counts once). Neighbours on another surface predict phases far
-   from all three and do not vote. The passes use windows of radius 1, 3, 3, 3, 3 (:data:`DEFAULT_RADII`),
+   strip are mostly right). The order with most votes wins (the pixel's own order on ties; it counts
+   once itself). Neighbours on another surface spread their votes over orders far from the pixel's, so
+   the pixel's own surface decides wherever it has more pixels in the window than any other surface. The passes use windows of radius 1, 3, 3, 3, 3 (:data:`DEFAULT_RADII`),
    each on the previous pass's orders, so a strip is eaten from its same-surface side; a pass re-decides
    only the pixels within its radius of two 4-neighbours whose phases disagree (elsewhere the votes
    confirm the order), which keeps it cheap on clean maps.
@@ -189,36 +189,77 @@ def _vote_steps(fields, absolute, gy, gx, todo, radius: int, sparse: bool) -> np
 
 
 def _gathered_steps(fields, absolute, gy, gx, pixels, radius: int, sparse: bool) -> np.ndarray:
-    """:func:`_vote_steps` for the flat indices ``pixels`` alone, ``(n,)`` int32."""
+    """:func:`_vote_steps` for the flat indices ``pixels`` alone, ``(n,)`` int32.
+
+    Votes for ``k - 1``, ``k`` and ``k + 1`` are counted for every pixel; the pixels whose votes for
+    other orders outnumber each of those three counts are voted again with every order counted
+    (:func:`_plurality`), so an order off by several periods is corrected too.
+    """
     width = absolute.shape[1]
     padded_width = width + 2 * radius
     rows, cols = np.divmod(pixels, width)
     centre = (rows + radius) * padded_width + cols + radius  # flat indices into the padded maps
     padded = [np.pad(field, radius, constant_values=np.nan).ravel() for field in fields]
     own, grad_y, grad_x = absolute.ravel()[pixels], gy.ravel()[pixels], gx.ravel()[pixels]
+    offsets = [(dy, dx) for dy in range(-radius, radius + 1) for dx in range(-radius, radius + 1)
+               if not ((dy == 0 and dx == 0) or (sparse and (dy + dx) % 2))]
     down = np.zeros(pixels.size, np.int16)
-    same = np.ones(pixels.size, np.int16)
+    same = np.ones(pixels.size, np.int16)  # the pixel's own vote
     up = np.zeros(pixels.size, np.int16)
+    votes = np.zeros(pixels.size, np.int16)  # all valid votes
     jump = np.empty(pixels.size, np.float32)
     hit = np.empty(pixels.size, bool)
     with np.errstate(invalid="ignore"):
-        for dy in range(-radius, radius + 1):
-            expected_row = own + grad_y * dy
-            for dx in range(-radius, radius + 1):
-                if (dy == 0 and dx == 0) or (sparse and (dy + dx) % 2):
-                    continue
-                expected = expected_row + grad_x * dx
-                shift = centre + (dy * padded_width + dx)
-                for field in padded:
-                    np.subtract(field[shift], expected, out=jump)
-                    np.rint(jump, out=jump)
-                    np.equal(jump, -1.0, out=hit)
-                    down += hit
-                    np.equal(jump, 0.0, out=hit)
-                    same += hit
-                    np.equal(jump, 1.0, out=hit)
-                    up += hit
-    return np.where((up > same) & (up > down), 1, np.where((down > same) & (down >= up), -1, 0)).astype(np.int32)
+        for dy, dx in offsets:
+            expected = own + (grad_y * dy + grad_x * dx)  # p's phase moved to q: U_p + G_p . (q - p)
+            shift = centre + (dy * padded_width + dx)
+            for field in padded:
+                # periods by which q's prediction of p exceeds p's phase: U_q - G_p . (q - p) - U_p
+                np.subtract(field[shift], expected, out=jump)
+                np.rint(jump, out=jump)
+                np.equal(jump, -1.0, out=hit)
+                down += hit
+                np.equal(jump, 0.0, out=hit)
+                same += hit
+                np.equal(jump, 1.0, out=hit)
+                up += hit
+                np.isfinite(jump, out=hit)
+                votes += hit
+    step = np.where((up > same) & (up > down), 1, np.where((down > same) & (down >= up), -1, 0)).astype(np.int32)
+    other = votes + 1 - down - same - up  # votes for orders off by 2 or more
+    far = np.flatnonzero((other > same) & (other > up) & (other > down))
+    if far.size:
+        best, count = _plurality(padded, centre[far], own[far], grad_y[far], grad_x[far], offsets, padded_width)
+        wins = count > np.maximum(np.maximum(same[far], up[far]), down[far])
+        step[far] = np.where(wins, best, step[far])
+    return step
+
+
+def _plurality(padded, centre, own, grad_y, grad_x, offsets, padded_width) -> tuple[np.ndarray, np.ndarray]:
+    """The most voted order change of each pixel and its vote count, ``(n,)`` int32 each.
+
+    The same votes as :func:`_gathered_steps`, sorted per pixel; the longest run of equal values wins
+    (the smallest change on ties). Invalid neighbours do not vote.
+    """
+    none = np.float32(1e9)
+    table = np.empty((len(offsets) * len(padded), centre.size), np.float32)
+    row = 0
+    with np.errstate(invalid="ignore"):
+        for dy, dx in offsets:
+            expected = own + (grad_y * dy + grad_x * dx)
+            for field in padded:
+                table[row] = np.rint(field[centre + (dy * padded_width + dx)] - expected)
+                row += 1
+    table[~np.isfinite(table)] = none
+    table.sort(axis=0)
+    index = np.arange(table.shape[0])[:, None]
+    starts = np.zeros(table.shape, np.int64)
+    starts[1:] = np.where(table[1:] != table[:-1], index[1:], 0)
+    run = index - np.maximum.accumulate(starts, axis=0) + 1  # length of the run ending at each row
+    run[table == none] = 0
+    end = np.argmax(run, axis=0)
+    columns = np.arange(centre.size)
+    return table[end, columns].astype(np.int32), run[end, columns].astype(np.int32)
 
 
 def _unsettled(absolute: np.ndarray, gy: np.ndarray, gx: np.ndarray, radius: int) -> np.ndarray:

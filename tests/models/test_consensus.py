@@ -84,6 +84,16 @@ def test_consensus_removes_a_wrong_strip_along_the_depth_edge():
     assert np.array_equal(after[valid], order[valid])
 
 
+def test_vote_fixes_orders_off_by_several_periods():
+    order, wrapped, valid = _scene()
+    damaged = order.copy()
+    damaged[10:12, 20:22] += 5  # a 2x2 blob off by 5 periods
+    damaged[30, 50] -= 17
+    damaged[45:48, STEP_X - 2:STEP_X] -= 3  # at the depth edge
+    voted = vote_orders(damaged, wrapped, valid)
+    assert np.array_equal(voted[valid], order[valid])
+
+
 def test_bad_shapes_name_the_field():
     order, wrapped, valid = _scene()
     with pytest.raises(ValueError, match="classical_order must be a"):
