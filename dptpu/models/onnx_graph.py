@@ -89,6 +89,10 @@ class _Graph:
         erf = self.op("Erf", [self.op("Div", [x, self.const(np.sqrt(2.0))])])
         return self.op("Mul", [self.op("Mul", [x, self.op("Add", [erf, self.const(1.0)])]), self.const(0.5)])
 
+    def split(self, x: str, parts: int) -> list[str]:
+        """``parts`` single-channel slices of a (B, parts, h, w) map."""
+        return self.op("Split", [x, self.ints(*[1] * parts)], outputs=parts, axis=1)
+
     def median3(self, a: str, b: str, c: str) -> str:
         return self.op("Max", [self.op("Min", [a, b]), self.op("Min", [self.op("Max", [a, b]), c])])
 
@@ -100,10 +104,9 @@ class _Graph:
         lows = self.op("Min", [low_ab, c])
         highs = self.op("Max", [high_ab, c])
         mids = self.op("Max", [low_ab, self.op("Min", [high_ab, c])])
-        axes = self.ints(1)
-        largest_low = self.op("ReduceMax", [lows, axes], keepdims=1)
-        smallest_high = self.op("ReduceMin", [highs, axes], keepdims=1)
-        mid = self.median3(*self.op("Split", [mids, self.ints(1, 1, 1)], outputs=3, axis=1))
+        largest_low = self.op("Max", self.split(lows, 3))  # variadic Max of slices: cheaper than ReduceMax
+        smallest_high = self.op("Min", self.split(highs, 3))
+        mid = self.median3(*self.split(mids, 3))
         return self.median3(largest_low, mid, smallest_high)
 
 
@@ -183,20 +186,18 @@ def _csa_block(g: _Graph, p, prefix: str, x: str, heads: int) -> str:
     head_logits = g.op("Split", [logits, g.ints(*[k2] * heads)], outputs=heads, axis=1) if heads > 1 else [logits]
     head_values = (g.op("Split", [value, g.ints(*[channels // heads] * heads)], outputs=heads, axis=1)
                    if heads > 1 else [value])
-    axes = g.ints(1)
     outs = []
     for logit, val in zip(head_logits, head_values):
-        e = g.op("Exp", [g.op("Sub", [logit, g.op("ReduceMax", [logit, axes], keepdims=1)])])
-        weights = g.op("Split", [g.op("Div", [e, g.op("ReduceSum", [e, axes], keepdims=1)]), g.ints(*[1] * k2)],
-                       outputs=k2, axis=1)
+        # softmax over the window, normalized after the weighted sum: sum_k e_k v_k / sum_k e_k
+        e = g.split(g.op("Exp", [g.op("Sub", [logit, g.op("Max", g.split(logit, k2))])]), k2)
         out = None
         for index in range(k2):
             dy, dx = divmod(index, kernel)
             ends = [-(2 * r - dy) if dy < 2 * r else _INT_MAX, -(2 * r - dx) if dx < 2 * r else _INT_MAX]
             window = g.op("Slice", [val, g.ints(dy, dx), g.ints(*ends), g.ints(2, 3)])
-            term = g.op("Mul", [weights[index], window])
+            term = g.op("Mul", [e[index], window])
             out = term if out is None else g.op("Add", [out, term])
-        outs.append(out)
+        outs.append(g.op("Div", [out, g.op("Sum", e)]))
     out = outs[0] if heads == 1 else g.op("Concat", outs, axis=1)
     x = g.op("Add", [x, g.conv(out, _w(p, prefix + "attention.proj.weight"), _w(p, prefix + "attention.proj.bias"))])
     return _mlp(g, p, prefix, x, _norm_params(p, prefix + "norm2"))
@@ -308,9 +309,8 @@ def build_dptpu_graph(state: dict, config):
     filled = g.op("Add", [samples, g.op("Mul", [invalid, g.const(fill)])])  # an invalid sample is 0: 0 + fill
     median = g.op("Mul", [g.median9(filled), weight])  # (B, 1, h, w)
     # reference r: bilinear x4 upsampling (16 sub-pixel kernels) of the weighted medians over that of the weights
-    both = g.op("Pad", [g.op("Concat", [median, weight], axis=1), g.ints(0, 0, 1, 1, 0, 0, 1, 1)], mode="edge")
-    up_median, up_weight = g.op("Split", [g.conv(both, np.concatenate([_upsample_kernels()] * 2), group=2),
-                                          g.ints(16, 16)], outputs=2, axis=1)
+    up_median, up_weight = (g.conv(g.op("Pad", [m, g.ints(0, 0, 1, 1, 0, 0, 1, 1)], mode="edge"), _upsample_kernels())
+                            for m in (median, weight))
     reference = g.op("Div", [up_median, g.op("Max", [up_weight, g.const(1e-6)])])
     deviation = g.op("Sub", [reference, periods])  # r - u_c, (B, 16, h, w)
     full = [g.op("Sin", [psi_h]), g.op("Cos", [psi_h]), g.op("Sin", [psi_l]), g.op("Cos", [psi_l]),
