@@ -82,15 +82,15 @@ def _graph(path) -> str:
 
 
 def run(model_path, *, size=DEFAULT_SIZE, threads: int = DEFAULT_THREADS, runs: int = DEFAULT_RUNS,
-        warmup: int = DEFAULT_WARMUP, baseline=None) -> dict:
+        warmup: int = DEFAULT_WARMUP, baseline=None, spinning: bool = False) -> dict:
     """Time inference, refine and ``unwrap_mf`` on one input; returns the report dict (see module doc)."""
     from dptpu.fpp.tpu import unwrap_mf
     from dptpu.models.inference import FringeOrderModel
     from dptpu.models.toy_dataset import toy_sample
 
     load_start = os.getloadavg()
-    model = FringeOrderModel.load(model_path, threads=threads)
-    other = FringeOrderModel.load(baseline, threads=threads) if baseline is not None else None
+    model = FringeOrderModel.load(model_path, threads=threads, spinning=spinning)
+    other = FringeOrderModel.load(baseline, threads=threads, spinning=spinning) if baseline is not None else None
     sample = toy_sample("mf", FREQUENCY_HIGH, shape=tuple(size), noise_sigma=1.5693, scene_seed=12345)
     valid = sample["valid"]
     psi_h = np.where(valid, sample["wrapped_high"], np.nan).astype(np.float64)
@@ -121,7 +121,7 @@ def run(model_path, *, size=DEFAULT_SIZE, threads: int = DEFAULT_THREADS, runs: 
     refined = functions["refine"]()
     report = {
         "model": str(model_path), "kind": model.kind, "graph": _graph(model_path), "config": model.config,
-        "size": list(size), "threads": threads, "runs": runs, "warmup": warmup,
+        "size": list(size), "threads": threads, "spinning": spinning, "runs": runs, "warmup": warmup,
         "inference_ms_p50": percentile_ms(timings["inference"], 50),
         "inference_ms_p99": percentile_ms(timings["inference"], 99),
         "inference_ms_min": percentile_ms(timings["inference"], 0),
@@ -168,6 +168,8 @@ def main(argv=None) -> int:
                         help="a second ONNX model whose inference is timed alongside (e.g. the traced graph)")
     parser.add_argument("--size", type=_size, default=DEFAULT_SIZE, metavar="HxW", help="input size (480x640)")
     parser.add_argument("--threads", type=_positive, default=DEFAULT_THREADS, help="onnxruntime intra-op threads")
+    parser.add_argument("--spinning", action="store_true",
+                        help="let idle onnxruntime threads spin (FringeOrderModel.load(spinning=True)); idle machines only")
     parser.add_argument("--runs", type=_positive, default=DEFAULT_RUNS, help="timed runs (default 30)")
     parser.add_argument("--warmup", type=int, default=DEFAULT_WARMUP, help="untimed runs first (default 3)")
     parser.add_argument("--json", action="store_true", help="print the report as JSON")
@@ -180,7 +182,7 @@ def main(argv=None) -> int:
         return 2
     try:
         report = run(model_path, size=args.size, threads=args.threads, runs=args.runs, warmup=max(args.warmup, 0),
-                     baseline=args.baseline)
+                     baseline=args.baseline, spinning=args.spinning)
     except ModelLoadError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
@@ -188,7 +190,8 @@ def main(argv=None) -> int:
         print(json.dumps(report, indent=2))
     else:
         h, w = report["size"]
-        print(f"model {report['model']} ({report['kind']}, graph {report['graph']}), {h}x{w}, {report['threads']} threads, "
+        print(f"model {report['model']} ({report['kind']}, graph {report['graph']}), {h}x{w}, {report['threads']} threads"
+              f"{' (spinning)' if report['spinning'] else ''}, "
               f"{report['runs']} runs, load average {report['loadavg_start']} -> {report['loadavg_end']}")
         print(f"  inference  p50 {report['inference_ms_p50']:8.1f} ms   p99 {report['inference_ms_p99']:8.1f} ms"
               f"   CPU p50 {report['inference_cpu_ms_p50']:8.1f} ms   min {report['inference_ms_min']:8.1f} ms")

@@ -56,7 +56,7 @@ class FringeOrderModel:
     _session: object
 
     @classmethod
-    def load(cls, path, *, threads: int | None = None) -> FringeOrderModel:
+    def load(cls, path, *, threads: int | None = None, spinning: bool = False) -> FringeOrderModel:
         """Open an exported model; ModelLoadError (a ValueError) naming the file if it cannot be used.
 
         Parameters
@@ -68,6 +68,9 @@ class FringeOrderModel:
             spinning (``session.intra_op.allow_spinning = 0``): on a machine shared with the scanner's
             other nodes, spinning threads steal the cores they wait for (480x640 on 2 threads of a loaded
             2-core machine: 320 ms with spinning, 165 ms without; docs/benchmarks.md, "bench model").
+        spinning : bool
+            Let idle intra-op threads spin (``allow_spinning = 1``): only on otherwise idle cores, where a
+            thread woken for every parallel op costs more than the op.
         """
         import onnxruntime as ort
 
@@ -78,7 +81,7 @@ class FringeOrderModel:
         if threads is not None:
             options.intra_op_num_threads = int(threads)
         options.log_severity_level = 3
-        options.add_session_config_entry("session.intra_op.allow_spinning", "0")
+        options.add_session_config_entry("session.intra_op.allow_spinning", "1" if spinning else "0")
         try:
             session = ort.InferenceSession(str(path), sess_options=options, providers=["CPUExecutionProvider"])
         except Exception as exc:  # noqa: BLE001 - onnxruntime raises its own exception types for corrupt files
