@@ -25,6 +25,8 @@ average of the machine at the start and end (``os.getloadavg``). ``*_cpu_ms_p50`
 process during the call (``time.process_time``, all threads summed): on a loaded machine it is closer to
 what the call costs on idle cores than the wall clock (with 1 thread about equal to the idle wall time;
 with 2 threads at best twice it). ``*_ms_min`` (the fastest run) is what an idle machine would show.
+``--profile`` adds onnxruntime's per-node profile (:func:`profile`): the sum over the graph's kernels of each
+one's fastest time, robust against the load of a shared machine, and that sum per op type.
 """
 from __future__ import annotations
 
@@ -79,6 +81,49 @@ def _graph(path) -> str:
     options.log_severity_level = 3
     session = onnxruntime.InferenceSession(str(path), options, providers=["CPUExecutionProvider"])
     return session.get_modelmeta().custom_metadata_map.get("graph", "torch")
+
+
+def profile(model_path, *, size=DEFAULT_SIZE, threads: int = 1, runs: int = 40, skip: int = 5) -> dict:
+    """onnxruntime's per-node profile of ``runs`` runs on random maps: each node's fastest kernel time after
+    ``skip`` runs, summed per op type (a load-robust floor of the network's cost on an idle core).
+
+    Returns ``{"profile_nodes": kernels per run, "profile_sum_of_minima_ms": ..., "profile_by_op_ms": {op: ms}}``.
+    """
+    import collections
+    import tempfile
+
+    import onnxruntime
+
+    options = onnxruntime.SessionOptions()
+    options.intra_op_num_threads = threads
+    options.log_severity_level = 3
+    options.add_session_config_entry("session.intra_op.allow_spinning", "0")
+    options.enable_profiling = True
+    with tempfile.TemporaryDirectory() as folder:
+        options.profile_file_prefix = os.path.join(folder, "model")
+        session = onnxruntime.InferenceSession(str(model_path), options, providers=["CPUExecutionProvider"])
+        rng = np.random.default_rng(0)
+        shape = (1, 1, *size)
+        feeds = {"wrapped_high": rng.uniform(0, 2 * np.pi, shape).astype(np.float32),
+                 "wrapped_low": rng.uniform(0, 2 * np.pi, shape).astype(np.float32),
+                 "coarse_order": rng.integers(0, int(FREQUENCY_HIGH), shape).astype(np.float32),
+                 "frequency_high": np.array([FREQUENCY_HIGH], np.float32)}
+        feeds = {i.name: feeds[i.name] for i in session.get_inputs()}
+        for _ in range(runs):
+            session.run(None, feeds)
+        with open(session.end_profiling()) as handle:
+            events = json.load(handle)
+    durations, op_types = collections.defaultdict(list), {}
+    for event in events:
+        if event.get("cat") == "Node" and event["name"].endswith("_kernel_time"):
+            durations[event["name"]].append(event["dur"])
+            op_types[event["name"]] = event["args"]["op_name"]
+    minima = {name: min(values[skip:] or values) / 1e3 for name, values in durations.items()}
+    by_op = collections.defaultdict(float)
+    for name, ms in minima.items():
+        by_op[op_types[name]] += ms
+    return {"profile_nodes": len(minima), "profile_sum_of_minima_ms": round(sum(minima.values()), 3),
+            "profile_by_op_ms": {op: round(ms, 3) for op, ms in sorted(by_op.items(), key=lambda x: -x[1])}}
 
 
 def run(model_path, *, size=DEFAULT_SIZE, threads: int = DEFAULT_THREADS, runs: int = DEFAULT_RUNS,
@@ -172,6 +217,8 @@ def main(argv=None) -> int:
                         help="let idle onnxruntime threads spin (FringeOrderModel.load(spinning=True)); idle machines only")
     parser.add_argument("--runs", type=_positive, default=DEFAULT_RUNS, help="timed runs (default 30)")
     parser.add_argument("--warmup", type=int, default=DEFAULT_WARMUP, help="untimed runs first (default 3)")
+    parser.add_argument("--profile", action="store_true",
+                        help="also onnxruntime's per-node profile (1 thread, 40 runs): sum of per-node minima by op")
     parser.add_argument("--json", action="store_true", help="print the report as JSON")
     args = parser.parse_args(argv)
     from dptpu.models.inference import ModelLoadError, shipped_model_path
@@ -183,6 +230,10 @@ def main(argv=None) -> int:
     try:
         report = run(model_path, size=args.size, threads=args.threads, runs=args.runs, warmup=max(args.warmup, 0),
                      baseline=args.baseline, spinning=args.spinning)
+        if args.profile:
+            report.update(profile(model_path, size=args.size))
+            if args.baseline:
+                report.update({f"baseline_{k}": v for k, v in profile(args.baseline, size=args.size).items()})
     except ModelLoadError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
@@ -205,6 +256,11 @@ def main(argv=None) -> int:
               f"   CPU p50 {report['classical_cpu_ms_p50']:8.1f} ms   (unwrap_mf)")
         print(f"  accuracy   classical {100 * report['accuracy_classical']:.2f} %   "
               f"model {100 * report['accuracy_model']:.2f} %")
+        for prefix in ("", "baseline_"):
+            if f"{prefix}profile_nodes" in report:
+                top = ", ".join(f"{op} {ms:.2f}" for op, ms in list(report[f"{prefix}profile_by_op_ms"].items())[:8])
+                print(f"  {prefix or 'model '}profile: {report[f'{prefix}profile_nodes']} kernels, sum of per-node "
+                      f"minima {report[f'{prefix}profile_sum_of_minima_ms']:.2f} ms (1 thread): {top}")
     return 0
 
 
