@@ -241,25 +241,25 @@ def _plurality(padded, centre, own, grad_y, grad_x, offsets, padded_width) -> tu
     The same votes as :func:`_gathered_steps`, sorted per pixel; the longest run of equal values wins
     (the smallest change on ties). Invalid neighbours do not vote.
     """
-    none = np.float32(1e9)
-    table = np.empty((len(offsets) * len(padded), centre.size), np.float32)
-    row = 0
+    none = np.iinfo(np.int16).max  # stands for an invalid neighbour (sorted last)
+    table = np.empty((centre.size, len(offsets) * len(padded)), np.int16)  # (n, votes)
+    column = 0
     with np.errstate(invalid="ignore"):
         for dy, dx in offsets:
             expected = own + (grad_y * dy + grad_x * dx)
             for field in padded:
-                table[row] = np.rint(field[centre + (dy * padded_width + dx)] - expected)
-                row += 1
-    table[~np.isfinite(table)] = none
-    table.sort(axis=0)
-    index = np.arange(table.shape[0])[:, None]
-    starts = np.zeros(table.shape, np.int64)
-    starts[1:] = np.where(table[1:] != table[:-1], index[1:], 0)
-    run = index - np.maximum.accumulate(starts, axis=0) + 1  # length of the run ending at each row
+                jump = np.rint(field[centre + (dy * padded_width + dx)] - expected)
+                table[:, column] = np.where(np.isfinite(jump), np.clip(jump, -30000, 30000), none)
+                column += 1
+    table.sort(axis=1, kind="stable")  # radix sort of 16-bit integers
+    index = np.arange(table.shape[1])[None, :]
+    starts = np.zeros(table.shape, np.int32)
+    starts[:, 1:] = np.where(table[:, 1:] != table[:, :-1], index[:, 1:], 0)
+    run = index - np.maximum.accumulate(starts, axis=1) + 1  # length of the run ending at each vote
     run[table == none] = 0
-    end = np.argmax(run, axis=0)
-    columns = np.arange(centre.size)
-    return table[end, columns].astype(np.int32), run[end, columns].astype(np.int32)
+    end = np.argmax(run, axis=1)
+    rows = np.arange(centre.size)
+    return table[rows, end].astype(np.int32), run[rows, end].astype(np.int32)
 
 
 def _unsettled(absolute: np.ndarray, gy: np.ndarray, gx: np.ndarray, radius: int) -> np.ndarray:
