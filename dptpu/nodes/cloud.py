@@ -49,6 +49,7 @@ import time
 from collections import OrderedDict
 from pathlib import Path
 
+import cv2
 import numpy as np
 
 from dptpu.fpp.calibration import DeviceModel, Rig, load_rig
@@ -235,16 +236,16 @@ class CloudNode(Node):
     def _triangulate(self, msg: AbsolutePhase) -> None:
         """Triangulate one scan; publish its cloud, depth image and status.
 
-        The cloud is one fresh (H, W, 5) float32 buffer filled in place (x, y, z by the triangulation, then the
-        intensity and quality channels) and published without a copy; the depth image is its z channel made
-        contiguous (one (H, W) copy).
+        x, y, z are written as three contiguous planes (the triangulation's output, a planar view), then
+        interleaved with the intensity and quality into one fresh (H, W, 5) float32 cloud by one ``cv2.merge`` pass,
+        which is published without a copy; the depth image is the z plane itself (no copy).
         """
         try:
             coord, nan_pixels = self._projector_coordinate(msg)
             triangulator = self._triangulator(msg.fringe_axis)
-            cloud = np.empty((*coord.shape, len(FIELDS)), dtype=np.float32)  # (H, W, 5): x y z intensity quality
+            planes = np.empty((3, *coord.shape), dtype=np.float32)  # (3, H, W): x, y, z planes
             triangulator.camera_points(coord, scale=triangulator.rig.scale_to_m, dtype=np.float32,
-                                       out=cloud[..., :3])  # metres, NaN where invalid or behind the camera
+                                       out=planes.transpose(1, 2, 0))  # metres, NaN where invalid or behind
         except ValueError as exc:
             self.scans_rejected += 1
             reason = f"cannot triangulate scan {msg.sequence_id}: {exc}"
@@ -253,13 +254,16 @@ class CloudNode(Node):
             return
         header = Header(stamp=msg.header.stamp, frame_id=self.frame_id)
         intensity = self._intensity(msg)
-        if intensity is None:
-            cloud[..., 3] = np.nan
-        else:
-            cloud[..., 3] = intensity
-        cloud[..., 4] = msg.reliability
+        intensity_seen = intensity is not None
+        if not intensity_seen:
+            intensity = np.full(coord.shape, np.nan, dtype=np.float32)
+        reliability = msg.reliability
+        if reliability.dtype != np.float32 or not reliability.flags.c_contiguous:
+            reliability = np.ascontiguousarray(reliability, dtype=np.float32)
+        channels = [planes[0], planes[1], planes[2], np.ascontiguousarray(intensity), reliability]
+        cloud = cv2.merge(channels)  # (H, W, 5) float32: x y z intensity quality, one interleaving pass
         self.points_publisher.publish(PointCloud2.from_array(cloud, FIELDS, header=header, is_dense=False))
-        depth_m = np.ascontiguousarray(cloud[..., 2])  # (H, W) metres
+        depth_m = planes[2]  # (H, W) metres
         self.depth_publisher.publish(Image.from_array(depth_m, "32FC1", header=header))
         self.scans_published += 1
         valid_points = int(np.count_nonzero(np.isfinite(depth_m)))
@@ -267,7 +271,7 @@ class CloudNode(Node):
         if nan_pixels:
             self.pixels_nan += nan_pixels
             reasons.append(f"{nan_pixels} pixels marked valid had a non-finite absolute phase; treated as invalid")
-        if intensity is None:
+        if not intensity_seen:
             reasons.append(f"no PhaseMaps of scan {msg.sequence_id} seen: intensity NaN")
         if self.ply_dir and self.ply_every and (self.scans_published - 1) % self.ply_every == 0:
             reasons += self._snapshot(msg.sequence_id, cloud[..., :3], cloud[..., 3])

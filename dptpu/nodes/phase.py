@@ -53,13 +53,27 @@ import numpy as np
 from dptpu.fpp import phase as fpp_phase
 from dptpu.graph.node import Node
 from dptpu.graph.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
-from dptpu.messages import FringeFrame, Header, PatternSequence, PhaseMaps, ScanStatus, Time
+from dptpu.messages import (
+    FringeFrame,
+    Header,
+    PatternSequence,
+    PhaseMaps,
+    ScanStatus,
+    Time,
+)
 
-from .sequence_assembler import (AssembledScan, DroppedScan, FrameInfo, FrameSlot, RejectedFrame, ScanLayout,
-                                 SequenceAssembler)
 from .node_main import run_node
+from .sequence_assembler import (
+    AssembledScan,
+    DroppedScan,
+    FrameInfo,
+    FrameSlot,
+    RejectedFrame,
+    ScanLayout,
+    SequenceAssembler,
+)
 
-__all__ = ["PhaseNode", "ScanSums", "scan_phase_maps", "main"]
+__all__ = ["PhaseNode", "ScanSums", "main", "scan_phase_maps"]
 
 _TWO_PI = 2.0 * np.pi
 DEFAULT_FRAME_ID = "scanner_optical_frame"
@@ -168,7 +182,7 @@ class PhaseNode(Node):
         fringe_axis = self.declare_parameter("fringe_axis", "x").value
         projector_size = (self.declare_parameter("projector_width", 0).value,
                           self.declare_parameter("projector_height", 0).value)
-        frame_queue_depth = self.declare_parameter("frame_queue_depth", 100).value
+        frame_queue_depth = self.frame_queue_depth = self.declare_parameter("frame_queue_depth", 100).value
         if self.min_modulation < 0 or self.saturation_level < 0:
             raise ValueError(f"parameters min_modulation and saturation_level must be >= 0; got "
                              f"{self.min_modulation}, {self.saturation_level}")
@@ -245,8 +259,13 @@ class PhaseNode(Node):
         elif isinstance(event, DroppedScan):
             self._sums.pop(event.sequence_id, None)
             self.scans_dropped += 1
-            self.get_logger().warning(f"scan {event.sequence_id} dropped: {event.reason}")
-            self._status(event.sequence_id, ScanStatus.ERROR, "failed", event.reason, event.first_arrival_s,
+            reason = event.reason
+            frames = self.frame_subscription
+            if frames.dropped_count:  # frames this node never saw: say where they went (queue or transport)
+                reason += (f" (frames lost so far: {frames.queue_dropped_count} dropped from the full queue of "
+                           f"{self.frame_queue_depth}, {frames.lost_count} in transport)")
+            self.get_logger().warning(f"scan {event.sequence_id} dropped: {reason}")
+            self._status(event.sequence_id, ScanStatus.ERROR, "failed", reason, event.first_arrival_s,
                          frames_expected=event.frames_expected, frames_received=event.frames_received,
                          frames_dropped=event.frames_received)
         elif isinstance(event, RejectedFrame):
