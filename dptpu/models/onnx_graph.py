@@ -2,7 +2,7 @@
 
 :func:`build_dptpu_graph` turns the ``state_dict`` of a :class:`~dptpu.models.network.DPTPUNet` into an ONNX graph
 that computes the same function as ``DPTPUNet.forward`` (docs/network.md; parity with torch < 1e-3 fringe orders,
-tested) with about a fifth of the nodes of the traced export and fewer full-resolution passes:
+tested) with a quarter of the nodes of the traced export and fewer full-resolution passes:
 
 - **Space-to-depth**: the full-resolution maps are rearranged once into ``(B, 16, H/4, W/4)`` (channel
   ``4 dy + dx`` holds pixel ``(4 i + dy, 4 j + dx)``), and every full-resolution step is an elementwise op on
@@ -16,9 +16,12 @@ tested) with about a fifth of the nodes of the traced export and fewer full-reso
   affine part of every channel norm into the 1x1 convolutions that read it; the attention scale ``d^-1/2`` into
   the query convolution; with one head, the output projection and its bias into the value half of the key/value
   convolution (the softmax weights sum to 1); ``GATE_GAIN`` into the gate.
-- **Static shapes**: reshapes use ``0`` / ``-1`` and the input's shape, read once per resolution, instead of the
-  tracer's per-op ``Shape``/``Gather``/``Concat`` chains; the attention is written ``q^T k`` and ``v a^T`` so that
-  onnxruntime fuses the transposes into its matrix products; sorting networks work on stacked channels.
+- **Static shapes**: reshapes use ``0`` / ``-1`` and a block input's shape, instead of the tracer's per-op
+  ``Shape``/``Gather``/``Concat`` chains; the attention is written ``q^T k`` and ``a v^T`` so that onnxruntime
+  fuses the transposes into its matrix products; the sorting networks work on stacked channels, and maxima,
+  minima and sums over a few channels are variadic ``Max``/``Min``/``Sum`` of their slices (onnxruntime's
+  reductions over the channel axis of NCHW are slow); the CSA window softmax is normalized after the weighted
+  sum.
 - The decoder pools each stage's map to the key stride once (the traced graph pools all four maps for each of
   the four decoder stages).
 
