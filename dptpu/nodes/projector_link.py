@@ -307,6 +307,8 @@ class ProjectorLink:
             now = time.monotonic()
             if self._emulator is not None:
                 self._pump_emulator(now)
+                if b"\n" in self._buffer:  # the emulated box's line went straight into the buffer
+                    break
             if now >= deadline:
                 return None
             if self._emulator is not None:  # wake for the emulator's next line, not only every read slice
