@@ -58,7 +58,7 @@ def test_inference_never_imports_torch(tiny_onnx):
         "order = model.refine(phase, phase, np.full((40, 50), 3.0), 32.0)\n"
         "print(order.shape, 'torch' in sys.modules)\n"
     )
-    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    done = subprocess.run([sys.executable, "-c", code], check=False, capture_output=True, text=True, timeout=120)
     assert done.returncode == 0, done.stderr
     assert done.stdout.strip() == "(40, 50) False"
 
