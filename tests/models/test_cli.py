@@ -63,7 +63,7 @@ def test_train_rejects_bad_arguments(tiny_dataset, tmp_path, capsys):
 
 
 def test_toy_data_writes_a_dataset(tmp_path, capsys):
-    code, stdout, _ = _run(capsys, ["model", "toy-data", "--out", tmp_path / "d", "--scenes", 1, "--frequencies", "96",
+    code, _stdout, _ = _run(capsys, ["model", "toy-data", "--out", tmp_path / "d", "--scenes", 1, "--frequencies", "96",
                                     "--methods", "mw", "--shape", "40x48", "--noise", "1.5693,3.1386"])
     assert code == 0
     samples = [read_sample(p) for p in list_samples(tmp_path / "d")]
@@ -78,7 +78,7 @@ def test_unwrap_with_a_model_records_it_and_none_gives_the_classical_result(synt
     code, _, stderr = _run(capsys, ["unwrap", "--capture", folder, "--method", "mf", "--model", "none",
                                     "--out", tmp_path / "classical.npz"])
     assert code == 0, stderr
-    code, stdout, stderr = _run(capsys, ["unwrap", "--capture", folder, "--method", "mf", "--model", tiny_onnx[0],
+    code, _stdout, stderr = _run(capsys, ["unwrap", "--capture", folder, "--method", "mf", "--model", tiny_onnx[0],
                                          "--out", tmp_path / "model.npz"])
     assert code == 0, stderr
     with np.load(tmp_path / "classical.npz") as classical, np.load(tmp_path / "model.npz") as refined:

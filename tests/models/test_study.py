@@ -8,8 +8,15 @@ import numpy as np
 import pytest
 
 from dptpu.cli.main import main
-from dptpu.models.study import (PAPER_SETS, PAPER_TEST_FREQUENCIES, TEST_GRID, StudyOptions, equal_step_epochs,
-                                plan_runs, subset_dataset)
+from dptpu.models.study import (
+    PAPER_SETS,
+    PAPER_TEST_FREQUENCIES,
+    TEST_GRID,
+    StudyOptions,
+    equal_step_epochs,
+    plan_runs,
+    subset_dataset,
+)
 from dptpu.models.study_report import distribution
 
 #: A tiny DP-TPU (a few thousand parameters; keys every architecture version accepts).
@@ -73,7 +80,7 @@ def tiny_study(tmp_path_factory):
 
 
 def test_tiny_study_writes_the_table(tiny_study):
-    out, rows = tiny_study
+    _out, rows = tiny_study
     assert list(rows[0]) == ["run", "set", "lambda_fourier", "seed", "steps", "method", "frequency", "noise",
                              "solver", "accuracy", "pixels"]
     by_run = defaultdict(list)
