@@ -12,7 +12,7 @@ import torch
 
 from .samples import Sample, list_samples, read_sample
 
-__all__ = ["FringeOrderDataset", "epoch_order", "collate"]
+__all__ = ["FringeOrderDataset", "collate", "epoch_order"]
 
 
 class FringeOrderDataset:

@@ -16,8 +16,14 @@ import torch
 from torch import nn
 from torch.nn import functional as F
 
-__all__ = ["ChannelNorm", "ConvMLP", "ConvSelfAttention", "RecursiveAtrousSelfAttention", "MixAttention",
-           "EncoderBlock"]
+__all__ = [
+    "ChannelNorm",
+    "ConvMLP",
+    "ConvSelfAttention",
+    "EncoderBlock",
+    "MixAttention",
+    "RecursiveAtrousSelfAttention",
+]
 
 
 class ChannelNorm(nn.Module):

@@ -20,7 +20,7 @@ from dataclasses import dataclass
 
 import torch
 
-__all__ = ["LossWeights", "LossTerms", "fringe_order_loss", "mse_term", "fourier_term"]
+__all__ = ["LossTerms", "LossWeights", "fourier_term", "fringe_order_loss", "mse_term"]
 
 
 @dataclass(frozen=True)
@@ -40,7 +40,7 @@ class LossWeights:
     def __post_init__(self):
         for name in ("mse", "fourier"):
             value = getattr(self, name)
-            if not (value >= 0.0) or value != value:
+            if not (value >= 0.0):  # also rejects NaN
                 raise ValueError(f"loss weight {name} must be >= 0; got {value!r}")
         if self.huber is not None and not (self.huber > 0):
             raise ValueError(f"Huber threshold must be > 0 fringe orders; got {self.huber!r}")

@@ -66,8 +66,20 @@ from .layers import (
     RecursiveAtrousSelfAttention,
 )
 
-__all__ = ["ARCHITECTURE", "DPTPUConfig", "DPTPUNet", "network_features", "patch_median", "median9", "median3x3",
-           "PAD_MULTIPLE", "PATCH", "GATE_GAIN", "TWO_PI", "pad_to_multiple"]
+__all__ = [
+    "ARCHITECTURE",
+    "GATE_GAIN",
+    "PAD_MULTIPLE",
+    "PATCH",
+    "TWO_PI",
+    "DPTPUConfig",
+    "DPTPUNet",
+    "median3x3",
+    "median9",
+    "network_features",
+    "pad_to_multiple",
+    "patch_median",
+]
 
 TWO_PI = 2.0 * torch.pi
 #: Height and width are padded to a multiple of this (the deepest stride).
@@ -144,7 +156,7 @@ class DPTPUConfig:
         return {k: list(v) if isinstance(v, tuple) else v for k, v in asdict(self).items()}
 
     @classmethod
-    def from_dict(cls, values: dict) -> "DPTPUConfig":
+    def from_dict(cls, values: dict) -> DPTPUConfig:
         values = dict(values)
         if "stem_width" in values and "architecture" not in values:
             raise ValueError("DP-TPU config of architecture 1 (it has stem_width): this version builds "

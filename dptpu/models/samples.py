@@ -30,7 +30,7 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-__all__ = ["DATASET_FORMAT", "Sample", "list_samples", "read_sample", "read_dataset_yaml"]
+__all__ = ["DATASET_FORMAT", "Sample", "list_samples", "read_dataset_yaml", "read_sample"]
 
 DATASET_FORMAT = "dptpu-dataset/1"
 _ARRAY_KEYS = ("wrapped_high", "wrapped_low", "coarse_order", "label_order", "valid")
