@@ -35,11 +35,12 @@ from .schema import (
     MESSAGE,
     MESSAGE_LIST,
     SCALAR,
+    SEQUENCE,
     FieldSpec,
     Message,
 )
 
-__all__ = ["encode", "decode", "DecodeError", "EncodeError", "DecodeLimits", "DEFAULT_LIMITS", "ALLOWED_DTYPES",
+__all__ = ["encode", "decode", "encode_checked", "decode_checked", "DecodeError", "EncodeError", "DecodeLimits", "DEFAULT_LIMITS", "ALLOWED_DTYPES",
            "WIRE_VERSION"]
 
 #: Version of the frame layout and header keys (not of any message type).
@@ -137,48 +138,66 @@ _ARRAY_REFS = tuple(msgpack.ExtType(ARRAY_REF_EXT_CODE, _INDEX.pack(index)) for 
 _ARRAYS_KEY = msgpack.packb("arrays", use_bin_type=True)
 
 
+# Kinds of the fields in a plan's ``fast`` entries.
+_SCALAR_FIELD, _ARRAY_FIELD, _MESSAGE_FIELD, _MESSAGE_LIST_FIELD, _SEQUENCE_FIELD = range(5)
+
+
 class _Plan:
     """What the codec needs of one message class, worked out once per class (the schema is fixed).
 
     Attributes
     ----------
+    cls : type
+        The message class.
     prefix : bytes
         The packed header up to the value of ``"fields"``: a 5-entry msgpack map header, then
         ``"wire"``, ``"type"`` and ``"version"`` with their values and the key ``"fields"``. The
         header is ``prefix + packb(fields) + packb("arrays") + packb(descriptors)``, byte for byte what
         ``packb`` of the whole header map gives.
-    flat : tuple or None
-        For a class whose fields are all scalars and bulk arrays, one entry per field:
-        ``(name, is_array, python_type, low, high, dtype, ndim, dtype_str)``; None otherwise (nested
-        messages or sequences take the general path).
-    array_entries : tuple
-        The entries of ``flat`` that are bulk arrays, in field order (empty when not flat).
+    fast : tuple or None
+        One entry per field for the fast paths, ``(name, kind, python_type, low, high, dtype, ndim, extra)``:
+        a scalar's exact Python type and inclusive integer range; an array's dtype, number of dimensions
+        and wire dtype string (``extra``); a nested message's or a message list's element plan (``extra``);
+        a sequence's FieldSpec (``extra``). None when a nested class has no fast plan (then every message
+        of the class takes the general path).
+    field_names : frozenset
+        ``cls.FIELD_NAMES``: the keys of the class's field map.
     checks : bool
         Whether the class overrides ``Message.check_consistency`` (else calling it is skipped).
     """
 
-    __slots__ = ("prefix", "flat", "array_entries", "checks")
+    __slots__ = ("cls", "prefix", "fast", "field_names", "checks")
 
     def __init__(self, cls: type):
         header_start = {"wire": WIRE_VERSION, "type": cls.TYPE_NAME, "version": cls.SCHEMA_VERSION}
         packed = msgpack.packb(header_start, use_bin_type=True)
         # a 3-entry fixmap (0x83) becomes the 5-entry header (0x85); then the key "fields"
         self.prefix = b"\x85" + packed[1:] + msgpack.packb("fields", use_bin_type=True)
-        flat = []
-        for spec in cls.FIELDS:
-            if spec.kind == SCALAR:
-                python_type, low, high = _SCALAR_CHECKS[spec.primitive]
-                flat.append((spec.name, False, python_type, low, high, None, 0, None))
-            elif spec.kind == ARRAY:
-                flat.append((spec.name, True, None, None, None, spec.dtype, len(spec.axes), spec.dtype.str))
-            else:
-                flat = None
-                break
-        self.array_entries = tuple(entry for entry in flat if entry[1]) if flat is not None else ()
-        if len(self.array_entries) > len(_ARRAY_REFS):
-            flat, self.array_entries = None, ()
-        self.flat = tuple(flat) if flat is not None else None
+        self.cls = cls
+        self.field_names = cls.FIELD_NAMES
         self.checks = getattr(cls, "check_consistency", None) is not Message.check_consistency
+        self.fast = None
+
+    def build_fast(self) -> None:
+        """Fill :attr:`fast` (after the plan is in ``_PLANS``, so a class that nests itself finds it, still
+        without a fast plan, and takes the general path)."""
+        entries = []
+        for spec in self.cls.FIELDS:
+            kind = spec.kind
+            if kind == SCALAR:
+                python_type, low, high = _SCALAR_CHECKS[spec.primitive]
+                entries.append((spec.name, _SCALAR_FIELD, python_type, low, high, None, 0, None))
+            elif kind == ARRAY:
+                entries.append((spec.name, _ARRAY_FIELD, None, None, None, spec.dtype, len(spec.axes), spec.dtype.str))
+            elif kind == SEQUENCE:
+                entries.append((spec.name, _SEQUENCE_FIELD, None, None, None, None, 0, spec))
+            else:
+                nested = _plan(spec.message_type)
+                if nested is None or nested.fast is None:
+                    return
+                entries.append((spec.name, _MESSAGE_FIELD if kind == MESSAGE else _MESSAGE_LIST_FIELD,
+                                None, None, None, None, 0, nested))
+        self.fast = tuple(entries)
 
 
 _PLANS: dict = {}  # message class -> _Plan (registration is permanent, so is a plan)
@@ -191,6 +210,7 @@ def _plan(cls: type) -> _Plan | None:
         if not (isinstance(cls, type) and issubclass(cls, Message) and is_registered(getattr(cls, "TYPE_NAME", None))):
             return None
         plan = _PLANS[cls] = _Plan(cls)
+        plan.build_fast()
     return plan
 
 
@@ -227,17 +247,39 @@ def encode(topic, msg: Message) -> list:
     if plan is None or not isinstance(msg, Message):
         raise EncodeError(f"msg must be a registered message (e.g. sensor_msgs Image); got {cls.__name__}")
     arrays: list[np.ndarray] = []
-    encoded_fields = _encode_flat(msg, plan, arrays) if plan.flat is not None else None
-    if encoded_fields is None:  # nested fields, or a field the fast path does not accept: check each one
-        arrays.clear()
-        try:
-            encoded_fields = _encode_fields(msg, cls.__name__, arrays)
-        except EncodeError as error:
-            raise EncodeError(f"cannot encode {cls.TYPE_NAME}: {error}") from None
-        descriptors = [[array.dtype.str, list(array.shape)] for array in arrays]
-    else:
-        descriptors = [[entry[7], list(array.shape)] for entry, array in zip(plan.array_entries, arrays)] \
-            if arrays else []
+    dtype_strs: list[str] = []
+    encoded_fields = _encode_fast(msg, plan, arrays, dtype_strs) if plan.fast is not None else None
+    if encoded_fields is None:  # a field the fast path does not accept: check each one, convert or raise
+        return _encode_general(topic_bytes, msg, plan)
+    descriptors = [[dtype_str, list(array.shape)] for dtype_str, array in zip(dtype_strs, arrays)] if arrays else []
+    return _frames(topic_bytes, plan, encoded_fields, descriptors, arrays)
+
+
+def encode_checked(topic, msg: Message) -> list:
+    """:func:`encode` by the general path only: every field checked and converted one by one.
+
+    The same frames as :func:`encode` (which takes a precomputed fast path for well-formed messages and
+    falls back to this one); here for tests and ``dptpu bench codec``, which compare the two.
+    """
+    topic_bytes = topic if type(topic) is bytes and topic else _topic_bytes(topic)
+    plan = _plan(type(msg))
+    if plan is None or not isinstance(msg, Message):
+        raise EncodeError(f"msg must be a registered message (e.g. sensor_msgs Image); got {type(msg).__name__}")
+    return _encode_general(topic_bytes, msg, plan)
+
+
+def _encode_general(topic_bytes: bytes, msg: Message, plan: _Plan) -> list:
+    arrays: list[np.ndarray] = []
+    try:
+        encoded_fields = _encode_fields(msg, type(msg).__name__, arrays)
+    except EncodeError as error:
+        raise EncodeError(f"cannot encode {type(msg).TYPE_NAME}: {error}") from None
+    descriptors = [[array.dtype.str, list(array.shape)] for array in arrays]
+    return _frames(topic_bytes, plan, encoded_fields, descriptors, arrays)
+
+
+def _frames(topic_bytes: bytes, plan: _Plan, encoded_fields: dict, descriptors: list, arrays: list) -> list:
+    """``[topic, header, *array views]`` of an encoded message."""
     packer = getattr(_packers, "packer", None)
     if packer is None:
         packer = _packers.packer = msgpack.Packer(use_bin_type=True)
@@ -247,25 +289,48 @@ def encode(topic, msg: Message) -> list:
     return frames
 
 
-def _encode_flat(msg: Message, plan: _Plan, arrays: list) -> dict | None:
-    """The header fields of a message of a flat class (scalars and arrays only), collecting its arrays;
-    None as soon as a field is not exactly of its declared kind (then the general path checks and
-    raises, or converts, e.g. a numpy integer or a big-endian array)."""
+def _encode_fast(msg: Message, plan: _Plan, arrays: list, dtype_strs: list) -> dict | None:
+    """The header fields of ``msg``, collecting its arrays (and their wire dtype strings) depth first in field
+    order, as the general path does; None as soon as a field is not exactly of its declared kind (then the
+    general path checks and raises, or converts, e.g. a numpy integer or a big-endian array)."""
     out = {}
-    for name, is_array, python_type, low, high, dtype, ndim, _dtype_str in plan.flat:
+    for name, kind, python_type, low, high, dtype, ndim, extra in plan.fast:
         value = getattr(msg, name)
-        if is_array:
-            if type(value) is not np.ndarray or value.ndim != ndim or (value.dtype is not dtype
-                                                                        and value.dtype != dtype):
+        if kind == _SCALAR_FIELD:
+            if type(value) is not python_type or (low is not None and not low <= value <= high):
+                return None
+            out[name] = value
+        elif kind == _ARRAY_FIELD:
+            if (type(value) is not np.ndarray or value.ndim != ndim or (value.dtype is not dtype and value.dtype != dtype)
+                    or len(arrays) >= len(_ARRAY_REFS)):
                 return None
             if not value.flags.c_contiguous:
                 value = np.ascontiguousarray(value)  # one copy into C order
             out[name] = _ARRAY_REFS[len(arrays)]
             arrays.append(value)
-        elif type(value) is python_type and (low is None or low <= value <= high):
-            out[name] = value
-        else:
-            return None
+            dtype_strs.append(extra)
+        elif kind == _MESSAGE_FIELD:
+            if type(value) is not extra.cls:
+                return None
+            nested = _encode_fast(value, extra, arrays, dtype_strs)
+            if nested is None:
+                return None
+            out[name] = nested
+        elif kind == _MESSAGE_LIST_FIELD:
+            if type(value) is not list and type(value) is not tuple:
+                return None
+            items = []
+            for item in value:
+                nested = _encode_fast(item, extra, arrays, dtype_strs) if type(item) is extra.cls else None
+                if nested is None:
+                    return None
+                items.append(nested)
+            out[name] = items
+        else:  # a sequence: the general path's conversion; an EncodeError sends the message there
+            try:
+                out[name] = _encode_sequence(extra, value, name)
+            except EncodeError:
+                return None
     if plan.checks:
         try:
             msg.check_consistency()
@@ -441,7 +506,22 @@ def decode(frames, *, expected_type=None, limits: DecodeLimits = DEFAULT_LIMITS)
     decoded = _decode_well_formed(frames, expected, limits)
     if decoded is not None:
         return decoded
-    # the general path: checks everything one by one and names the first problem
+    return _decode_general(frames, expected, limits)
+
+
+def decode_checked(frames, *, expected_type=None, limits: DecodeLimits = DEFAULT_LIMITS):
+    """:func:`decode` by the general path only: every limit and field checked one by one.
+
+    The same result or the same :class:`DecodeError` as :func:`decode` (which first tries a one-pass fast
+    path for well-formed messages); here for tests and ``dptpu bench codec``, which compare the two.
+    """
+    if not isinstance(limits, DecodeLimits):
+        raise ValueError(f"limits must be a DecodeLimits; got {type(limits).__name__}")
+    return _decode_general(frames, _expected_class(expected_type), limits)
+
+
+def _decode_general(frames, expected, limits: DecodeLimits):
+    """The general path: checks everything one by one and names the first problem."""
     topic = cls = None
     try:
         views = _frame_views(frames, limits)
@@ -451,7 +531,7 @@ def decode(frames, *, expected_type=None, limits: DecodeLimits = DEFAULT_LIMITS)
         arrays = [_array_view(index, descriptor, view, limits)
                   for index, (descriptor, view) in enumerate(zip(header["arrays"], views[2:]))]
         plan = _PLANS.get(cls) or _plan(cls)
-        msg = _decode_flat(cls, plan, header["fields"], arrays) if plan.flat is not None else None
+        msg = _decode_fast(plan, header["fields"], arrays) if plan.fast is not None else None
         if msg is None:  # nested fields, or anything the fast path does not accept: check each one
             used = [False] * len(arrays)
             msg = _decode_fields(cls, header["fields"], arrays, used, cls.__name__)
@@ -469,11 +549,11 @@ def decode(frames, *, expected_type=None, limits: DecodeLimits = DEFAULT_LIMITS)
 
 
 def _decode_well_formed(frames, expected, limits: DecodeLimits):
-    """``(topic, msg)`` of a well-formed message of a flat type (scalars and arrays), or None.
+    """``(topic, msg)`` of a well-formed message, or None.
 
-    The fast path for the common case: the same checks as the general path, in one function, but it
-    only says yes or no; for anything else (a nested type, a malformed or oversized message, an
-    unexpected type) it returns None and the general path decodes the message or raises the
+    The fast path for the common case: the same checks as the general path, in one pass over the class's
+    plan, but it only says yes or no; for anything else (a malformed or oversized message, an unexpected
+    type, a class without a fast plan) it returns None and the general path decodes the message or raises the
     DecodeError that names the problem. It must never accept what the general path rejects.
 
     The header is unpacked with ``ext_hook=slice``, a C constructor, instead of the checking hook:
@@ -487,7 +567,8 @@ def _decode_well_formed(frames, expected, limits: DecodeLimits):
         views = []
         total = 0
         for frame in frames:
-            view = memoryview(frame) if type(frame) is bytes else getattr(frame, "buffer", None)
+            kind = type(frame)
+            view = memoryview(frame) if kind is bytes else frame if kind is memoryview else getattr(frame, "buffer", None)
             if type(view) is not memoryview or view.format != "B" or view.ndim != 1:
                 return None
             total += view.nbytes
@@ -505,10 +586,9 @@ def _decode_well_formed(frames, expected, limits: DecodeLimits):
             return None
         cls = lookup(type_name)
         plan = _PLANS.get(cls) or _plan(cls)
-        if (plan is None or plan.flat is None or (expected is not None and cls is not expected)
+        if (plan is None or plan.fast is None or (expected is not None and cls is not expected)
                 or type(version) is not int or version != cls.SCHEMA_VERSION or type(descriptors) is not list
-                or len(descriptors) != count - 2 or len(descriptors) != len(plan.array_entries)
-                or type(raw) is not dict or raw.keys() != cls.FIELD_NAMES):
+                or len(descriptors) != count - 2 or type(raw) is not dict or raw.keys() != plan.field_names):
             return None
         arrays = []
         max_ndim, max_elements, max_bytes = limits.max_ndim, limits.max_dims_product, limits.max_array_bytes
@@ -535,8 +615,9 @@ def _decode_well_formed(frames, expected, limits: DecodeLimits):
             if not view.readonly:
                 values.flags.writeable = False
             arrays.append(values)
-        fields = _flat_fields(plan, raw, arrays, _slice_reference_index)
-        if fields is None:
+        used = [0]
+        fields = _fast_fields(plan, raw, arrays, _slice_reference_index, used)
+        if fields is None or used[0] != (1 << len(arrays)) - 1:  # every array frame referenced exactly once
             return None
         msg = cls(**fields)
         if plan.checks:
@@ -546,16 +627,17 @@ def _decode_well_formed(frames, expected, limits: DecodeLimits):
         return None
 
 
-def _decode_flat(cls: type, plan: _Plan, raw, arrays: list):
-    """The message of a flat class (scalars and arrays only) when every field is exactly as declared
-    and every array frame is referenced once; else None, and :func:`_decode_fields` finds and names
-    the problem. Accepts exactly what that general path accepts."""
-    if type(raw) is not dict or raw.keys() != cls.FIELD_NAMES or len(arrays) != len(plan.array_entries):
+def _decode_fast(plan: _Plan, raw, arrays: list):
+    """The message when every field is exactly as declared and every array frame is referenced exactly
+    once; else None, and :func:`_decode_fields` finds and names the problem. Accepts exactly what that
+    general path accepts."""
+    if type(raw) is not dict or raw.keys() != plan.field_names:
         return None
-    values = _flat_fields(plan, raw, arrays, _array_ref_index)
-    if values is None:
+    used = [0]
+    values = _fast_fields(plan, raw, arrays, _array_ref_index, used)
+    if values is None or used[0] != (1 << len(arrays)) - 1:
         return None
-    msg = cls(**values)
+    msg = plan.cls(**values)
     if plan.checks:
         try:
             msg.check_consistency()
@@ -564,30 +646,67 @@ def _decode_flat(cls: type, plan: _Plan, raw, arrays: list):
     return msg
 
 
-def _flat_fields(plan: _Plan, raw: dict, arrays: list, reference_index) -> dict | None:
-    """The constructor arguments of a flat message when every field is exactly as declared and every
-    array frame is referenced at most once (the caller checks the count); else None.
+def _fast_fields(plan: _Plan, raw: dict, arrays: list, reference_index, used: list) -> dict | None:
+    """The constructor arguments of a message of ``plan``'s class from its field map (whose keys the
+    caller checked) when every field is exactly as declared, nested messages built and checked, and no
+    array frame referenced twice; else None.
 
     ``reference_index(value)`` is the array frame an array field's header value refers to, or None when
-    the value is no array reference (the two decoders unpack extension values differently)."""
+    the value is no array reference (the two decoders unpack extension values differently); ``used[0]``
+    is the bit mask of the array frames referenced so far (the caller checks that all were)."""
     values = {}
-    used = 0  # bit mask of the array frames referenced so far
-    for name, is_array, python_type, low, high, dtype, ndim, _dtype_str in plan.flat:
+    for name, kind, python_type, low, high, dtype, ndim, extra in plan.fast:
         value = raw[name]
-        if is_array:
+        if kind == _SCALAR_FIELD:
+            if type(value) is not python_type or (low is not None and not low <= value <= high):
+                return None
+            values[name] = value
+        elif kind == _ARRAY_FIELD:
             index = reference_index(value)
-            if index is None or index >= len(arrays) or used >> index & 1:
+            if index is None or index >= len(arrays) or used[0] >> index & 1:
                 return None
             array = arrays[index]
             if array.ndim != ndim or (array.dtype is not dtype and array.dtype != dtype):
                 return None
-            used |= 1 << index
+            used[0] |= 1 << index
             values[name] = array
-        elif type(value) is python_type and (low is None or low <= value <= high):
-            values[name] = value
-        else:
-            return None
+        elif kind == _MESSAGE_FIELD:
+            nested = _fast_message(extra, value, arrays, reference_index, used)
+            if nested is None:
+                return None
+            values[name] = nested
+        elif kind == _MESSAGE_LIST_FIELD:
+            if type(value) is not list:
+                return None
+            items = []
+            for item in value:
+                nested = _fast_message(extra, item, arrays, reference_index, used)
+                if nested is None:
+                    return None
+                items.append(nested)
+            values[name] = items
+        else:  # a sequence: the general path's check; a DecodeError sends the message there
+            try:
+                values[name] = _decode_sequence(extra, value, name)
+            except DecodeError:
+                return None
     return values
+
+
+def _fast_message(plan: _Plan, raw, arrays: list, reference_index, used: list):
+    """A nested message of ``plan``'s class from its field map, built and checked; else None."""
+    if type(raw) is not dict or raw.keys() != plan.field_names:
+        return None
+    values = _fast_fields(plan, raw, arrays, reference_index, used)
+    if values is None:
+        return None
+    msg = plan.cls(**values)
+    if plan.checks:
+        try:
+            msg.check_consistency()
+        except ValueError:
+            return None
+    return msg
 
 
 def _slice_reference_index(value) -> int | None:
