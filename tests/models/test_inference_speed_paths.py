@@ -120,7 +120,9 @@ def test_shipped_model_gives_the_same_orders_as_its_other_graph(tmp_path):
     first = FringeOrderModel.load(path, threads=1).predict(*inputs, 96.0)
     second = FringeOrderModel.load(other, threads=1).predict(*inputs, 96.0)
     assert np.abs(first - second)[valid].max() < 1e-3
-    assert np.array_equal(np.rint(first)[valid], np.rint(second)[valid])
+    decided = valid & (np.abs(first - np.floor(first) - 0.5) > 1e-3)  # not within 1e-3 of a rounding tie
+    assert decided.mean() > 0.99
+    assert np.array_equal(np.rint(first)[decided], np.rint(second)[decided])
 
 
 def test_bench_model_times_the_fast_graph_beside_the_traced_one(tmp_path, capsys):
