@@ -51,7 +51,13 @@ def _size(text: str) -> tuple[int, int]:
 def scanner_messages(height: int, width: int) -> dict:
     """One message of each type the scanner graph sends, at ``height x width``, with seeded content."""
     from dptpu.messages import CameraInfo, Header, Image, PointCloud2, Time
-    from dptpu.messages.scanner import AbsolutePhase, FringeFrame, PhaseMaps, ScanStatus, Trigger
+    from dptpu.messages.scanner import (
+        AbsolutePhase,
+        FringeFrame,
+        PhaseMaps,
+        ScanStatus,
+        Trigger,
+    )
 
     rng = np.random.default_rng(0)
     header = Header(stamp=Time(sec=1_700_000_000, nanosec=123_456_789), frame_id="scanner_optical_frame")
@@ -144,10 +150,10 @@ def measure(size=DEFAULT_SIZE, number: int = 2000, repeats: int = 5) -> dict:
 
 
 def format_report(report: dict) -> str:
-    lines = [f"dptpu bench codec ({report['size']}; best of {report['repeats']} x {report['number']} calls, "
-             "us a message)",
-             f"{'message':<14} {'header B':>8} {'arrays B':>10}   {'encode ours':>11} {'general':>8} {'x':>5}   "
-             f"{'decode ours':>11} {'general':>8} {'x':>5}  equal"]
+    title = f"dptpu bench codec ({report['size']}; best of {report['repeats']} x {report['number']} calls, us a message)"
+    columns = (f"{'message':<14} {'header B':>8} {'arrays B':>10}   {'encode ours':>11} {'general':>8} {'x':>5}   "
+               f"{'decode ours':>11} {'general':>8} {'x':>5}  equal")
+    lines = [title, columns]
     for name, entry in report["messages"].items():
         enc, dec = entry["encode"], entry["decode"]
         lines.append(f"{name:<14} {entry['header_bytes']:>8} {entry['array_bytes']:>10}   "
