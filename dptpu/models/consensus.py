@@ -248,15 +248,13 @@ def _plurality(padded, centre, own, grad_y, grad_x, offsets, padded_width) -> tu
     (the smallest change on ties). Invalid neighbours do not vote.
     """
     none = np.iinfo(np.int16).max  # stands for an invalid neighbour (sorted last)
-    table = np.empty((centre.size, len(offsets) * len(padded)), np.int16)  # (n, votes)
-    column = 0
+    steps = np.array(offsets, np.int64)  # (V, 2)
+    shift = steps[:, 0] * padded_width + steps[:, 1]
+    expected = (own[:, None] + grad_y[:, None] * steps[:, 0].astype(np.float32)
+                + grad_x[:, None] * steps[:, 1].astype(np.float32))  # (n, V)
     with np.errstate(invalid="ignore"):
-        for dy, dx in offsets:
-            expected = own + (grad_y * dy + grad_x * dx)
-            for field in padded:
-                jump = np.rint(field[centre + (dy * padded_width + dx)] - expected)
-                table[:, column] = np.where(np.isfinite(jump), np.clip(jump, -30000, 30000), none)
-                column += 1
+        jumps = np.concatenate([np.rint(field[centre[:, None] + shift] - expected) for field in padded], axis=1)
+    table = np.where(np.isfinite(jumps), np.clip(jumps, -30000, 30000), none).astype(np.int16)  # (n, votes)
     table.sort(axis=1, kind="stable")  # radix sort of 16-bit integers
     index = np.arange(table.shape[1])[None, :]
     starts = np.zeros(table.shape, np.int32)
