@@ -218,7 +218,8 @@ def main(argv=None) -> int:
     parser.add_argument("--runs", type=_positive, default=DEFAULT_RUNS, help="timed runs (default 30)")
     parser.add_argument("--warmup", type=int, default=DEFAULT_WARMUP, help="untimed runs first (default 3)")
     parser.add_argument("--profile", action="store_true",
-                        help="also onnxruntime's per-node profile (1 thread, 40 runs): sum of per-node minima by op")
+                        help="also onnxruntime's per-node profile (1 thread): sum of per-node minima by op")
+    parser.add_argument("--profile-runs", type=_positive, default=40, help="profiled runs, the first 5 untimed (40)")
     parser.add_argument("--json", action="store_true", help="print the report as JSON")
     args = parser.parse_args(argv)
     from dptpu.models.inference import ModelLoadError, shipped_model_path
@@ -231,9 +232,10 @@ def main(argv=None) -> int:
         report = run(model_path, size=args.size, threads=args.threads, runs=args.runs, warmup=max(args.warmup, 0),
                      baseline=args.baseline, spinning=args.spinning)
         if args.profile:
-            report.update(profile(model_path, size=args.size))
+            report.update(profile(model_path, size=args.size, runs=args.profile_runs))
             if args.baseline:
-                report.update({f"baseline_{k}": v for k, v in profile(args.baseline, size=args.size).items()})
+                report.update({f"baseline_{k}": v
+                               for k, v in profile(args.baseline, size=args.size, runs=args.profile_runs).items()})
     except ModelLoadError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2

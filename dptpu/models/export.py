@@ -138,7 +138,38 @@ def _fast_model(model: nn.Module):
     parameters = proto.training_info.add().initialization
     parameters.name = PARAMETERS_GRAPH
     parameters.initializer.extend(numpy_helper.from_array(value, name=key) for key, value in state.items())
+    _check_fast_graph(model, proto)
     return proto
+
+
+#: Largest accepted difference (fringe orders) between a fast graph and the module it was written from.
+FAST_GRAPH_TOLERANCE = 1e-3
+
+
+def _check_fast_graph(model: nn.Module, proto) -> None:
+    """Raise ValueError unless onnxruntime on ``proto`` reproduces ``model`` on a random 37x45 input with invalid
+    pixels to :data:`FAST_GRAPH_TOLERANCE` (a guard for edits of ``DPTPUNet.forward`` that
+    :mod:`dptpu.models.onnx_graph` does not follow)."""
+    import onnxruntime
+
+    rng = np.random.default_rng(0)
+    shape = (1, 1, 37, 45)
+    invalid = rng.random(shape) < 0.1
+    high, low = (np.where(invalid, 0, rng.uniform(0, 2 * np.pi, shape)).astype(np.float32) for _ in range(2))
+    coarse = np.where(invalid, 0, rng.integers(0, 60, shape)).astype(np.float32)
+    frequency = np.array([64.0], np.float32)
+    options = onnxruntime.SessionOptions()
+    options.log_severity_level = 3
+    session = onnxruntime.InferenceSession(proto.SerializeToString(), options, providers=["CPUExecutionProvider"])
+    got = session.run(None, {"wrapped_high": high, "wrapped_low": low, "coarse_order": coarse,
+                             "frequency_high": frequency})[0]
+    with torch.no_grad():
+        expected = model(*(torch.from_numpy(a) for a in (high, low, coarse, frequency))).numpy()
+    difference = float(np.max(np.abs(got - expected)))
+    if not difference <= FAST_GRAPH_TOLERANCE:
+        raise ValueError(f"the fast ONNX graph of this network is {difference:.3g} fringe orders away from "
+                         f"DPTPUNet.forward (limit {FAST_GRAPH_TOLERANCE:g}): dptpu/models/onnx_graph.py does not "
+                         "follow dptpu/models/network.py; export with graph='torch'")
 
 
 def convert_onnx(path, out, *, graph: str = "fast") -> Path:

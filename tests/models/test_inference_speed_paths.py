@@ -98,6 +98,16 @@ def test_fast_file_keeps_every_parameter_by_name_and_a_traced_file_still_reads_b
                   - FringeOrderModel.load(traced_path).predict(high, low, coarse, frequency)).max() < 1e-3
 
 
+def test_fast_export_refuses_a_network_its_graph_does_not_follow(tmp_path):
+    model = _random_model(CONFIGS["heads-2-1"], seed=1)
+    forward = model.forward
+    model.forward = lambda *inputs: forward(*inputs) + 0.01  # an edit of DPTPUNet.forward the builder lacks
+    with pytest.raises(ValueError, match=r"0.01 fringe orders away from DPTPUNet.forward .* export with graph='torch'"):
+        export_onnx(model, tmp_path / "edited.onnx")
+    assert not (tmp_path / "edited.onnx").exists()
+    assert FringeOrderModel.load(export_onnx(model, tmp_path / "traced.onnx", graph="torch")).kind == "dptpu"
+
+
 def test_export_rejects_an_unknown_graph(tmp_path):
     with pytest.raises(ValueError, match="export graph must be one of fast, torch; got 'onnxscript'"):
         export_onnx(_random_model(CONFIGS["heads-2-1"], seed=0), tmp_path / "x.onnx", graph="onnxscript")
@@ -132,7 +142,7 @@ def test_bench_model_times_the_fast_graph_beside_the_traced_one(tmp_path, capsys
     fast = export_onnx(model, tmp_path / "fast.onnx")
     traced = export_onnx(model, tmp_path / "traced.onnx", graph="torch")
     code = main(["bench", "model", "--model", str(fast), "--baseline", str(traced), "--size", "40x56", "--runs", "2",
-                 "--warmup", "1", "--threads", "1", "--profile", "--json"])
+                 "--warmup", "1", "--threads", "1", "--profile", "--profile-runs", "8", "--json"])
     assert code == 0
     report = json.loads(capsys.readouterr().out)
     assert report["graph"] == GRAPH_FORMAT and report["baseline_graph"] == "torch"
