@@ -64,8 +64,8 @@ def refine_capture_result(result, model: FringeOrderModel, *, consensus: bool = 
         and ``quality``.
     model : FringeOrderModel
     consensus : bool
-        Post-process the rounded order with :func:`dptpu.models.consensus.consensus_order` (default; 0.15-1 s
-        more for 480x640 on a loaded 2-core machine, docs/model-eval.md); False gives the network's rounded
+        Post-process the rounded order with :func:`dptpu.models.consensus.consensus_order` (default; 54-259 ms
+        more for 480x640 at load average 1.5, docs/model-eval.md); False gives the network's rounded
         order alone.
 
     Returns
