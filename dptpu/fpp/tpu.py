@@ -210,14 +210,7 @@ def unwrap_mf(psi_h, psi_l, f_h, f_l=1.0, *, valid=None) -> Unwrapped:
     ``d_h``, ``d_l`` moves the rounded quantity by ``(r*d_l - d_h)/(2*pi)``, ``r = f_h/f_l``, so the
     order is right while ``|r*d_l - d_h| < pi``.
     """
-    f_h = _check_frequency("f_h", f_h)
-    f_l = _check_frequency("f_l", f_l)
-    if f_l > 1.0:
-        raise ValueError(
-            f"unwrap_mf needs f_l <= 1 so the low wrapped phase is already absolute (k_l = 0); got "
-            f"f_l = {f_l:g}. Unwrap the low phase first and call unwrap_with_reference, or use "
-            "unwrap_heterodyne / unwrap_nt"
-        )
+    f_h, f_l = _check_mf_frequencies(f_h, f_l)
     psi_h = _as_phase_map("psi_h", psi_h, wrapped=True)
     psi_l = _as_phase_map("psi_l", psi_l, wrapped=True)
     mask = _pixel_mask({"psi_h": psi_h, "psi_l": psi_l}, valid)
@@ -246,14 +239,7 @@ def unwrap_mf_float32(psi_h, psi_l, f_h, f_l=1.0, *, valid=None) -> Unwrapped:
     4e-5 projector pixels of 912 at ``f_h = 64``). About a third of the passes of :func:`unwrap_mf`, each over
     half the bytes: what the unwrap node runs for ``mf``, whose maps arrive and leave as float32.
     """
-    f_h = _check_frequency("f_h", f_h)
-    f_l = _check_frequency("f_l", f_l)
-    if f_l > 1.0:
-        raise ValueError(
-            f"unwrap_mf needs f_l <= 1 so the low wrapped phase is already absolute (k_l = 0); got "
-            f"f_l = {f_l:g}. Unwrap the low phase first and call unwrap_with_reference, or use "
-            "unwrap_heterodyne / unwrap_nt"
-        )
+    f_h, f_l = _check_mf_frequencies(f_h, f_l)
     psi_h = _as_phase_map("psi_h", psi_h, wrapped=True, dtype=np.float32)
     psi_l = _as_phase_map("psi_l", psi_l, wrapped=True, dtype=np.float32)
     mask = _pixel_mask({"psi_h": psi_h, "psi_l": psi_l}, valid)
@@ -675,6 +661,19 @@ def _check_equivalent_frequency(f_h, f_l) -> float:
             f"f_eq = {f_eq:g}"
         )
     return f_eq
+
+
+def _check_mf_frequencies(f_h, f_l) -> tuple[float, float]:
+    """``(f_h, f_l)`` as floats for MF (Eq. (5)): both positive and finite, ``f_l <= 1`` (so ``k_l = 0``)."""
+    f_h = _check_frequency("f_h", f_h)
+    f_l = _check_frequency("f_l", f_l)
+    if f_l > 1.0:
+        raise ValueError(
+            f"unwrap_mf needs f_l <= 1 so the low wrapped phase is already absolute (k_l = 0); got "
+            f"f_l = {f_l:g}. Unwrap the low phase first and call unwrap_with_reference, or use "
+            "unwrap_heterodyne / unwrap_nt"
+        )
+    return f_h, f_l
 
 
 def _as_phase_map(name, values, *, wrapped, dtype=np.float64) -> np.ndarray:
