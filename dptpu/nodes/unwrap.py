@@ -22,6 +22,9 @@ name                default   meaning
                               ``0 < f_h - f_l <= 1``), ``nt`` (Eqs. (8)-(9)) or ``heterodyne`` (beat tree of all)
 ``model``           "none"    a DP-TPU ``.onnx`` model refining the classical fringe order (mf/mw/nt), ``shipped``
                               (the packaged model) or ``none``
+``consensus``       false     with ``model``: post-process the network's order with the neighbour consensus of
+                              :mod:`dptpu.models.consensus` (what ``dptpu unwrap --model`` and the accuracy
+                              figures of docs/model-eval.md use; 54-259 ms more a 640x480 scan, so off by default)
 ``high_frequency``  0.0       frequency to unwrap (periods across the projector); 0 = the highest of the scan
 ``low_frequency``   0.0       the auxiliary frequency of mf/mw/nt; 0 = chosen as ``dptpu unwrap`` does
 ``min_reliability`` 0.0       pixels whose rounding margin (``AbsolutePhase.reliability``) is lower are invalid
@@ -127,6 +130,7 @@ class UnwrapNode(Node):
         self.high_frequency = self.declare_parameter("high_frequency", 0.0).value
         self.low_frequency = self.declare_parameter("low_frequency", 0.0).value
         self.min_reliability = self.declare_parameter("min_reliability", 0.0).value
+        self.consensus = self.declare_parameter("consensus", False).value
         if self.method not in METHODS:
             raise ValueError(f"parameter method must be one of {', '.join(METHODS)}; got {self.method!r}")
         if self.high_frequency < 0 or self.low_frequency < 0:
@@ -141,6 +145,10 @@ class UnwrapNode(Node):
         if self.model is not None and self.method not in self.model.trained_methods:
             raise ValueError(f"parameter model {self.model_path!r} was trained for method(s) "
                              f"{', '.join(self.model.trained_methods)}; got method {self.method}")
+        if self.consensus and self.model is None:
+            raise ValueError("parameter consensus post-processes the network's fringe order; set model (a DP-TPU "
+                             "model file or shipped) or consensus:=false")
+        self.consensus_order = _load_consensus() if self.consensus else None
         self.scans_published = 0
         self.scans_rejected = 0
         self.pixels_nan = 0
@@ -216,6 +224,8 @@ class UnwrapNode(Node):
                                 valid=valid)
         if self.model is not None:  # DP-TPU: the network refines the classical order (the paper's Fig. 8b)
             order = self.model.refine(phases[0], phases[1], result.fringe_order, frequencies[0], valid=result.valid)
+            if self.consensus_order is not None:  # pixel-level vote of network and classical orders
+                order = self.consensus_order(order, result.fringe_order, phases[0], result.valid)
             result = refined(result, phases[0].astype(np.float64), order)
         return result, indices[0], nan_pixels
 
@@ -276,6 +286,13 @@ def load_model(path: str):
                              "pass a model file or model:=none")
         path = shipped
     return inference.FringeOrderModel.load(path, threads=1)
+
+
+def _load_consensus():
+    """:func:`dptpu.models.consensus.consensus_order` (numpy and OpenCV only, no onnxruntime or torch)."""
+    from dptpu.models.consensus import consensus_order
+
+    return consensus_order
 
 
 def refined(result: tpu.Unwrapped, psi_h: np.ndarray, order: np.ndarray) -> tpu.Unwrapped:

@@ -184,6 +184,24 @@ def test_model_refines_the_classical_order_with_the_network(harness, scene, shif
                        atol=1e-4)
 
 
+def test_consensus_restores_the_classical_orders_a_wrong_network_changed(harness, scene, shifted_model):
+    """The shifted model moves every order by +1; on the plane every classical order agrees with its neighbours,
+    so the consensus (step 1, docs/model-eval.md) keeps the classical order at every pixel."""
+    _node, source, absolute, _status = start(harness, method="mf", model=str(shifted_model), consensus=True)
+    maps = phase_maps(scene, (16.0, 1.0), sequence_id=11)
+    source.publish(maps)
+    (result,) = harness.wait(absolute, 1)
+    classical = unwrap_mf(maps.phases[0], maps.phases[1], 16.0, 1.0)
+    assert result.method == "dptpu"
+    assert np.array_equal(result.valid, classical.valid)
+    assert np.array_equal(result.fringe_order[result.valid], classical.fringe_order[result.valid])
+
+
+def test_consensus_without_a_model_is_refused_at_start(harness):
+    with pytest.raises(ValueError, match=r"consensus post-processes the network's fringe order; set model"):
+        harness.start(UnwrapNode, consensus=True)
+
+
 def test_nt_without_the_projector_size_is_reported(harness, scene):
     node, source, absolute, status = start(harness, method="nt")
     maps = phase_maps(scene, (16.0, 15.0), sequence_id=4)
