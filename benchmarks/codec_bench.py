@@ -38,16 +38,6 @@ import numpy as np
 DEFAULT_SIZE = (480, 640)
 
 
-def _size(text: str) -> tuple[int, int]:
-    try:
-        width, height = (int(part) for part in text.lower().split("x"))
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"--size must be WIDTHxHEIGHT, e.g. 640x480; got {text!r}") from None
-    if width < 1 or height < 1:
-        raise argparse.ArgumentTypeError(f"--size must be positive; got {text!r}")
-    return height, width
-
-
 def scanner_messages(height: int, width: int) -> dict:
     """One message of each type the scanner graph sends, at ``height x width``, with seeded content."""
     from dptpu.messages import CameraInfo, Header, Image, PointCloud2, Time
@@ -166,14 +156,20 @@ def format_report(report: dict) -> str:
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(prog="dptpu bench codec",
                                      description="encode/decode of the scanner's messages: fast path vs general path")
-    parser.add_argument("--size", type=_size, default=DEFAULT_SIZE, metavar="WxH", help="image size (640x480)")
+    parser.add_argument("--size", default="640x480", metavar="WxH", help="image size (640x480)")
     parser.add_argument("--number", type=int, default=2000, help="calls per timed run (2000)")
     parser.add_argument("--repeats", type=int, default=5, help="timed runs; the best and the median are reported (5)")
     parser.add_argument("--json", action="store_true", help="print the report as JSON")
     args = parser.parse_args(argv)
     if args.number < 1 or args.repeats < 1:
         parser.error("--number and --repeats must be >= 1")
-    report = measure(args.size, args.number, args.repeats)
+    from dptpu.sim.rig import parse_size
+
+    try:
+        width, height = parse_size(args.size)
+    except ValueError as exc:
+        parser.error(f"--size: {exc}")
+    report = measure((height, width), args.number, args.repeats)
     print(json.dumps(report, indent=2) if args.json else format_report(report))
     return 0 if report["all_equal"] else 1
 
