@@ -91,10 +91,6 @@ def _nested_sample(height=2, width=3, parts=2) -> Message:
                         depth_mm=np.arange(height * width, dtype=np.float32).reshape(height, width))
 
 
-def _general_only(frames, **kwargs):
-    return codec.decode_checked(frames, **kwargs)
-
-
 def _same_outcome(frames, **kwargs):
     """Decode with and without the fast path; assert the same message or the same DecodeError."""
     try:
@@ -102,7 +98,7 @@ def _same_outcome(frames, **kwargs):
     except DecodeError as error:
         fast = ("error", str(error))
     try:
-        general = _general_only(frames, **kwargs)
+        general = codec.decode_checked(frames, **kwargs)
     except DecodeError as error:
         general = ("error", str(error))
     assert type(fast[1]) is type(general[1]) and fast == general
