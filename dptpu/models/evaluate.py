@@ -5,8 +5,10 @@ Solvers side by side: ``classical`` (the dataset's coarse order: Eq. (5), (7) or
 ONNX model given (``dptpu`` / ``unet`` by their metadata kind, or the file stem if two share a kind), on
 the methods its training set had (its metadata's ``methods``). A model's rounded order is post-processed
 by the neighbour consensus of :mod:`dptpu.models.consensus` (as ``dptpu unwrap`` does) unless
-``consensus=False``. ``vote_baseline=True`` adds the solver ``classical+vote``: the same consensus
-vote on the classical order alone (what the post-processing does without a network).
+``consensus=False``; NT reaches a DP-TPU model in the MF representation of :mod:`dptpu.models.nt_prior`
+(:func:`dptpu.models.refine.refine_order`). ``vote_baseline=True`` adds the solver ``classical+vote``: the
+same consensus vote on the classical order alone (NT: on the MF order of its band prior), what the
+post-processing does without a network.
 
 Accuracy = share of valid pixels whose fringe order equals the label exactly.
 """
@@ -21,6 +23,8 @@ import numpy as np
 
 from .consensus import consensus_order
 from .inference import FringeOrderModel
+from .nt_prior import mf_representation
+from .refine import refine_order
 from .samples import list_samples, read_sample
 
 __all__ = ["Row", "evaluate_dataset", "format_summary", "median_order", "solver_names", "write_table"]
@@ -81,13 +85,16 @@ def evaluate_dataset(data_dir, models=(), *, threads: int | None = None, consens
         coarse = np.rint(sample.coarse_order).astype(np.int32)
         solvers = {"classical": coarse, "classical+median": median_order(coarse, valid)}
         if vote_baseline:
-            solvers["classical+vote"] = consensus_order(coarse, coarse, sample.wrapped_high, valid)
+            start = coarse
+            if sample.method == "nt":
+                start = mf_representation(sample.wrapped_high, sample.wrapped_low, coarse, sample.frequency_high,
+                                          sample.frequency_low, valid).coarse_order
+            solvers["classical+vote"] = consensus_order(start, start, sample.wrapped_high, valid)
         for name, model in zip(names, loaded):
-            if sample.method not in model.trained_methods:
+            if not model.serves(sample.method):
                 continue  # the model was not trained for this method (no row, a blank in the summary)
-            order = model.refine(sample.wrapped_high, sample.wrapped_low, sample.coarse_order,
-                                 sample.frequency_high, valid=valid)
-            solvers[name] = consensus_order(order, coarse, sample.wrapped_high, valid) if consensus else order
+            solvers[name] = refine_order(model, sample.method, sample.wrapped_high, sample.wrapped_low, coarse,
+                                         sample.frequency_high, sample.frequency_low, valid, consensus=consensus)
         for name, order in solvers.items():
             correct[group + (name,)] += int(np.count_nonzero((order == label) & valid))
             pixels[group + (name,)] += n_valid

@@ -102,6 +102,12 @@ class FringeOrderModel:
         """Classical methods of the training set (from the metadata; all three when not recorded)."""
         return tuple(self.training.get("methods") or ("mf", "mw", "nt"))
 
+    def serves(self, method: str) -> bool:
+        """Whether the network refines ``method``'s order: a method of its training set, or NT for a DP-TPU
+        model trained on MF (NT reaches the network in the MF representation, :mod:`dptpu.models.nt_prior`)."""
+        return method in self.trained_methods or (method == "nt" and self.kind == "dptpu"
+                                                  and "mf" in self.trained_methods)
+
     @property
     def input_names(self) -> tuple[str, ...]:
         return tuple(i.name for i in self._session.get_inputs())

@@ -18,9 +18,10 @@ import numpy as np
 
 from .consensus import consensus_order
 from .inference import FringeOrderModel, shipped_model_path
+from .nt_prior import mf_representation
 
 __all__ = ["DEFAULT_MAX_PERIODS_PER_PIXEL", "REFINABLE_METHODS", "fringe_density", "refine_capture_result",
-           "resolve_model"]
+           "refine_order", "resolve_model"]
 
 #: Classical methods whose result the network refines (the paper's three two-frequency methods).
 REFINABLE_METHODS = ("mf", "mw", "nt")
@@ -47,7 +48,7 @@ def resolve_model(value, method: str) -> FringeOrderModel | None:
         if path is None or method not in REFINABLE_METHODS:
             return None
         model = FringeOrderModel.load(path)
-        return model if method in model.trained_methods else None
+        return model if model.serves(method) else None
     if method not in REFINABLE_METHODS:
         raise ValueError(f"--model refines the orders of {', '.join(REFINABLE_METHODS)}; method {method!r} "
                          "is not one of them (pass --model none)")
@@ -79,10 +80,9 @@ def refine_capture_result(result, model: FringeOrderModel, *, consensus: bool = 
                          f"wrapped phases; got method {result.method!r}")
     psi_h, psi_l = result.wrapped_phases
     quality = np.asarray(result.quality, dtype=bool)
-    order = model.refine(psi_h, psi_l, result.fringe_order, result.frequency, valid=quality)
-    if consensus:
-        classical = np.where(result.valid, result.fringe_order, order)  # the network's where classical has none
-        order = consensus_order(order, classical, np.where(quality, psi_h, 0.0), quality)
+    f_h, f_l = result.frequencies[0], result.frequencies[1]
+    order = refine_order(model, result.method, psi_h, psi_l, result.fringe_order, f_h, f_l, quality,
+                         classical_valid=result.valid, consensus=consensus)
     absolute = psi_h + 2.0 * np.pi * order  # Eq. (3), (H, W)
     with np.errstate(invalid="ignore"):
         valid = quality & (absolute >= 0.0) & (absolute < 2.0 * np.pi * result.frequency)
@@ -90,6 +90,51 @@ def refine_capture_result(result, model: FringeOrderModel, *, consensus: bool = 
         result, fringe_order=np.where(valid, order, 0).astype(np.int32),
         absolute_phase=np.where(valid, absolute, np.nan), valid=valid,
         reliability=np.where(valid, result.reliability, 0.0))
+
+
+def refine_order(model: FringeOrderModel, method: str, psi_h, psi_l, classical_order, f_h: float, f_l: float,
+                 valid, *, classical_valid=None, consensus: bool = True) -> np.ndarray:
+    """DP-TPU's fringe order of ``f_h`` for one two-frequency result, ``(H, W)`` int32.
+
+    MF and MW: the network on the wrapped phases and the classical order (the paper's Fig. 8b). NT: the network
+    on NT's prior in the MF representation (:func:`dptpu.models.nt_prior.mf_representation`: the low order by
+    band consensus, the low absolute phase at one period, its MF order), and the consensus of
+    :mod:`dptpu.models.consensus` with that MF order as the classical one.
+
+    Parameters
+    ----------
+    model : FringeOrderModel
+        Serving ``method`` (:meth:`FringeOrderModel.serves`).
+    method : {"mf", "mw", "nt"}
+    psi_h, psi_l : ndarray (H, W)
+        Wrapped phases of ``f_h`` and ``f_l``, radians (NaN allowed where not ``valid``).
+    classical_order : ndarray (H, W) int
+        The classical method's order of ``f_h`` (Eq. (5), (7) or (9)).
+    f_h, f_l : float
+        Periods across the projector.
+    valid : ndarray (H, W) bool
+        Pixels to decide; the others keep ``classical_order``.
+    classical_valid : ndarray (H, W) bool, optional
+        Where ``classical_order`` is the method's answer (NT rejects some keys); elsewhere the vote uses the
+        network's order as the classical one. Default: ``valid``.
+    consensus : bool
+        Post-process with :func:`dptpu.models.consensus.consensus_order` (default).
+    """
+    if method not in REFINABLE_METHODS or not model.serves(method):
+        raise ValueError(f"the model {model.path} (trained for {', '.join(model.trained_methods)}) does not refine "
+                         f"method {method!r}")
+    valid = np.asarray(valid, dtype=bool)
+    classical_valid = valid if classical_valid is None else np.asarray(classical_valid, dtype=bool) & valid
+    if method == "nt" and model.kind == "dptpu":
+        nt = mf_representation(psi_h, psi_l, np.where(classical_valid, classical_order, np.nan), f_h, f_l, valid)
+        order = model.refine(psi_h, nt.wrapped_low, nt.coarse_order, f_h, valid=valid)
+        classical = nt.coarse_order
+    else:
+        order = model.refine(psi_h, psi_l, classical_order, f_h, valid=valid)
+        classical = np.where(classical_valid, classical_order, order)  # the network's where classical has none
+    if consensus:
+        order = consensus_order(order, classical, np.where(valid, psi_h, 0.0), valid)
+    return order
 
 
 def fringe_density(result) -> float:

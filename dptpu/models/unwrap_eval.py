@@ -208,8 +208,10 @@ def format_report(rows: list[Row], *, spec: UnwrapEvalSpec, data_dir, models=(),
               ""]
     solvers = ["`classical` (the method's formula)", "`classical+median` (3x3 median of the classical order)"]
     for name, model in zip(names, models):
-        untrained = [m for m in spec.methods if m not in model.trained_methods]
+        untrained = [m for m in spec.methods if not model.serves(m)]
         note = f"; not trained for {', '.join(untrained)}: not run there, blank in the table" if untrained else ""
+        if "nt" in spec.methods and "nt" not in model.trained_methods and model.serves("nt"):
+            note += "; NT through its band prior in the MF representation (dptpu.models.nt_prior)"
         solvers.append(f"`{name}` ({model.kind} model `{model.path}`, trained for "
                        f"{', '.join(model.trained_methods)}{note})")
     lines += ["Solvers: " + ", ".join(solvers) + ".", "", "## Accuracy (% of valid pixels with the exact fringe order)", "", format_summary(rows)]

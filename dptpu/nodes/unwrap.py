@@ -20,8 +20,9 @@ name                default   meaning
 =================== ========= ===================================================================================
 ``method``          "mf"      ``mf`` (Eq. (5) in float32, needs a frequency <= 1), ``mw`` (Eqs. (6)-(7), needs
                               ``0 < f_h - f_l <= 1``), ``nt`` (Eqs. (8)-(9)) or ``heterodyne`` (beat tree of all)
-``model``           "none"    a DP-TPU ``.onnx`` model refining the classical fringe order (mf/mw/nt), ``shipped``
-                              (the packaged model) or ``none``
+``model``           "none"    a DP-TPU ``.onnx`` model refining the classical fringe order (mf/mw/nt; nt reaches it
+                              in the MF representation of :mod:`dptpu.models.nt_prior`), ``shipped`` (the
+                              packaged model) or ``none``
 ``consensus``       false     with ``model``: post-process the network's order with the neighbour consensus of
                               :mod:`dptpu.models.consensus` (what ``dptpu unwrap --model`` and the accuracy
                               figures of docs/model-eval.md use; 54-259 ms more a 640x480 scan, so off by default)
@@ -142,13 +143,13 @@ class UnwrapNode(Node):
             raise ValueError("parameter model refines a two-frequency method (mf, mw or nt), as the network was "
                              "trained; got method heterodyne")
         self.model = load_model(self.model_path)
-        if self.model is not None and self.method not in self.model.trained_methods:
+        if self.model is not None and not self.model.serves(self.method):
             raise ValueError(f"parameter model {self.model_path!r} was trained for method(s) "
                              f"{', '.join(self.model.trained_methods)}; got method {self.method}")
         if self.consensus and self.model is None:
             raise ValueError("parameter consensus post-processes the network's fringe order; set model (a DP-TPU "
                              "model file or shipped) or consensus:=false")
-        self.consensus_order = _load_consensus() if self.consensus else None
+        self.refine_order = _load_refine_order() if self.model is not None else None
         self.scans_published = 0
         self.scans_rejected = 0
         self.pixels_nan = 0
@@ -223,9 +224,12 @@ class UnwrapNode(Node):
             result = tpu.unwrap(self.method, phases[0], phases[1], frequencies[0], frequencies[1], extent=extent,
                                 valid=valid)
         if self.model is not None:  # DP-TPU: the network refines the classical order (the paper's Fig. 8b)
-            order = self.model.refine(phases[0], phases[1], result.fringe_order, frequencies[0], valid=result.valid)
-            if self.consensus_order is not None:  # pixel-level vote of network and classical orders
-                order = self.consensus_order(order, result.fringe_order, phases[0], result.valid)
+            if self.method == "nt" or self.consensus:  # NT's prior in the MF representation; the consensus vote
+                order = self.refine_order(self.model, self.method, phases[0], phases[1], result.fringe_order,
+                                          frequencies[0], frequencies[1], result.valid, consensus=self.consensus)
+            else:
+                order = self.model.refine(phases[0], phases[1], result.fringe_order, frequencies[0],
+                                          valid=result.valid)
             result = refined(result, phases[0].astype(np.float64), order)
         return result, indices[0], nan_pixels
 
@@ -288,11 +292,11 @@ def load_model(path: str):
     return inference.FringeOrderModel.load(path, threads=1)
 
 
-def _load_consensus():
-    """:func:`dptpu.models.consensus.consensus_order` (numpy and OpenCV only, no onnxruntime or torch)."""
-    from dptpu.models.consensus import consensus_order
+def _load_refine_order():
+    """:func:`dptpu.models.refine.refine_order`: the NT prior and the consensus (numpy, OpenCV, onnxruntime)."""
+    from dptpu.models.refine import refine_order
 
-    return consensus_order
+    return refine_order
 
 
 def refined(result: tpu.Unwrapped, psi_h: np.ndarray, order: np.ndarray) -> tpu.Unwrapped:
