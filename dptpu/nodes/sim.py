@@ -65,13 +65,22 @@ import numpy as np
 
 from dptpu.graph.node import Node
 from dptpu.graph.qos import DurabilityPolicy, QoSProfile
-from dptpu.messages import AbsolutePhase, CameraInfo, FringeFrame, Header, Image, PatternSequence, ScanStatus, Trigger
+from dptpu.messages import (
+    AbsolutePhase,
+    CameraInfo,
+    FringeFrame,
+    Header,
+    Image,
+    PatternSequence,
+    ScanStatus,
+    Trigger,
+)
 
+from .node_main import run_node
 from .sequence_assembler import same_frequency
 from .sim_source import DEFAULT_SCENES, SimScene, SimSource, load_source
-from .node_main import run_node
 
-__all__ = ["SimNode", "parse_drop_frames", "main"]
+__all__ = ["SimNode", "main", "parse_drop_frames"]
 
 DEFAULT_FRAME_ID = "scanner_optical_frame"
 LATCHED_QOS = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
@@ -137,9 +146,14 @@ class SimNode(Node):
                              f"{self.frame_rate_hz}")
         if bit_depth not in (8, 16):
             raise ValueError(f"parameter bit_depth must be 8 or 16; got {bit_depth}")
+        # the camera is announced as soon as it is known, before the raycast renders (seconds at 640x480): the cloud
+        # node builds its triangulation tables meanwhile, not while the first scans arrive (docs/scanner.md)
+        self.info_pub = self.create_publisher(CameraInfo, "/camera/camera_info", LATCHED_QOS)
+        self._info_published = False
         self.source: SimSource = load_source(source, rig=rig, size=size, scenes=scenes, sequence=sequence,
                                              fringe_axis=fringe_axis, shift_sign=shift_sign, seed=seed,
-                                             bit_depth=bit_depth, log=self.get_logger().info)
+                                             bit_depth=bit_depth, log=self.get_logger().info,
+                                             on_rig=self._publish_camera_info)
         self.get_logger().info(self.source.note)
         if self.source.kind != "raycast":
             self._check_rig(rig, size)
@@ -154,14 +168,14 @@ class SimNode(Node):
         self._next_due_s = 0.0
 
         self.image_pub = self.create_publisher(FringeFrame, "/camera/image_raw", 100)
-        self.info_pub = self.create_publisher(CameraInfo, "/camera/camera_info", LATCHED_QOS)
         self.truth_pub = self.create_publisher(AbsolutePhase, "/sim/ground_truth", 10)
         self.truth_depth_pub = self.create_publisher(Image, "/sim/ground_truth_depth", 10)
         self.status_pub = self.create_publisher(ScanStatus, "/scanner/status", STATUS_QOS)
         self.sequence_sub = self.create_subscription(PatternSequence, "/projector/pattern_sequence",
                                                      self.on_pattern_sequence, LATCHED_QOS)
         self.trigger_sub = None  # created by on_wait_timer once the frames have subscribers
-        self.info_pub.publish(self.camera_info())
+        if not self._info_published:  # captures and shipped renders: their rig comes with the frames
+            self._publish_camera_info(self.source.rig)
         self.wait_timer = self.create_timer(0.05, self.on_wait_timer)
         self.pace_timer = self.create_timer(min(0.01, 1.0 / self.frame_rate_hz), self.on_pace_timer) \
             if self.frame_rate_hz > 0 else None
@@ -278,8 +292,13 @@ class SimNode(Node):
                                       "given that rig triangulates them wrongly: give it the captures' "
                                       "calibration.yaml")
 
-    def camera_info(self) -> CameraInfo:
-        camera = self.source.rig.camera
+    def _publish_camera_info(self, rig) -> None:
+        self.info_pub.publish(self.camera_info(rig))
+        self._info_published = True
+
+    def camera_info(self, rig=None) -> CameraInfo:
+        """The CameraInfo of ``rig``'s camera (default: the source's)."""
+        camera = (rig or self.source.rig).camera
         width, height = camera.size
         return CameraInfo.from_intrinsics(camera.K, camera.dist, width, height,
                                           header=Header(stamp=self.get_clock().now().to_msg(), frame_id=self.frame_id))

@@ -26,12 +26,27 @@ from pathlib import Path
 import numpy as np
 
 from dptpu.fpp.calibration import Rig, load_rig
-from dptpu.fpp.capture import CAPTURE_FILE, PhaseSequence, load_ground_truth, load_sequence_images, read_capture
+from dptpu.fpp.capture import (
+    CAPTURE_FILE,
+    PhaseSequence,
+    load_ground_truth,
+    load_sequence_images,
+    read_capture,
+)
 
 from .sequence_assembler import same_frequency
 
-__all__ = ["SimScene", "SimSource", "load_source", "raycast_scenes", "capture_scenes", "shipped_root",
-           "parse_scene_list", "parse_sequence_list", "DEFAULT_SCENES"]
+__all__ = [
+    "DEFAULT_SCENES",
+    "SimScene",
+    "SimSource",
+    "capture_scenes",
+    "load_source",
+    "parse_scene_list",
+    "parse_sequence_list",
+    "raycast_scenes",
+    "shipped_root",
+]
 
 #: Scenes rendered when the source is ``raycast`` (or ``shipped`` without shipped renders): seeded random
 #: scenes of several objects with occlusions and depth steps, the standard sphere and the calibration board.
@@ -264,7 +279,7 @@ def _shipped_lacks(scenes, rig: Rig, size, sequence) -> str:
 
 def load_source(source: str, *, rig, size, scenes: str = DEFAULT_SCENES, sequence: str = "96x12,1x12",
                 fringe_axis: str = "x", shift_sign: int = -1, seed: int = 0, bit_depth: int = 8,
-                log=None) -> SimSource:
+                log=None, on_rig=None) -> SimSource:
     """The scenes of ``source`` (``shipped``, ``raycast`` or a folder; see the module docstring).
 
     Parameters
@@ -275,6 +290,9 @@ def load_source(source: str, *, rig, size, scenes: str = DEFAULT_SCENES, sequenc
         Raycast: camera size ``WIDTHxHEIGHT``.
     scenes, sequence : str
         Raycast: :func:`parse_scene_list`, :func:`parse_sequence_list`.
+    on_rig : callable, optional
+        Raycast: ``on_rig(rig)`` is called with the twin's rig before the scenes are rendered (seconds at
+        640x480), so a node can announce the camera while it renders.
     """
     from dptpu.sim.rig import load_twin_rig
 
@@ -305,6 +323,8 @@ def load_source(source: str, *, rig, size, scenes: str = DEFAULT_SCENES, sequenc
         twin_rig = load_twin_rig(rig, size=size)
     except FileNotFoundError as exc:
         raise ValueError(f"parameter rig: {exc}") from None
+    if on_rig is not None:
+        on_rig(twin_rig)
     rendered = raycast_scenes(twin_rig, names, sequences, fringe_axis=fringe_axis, shift_sign=shift_sign, seed=seed,
                               bit_depth=bit_depth, log=log)
     return SimSource(rendered, twin_rig, fringe_axis, shift_sign, "raycast",

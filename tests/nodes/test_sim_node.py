@@ -159,3 +159,16 @@ def test_a_12_step_capture_serves_its_3_step_sequence_as_every_fourth_frame(tmp_
     difference = np.angle(np.exp(1j * (wrapped_phase(served).phase - wrapped_phase(three).phase)))[lit]
     assert np.abs(difference).max() < 0.02
     assert scene.stack(16.0, 5) is None  # 12 is not a multiple of 5
+
+
+def test_raycast_source_announces_its_rig_before_rendering():
+    # the sim node publishes the CameraInfo from this callback, so the cloud node builds its tables while the
+    # scenes render (seconds at 640x480), not while the first scans arrive
+    seen = []
+
+    def on_rig(rig):
+        seen.append((rig.camera.size, rig.camera.K[0, 0]))
+
+    source = load_source("raycast", rig="nominal", size="64x48", scenes="plane", sequence=SEQUENCE, on_rig=on_rig)
+    assert seen == [((64, 48), pytest.approx(2600 * 64 / 640))]
+    assert source.rig.camera.size == (64, 48)
