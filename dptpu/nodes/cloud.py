@@ -11,7 +11,8 @@ Topics (defaults; remappable)
 topic                       type          dir   notes
 =========================== ============= ===== ==================================================================
 ``/scanner/absolute_phase`` AbsolutePhase in    reliable, depth 10
-``/scanner/phase``          PhaseMaps     in    depth 4: the modulation of the same scan becomes ``intensity``
+``/scanner/intensity``      Image         in    depth 4: 32FC1 modulation of the same scan (stamp) becomes
+                                                 ``intensity`` (the unwrap node's)
 ``/camera/camera_info``     CameraInfo    in    transient local, only with ``use_camera_info``
 ``/scanner/points``         PointCloud2   out   organized H x W; float32 x, y, z (m), intensity (DN), quality
 ``/scanner/depth``          Image         out   32FC1, z in metres, NaN where invalid
@@ -31,15 +32,15 @@ name                   default                   meaning
 ``distortion``         true                      correct both lens distortions (false: the pinhole model)
 ``ply_dir``            ""                        folder for PLY snapshots through open3d ("" = none)
 ``ply_every``          0                         write scan 1, 1 + n, 1 + 2n, ... as PLY (0 = none)
-``intensity_wait_s``   0.2                       how long a scan may wait for its PhaseMaps (published first, but the two
-                                                 topics race); only while a PhaseMaps publisher is connected
+``intensity_wait_s``   0.2                       how long a scan may wait for its intensity image (published first, but the
+                                                 two topics race); only while an intensity publisher is connected
 ``camera_info_wait_s`` 5.0                       with ``use_camera_info``: how long a scan may wait for the first CameraInfo
                                                  (at most 8 scans wait; a scan that waited in vain fails with the reason)
 ====================== ========================= ============================================================================
 
 Fields of the cloud: ``x, y, z`` NaN where the pixel is invalid (``is_dense`` false); ``intensity`` the fringe
-modulation B of the unwrapped frequency in camera digital numbers (NaN when the scan's PhaseMaps was not
-seen); ``quality`` the unwrapping margin ``AbsolutePhase.reliability`` in [0, 1] (0 where invalid). Run:
+modulation B of the unwrapped frequency in camera digital numbers, from ``/scanner/intensity`` (NaN when the
+scan's intensity image was not seen); ``quality`` the unwrapping margin ``AbsolutePhase.reliability`` in [0, 1] (0 where invalid). Run:
 ``python -m dptpu.nodes.cloud --ros-args -p rig:=calibration.yaml``; design: ``docs/nodes.md``.
 """
 from __future__ import annotations
@@ -61,13 +62,11 @@ from dptpu.messages import (
     CameraInfo,
     Header,
     Image,
-    PhaseMaps,
     PointCloud2,
     ScanStatus,
 )
 
 from .node_main import run_node
-from .sequence_assembler import same_frequency
 
 __all__ = ["FIELDS", "CloudNode", "camera_points_m", "main", "write_ply"]
 
@@ -75,7 +74,7 @@ FIELDS = ("x", "y", "z", "intensity", "quality")
 DEFAULT_FRAME_ID = "scanner_optical_frame"
 STATUS_QOS = QoSProfile(depth=50)
 LATCHED_QOS = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
-_PHASE_MAPS_KEPT = 4
+_INTENSITIES_KEPT = 4
 #: Scans held at most while the first CameraInfo is awaited (each a full-size AbsolutePhase).
 _CAMERA_INFO_WAITING_MAX = 8
 
@@ -154,7 +153,7 @@ class CloudNode(Node):
         self._triangulators: dict[str, Triangulator] = {}
         if not self.use_camera_info:
             self._triangulator("x")  # the per-rig tables now (~0.3-2 s at 640x480), not in the first scan
-        self._phase_maps: OrderedDict[int, PhaseMaps] = OrderedDict()
+        self._intensities: OrderedDict[int, Image] = OrderedDict()  # scan stamp ns -> its intensity image
         self._waiting: dict[int, tuple[AbsolutePhase, float]] = {}  # sequence_id -> (scan, deadline), monotonic s
         self._camera_info_seen = not self.use_camera_info
         self._waiting_for_camera_info: OrderedDict[int, tuple[AbsolutePhase, float]] = OrderedDict()  # same
@@ -170,7 +169,7 @@ class CloudNode(Node):
 
         self._subscriptions_in = [
             self.create_subscription(AbsolutePhase, "/scanner/absolute_phase", self.on_absolute_phase, 10),
-            self.create_subscription(PhaseMaps, "/scanner/phase", self.on_phase_maps, _PHASE_MAPS_KEPT),
+            self.create_subscription(Image, "/scanner/intensity", self.on_intensity, _INTENSITIES_KEPT),
         ]
         if self.use_camera_info:
             self._subscriptions_in.append(
@@ -195,16 +194,18 @@ class CloudNode(Node):
         while self._waiting_for_camera_info:
             self.on_absolute_phase(self._waiting_for_camera_info.popitem(last=False)[1][0])
 
-    def on_phase_maps(self, msg: PhaseMaps) -> None:
-        """Keep the last few scans' PhaseMaps for their modulation (the cloud's intensity)."""
-        self._phase_maps[msg.sequence_id] = msg
-        while len(self._phase_maps) > _PHASE_MAPS_KEPT:
-            self._phase_maps.popitem(last=False)
-        if msg.sequence_id in self._waiting:
-            self._triangulate(self._waiting.pop(msg.sequence_id)[0])
+    def on_intensity(self, msg: Image) -> None:
+        """Keep the last few scans' intensity images (by stamp); triangulate the scan that waited for this one."""
+        stamp_ns = msg.header.stamp.to_ns()
+        self._intensities[stamp_ns] = msg
+        while len(self._intensities) > _INTENSITIES_KEPT:
+            self._intensities.popitem(last=False)
+        for sequence_id, (scan, _) in list(self._waiting.items()):
+            if scan.header.stamp.to_ns() == stamp_ns:
+                self._triangulate(self._waiting.pop(sequence_id)[0])
 
     def on_absolute_phase(self, msg: AbsolutePhase) -> None:
-        """Triangulate one scan now, or once its PhaseMaps arrived (at most ``intensity_wait_s`` later); with
+        """Triangulate one scan now, or once its intensity image arrived (at most ``intensity_wait_s`` later); with
         ``use_camera_info``, not before the first CameraInfo (at most ``camera_info_wait_s``)."""
         if not self._camera_info_seen:
             self._waiting_for_camera_info[msg.sequence_id] = (msg, time.monotonic() + self.camera_info_wait_s)
@@ -212,13 +213,13 @@ class CloudNode(Node):
                 self._fail_waiting(self._waiting_for_camera_info.popitem(last=False)[1][0],
                                    f"more than {_CAMERA_INFO_WAITING_MAX} scans waiting for the first CameraInfo")
             return
-        if msg.sequence_id in self._phase_maps or self._subscriptions_in[1].get_publisher_count() == 0:
+        if msg.header.stamp.to_ns() in self._intensities or self._subscriptions_in[1].get_publisher_count() == 0:
             self._triangulate(msg)
         else:
             self._waiting[msg.sequence_id] = (msg, time.monotonic() + self.intensity_wait_s)
 
     def on_timer(self) -> None:
-        """Triangulate the scans whose PhaseMaps did not come in time (intensity NaN)."""
+        """Triangulate the scans whose intensity image did not come in time (intensity NaN)."""
         now_s = time.monotonic()
         for sequence_id in [i for i, (_, deadline) in self._waiting.items() if deadline <= now_s]:
             self._triangulate(self._waiting.pop(sequence_id)[0])
@@ -260,7 +261,7 @@ class CloudNode(Node):
         reliability = msg.reliability
         if reliability.dtype != np.float32 or not reliability.flags.c_contiguous:
             reliability = np.ascontiguousarray(reliability, dtype=np.float32)
-        channels = [planes[0], planes[1], planes[2], np.ascontiguousarray(intensity), reliability]
+        channels = [planes[0], planes[1], planes[2], np.ascontiguousarray(intensity, dtype=np.float32), reliability]
         cloud = cv2.merge(channels)  # (H, W, 5) float32: x y z intensity quality, one interleaving pass
         self.points_publisher.publish(PointCloud2.from_array(cloud, FIELDS, header=header, is_dense=False))
         depth_m = planes[2]  # (H, W) metres
@@ -272,7 +273,7 @@ class CloudNode(Node):
             self.pixels_nan += nan_pixels
             reasons.append(f"{nan_pixels} pixels marked valid had a non-finite absolute phase; treated as invalid")
         if not intensity_seen:
-            reasons.append(f"no PhaseMaps of scan {msg.sequence_id} seen: intensity NaN")
+            reasons.append(f"no intensity image of scan {msg.sequence_id} seen: intensity NaN")
         if self.ply_dir and self.ply_every and (self.scans_published - 1) % self.ply_every == 0:
             reasons += self._snapshot(msg.sequence_id, cloud[..., :3], cloud[..., 3])
         if reasons:
@@ -313,14 +314,15 @@ class CloudNode(Node):
         return rig_size[0] if msg.fringe_axis == "x" else rig_size[1]
 
     def _intensity(self, msg: AbsolutePhase) -> np.ndarray | None:
-        """Modulation (H, W) float32 of the scan's unwrapped frequency (a view of its PhaseMaps), None when its
-        PhaseMaps was not seen."""
-        maps = self._phase_maps.get(msg.sequence_id)
-        if maps is not None and maps.modulation.shape[1:] == msg.absolute_phase.shape:
-            for index, frequency in enumerate(maps.frequencies):
-                if same_frequency(float(frequency), msg.frequency):
-                    return maps.modulation[index]
-        return None
+        """Modulation (H, W) float32 of the scan's unwrapped frequency (a view of its ``/scanner/intensity`` image of
+        the same stamp), None when that image was not seen or is not a 32FC1 image of the scan's size."""
+        image = self._intensities.pop(msg.header.stamp.to_ns(), None)
+        if image is None or image.encoding != "32FC1" or (image.height, image.width) != msg.absolute_phase.shape:
+            return None
+        try:
+            return image.to_array()  # (H, W) float32 view
+        except ValueError:
+            return None
 
     def _snapshot(self, sequence_id: int, points: np.ndarray, intensity: np.ndarray) -> list[str]:
         path = Path(self.ply_dir) / f"scan_{sequence_id:08d}.ply"

@@ -11,7 +11,6 @@ from dptpu.messages import (
     CameraInfo,
     Header,
     Image,
-    PhaseMaps,
     PointCloud2,
     ScanStatus,
     Time,
@@ -52,23 +51,21 @@ def absolute_phase(scene, *, frequency=16.0, sequence_id=1, shape=None, projecto
 def start(harness, rig_path, **parameters):
     node = harness.start(CloudNode, rig=str(rig_path), **parameters)
     source = harness.publisher(AbsolutePhase, "/scanner/absolute_phase")
-    maps = harness.publisher(PhaseMaps, "/scanner/phase")
+    intensity = harness.publisher(Image, "/scanner/intensity")
     points = harness.collect(PointCloud2, "/scanner/points")
     depth = harness.collect(Image, "/scanner/depth")
     status = harness.collect(ScanStatus, "/scanner/status")
     harness.connect()
-    return node, source, maps, points, depth, status
+    return node, source, intensity, points, depth, status
 
 
 @pytest.mark.parametrize("world_pose", [False, True], ids=["world=camera", "world elsewhere"])
 def test_cloud_of_the_plane_is_in_the_camera_optical_frame_in_metres(harness, tmp_path, world_pose):
     scene = plane_scene(world_pose=world_pose)
-    _node, source, maps, points, depth, status = start(harness, save_rig(scene.rig, tmp_path / "rig.yaml"))
-    modulation = np.linspace(10, 100, 2 * 120 * 160, dtype=np.float32).reshape(2, 120, 160)
-    maps.publish(PhaseMaps(sequence_id=1, frequencies=np.array([16.0, 1.0]), modulation=modulation,
-                           phases=np.zeros((2, 120, 160), np.float32), valid=np.ones((120, 160), bool)))
-    harness.spin_for(0.1)
-    source.publish(absolute_phase(scene))
+    _node, source, intensity, points, depth, status = start(harness, save_rig(scene.rig, tmp_path / "rig.yaml"))
+    modulation = np.linspace(10, 100, 120 * 160, dtype=np.float32).reshape(120, 160)
+    source.publish(absolute_phase(scene))  # before its intensity image: it waits for it (intensity_wait_s)
+    intensity.publish(Image.from_array(modulation, "32FC1", header=Header(stamp=STAMP, frame_id="camera")))
     (cloud,) = harness.wait(points, 1)
     assert (cloud.height, cloud.width, cloud.is_dense) == (120, 160, False)
     assert [f.name for f in cloud.fields] == list(FIELDS) and cloud.point_step == 20
@@ -76,7 +73,7 @@ def test_cloud_of_the_plane_is_in_the_camera_optical_frame_in_metres(harness, tm
     xyz = cloud.to_array(["x", "y", "z"])  # (H, W, 3) float32
     assert xyz.dtype == np.float32
     assert np.abs(xyz - scene.points_mm * 1e-3).max() < MAX_POINT_ERROR_M
-    assert np.array_equal(cloud.to_array(["intensity"])[..., 0], modulation[0])
+    assert np.array_equal(cloud.to_array(["intensity"])[..., 0], modulation)
     assert np.all(cloud.to_array(["quality"]) == np.float32(0.9))
     (image,) = harness.wait(depth, 1)
     assert image.encoding == "32FC1" and image.header.frame_id == "scanner_optical_frame"
@@ -91,8 +88,8 @@ def test_cloud_of_the_plane_is_in_the_camera_optical_frame_in_metres(harness, tm
 
 
 def test_invalid_pixels_are_nan_and_the_frame_id_is_a_parameter(harness, tmp_path, scene):
-    node, source, _maps, points, _depth, status = start(harness, save_rig(scene.rig, tmp_path / "rig.yaml"),
-                                                      frame_id="tool0_scanner")
+    node, source, _intensity, points, _depth, status = start(harness, save_rig(scene.rig, tmp_path / "rig.yaml"),
+                                                           frame_id="tool0_scanner")
     msg = absolute_phase(scene)
     msg.valid[:, :40] = False
     msg.absolute_phase[7, 50:53] = [np.nan, np.inf, -np.inf]  # marked valid: made invalid and counted
@@ -101,17 +98,17 @@ def test_invalid_pixels_are_nan_and_the_frame_id_is_a_parameter(harness, tmp_pat
     xyz = cloud.to_array(["x", "y", "z"])
     assert np.isnan(xyz[:, :40]).all() and np.isnan(xyz[7, 50:53]).all()
     assert np.isfinite(xyz[:, 40:]).sum() == 3 * (120 * 120 - 3)
-    assert np.isnan(cloud.to_array(["intensity"])).all()  # no PhaseMaps of scan 1 was seen
+    assert np.isnan(cloud.to_array(["intensity"])).all()  # no intensity image of scan 1 was seen
     assert cloud.header.frame_id == "tool0_scanner"
     (warn,) = harness.wait(status, 1)
     assert warn.level == ScanStatus.WARN and warn.reason == (
         "3 pixels marked valid had a non-finite absolute phase; treated as invalid; "
-        "no PhaseMaps of scan 1 seen: intensity NaN")
+        "no intensity image of scan 1 seen: intensity NaN")
     assert warn.valid_pixels == 120 * 120 - 3 and node.pixels_nan == 3
 
 
 def test_inconsistent_scans_are_reported_and_the_node_goes_on(harness, tmp_path, scene):
-    node, source, _maps, points, _depth, status = start(harness, save_rig(scene.rig, tmp_path / "rig.yaml"))
+    node, source, _intensity, points, _depth, status = start(harness, save_rig(scene.rig, tmp_path / "rig.yaml"))
     source.publish(absolute_phase(scene, sequence_id=1, shape=(60, 80)))
     source.publish(absolute_phase(scene, sequence_id=2, projector=(1280, 800)))
     source.publish(absolute_phase(scene, sequence_id=3))
@@ -167,8 +164,8 @@ def test_a_scan_before_the_first_camera_info_waits_for_it_or_fails_with_the_reas
 def test_ply_snapshots_every_nth_scan_through_open3d(harness, tmp_path, scene):
     import open3d as o3d
 
-    node, source, _maps, points, _depth, _status = start(harness, save_rig(scene.rig, tmp_path / "rig.yaml"),
-                                                      ply_dir=str(tmp_path / "ply"), ply_every=2)
+    node, source, _intensity, points, _depth, _status = start(harness, save_rig(scene.rig, tmp_path / "rig.yaml"),
+                                                           ply_dir=str(tmp_path / "ply"), ply_every=2)
     for sequence_id in (1, 2, 3):
         msg = absolute_phase(scene, sequence_id=sequence_id)
         msg.valid[:20] = False

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from dptpu.fpp.tpu import unwrap_mf
-from dptpu.messages import AbsolutePhase, Header, PhaseMaps, ScanStatus, Time
+from dptpu.messages import AbsolutePhase, Header, Image, PhaseMaps, ScanStatus, Time
 from dptpu.nodes.harness import NodeHarness
 from dptpu.nodes.unwrap import UnwrapNode, load_model, select_frequencies
 from tests.nodes.test_cloud_scene import plane_scene
@@ -100,6 +100,19 @@ def test_scans_the_method_cannot_use_are_reported_and_the_node_goes_on(harness, 
     source.publish(phase_maps(scene, (32.0, 1.0), sequence_id=3))
     (result,) = harness.wait(absolute, 1)
     assert result.sequence_id == 3 and node.scans_rejected == 2 and node.scans_published == 1
+
+
+def test_the_unwrapped_frequencys_modulation_goes_out_as_the_clouds_intensity_image(harness, scene):
+    node, source, absolute, _status = start(harness, method="mf", high_frequency=8.0)
+    intensity = harness.collect(Image, "/scanner/intensity")
+    harness.connect()
+    maps = phase_maps(scene, (16.0, 1.0, 8.0), sequence_id=4)
+    maps.modulation[2] = np.arange(19200, dtype=np.float32).reshape(120, 160)  # B of f = 8, the unwrapped one
+    source.publish(maps)
+    (result,) = harness.wait(absolute, 1)
+    (image,) = harness.wait(intensity, 1)
+    assert result.frequency == 8.0 and image.header == result.header == maps.header  # the scan's stamp
+    assert image.encoding == "32FC1" and np.array_equal(image.to_array(), maps.modulation[2])
 
 
 def test_frequency_selection_follows_dptpu_unwrap():
