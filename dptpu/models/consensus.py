@@ -20,7 +20,9 @@ nothing but the measured wrapped phase ``psi_h`` and the orders themselves (no g
    once itself). All neighbours on another surface, a step of ``D`` periods away, vote for ``k + rint(D)``,
    so the surface with most pixels in the window decides: right along smooth edges, but the vote erodes
    sharp convex corners of a region by a pixel or two (measured on analytic step scenes, below). The
-   passes use windows of radius 1, 3, 3, 3, 3 (:data:`DEFAULT_RADII`), each on the previous pass's orders,
+   passes use windows of radius 1, 3, 3, 3, 3 (:data:`DEFAULT_RADII`), or 1, 3, 5, 6, 6, 6 (:data:`WIDE_RADII`)
+   where the classical order is noisy (it breaks at least half of its neighbour pairs, :func:`break_share`:
+   MW at 2 sigma and high f_h), each on the previous pass's orders,
    so a strip is eaten from its same-surface side; a pass re-decides only the pixels within its radius of
    two 4-neighbours whose phases disagree (elsewhere the votes confirm the order), and a pass of the same
    radius as the last one only those near the last one's changes, which keeps it cheap on clean maps.
@@ -36,12 +38,20 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
-__all__ = ["CLASSICAL_SHARE", "DEFAULT_RADII", "consensus_order", "phase_gradient", "prefer_consistent_classical",
-           "vote_orders"]
+__all__ = ["CLASSICAL_SHARE", "DEFAULT_RADII", "WIDE_RADII", "WIDE_SHARE", "break_share", "consensus_order",
+           "phase_gradient", "prefer_consistent_classical", "vote_orders"]
 
 #: Window half-width of each pass of the vote, pixels (3x3, then four passes of 7x7). Measured on the
 #: unseen-rig set (MF, 2 sigma, mean over f_h): passes 1,3,3 97.48 %, 1,3,3,3,3 97.85 % (docs/model-eval.md).
 DEFAULT_RADII = (1, 3, 3, 3, 3)
+#: Window half-widths for a noisy classical order (:func:`break_share` >= :data:`WIDE_SHARE`): more neighbours
+#: outvote more noise, but erode more of a region's corners. Measured on the unseen-rig set (320x240, MW, 2 sigma,
+#: f_h >= 60, network + consensus): radii 1,3,3,3,3 mean 97.19 % (lowest 95.44 %), 1,3,5,6,6,6 98.56 (97.92).
+WIDE_RADII = (1, 3, 5, 6, 6, 6)
+#: Share of broken neighbour pairs of the classical order (:func:`break_share`) from which the vote takes
+#: :data:`WIDE_RADII`. On the unseen-rig set: 1-30 % for MF at 1 sigma up to f_h = 56, 50-84 % for MW at
+#: 2 sigma from f_h = 56 on; 0-2 % for NT's MF-representation order (:mod:`dptpu.models.nt_prior`).
+WIDE_SHARE = 0.5
 #: Share of the valid 8-neighbours (at least 3) whose classical absolute phase must agree with a pixel's
 #: for its classical order to be kept where the network changed it.
 CLASSICAL_SHARE = 0.6
@@ -287,7 +297,37 @@ def _unsettled(absolute: np.ndarray, gy: np.ndarray, gx: np.ndarray, radius: int
     return near & finite
 
 
-def consensus_order(model_order, classical_order, wrapped_high, valid, *, radii=DEFAULT_RADII,
+def break_share(order, wrapped_high, valid, gradient=None) -> float:
+    """Share of the valid 4-neighbour pairs whose absolute phases disagree, ``rint(U_q - U_p - G . (q - p)) != 0``.
+
+    Parameters
+    ----------
+    order : ndarray (H, W) int
+    wrapped_high : ndarray (H, W)
+        Radians, finite where ``valid``.
+    valid : ndarray (H, W) bool
+    gradient : (gy, gx), optional
+        From :func:`phase_gradient`.
+
+    Returns
+    -------
+    float
+        In ``[0, 1]``; 0.0 without valid pairs. A right order breaks only at depth edges; every wrong pixel of
+        a noisy order breaks its pairs.
+    """
+    valid = np.asarray(valid, dtype=bool)
+    gy, gx = phase_gradient(wrapped_high, valid) if gradient is None else gradient
+    absolute = np.where(valid, np.asarray(order) + np.asarray(wrapped_high, dtype=np.float64) / (2.0 * np.pi),
+                        np.nan)  # periods, Eq. (3)
+    pairs_y, pairs_x = valid[1:] & valid[:-1], valid[:, 1:] & valid[:, :-1]
+    with np.errstate(invalid="ignore"):
+        broken_y = (np.rint(absolute[1:] - absolute[:-1] - gy[:-1]) != 0) & pairs_y
+        broken_x = (np.rint(absolute[:, 1:] - absolute[:, :-1] - gx[:, :-1]) != 0) & pairs_x
+    pairs = int(np.count_nonzero(pairs_y) + np.count_nonzero(pairs_x))
+    return (int(np.count_nonzero(broken_y)) + int(np.count_nonzero(broken_x))) / pairs if pairs else 0.0
+
+
+def consensus_order(model_order, classical_order, wrapped_high, valid, *, radii=None,
                     sparse: bool = False) -> np.ndarray:
     """Both steps of the module docstring: the post-processed fringe order, ``(H, W)`` int32.
 
@@ -301,8 +341,9 @@ def consensus_order(model_order, classical_order, wrapped_high, valid, *, radii=
         Wrapped phase of the high frequency, radians (finite where ``valid``).
     valid : ndarray (H, W) bool
         Pixels to decide; the others keep ``model_order``.
-    radii : sequence of int
-        Of :func:`vote_orders`.
+    radii : sequence of int, optional
+        Of :func:`vote_orders`. Default: :data:`WIDE_RADII` when the classical order breaks at least
+        :data:`WIDE_SHARE` of its neighbour pairs (:func:`break_share`), else :data:`DEFAULT_RADII`.
     sparse : bool
         Of :func:`vote_orders`.
 
@@ -316,5 +357,9 @@ def consensus_order(model_order, classical_order, wrapped_high, valid, *, radii=
     classical_order = _check("classical_order", classical_order, shape)
     valid = _check("valid", valid, shape).astype(bool) & np.isfinite(psi)
     psi = np.where(valid, psi, 0.0)
+    gradient = phase_gradient(psi, valid)
+    if radii is None:
+        noisy = break_share(classical_order, psi, valid, gradient) >= WIDE_SHARE
+        radii = WIDE_RADII if noisy else DEFAULT_RADII
     start = prefer_consistent_classical(model_order, classical_order, psi, valid)
-    return vote_orders(start, psi, valid, radii=radii, also=classical_order, sparse=sparse)
+    return vote_orders(start, psi, valid, radii=radii, gradient=gradient, also=classical_order, sparse=sparse)

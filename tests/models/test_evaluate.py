@@ -37,8 +37,10 @@ def test_consensus_and_the_vote_baseline_rows_on_toy_scenes(tiny_dataset):
     acc = {(r.method, r.frequency, r.solver): r.accuracy for r in rows}
     raw = {(r.method, r.frequency): r.accuracy for r in rounded if r.solver == "dptpu"}
     assert {r.solver for r in rows} == {"classical", "classical+median", "classical+vote", "dptpu"}
-    assert not [r for r in rows if r.solver == "dptpu" and r.method == "nt"]  # the model is not trained for NT
-    # f_h = 80: measured classical 83.93, rounded 82.45, + consensus 96.93, classical + vote 97.10 %
+    # NT reaches the MF + MW model through its band prior (dptpu.models.nt_prior); f_h = 80: measured classical
+    # 43.08, DP-TPU 95.18 % (f_h = 32: 96.19 -> 91.97 %, the vote's eroded corners of these 64x64 blocks)
+    assert acc[("nt", 80.0, "dptpu")] > acc[("nt", 80.0, "classical")] + 0.3
+    # f_h = 80: measured classical 83.93, rounded 81.22, + consensus 96.77, classical + vote 97.10 %
     assert acc[("mf", 80.0, "dptpu")] > raw[("mf", 80.0)] + 0.1
     assert acc[("mf", 80.0, "classical+vote")] > acc[("mf", 80.0, "classical")] + 0.1
     # f_h = 32: the vote erodes the corners of the blocks, where the classical order was right (measured
