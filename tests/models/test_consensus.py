@@ -8,6 +8,9 @@ import numpy as np
 import pytest
 
 from dptpu.models.consensus import (
+    DEFAULT_RADII,
+    WIDE_RADII,
+    break_share,
     consensus_order,
     phase_gradient,
     prefer_consistent_classical,
@@ -92,6 +95,31 @@ def test_vote_fixes_orders_off_by_several_periods():
     damaged[45:48, STEP_X - 2:STEP_X] -= 3  # at the depth edge
     voted = vote_orders(damaged, wrapped, valid)
     assert np.array_equal(voted[valid], order[valid])
+
+
+def test_break_share_counts_the_pairs_that_wrong_orders_break():
+    order, wrapped, valid = _scene()
+    pairs = (valid[1:] & valid[:-1]).sum() + (valid[:, 1:] & valid[:, :-1]).sum()
+    edge_pairs = HEIGHT  # the depth step breaks one horizontal pair a row
+    assert break_share(order, wrapped, valid) == pytest.approx(edge_pairs / pairs)
+    damaged, wrong = _isolated_errors(order, 0.15, seed=4)
+    isolated = wrong & valid
+    isolated[:, STEP_X - 1:STEP_X + 1] = False  # next to the step an error may mend the step's pair
+    assert break_share(damaged, wrapped, valid) > 3.5 * isolated.sum() / pairs  # each breaks its 3-4 pairs
+
+
+def test_consensus_widens_its_windows_for_a_noisy_classical_order():
+    order, wrapped, valid = _scene()
+    rng = np.random.default_rng(5)
+    noisy = order + rng.choice([-1, 0, 0, 1], size=order.shape)  # half the pixels wrong: most pairs broken
+    assert break_share(noisy, wrapped, valid) > 0.5
+    wide = consensus_order(noisy, noisy, wrapped, valid, radii=WIDE_RADII)
+    narrow = consensus_order(noisy, noisy, wrapped, valid, radii=DEFAULT_RADII)
+    assert np.mean(wide[valid] == order[valid]) > np.mean(narrow[valid] == order[valid])
+    assert np.array_equal(consensus_order(noisy, noisy, wrapped, valid), wide)
+    quiet, _ = _isolated_errors(order, 0.05, seed=6)
+    assert np.array_equal(consensus_order(quiet, quiet, wrapped, valid),
+                          consensus_order(quiet, quiet, wrapped, valid, radii=DEFAULT_RADII))
 
 
 def test_bad_shapes_name_the_field():
