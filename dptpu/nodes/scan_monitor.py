@@ -100,6 +100,7 @@ class _Scan:
     truth_depth: Image | None = None
     seen: dict = field(default_factory=dict)  # node -> state of its OK statuses
     durations_s: dict = field(default_factory=dict)  # node -> ScanStatus.duration_s of its OK status
+    cloud_points: tuple | None = None  # (valid_pixels, total_pixels) of the cloud node's done status
     failure: str = ""
 
 
@@ -214,6 +215,7 @@ class ScanMonitorNode(Node):
         if not self.use_truth and msg.state == "done" and msg.total_pixels:
             # the cloud node's: stamped when made, duration_s after the scan's stamp (docs/nodes.md)
             stamp_ns = msg.header.stamp.to_ns() - round(float(msg.duration_s) * 1e9)
+            scan.cloud_points = (int(msg.valid_pixels), int(msg.total_pixels))  # its finite points, counted there
             self._stamp_ids[stamp_ns] = msg.sequence_id
             while len(self._stamp_ids) > 64:
                 self._stamp_ids.pop(next(iter(self._stamp_ids)))
@@ -375,6 +377,10 @@ class ScanMonitorNode(Node):
                 scan.truth_depth.to_array())
             figures.update(metrics.as_dict())
             figures["method"] = phase.method
+        elif xyz is None and scan.cloud_points is not None \
+                and scan.cloud_points[1] == scan.cloud.height * scan.cloud.width:
+            # without ground truth: the finite points the cloud node counted (its done status named this cloud)
+            figures["valid_points"], figures["total_pixels"] = scan.cloud_points
         else:
             depth_m = xyz[..., 2] if xyz is not None else scan.cloud.to_array(["z"])[..., 0]  # (H, W)
             figures["valid_points"] = int(np.count_nonzero(np.isfinite(depth_m)))
@@ -457,6 +463,7 @@ def main(argv=None) -> int:
     """``python -m dptpu.nodes.scan_monitor [--ros-args ...]``: run until ``scans`` were reported (0) or Ctrl-C."""
 
     def spin(node: ScanMonitorNode) -> None:
+        rclpy.get_global_executor().add_node(node)  # once: spin_once then neither adds nor removes it
         while rclpy.ok() and not node.finished:
             rclpy.spin_once(node, timeout_sec=0.1)
 
