@@ -52,6 +52,10 @@ MERGE_TOLERANCE_RAD = 0.3 * np.pi
 #: Bands smaller than this keep the per-pixel NT low order (and the vote), pixels.
 MIN_BAND_PIXELS = 50
 _TWO_PI = 2.0 * np.pi
+# A band may take the last low order only if at most this share of its pixels would lie beyond the projector's
+# end by more than the slack (periods of f_l): the band of that order holds only the first ceil(f_l) - f_l of a period.
+_PROJECTOR_END_SHARE = 0.1
+_PROJECTOR_END_SLACK = 0.02
 
 
 def low_order_from_high(order_high, psi_h, psi_l, f_h: float, f_l: float) -> np.ndarray:
@@ -124,6 +128,9 @@ def low_order_bands(psi_h, psi_l, f_h: float, f_l: float, valid, order_low, *,
     candidates = np.arange(int(np.ceil(f_l)))  # (M,)
     turn = _TWO_PI * ratio * candidates  # (M,)
     agreement = np.cos(turn)[None, :] * z_re[:, None] - np.sin(turn)[None, :] * z_im[:, None]  # (count, M)
+    last = candidates[-1]  # the projector ends inside the last low period (f_l = 10.9: at 0.9 of it)
+    beyond = np.bincount(band, (last + psi_l[core] / _TWO_PI) > f_l + _PROJECTOR_END_SLACK, minlength=count)
+    agreement[beyond > _PROJECTOR_END_SHARE * np.maximum(size, 1), -1] = -np.inf
     best = np.argmax(agreement, axis=1).astype(np.int32)  # (count,)
     large = size >= int(min_pixels)
     large[0] = False

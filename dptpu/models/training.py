@@ -171,7 +171,8 @@ def train(options: TrainOptions) -> TrainResult:
     _check(options)
     started = time.perf_counter()
     rank, world = _distributed()
-    dataset = FringeOrderDataset(options.data_dir, crop=options.crop, seed=options.seed)
+    dataset = FringeOrderDataset(options.data_dir, crop=options.crop, seed=options.seed,
+                                 nt_as_mf=options.model == "dptpu")
     global_batch = options.batch * world
     steps = len(dataset) // global_batch
     if steps < 1:
