@@ -12,7 +12,7 @@ import dataclasses
 import numpy as np
 import torch
 
-from .nt_prior import mf_representation
+from .refine import network_prior
 from .samples import Sample, list_samples, read_sample
 
 __all__ = ["FringeOrderDataset", "collate", "epoch_order"]
@@ -30,20 +30,22 @@ class FringeOrderDataset:
         samples must have one size to be batched).
     seed : int
         Seed of the crop positions.
-    nt_as_mf : bool
-        Give NT samples to the network in the MF representation of :mod:`dptpu.models.nt_prior` (the band
-        prior's low absolute phase at one period and its MF order), as inference does for a DP-TPU model;
-        False (the U-Net baseline, which sees the wrapped phases alone) keeps them as rendered.
+    dptpu_priors : bool
+        Give the samples to the network with the priors that inference uses for a DP-TPU model
+        (:func:`dptpu.models.refine.network_prior`): NT in the MF representation of :mod:`dptpu.models.nt_prior`
+        (the band prior's low absolute phase at one period and its MF order), MF and MW with their order read at
+        the projector's ends (:mod:`dptpu.models.projector_ends`). False (the U-Net baseline, which sees the
+        wrapped phases alone) keeps them as rendered.
 
     ``dataset.item(i, epoch)`` returns a dict of tensors: ``wrapped_high``, ``wrapped_low``, ``coarse_order``,
     ``label_order`` (float32), ``valid`` (bool), all ``(1, h, w)``, and ``frequency_high`` (float32 scalar).
     """
 
-    def __init__(self, data_dir, *, crop=None, seed: int = 0, nt_as_mf: bool = False):
+    def __init__(self, data_dir, *, crop=None, seed: int = 0, dptpu_priors: bool = False):
         self.paths = list_samples(data_dir)
         self.samples: list[Sample] = [read_sample(p) for p in self.paths]
-        if nt_as_mf:
-            self.samples = [_nt_as_mf(s) if s.method == "nt" else s for s in self.samples]
+        if dptpu_priors:
+            self.samples = [_with_dptpu_prior(s) for s in self.samples]
         self.seed = int(seed)
         shapes = {s.valid.shape for s in self.samples}
         if crop is not None:
@@ -83,12 +85,12 @@ class FringeOrderDataset:
         }
 
 
-def _nt_as_mf(sample: Sample) -> Sample:
-    """An NT sample with the network inputs of :func:`dptpu.models.nt_prior.mf_representation`."""
-    nt = mf_representation(sample.wrapped_high, sample.wrapped_low, sample.coarse_order, sample.frequency_high,
-                           sample.frequency_low, sample.valid)
-    return dataclasses.replace(sample, wrapped_low=nt.wrapped_low.astype(np.float32),
-                               coarse_order=nt.coarse_order.astype(np.float32))
+def _with_dptpu_prior(sample: Sample) -> Sample:
+    """A sample with the network inputs of :func:`dptpu.models.refine.network_prior`."""
+    wrapped_low, coarse = network_prior(sample.method, sample.wrapped_high, sample.wrapped_low, sample.coarse_order,
+                                        sample.frequency_high, sample.frequency_low, sample.valid)
+    return dataclasses.replace(sample, wrapped_low=np.asarray(wrapped_low, dtype=np.float32),
+                               coarse_order=coarse.astype(np.float32))
 
 
 def epoch_order(n_samples: int, seed: int, epoch: int) -> np.ndarray:

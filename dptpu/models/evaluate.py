@@ -7,8 +7,8 @@ the methods its training set had (its metadata's ``methods``). A model's rounded
 by the neighbour consensus of :mod:`dptpu.models.consensus` (as ``dptpu unwrap`` does) unless
 ``consensus=False``; NT reaches a DP-TPU model in the MF representation of :mod:`dptpu.models.nt_prior`
 (:func:`dptpu.models.refine.refine_order`). ``vote_baseline=True`` adds the solver ``classical+vote``: the
-same consensus vote on the classical order alone (NT: on the MF order of its band prior), what the
-post-processing does without a network.
+same consensus vote on the order of DP-TPU's prior alone (:func:`dptpu.models.refine.network_prior`: NT's
+band prior, MF and MW's order read at the projector's ends), what the post-processing does without a network.
 
 Accuracy = share of valid pixels whose fringe order equals the label exactly.
 """
@@ -23,8 +23,7 @@ import numpy as np
 
 from .consensus import consensus_order
 from .inference import FringeOrderModel
-from .nt_prior import mf_representation
-from .refine import refine_order
+from .refine import network_prior, refine_order
 from .samples import list_samples, read_sample
 
 __all__ = ["Row", "evaluate_dataset", "format_summary", "median_order", "solver_names", "write_table"]
@@ -85,10 +84,8 @@ def evaluate_dataset(data_dir, models=(), *, threads: int | None = None, consens
         coarse = np.rint(sample.coarse_order).astype(np.int32)
         solvers = {"classical": coarse, "classical+median": median_order(coarse, valid)}
         if vote_baseline:
-            start = coarse
-            if sample.method == "nt":
-                start = mf_representation(sample.wrapped_high, sample.wrapped_low, coarse, sample.frequency_high,
-                                          sample.frequency_low, valid).coarse_order
+            _, start = network_prior(sample.method, sample.wrapped_high, sample.wrapped_low, coarse,
+                                     sample.frequency_high, sample.frequency_low, valid)
             solvers["classical+vote"] = consensus_order(start, start, sample.wrapped_high, valid)
         for name, model in zip(names, loaded):
             if not model.serves(sample.method):

@@ -19,9 +19,10 @@ import numpy as np
 from .consensus import consensus_order
 from .inference import FringeOrderModel, shipped_model_path
 from .nt_prior import mf_representation
+from .projector_ends import coarse_order_at_ends
 
-__all__ = ["DEFAULT_MAX_PERIODS_PER_PIXEL", "REFINABLE_METHODS", "fringe_density", "refine_capture_result",
-           "refine_order", "resolve_model"]
+__all__ = ["DEFAULT_MAX_PERIODS_PER_PIXEL", "REFINABLE_METHODS", "fringe_density", "network_prior",
+           "refine_capture_result", "refine_order", "resolve_model"]
 
 #: Classical methods whose result the network refines (the paper's three two-frequency methods).
 REFINABLE_METHODS = ("mf", "mw", "nt")
@@ -96,10 +97,12 @@ def refine_order(model: FringeOrderModel, method: str, psi_h, psi_l, classical_o
                  valid, *, classical_valid=None, consensus: bool = True) -> np.ndarray:
     """DP-TPU's fringe order of ``f_h`` for one two-frequency result, ``(H, W)`` int32.
 
-    MF and MW: the network on the wrapped phases and the classical order (the paper's Fig. 8b). NT: the network
-    on NT's prior in the MF representation (:func:`dptpu.models.nt_prior.mf_representation`: the low order by
-    band consensus, the low absolute phase at one period, its MF order), and the consensus of
-    :mod:`dptpu.models.consensus` with that MF order as the classical one.
+    MF and MW: the network on the wrapped phases and the classical order (the paper's Fig. 8b), that order read
+    at the projector's ends (:func:`dptpu.models.projector_ends.coarse_order_at_ends`: Eq. (5) / (7) where a
+    noisy phase near 0 or 2pi stays at its end of the projector). NT: the network on NT's prior in the MF
+    representation (:func:`dptpu.models.nt_prior.mf_representation`: the low order by band consensus, the low
+    absolute phase at one period, its MF order). Then the consensus of :mod:`dptpu.models.consensus`, with
+    that prior's order as the classical one.
 
     Parameters
     ----------
@@ -124,17 +127,37 @@ def refine_order(model: FringeOrderModel, method: str, psi_h, psi_l, classical_o
         raise ValueError(f"the model {model.path} (trained for {', '.join(model.trained_methods)}) does not refine "
                          f"method {method!r}")
     valid = np.asarray(valid, dtype=bool)
-    classical_valid = valid if classical_valid is None else np.asarray(classical_valid, dtype=bool) & valid
-    if method == "nt" and model.kind == "dptpu":
-        nt = mf_representation(psi_h, psi_l, np.where(classical_valid, classical_order, np.nan), f_h, f_l, valid)
-        order = model.refine(psi_h, nt.wrapped_low, nt.coarse_order, f_h, valid=valid)
-        classical = nt.coarse_order
-    else:
+    if model.kind == "dptpu":
+        wrapped_low, classical = network_prior(method, psi_h, psi_l, classical_order, f_h, f_l, valid,
+                                               classical_valid=classical_valid)
+        order = model.refine(psi_h, wrapped_low, classical, f_h, valid=valid)
+    else:  # the U-Net baseline: the wrapped phases alone (it takes no order)
         order = model.refine(psi_h, psi_l, classical_order, f_h, valid=valid)
+        classical_valid = valid if classical_valid is None else np.asarray(classical_valid, dtype=bool) & valid
         classical = np.where(classical_valid, classical_order, order)  # the network's where classical has none
     if consensus:
         order = consensus_order(order, classical, np.where(valid, psi_h, 0.0), valid)
     return order
+
+
+def network_prior(method: str, psi_h, psi_l, classical_order, f_h: float, f_l: float, valid, *,
+                  classical_valid=None) -> tuple[np.ndarray, np.ndarray]:
+    """The physics prior DP-TPU receives for ``method``: ``(wrapped_low, coarse_order)``, each ``(H, W)``.
+
+    MF and MW: ``psi_l`` and the order of Eq. (5) / (7) read at the projector's ends
+    (:func:`dptpu.models.projector_ends.coarse_order_at_ends`). NT: the MF representation of its band prior
+    (:func:`dptpu.models.nt_prior.mf_representation`). Parameters as :func:`refine_order`'s; ``coarse_order``
+    is int32, 0 where not ``valid``.
+    """
+    valid = np.asarray(valid, dtype=bool)
+    if method == "nt":
+        classical_valid = valid if classical_valid is None else np.asarray(classical_valid, dtype=bool) & valid
+        nt = mf_representation(psi_h, psi_l, np.where(classical_valid, classical_order, np.nan), f_h, f_l, valid)
+        return nt.wrapped_low, nt.coarse_order
+    if method in ("mf", "mw"):
+        return np.asarray(psi_l), coarse_order_at_ends(method, psi_h, psi_l, f_h, f_l, valid,
+                                                       classical_order=classical_order)
+    raise ValueError(f"network_prior takes method mf, mw or nt; got {method!r}")
 
 
 def fringe_density(result) -> float:

@@ -172,7 +172,7 @@ def train(options: TrainOptions) -> TrainResult:
     started = time.perf_counter()
     rank, world = _distributed()
     dataset = FringeOrderDataset(options.data_dir, crop=options.crop, seed=options.seed,
-                                 nt_as_mf=options.model == "dptpu")
+                                 dptpu_priors=options.model == "dptpu")
     global_batch = options.batch * world
     steps = len(dataset) // global_batch
     if steps < 1:

@@ -22,9 +22,9 @@ name                default   meaning
 =================== ========= ===================================================================================
 ``method``          "mf"      ``mf`` (Eq. (5) in float32, needs a frequency <= 1), ``mw`` (Eqs. (6)-(7), needs
                               ``0 < f_h - f_l <= 1``), ``nt`` (Eqs. (8)-(9)) or ``heterodyne`` (beat tree of all)
-``model``           "none"    a DP-TPU ``.onnx`` model refining the classical fringe order (mf/mw/nt; nt reaches it
-                              in the MF representation of :mod:`dptpu.models.nt_prior`), ``shipped`` (the
-                              packaged model) or ``none``
+``model``           "none"    a DP-TPU ``.onnx`` model refining the classical fringe order (mf/mw/nt, on the prior
+                              of :func:`dptpu.models.refine.network_prior`), ``shipped`` (the packaged model)
+                              or ``none``
 ``consensus``       false     with ``model``: post-process the network's order with the neighbour consensus of
                               :mod:`dptpu.models.consensus` (what ``dptpu unwrap --model`` and the accuracy
                               figures of docs/model-eval.md use; 54-259 ms more a 640x480 scan, so off by default)
@@ -229,13 +229,9 @@ class UnwrapNode(Node):
                 raise ValueError("nt needs the projector extent; the PhaseMaps has projector size 0 (unknown)")
             result = tpu.unwrap(self.method, phases[0], phases[1], frequencies[0], frequencies[1], extent=extent,
                                 valid=valid)
-        if self.model is not None:  # DP-TPU: the network refines the classical order (the paper's Fig. 8b)
-            if self.method == "nt" or self.consensus:  # NT's prior in the MF representation; the consensus vote
-                order = self.refine_order(self.model, self.method, phases[0], phases[1], result.fringe_order,
-                                          frequencies[0], frequencies[1], result.valid, consensus=self.consensus)
-            else:
-                order = self.model.refine(phases[0], phases[1], result.fringe_order, frequencies[0],
-                                          valid=result.valid)
+        if self.model is not None:  # DP-TPU: the network on the method's prior (the paper's Fig. 8b)
+            order = self.refine_order(self.model, self.method, phases[0], phases[1], result.fringe_order,
+                                      frequencies[0], frequencies[1], result.valid, consensus=self.consensus)
             result = refined(result, phases[0].astype(np.float64), order)
         return result, indices[0], nan_pixels
 

@@ -47,15 +47,15 @@ def test_training_steps_lower_the_loss_on_a_tiny_dataset(tiny_dataset):
     assert all(b < a for a, b in itertools.pairwise(losses))  # every AdamW step lowers it
 
 
-def test_nt_samples_reach_dptpu_in_the_mf_representation(tiny_dataset):
+def test_samples_reach_dptpu_with_the_priors_of_inference(tiny_dataset):
     raw = FringeOrderDataset(tiny_dataset)
-    converted = FringeOrderDataset(tiny_dataset, nt_as_mf=True)
+    converted = FringeOrderDataset(tiny_dataset, dptpu_priors=True)
     for index, sample in enumerate(raw.samples):
         item, mf = raw.item(index, 0), converted.item(index, 0)
         valid = item["valid"]
         right = [float((i["coarse_order"] == i["label_order"])[valid].float().mean()) for i in (item, mf)]
-        if sample.method == "mf":
-            assert torch.equal(item["wrapped_low"], mf["wrapped_low"]) and right[0] == right[1]
+        if sample.method == "mf":  # the order read at the projector's ends: the same away from them
+            assert torch.equal(item["wrapped_low"], mf["wrapped_low"]) and right[1] >= right[0]
         else:  # NT at 1 sigma on 64x64 step scenes, right orders lookup -> band prior (measured): f_h = 80
             # 63.1 -> 99.2 % and 24.9 -> 95.8 %; f_h = 32 93.8 -> 89.8 % and 98.6 -> 98.1 % (small bands)
             beyond = float((mf["wrapped_low"][valid] > 2 * np.pi * 1.01).float().mean())
