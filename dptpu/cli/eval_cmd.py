@@ -50,6 +50,8 @@ def _register_unwrap(targets) -> None:
     unwrap.add_argument("--seed", type=int, default=None, help="scene seed root (default 300, unseen in training)")
     unwrap.add_argument("--blender-samples", type=int, default=8, help="Cycles samples per pixel (default 8)")
     unwrap.add_argument("--workers", type=int, default=1, help="processes rendering scenes (default 1)")
+    unwrap.add_argument("--vote-baseline", action="store_true",
+                        help="add the solver classical+vote: the consensus vote on DP-TPU's prior alone, no network")
     unwrap.add_argument("--threads", type=int, default=None, help="onnxruntime threads")
     unwrap.add_argument("--quiet", action="store_true", help="no progress bar")
     unwrap.set_defaults(func=run_unwrap)
@@ -97,7 +99,7 @@ def run_unwrap(args) -> int:
         renderer=args.renderer, blender_samples=args.blender_samples)
     command = "dptpu " + " ".join(shlex.quote(a) for a in sys.argv[1:]) if len(sys.argv) > 1 else ""
     result = run_unwrap_eval(spec, args.out, models=models, data_dir=args.data, workers=args.workers,
-                             progress=not args.quiet, command=command)
+                             progress=not args.quiet, command=command, vote_baseline=args.vote_baseline)
     print(result.files["summary"].read_text())
     print("wrote " + ", ".join(str(p) for p in result.files.values()))
     return 0

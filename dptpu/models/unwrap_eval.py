@@ -207,6 +207,8 @@ def format_report(rows: list[Row], *, spec: UnwrapEvalSpec, data_dir, models=(),
               + ("12-step labels." if spec.renderer == "raycast" else "labels from the ray cast's projector column."),
               ""]
     solvers = ["`classical` (the method's formula)", "`classical+median` (3x3 median of the classical order)"]
+    if any(r.solver == "classical+vote" for r in rows):
+        solvers.append("`classical+vote` (the consensus vote on DP-TPU's prior alone, no network)")
     for name, model in zip(names, models):
         untrained = [m for m in spec.methods if not model.serves(m)]
         note = f"; not trained for {', '.join(untrained)}: not run there, blank in the table" if untrained else ""
@@ -240,7 +242,7 @@ class UnwrapEvalResult:
 
 
 def run_unwrap_eval(spec: UnwrapEvalSpec, out_dir, *, models=(), data_dir=None, workers: int = 1,
-                    progress: bool = False, command: str = "") -> UnwrapEvalResult:
+                    progress: bool = False, command: str = "", vote_baseline: bool = False) -> UnwrapEvalResult:
     """Make (or reuse) the test set, evaluate every solver and write the outputs.
 
     Parameters
@@ -258,6 +260,8 @@ def run_unwrap_eval(spec: UnwrapEvalSpec, out_dir, *, models=(), data_dir=None, 
         Passed to the dataset generator.
     command : str
         Recorded in ``summary.md``.
+    vote_baseline : bool
+        Add the solver ``classical+vote`` (:func:`dptpu.models.evaluate.evaluate_dataset`).
     """
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
@@ -265,7 +269,7 @@ def run_unwrap_eval(spec: UnwrapEvalSpec, out_dir, *, models=(), data_dir=None, 
         data, spec = Path(data_dir), spec_from_dataset(data_dir)
     else:
         data = make_test_set(spec, out / "testset", workers=workers, progress=progress)
-    rows = evaluate_dataset(data, list(models))
+    rows = evaluate_dataset(data, list(models), vote_baseline=vote_baseline)
     files = {"table": write_table(rows, out / "table.csv"),
              "heatmap": write_png(accuracy_heatmap(rows), out / "heatmap.png"),
              "errors": write_png(error_versus_frequency(rows), out / "error_vs_frequency.png")}
