@@ -29,7 +29,8 @@ count those among the timed scans (``warmup_failed`` the others), and ``valid_po
 
 Further figures: ``cpu_ms_per_scan`` (each process's CPU time, every thread, from ``/proc/<pid>/stat`` over the
 throughput run's timed scans, divided by their number; ``total`` sums them: on C cores the graph can do at most
-``1000 * C / total`` scans/s), ``node_duration_ms_p50`` (each node's median ``ScanStatus.duration_s``, from the throughput
+``1000 * C / total`` scans/s; ``threads``: each process split into its main thread, libzmq's I/O thread and the
+others), ``node_duration_ms_p50`` (each node's median ``ScanStatus.duration_s``, from the throughput
 run), ``camera_limit_ratio``: ``scans_per_s`` over what the paper's camera allows, the Basler acA640-750 at 750
 frames/s: 31.25 scans/s at 24 frames (2 x 12 steps), 125 at 6 frames (2 x 3 steps).
 
@@ -133,29 +134,53 @@ _STARTED = re.compile(r"^\[launch\] started '([\w.-]+)' \(pid (\d+)\)")
 _REPORTED = re.compile(r"^\[scan_monitor\] scan \d+\b[^:]*: (ok|FAILED|LOST)\b")
 
 
-def cpu_times_s(pids: dict[str, int]) -> dict[str, tuple[int, float]]:
-    """``{name: (pid, user + system CPU seconds)}`` of the processes still alive (``/proc/<pid>/stat``; Linux)."""
+#: Thread kinds of ``cpu_ms_per_scan_threads``: libzmq's I/O thread moves the bytes between the sockets (the kernel's
+#: copies); every other thread but the main one is Python's (the graph runtime's I/O thread, pyzmq's garbage
+#: collector of zero-copy frames, the projector's serial link).
+_THREAD_KINDS = {"ZMQbg/IO/0": "zmq_io"}
+
+
+def _stat_cpu_s(stat_path: Path, ticks_per_s: int) -> float:
+    fields = stat_path.read_text().rpartition(")")[2].split()
+    return (int(fields[11]) + int(fields[12])) / ticks_per_s  # utime, stime (fields 14, 15)
+
+
+def cpu_times_s(pids: dict[str, int]) -> dict[str, tuple[int, float, dict]]:
+    """``{name: (pid, user + system CPU seconds, {thread kind: seconds})}`` of the processes still alive
+    (``/proc/<pid>/stat`` and ``/proc/<pid>/task/*/stat``; Linux). Thread kinds: ``main``, ``zmq_io`` (libzmq's
+    I/O thread), ``other`` (the rest)."""
     ticks_per_s = os.sysconf("SC_CLK_TCK")
     times = {}
     for name, pid in pids.items():
         try:
-            fields = Path(f"/proc/{pid}/stat").read_text().rpartition(")")[2].split()
+            total = _stat_cpu_s(Path(f"/proc/{pid}/stat"), ticks_per_s)
         except OSError:
             continue
-        times[name] = (pid, (int(fields[11]) + int(fields[12])) / ticks_per_s)  # utime, stime (fields 14, 15)
+        threads = {"main": 0.0, "zmq_io": 0.0, "other": 0.0}
+        try:
+            for task in Path(f"/proc/{pid}/task").iterdir():
+                kind = "main" if task.name == str(pid) else _THREAD_KINDS.get(
+                    (task / "comm").read_text().strip(), "other")
+                threads[kind] += _stat_cpu_s(task / "stat", ticks_per_s)
+        except OSError:  # a thread ended while listed: the process total still stands
+            pass
+        times[name] = (pid, total, threads)
     return times
 
 
 def cpu_per_scan_ms(first: tuple, last: tuple) -> dict:
     """Each process's CPU ms per scan between two samples ``(reported scans, monotonic s, cpu_times_s())``; a
     process respawned in between (another pid) is left out. ``total`` sums them; ``scans`` and ``window_s``
-    describe the window."""
+    describe the window; ``threads`` splits each process by thread kind (:func:`cpu_times_s`; a thread that
+    ended inside the window is missing there)."""
     (count0, time0, cpu0), (count1, time1, cpu1) = first, last
     scans = count1 - count0
-    figures = {name: round(1e3 * (cpu1[name][1] - cpu0[name][1]) / scans, 1) for name in cpu1
-               if name in cpu0 and cpu0[name][0] == cpu1[name][0]}
+    kept = [name for name in cpu1 if name in cpu0 and cpu0[name][0] == cpu1[name][0]]
+    figures = {name: round(1e3 * (cpu1[name][1] - cpu0[name][1]) / scans, 1) for name in kept}
     figures["total"] = round(sum(figures.values()), 1)
     figures.update(scans=scans, window_s=round(time1 - time0, 2))
+    figures["threads"] = {name: {kind: round(1e3 * (cpu1[name][2][kind] - cpu0[name][2][kind]) / scans, 2)
+                                 for kind in cpu1[name][2]} for name in kept}
     return figures
 
 

@@ -26,10 +26,16 @@ def test_bench_pipeline_reports_one_object_per_configuration(capsys):
         assert result["scans_per_s"] > 0 and 0 < result["latency_ms_p50"] <= result["latency_ms_p99"]
         # each process's CPU over the timed scans (one scan here, 2 to 3; 10 ms clock ticks, so often 0 at 96x72)
         cpu = result["cpu_ms_per_scan"]
-        processes = {k: v for k, v in cpu.items() if k not in ("total", "scans", "window_s")}
+        processes = {k: v for k, v in cpu.items() if k not in ("total", "scans", "window_s", "threads")}
         assert cpu["scans"] == 1 and {"launch", "projector", "sim", "phase", "unwrap", "cloud", "scan_monitor"} == \
             set(processes)
         assert min(processes.values()) >= 0 and cpu["total"] == pytest.approx(sum(processes.values()), abs=0.2)
+        # the same processes split by thread: main, libzmq's I/O thread, the others (each rounded to clock ticks)
+        assert set(cpu["threads"]) == set(processes)
+        for name, threads in cpu["threads"].items():
+            assert set(threads) == {"main", "zmq_io", "other"} and min(threads.values()) >= 0
+            # read just after the process's own figure: at most a clock tick (10 ms) later at either end
+            assert sum(threads.values()) <= processes[name] + 20.0 / cpu["scans"]
         assert result["camera_limit_ratio"] == pytest.approx(result["scans_per_s"] / result["camera_limit_scans_per_s"],
                                                              rel=1e-2)
 
