@@ -15,7 +15,12 @@ from pathlib import Path
 import numpy as np
 
 from dptpu.fpp.capture import read_capture
-from dptpu.fpp.reconstruct import DEFAULT_MIN_MODULATION_FRACTION, METHODS, CaptureResult, unwrap_capture
+from dptpu.fpp.reconstruct import (
+    DEFAULT_MIN_MODULATION_FRACTION,
+    METHODS,
+    CaptureResult,
+    unwrap_capture,
+)
 
 #: Keys of the written ``.npz``.
 NPZ_KEYS = ("fringe_order", "absolute_phase", "valid", "modulation", "reliability", "frequency",
@@ -58,13 +63,19 @@ def register(subparsers) -> None:
     parser.add_argument("--model", metavar="PATH|none",
                         help="DP-TPU network (.onnx) that refines the mf/mw/nt fringe order; 'none' = classical; "
                              "default: the shipped model (dptpu/models/dptpu.onnx) when present, for the methods it "
-                             "was trained on and fringe periods of 4 camera pixels or more")
+                             "serves (NT through its band prior when trained on MF) and fringe periods of 4 camera "
+                             "pixels or more")
     parser.add_argument("--out", required=True, type=Path, metavar="OUT.npz", help="output .npz file")
     parser.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:
-    from dptpu.models.refine import DEFAULT_MAX_PERIODS_PER_PIXEL, fringe_density, refine_capture_result, resolve_model
+    from dptpu.models.refine import (
+        DEFAULT_MAX_PERIODS_PER_PIXEL,
+        fringe_density,
+        refine_capture_result,
+        resolve_model,
+    )
 
     model = resolve_model(args.model, args.method)  # before the work: a bad model file fails fast
     result = unwrap_from_args(args)
