@@ -41,8 +41,15 @@ from functools import cached_property
 
 import numpy as np
 
-__all__ = ["FrameInfo", "FrameSlot", "ScanLayout", "AssembledScan", "DroppedScan", "RejectedFrame",
-           "SequenceAssembler"]
+__all__ = [
+    "AssembledScan",
+    "DroppedScan",
+    "FrameInfo",
+    "FrameSlot",
+    "RejectedFrame",
+    "ScanLayout",
+    "SequenceAssembler",
+]
 
 _FREQUENCY_RELATIVE_TOLERANCE = 1e-6
 
@@ -148,7 +155,7 @@ class ScanLayout:
         raise AssertionError("unreachable: pattern_index was checked against pattern_count")
 
     @classmethod
-    def from_pattern_sequence(cls, sequence) -> "ScanLayout":
+    def from_pattern_sequence(cls, sequence) -> ScanLayout:
         """The layout of a :class:`dptpu.messages.PatternSequence` message."""
         return cls(frequencies=tuple(sequence.frequencies()), steps=tuple(e.steps for e in sequence.entries),
                    phase_offsets=tuple(e.phase_offset for e in sequence.entries), shift_sign=sequence.shift_sign,
@@ -322,8 +329,12 @@ class SequenceAssembler:
 
     def expire(self, now_s: float) -> list[DroppedScan]:
         """Drop the scans still incomplete ``timeout_s`` after their first frame; forget old finished ids."""
-        for sequence_id in [i for i, (when, _) in self._finished.items() if now_s - when > self.timeout_s]:
-            del self._finished[sequence_id]
+        finished = self._finished  # in the order the scans finished (_remember): the oldest first
+        while finished:
+            sequence_id, (when, _) = next(iter(finished.items()))
+            if now_s - when <= self.timeout_s:
+                break
+            del finished[sequence_id]
         events = []
         for scan in [s for s in self._pending.values() if now_s - s.first_arrival_s > self.timeout_s]:
             events.append(self.fail(scan.sequence_id,
@@ -362,9 +373,15 @@ class SequenceAssembler:
         return [self._finish_dropped(sequence_id, reason, frame.pattern_count, 1, now_s, now_s)]
 
     def _finish_dropped(self, sequence_id, reason, expected, received, first_arrival_s, now_s) -> DroppedScan:
-        self._finished[sequence_id] = (now_s, "dropped")
+        self._remember(sequence_id, now_s, "dropped")
         return DroppedScan(sequence_id=sequence_id, reason=reason, frames_expected=int(expected),
                            frames_received=int(received), first_arrival_s=first_arrival_s)
+
+    def _remember(self, sequence_id: int, now_s: float, how: str) -> None:
+        """Refuse frames of ``sequence_id`` for ``timeout_s`` from ``now_s``; kept in finishing order, so
+        :meth:`expire` forgets from the front (once per frame, the ids of a second of scans: no full pass)."""
+        self._finished.pop(sequence_id, None)
+        self._finished[sequence_id] = (now_s, how)
 
     def _start(self, frame: FrameInfo, image: np.ndarray, now_s: float):
         layout = self._layout
@@ -441,7 +458,7 @@ class SequenceAssembler:
             index += steps
         stamps = [f.stamp_ns for f in scan.frames.values()]
         del self._pending[scan.sequence_id]
-        self._finished[scan.sequence_id] = (now_s, "completed")
+        self._remember(scan.sequence_id, now_s, "completed")
         return AssembledScan(sequence_id=scan.sequence_id, layout=layout, images=tuple(images),
                              first_stamp_ns=min(stamps), last_stamp_ns=max(stamps),
                              first_arrival_s=scan.first_arrival_s)

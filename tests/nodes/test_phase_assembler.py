@@ -150,3 +150,18 @@ def test_layout_and_assembler_check_their_arguments():
     with pytest.raises(ValueError, match="timeout_s must be a number of seconds > 0"):
         SequenceAssembler(timeout_s=0)
     assert ScanLayout(frequencies=(16.0, 1.0), steps=(4, 3)).locate(5) == (1, 1)
+
+
+def test_finished_ids_are_forgotten_in_order_once_timed_out():
+    # the ids of completed and dropped scans are kept timeout_s in the order they finished, and forgotten from
+    # the oldest on (a late frame within timeout_s is refused; after it the id may be used again)
+    assembler = SequenceAssembler(timeout_s=1.0)
+    image = np.zeros((4, 5), np.uint8)
+    for sequence_id, now_s in ((1, 0.0), (2, 0.4), (3, 0.8)):
+        assembler.fail(sequence_id, "test", now_s)
+    late = assembler.add(FrameInfo(1, 0, 8, 16.0, 4, 0, image), 0.9)
+    assert [type(e).__name__ for e in late] == ["RejectedFrame"]
+    assembler.expire(1.5)  # 1 and 2 are older than 1 s, 3 is not
+    assert list(assembler._finished) == [3]
+    fresh = assembler.add(FrameInfo(1, 0, 8, 16.0, 4, 0, image), 1.5)
+    assert fresh == [] and assembler.pending_ids == [1]
