@@ -48,8 +48,8 @@ __all__ = ["SocketLease", "IO", "BUSY", "POLLING", "TAKEOVER_S", "DRAIN_BATCH", 
 IO, BUSY, POLLING = "io", "busy", "polling"
 
 #: Seconds an executor may hold its lent sockets without polling them before the I/O thread takes them back.
-#: Also how often the I/O thread wakes to watch a lease while messages flow: 10 ms cost the sim rig's six
-#: processes ~4.8 ms of CPU a 640x480 scan in their I/O threads, 25 ms ~3.1 ms (docs/benchmarks.md, Run 9).
+#: Also how often the I/O thread wakes to watch a lease while messages flow: at 10 ms the I/O threads of the sim
+#: rig's processes took 3.7-4.8 ms of CPU a 640x480 scan, at 25 ms 2.3-3.1 ms (docs/benchmarks.md, Run 9).
 TAKEOVER_S = 0.025
 #: Seconds after the last poll that received messages during which the I/O thread watches the lease every TAKEOVER_S.
 WATCH_AFTER_TRAFFIC_S = 1.0
