@@ -210,6 +210,27 @@ def test_consensus_restores_the_classical_orders_a_wrong_network_changed(harness
     assert np.array_equal(result.fringe_order[result.valid], classical.fringe_order[result.valid])
 
 
+def test_nt_reaches_the_network_through_its_band_prior(harness, scene, shifted_model):
+    """NT at 60 / 10.9 is nearly degenerate (k_l and k_l + 2 predict high phases 0.009 periods apart): with
+    0.03 rad of noise the lookup gets most pixels wrong, the band prior (dptpu.models.nt_prior) gets them right,
+    and the node gives the network that prior's order (the shifted model adds 1 to it)."""
+    from dptpu.fpp.tpu import unwrap_nt
+
+    _node, source, absolute, _status = start(harness, method="nt", model=str(shifted_model))
+    rng = np.random.default_rng(3)
+    phases = np.stack([np.mod(scene.absolute_phase(f) + rng.normal(0, 0.03, scene.lit.shape), 2 * np.pi)
+                       for f in (60.0, 10.9)]).astype(np.float32)
+    maps = phase_maps(scene, (60.0, 10.9), sequence_id=13)
+    maps.phases = phases
+    source.publish(maps)
+    (result,) = harness.wait(absolute, 1)
+    truth = np.floor(scene.absolute_phase(60.0) / (2 * np.pi)).astype(np.int32)
+    lookup = unwrap_nt(phases[0], phases[1], 60.0, 10.9, 912.0).fringe_order
+    assert np.mean(lookup == truth) < 0.5  # measured 24.9 %
+    shifted = result.fringe_order[result.valid] - 1
+    assert result.valid.mean() > 0.9 and np.mean(shifted == truth[result.valid]) > 0.98  # measured 99.4 / 99.6 %
+
+
 def test_consensus_without_a_model_is_refused_at_start(harness):
     with pytest.raises(ValueError, match=r"consensus post-processes the network's fringe order; set model"):
         harness.start(UnwrapNode, consensus=True)
