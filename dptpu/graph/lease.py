@@ -43,7 +43,7 @@ import weakref
 
 import zmq
 
-__all__ = ["SocketLease", "IO", "BUSY", "POLLING", "TAKEOVER_S", "DRAIN_BATCH", "drain_socket", "receive_frames"]
+__all__ = ["BUSY", "DRAIN_BATCH", "IO", "POLLING", "TAKEOVER_S", "SocketLease", "drain_socket", "receive_frames"]
 
 IO, BUSY, POLLING = "io", "busy", "polling"
 
