@@ -3,9 +3,10 @@
 Solvers side by side: ``classical`` (the dataset's coarse order: Eq. (5), (7) or (9)), ``classical+median``
 (3x3 median filter of the classical order over valid pixels, the cheap fix users try first), and every
 ONNX model given (``dptpu`` / ``unet`` by their metadata kind, or the file stem if two share a kind), on
-the methods its training set had (its metadata's ``methods``). A model's rounded order is post-processed
+the methods it serves (:meth:`FringeOrderModel.serves`). A DP-TPU model's rounded order is post-processed
 by the neighbour consensus of :mod:`dptpu.models.consensus` (as ``dptpu unwrap`` does) unless
-``consensus=False``; NT reaches a DP-TPU model in the MF representation of :mod:`dptpu.models.nt_prior`
+``consensus=False``; the U-Net baseline's is not (the vote uses the classical order, a physics prior). NT
+reaches a DP-TPU model in the MF representation of :mod:`dptpu.models.nt_prior`
 (:func:`dptpu.models.refine.refine_order`). ``vote_baseline=True`` adds the solver ``classical+vote``: the
 same consensus vote on the order of DP-TPU's prior alone (:func:`dptpu.models.refine.network_prior`: NT's
 band prior, MF and MW's order read at the projector's ends), what the post-processing does without a network.
@@ -91,7 +92,8 @@ def evaluate_dataset(data_dir, models=(), *, threads: int | None = None, consens
             if not model.serves(sample.method):
                 continue  # the model was not trained for this method (no row, a blank in the summary)
             solvers[name] = refine_order(model, sample.method, sample.wrapped_high, sample.wrapped_low, coarse,
-                                         sample.frequency_high, sample.frequency_low, valid, consensus=consensus)
+                                         sample.frequency_high, sample.frequency_low, valid,
+                                         consensus=consensus and model.kind == "dptpu")
         for name, order in solvers.items():
             correct[group + (name,)] += int(np.count_nonzero((order == label) & valid))
             pixels[group + (name,)] += n_valid
