@@ -13,13 +13,15 @@ of 10.9 across the projector is 30-60 camera pixels wide), so the evidence of ev
 
 1. **Bands** (:func:`low_order_bands`): 4-connected pixels whose low phase runs on without a wrap (a raw step
    of more than pi) or a jump (a wrapped step of more than :data:`BAND_JUMP_RAD`, a depth edge); pixels on a
-   cut are left out.
+   cut are left out. A depth edge that shifts the low phase by a whole period leaves it running on; there the
+   band's residual ``b_p`` (below) takes a second value, and the pixels of that value become bands of their own.
 2. **Band order**: for a band ``B`` and a candidate low order ``m``, Eq. (3) for both frequencies at one
    projector column says ``(f_h / f_l) (m + psi_l / 2pi) - psi_h / 2pi`` is an integer (``k_h``). Its
    circular agreement over the band, ``sum_B cos(2pi ((f_h/f_l) m + b_p))`` with ``b_p = (f_h/f_l) psi_l/2pi -
    psi_h/2pi``, equals ``Re(exp(2pi i (f_h/f_l) m) Z_B)``, ``Z_B = sum_B exp(2pi i b_p)``: two sums a band, then
-   one complex product for each of the ``ceil(f_l)`` candidates. The best ``m`` is the band's order. Bands of
-   fewer than :data:`MIN_BAND_PIXELS` keep the pixel's own NT ``k_l``.
+   one complex product for each of the ``ceil(f_l)`` candidates. The best ``m`` is the band's order (the last
+   one only for a band that stays on the projector: with f_l = 10.9 the projector ends at 0.9 of that
+   period). Bands of fewer than :data:`MIN_BAND_PIXELS` keep the pixel's own NT ``k_l``.
 3. **Cut pixels and small bands** take the neighbour vote of :func:`dptpu.models.consensus.consensus_order`
    on the low absolute phase.
 
@@ -78,7 +80,7 @@ def low_order_from_high(order_high, psi_h, psi_l, f_h: float, f_l: float) -> np.
 
 def low_order_bands(psi_h, psi_l, f_h: float, f_l: float, valid, order_low, *,
                     jump_rad: float = BAND_JUMP_RAD, min_pixels: int = MIN_BAND_PIXELS):
-    """Steps 1 and 2 of the module docstring: the band order of every band pixel.
+    """Steps 1 and 2 of the module docstring: the band order of every band pixel (``psi_h`` enters step 2 only).
 
     Parameters
     ----------
@@ -100,29 +102,10 @@ def low_order_bands(psi_h, psi_l, f_h: float, f_l: float, valid, order_low, *,
     valid = np.asarray(valid, dtype=bool)
     psi_l = np.where(valid, psi_l, 0.0)
     psi_h = np.where(valid, psi_h, 0.0)
-    core = valid.copy()
-    for axis in (0, 1):
-        step = np.diff(psi_l, axis=axis)
-        wrapped = (step + np.pi) % _TWO_PI - np.pi
-        both = np.logical_and(np.delete(valid, 0, axis=axis), np.delete(valid, -1, axis=axis))
-        cut = (np.abs(step) > np.pi) | (np.abs(wrapped) > jump_rad) | ~both  # (H-1, W) or (H, W-1)
-        if axis == 0:
-            core[1:] &= ~cut
-            core[:-1] &= ~cut
-        else:
-            core[:, 1:] &= ~cut
-            core[:, :-1] &= ~cut
     ratio = f_h / f_l
-    residual = np.where(core, (ratio * psi_l - psi_h) * (1.0 / _TWO_PI), 0.0) * _TWO_PI  # 2pi b_p, (H, W)
-    count, labels = cv2.connectedComponents(core.astype(np.uint8), connectivity=4, ltype=cv2.CV_32S)
-    outliers = _merged_pixels(residual, core, labels, count)
-    if outliers.any():  # a band that runs over a depth edge: the pixels of the other surface become bands of their own
-        core_in, core_out = core & ~outliers, core & outliers
-        count_in, labels_in = cv2.connectedComponents(core_in.astype(np.uint8), connectivity=4, ltype=cv2.CV_32S)
-        count_out, labels_out = cv2.connectedComponents(core_out.astype(np.uint8), connectivity=4, ltype=cv2.CV_32S)
-        labels = np.where(core_out, labels_out + (count_in - 1), labels_in)
-        labels[~core] = 0
-        count = count_in + count_out - 1
+    core = _band_pixels(psi_l, valid, jump_rad)
+    residual = np.where(core, ratio * psi_l - psi_h, 0.0)  # 2pi b_p, (H, W)
+    labels, count = _bands(core, residual)
     band = labels[core]  # (P,) band of every core pixel; 0 is the background
     z_re, z_im, size = _band_sums(residual, core, band, count)
     candidates = np.arange(int(np.ceil(f_l)))  # (M,)
@@ -139,6 +122,39 @@ def low_order_bands(psi_h, psi_l, f_h: float, f_l: float, valid, order_low, *,
     return order, banded
 
 
+def _band_pixels(psi_l, valid, jump_rad: float) -> np.ndarray:
+    """Valid pixels on no cut (step 1): no wrap or jump of the low phase to any valid 4-neighbour, ``(H, W)`` bool."""
+    core = valid.copy()
+    for axis in (0, 1):
+        step = np.diff(psi_l, axis=axis)
+        wrapped = (step + np.pi) % _TWO_PI - np.pi
+        both = np.logical_and(np.delete(valid, 0, axis=axis), np.delete(valid, -1, axis=axis))
+        cut = (np.abs(step) > np.pi) | (np.abs(wrapped) > jump_rad) | ~both  # (H-1, W) or (H, W-1)
+        if axis == 0:
+            core[1:] &= ~cut
+            core[:-1] &= ~cut
+        else:
+            core[:, 1:] &= ~cut
+            core[:, :-1] &= ~cut
+    return core
+
+
+def _bands(core, residual) -> tuple[np.ndarray, int]:
+    """Band labels ``(H, W)`` int32 (0 off the bands) and their count (with 0): the 4-connected components of
+    ``core``, where a band that ran over a depth edge (:func:`_merged_pixels`) gives the other surface's pixels
+    bands of their own."""
+    count, labels = cv2.connectedComponents(core.astype(np.uint8), connectivity=4, ltype=cv2.CV_32S)
+    outliers = _merged_pixels(residual, core, labels, count)
+    if not outliers.any():
+        return labels, count
+    inside, outside = core & ~outliers, core & outliers
+    count_in, labels_in = cv2.connectedComponents(inside.astype(np.uint8), connectivity=4, ltype=cv2.CV_32S)
+    count_out, labels_out = cv2.connectedComponents(outside.astype(np.uint8), connectivity=4, ltype=cv2.CV_32S)
+    labels = np.where(outside, labels_out + (count_in - 1), labels_in)
+    labels[~core] = 0
+    return labels, count_in + count_out - 1
+
+
 def _band_sums(residual, core, band, count):
     """``Re Z_B``, ``Im Z_B`` and the pixel count of every band, ``(count,)`` each."""
     z_re = np.bincount(band, np.cos(residual[core]), minlength=count)
@@ -147,11 +163,12 @@ def _band_sums(residual, core, band, count):
 
 
 def _merged_pixels(residual, core, labels, count) -> np.ndarray:
-    """Band pixels whose 3x3 mean residual lies more than a quarter period from their band's, ``(H, W)`` bool.
+    """Band pixels whose 3x3 circular mean residual lies more than :data:`MERGE_TOLERANCE_RAD` (0.15 periods) from
+    their band's, ``(H, W)`` bool.
 
     On one surface ``b_p`` is one value (``-(f_h/f_l) k_l`` modulo 1) but for noise; a band that runs over a
     depth edge where the low phase runs on (a shift of a whole low period) holds a second value, ``f_h/f_l``
-    times the order step apart (half a period for f_h = 60).
+    times the order step apart modulo 1 (half a period for f_h = 60).
     """
     band = labels[core]
     z_re, z_im, _ = _band_sums(residual, core, band, count)
