@@ -33,9 +33,15 @@ import time
 import tty
 from pathlib import Path
 
-from .projector_protocol import ProtocolError, Reply, SequenceSpec, encode_reply, parse_command
+from .projector_protocol import (
+    ProtocolError,
+    Reply,
+    SequenceSpec,
+    encode_reply,
+    parse_command,
+)
 
-__all__ = ["TriggerBoxEmulator", "PtyTriggerBox", "serve_fd", "main"]
+__all__ = ["PtyTriggerBox", "TriggerBoxEmulator", "main", "serve_fd"]
 
 FIRMWARE = "emulator-1.0"
 #: Lines the emulator puts on the wire with ``garbage_every``: noise, a wrong baud rate, a truncated line.
@@ -260,12 +266,20 @@ def main(argv: list[str] | None = None) -> int:
     signal.signal(signal.SIGTERM, lambda *_: stop.set())
     signal.signal(signal.SIGINT, lambda *_: stop.set())
 
+    printing = threading.Lock()  # the box's thread reports commands while the main thread reports "ready"
+
+    def emit(event: dict) -> None:
+        """One JSON event a line on stdout; whole lines only, whichever thread reports."""
+        with printing:
+            sys.stdout.write(json.dumps(event) + "\n")
+            sys.stdout.flush()
+
     def report(line: bytes) -> None:
-        print(json.dumps({"event": "command", "line": line.decode("ascii", "replace").rstrip("\r")}), flush=True)
+        emit({"event": "command", "line": line.decode("ascii", "replace").rstrip("\r")})
 
     box = PtyTriggerBox(link=args.link, on_command=report, firmware=args.firmware, abort_after=args.abort_after,
                         hang_after=args.hang_after, silent=args.silent, garbage_every=args.garbage_every)
-    print(json.dumps({"event": "ready", "port": box.port, "device": box.device}), flush=True)
+    emit({"event": "ready", "port": box.port, "device": box.device})
     try:
         while not stop.wait(0.1):
             pass
