@@ -35,8 +35,10 @@ class NodeProcess:
         self._events: queue.Queue = queue.Queue()
         self.events: list[dict] = []
         self.stderr_lines: list[str] = []
-        threading.Thread(target=self._read_stdout, daemon=True).start()
-        threading.Thread(target=self._read_stderr, daemon=True).start()
+        self._readers = [threading.Thread(target=self._read_stdout, daemon=True),
+                         threading.Thread(target=self._read_stderr, daemon=True)]
+        for reader in self._readers:
+            reader.start()
 
     def _read_stdout(self):
         for line in self.proc.stdout:
@@ -87,8 +89,12 @@ class NodeProcess:
         return text in self.stderr
 
     def wait(self, timeout: float = 10.0) -> int:
+        """The exit code, once the process has exited and its stdout and stderr are read to the end."""
         try:
-            return self.proc.wait(timeout=timeout)
+            code = self.proc.wait(timeout=timeout)
+            for reader in self._readers:  # the pipes close at exit: the readers finish
+                reader.join(timeout=5.0)
+            return code
         except subprocess.TimeoutExpired:
             self.kill()
             raise AssertionError(f"{self.args[0]} did not exit within {timeout} s; stderr:\n{self.stderr}") from None

@@ -8,7 +8,13 @@ import uuid
 
 import zmq
 
-from dptpu.graph.discovery import FORMAT, get_graph, host_identity, process_start_ticks, write_announcement
+from dptpu.graph.discovery import (
+    FORMAT,
+    get_graph,
+    host_identity,
+    process_start_ticks,
+    write_announcement,
+)
 from dptpu.graph.interfaces import String
 from dptpu.graph.qos import QoSProfile
 from dptpu.graph.transport import pack_envelope
@@ -63,7 +69,8 @@ def test_malformed_messages_are_counted_and_visible_in_introspection(spawn, doma
         done = listener.wait_event("done")
         assert done["received"] == ["good"]
         assert done["malformed_count"] == 3
-        assert "malformed message on /chatter" in listener.stderr
+        # stderr is read by its own thread: the warning may land a moment after the "done" event on stdout
+        assert listener.wait_for_stderr("malformed message on /chatter"), listener.stderr
         # the counters reach the announcement within about a second
         deadline = time.monotonic() + 2.0
         stats = {}
