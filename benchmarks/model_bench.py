@@ -6,7 +6,7 @@ Run it as ``python benchmarks/model_bench.py [--model PATH] [--baseline PATH] [-
 What is measured, in one run, on one synthetic input of ``--size`` (height x width, default 480x640):
 
 - ``inference``: :meth:`dptpu.models.inference.FringeOrderModel.predict` of the model (default: the shipped
-  ``dptpu/models/dptpu.onnx``) in an onnxruntime session with ``--threads`` intra-op threads (default 2,
+  ``models/dptpu.onnx``) in an onnxruntime session with ``--threads`` intra-op threads (default 2,
   the issue's goal: <= 25 ms for 480x640 on 2 threads) on float32 maps that are already masked (what the
   float32 unwrapping of the scanner delivers), i.e. the network alone: the ``session.run`` call, without
   the classical order before it or the rounding after it;
@@ -208,7 +208,7 @@ def run(model_path, *, size=DEFAULT_SIZE, threads: int = DEFAULT_THREADS, runs: 
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(
         prog="dptpu bench model", description="DP-TPU inference (onnxruntime) vs classical unwrap_mf, same input")
-    parser.add_argument("--model", default=None, help="ONNX model (default: the shipped dptpu/models/dptpu.onnx)")
+    parser.add_argument("--model", default=None, help="ONNX model (default: the shipped models/dptpu.onnx)")
     parser.add_argument("--baseline", default=None, metavar="PATH",
                         help="a second ONNX model whose inference is timed alongside (e.g. the traced graph)")
     parser.add_argument("--size", type=_size, default=DEFAULT_SIZE, metavar="HxW", help="input size (480x640)")
@@ -226,7 +226,7 @@ def main(argv=None) -> int:
 
     model_path = args.model or shipped_model_path()
     if model_path is None:
-        print("no model: pass --model PATH (the package has no shipped dptpu/models/dptpu.onnx)", file=sys.stderr)
+        print("no model: pass --model PATH (the package has no shipped models/dptpu.onnx)", file=sys.stderr)
         return 2
     try:
         report = run(model_path, size=args.size, threads=args.threads, runs=args.runs, warmup=max(args.warmup, 0),

@@ -419,7 +419,7 @@ def run(args) -> int:
     if args.json:
         print(json.dumps(report, indent=1))
     elif model is None:
-        print("DP-TPU: no model (dptpu/models/dptpu.onnx not shipped, no --model): classical only")
+        print("DP-TPU: no model (models/dptpu.onnx not shipped, no --model): classical only")
     return 0
 
 

@@ -27,7 +27,7 @@ pip() { .venv/bin/python -m pip --disable-pip-version-check -q "$@"; }
 
 case "$job" in
   run)
-    pip install -e .
+    pip install -e . --config-settings editable_mode=strict
     shift || true
     # the sim-mode scanner graph; with no arguments 20 scans, then a clean stop (scans:=0 runs until Ctrl-C)
     [ "$#" -gt 0 ] || set -- scans:=20
@@ -35,7 +35,7 @@ case "$job" in
     ;;
   test)
     # torch: training only; exactly 2.13.0, a CPU build pip takes from local disk (never an unpinned torch)
-    pip install -e '.[test]' torch==2.13.0
+    pip install -e '.[test]' torch==2.13.0 --config-settings editable_mode=strict
     # the Blender renderer's own venv (bpy 4.5 pins numpy < 2): .blender-venv/ or $DPTPU_BLENDER_ENV; idempotent
     .venv/bin/python -m dptpu.sim.blender
     # headless Chromium for the browser viewer's test (Debian's package; the test skips with a reason without it)

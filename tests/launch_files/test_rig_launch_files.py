@@ -4,7 +4,7 @@ from __future__ import annotations
 import pytest
 
 from dptpu.cli.main import main
-from dptpu.graph.launch import load_launch_file
+from dptpu.tools.launch import load_launch_file
 from tests.launch_files.running import REPO_ROOT
 
 LAUNCH_DIR = REPO_ROOT / "launch"

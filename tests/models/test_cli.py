@@ -137,7 +137,7 @@ def test_fringe_density_is_periods_per_pixel(synthetic_capture):
 
 
 @pytest.mark.skipif(__import__("dptpu.models.inference", fromlist=["x"]).shipped_model_path() is None,
-                    reason="no shipped model dptpu/models/dptpu.onnx")
+                    reason="no shipped model models/dptpu.onnx")
 @pytest.mark.parametrize("px_per_pixel,used", [(2.0, True), (10.0, False)])
 def test_unwrap_uses_the_shipped_model_by_default_only_within_its_fringe_density(synthetic_capture, tmp_path, capsys,
                                                                                px_per_pixel, used):

@@ -119,7 +119,7 @@ def test_shipped_model_gives_the_same_orders_as_its_other_graph(tmp_path):
 
     path = shipped_model_path()
     if path is None:
-        pytest.skip("the package has no shipped model (dptpu/models/dptpu.onnx)")
+        pytest.skip("the package has no shipped model (models/dptpu.onnx)")
     import onnx
 
     shipped_graph = {p.key: p.value for p in onnx.load(str(path)).metadata_props}.get("graph")

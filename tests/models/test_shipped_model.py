@@ -1,4 +1,4 @@
-"""The shipped model (dptpu/models/dptpu.onnx): it loads with onnxruntime and beats the classical order.
+"""The shipped model (models/dptpu.onnx): it loads with onnxruntime and beats the classical order.
 
 Two held-out samples, both at f_h = 96 (outside the training frequencies S4 = {32, 48, 64, 80}) and 1 sigma
 noise (1.5693 gray levels, 3-step inputs), for every method the model was trained on (its metadata's
@@ -13,7 +13,7 @@ noise (1.5693 gray levels, 3-step inputs), for every method the model was traine
   86.3 %, MW 48.1 / 36.0 / 45.0 / 48.4 % -> 85.6 / 82.2 / 91.6 / 85.2 %; at 1 sigma it beats classical MF on
   only two of the four scenes (90.7 / 78.5 / 90.2 / 91.8 % -> 88.3 / 88.2 / 96.8 / 87.2 %; the previous
   architecture-1 model: 98.7 / 98.3 / 98.9 / 99.6 %), see
-  dptpu/models/README.md.
+  models/README.md.
 """
 import numpy as np
 import pytest
@@ -22,7 +22,7 @@ from dptpu.models.inference import FringeOrderModel, shipped_model_path
 from dptpu.models.refine import refine_order
 from dptpu.models.toy_dataset import toy_sample
 
-pytestmark = pytest.mark.skipif(shipped_model_path() is None, reason="no shipped model dptpu/models/dptpu.onnx")
+pytestmark = pytest.mark.skipif(shipped_model_path() is None, reason="no shipped model models/dptpu.onnx")
 
 METHODS = ("mf", "mw", "nt")
 

@@ -13,7 +13,7 @@ import numpy as np
 
 from dptpu.graph.interfaces import Trigger as TriggerService
 from dptpu.messages import FringeFrame, ScanStatus
-from tests.graph_launch.conftest import LaunchProcess
+from tests.tools.launch.conftest import LaunchProcess
 
 LAUNCH = """
 launch:

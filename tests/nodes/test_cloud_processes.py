@@ -89,7 +89,7 @@ def test_a_node_with_bad_parameters_exits_2_with_the_reason(spawn_node):
 
 
 def test_the_three_nodes_validate_in_a_launch_file(tmp_path):
-    from dptpu.graph.launch import load_launch_file
+    from dptpu.tools.launch import load_launch_file
 
     launch = tmp_path / "scanner.yaml"
     launch.write_text(

@@ -69,7 +69,7 @@ def test_dptpu_scans_through_the_whole_graph_meet_the_bounds(node_env, tmp_path)
 
     Bound: at least 95 % of fringe orders right per scan, depth RMS where the order is right below 1 mm. Measured
     (2026-11-23, 160x120, twin_rig): the shipped architecture-2 model trained on the nominal + wide rigs
-    (dptpu/models/README.md) 97.67 / 99.01 / 97.17 / 99.66 % on random-1 / sphere / random-2 / board; the one trained
+    (models/README.md) 97.67 / 99.01 / 97.17 / 99.66 % on random-1 / sphere / random-2 / board; the one trained
     on the nominal rig alone 97.57 / 98.33 / 97.29 / 95.26 %, depth RMS 0.10-0.21 mm; the previous (architecture 1)
     model 99.49 / 97.95 / 99.38 / 97.25 %; classical MF 99.68 / 98.93 / 99.17 / 100 % in the same graph. On these 160x120 12-step frames (finer fringes per pixel than its 320x240 3-step training data) the
     shipped model does not beat classical MF; the bound guards the wiring and against a broken model (an
@@ -80,7 +80,7 @@ def test_dptpu_scans_through_the_whole_graph_meet_the_bounds(node_env, tmp_path)
     from dptpu.models.inference import shipped_model_path
 
     if shipped_model_path() is None:
-        pytest.skip("no shipped DP-TPU model (dptpu/models/dptpu.onnx) yet")
+        pytest.skip("no shipped DP-TPU model (models/dptpu.onnx) yet")
     summary = tmp_path / "summary.json"
     run = LaunchRun(SIM_RIG, "scans:=4", "source:=raycast", TWIN_RIG_ARG, "size:=160x120", "sequence:=64x12,1x12",
                     "method:=mf", "model:=shipped", f"summary:={summary}", "ply_dir:=", env=node_env, cwd=tmp_path)

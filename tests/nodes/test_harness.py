@@ -1,4 +1,4 @@
-"""The in-process node harness (dptpu/nodes/harness.py): isolation, wiring, waiting, scan frames."""
+"""The in-process node harness (nodes/harness.py): isolation, wiring, waiting, scan frames."""
 from __future__ import annotations
 
 import os

@@ -1,4 +1,4 @@
-"""Scan assembly by sequence_id (dptpu/nodes/sequence_assembler.py): pure logic, a hand-driven clock."""
+"""Scan assembly by sequence_id (nodes/sequence_assembler.py): pure logic, a hand-driven clock."""
 from __future__ import annotations
 
 import numpy as np

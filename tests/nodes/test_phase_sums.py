@@ -1,5 +1,5 @@
 """The phase node's per-frame path: each entry's Eq. (2) sums computed as soon as its frames are in
-(dptpu/nodes/phase.py ScanSums, dptpu/fpp/phase.py sequence_sums / maps_from_sums) give the maps of the stacked
+(nodes/phase.py ScanSums, fpp/phase.py sequence_sums / maps_from_sums) give the maps of the stacked
 frames, and the cloud's in-place triangulation (Triangulator.camera_points(out=...)) the points of the plain call."""
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""The shipped Blender renders (dptpu/sim/shipped): complete, small, and decoding to their own ground truth."""
+"""The shipped Blender renders (sim/shipped): complete, small, and decoding to their own ground truth."""
 from pathlib import Path
 
 import numpy as np
@@ -8,7 +8,7 @@ from dptpu.fpp.capture import load_sequence_images, read_capture
 from dptpu.fpp.phase import wrapped_phase
 from dptpu.fpp.tpu import unwrap
 
-SHIPPED = Path(__file__).resolve().parents[2] / "dptpu" / "sim" / "shipped"
+SHIPPED = Path(__file__).resolve().parents[2] / "sim" / "shipped"
 FOLDERS = sorted(p for p in SHIPPED.iterdir() if (p / "capture.yaml").is_file()) if SHIPPED.is_dir() else []
 
 

@@ -1,0 +1,130 @@
+"""``dptpu eval sphere``: the paper's Fig. 3 figures and the project's own reconstruction of the real sphere.
+
+``dptpu eval unwrap [--model PATH ...] [--unet PATH] --out DIR``: fringe-order accuracy on the paper's unseen
+dynamic rig, solvers side by side (:mod:`dptpu.experiments.unwrap_eval`); ``--frequencies 16,56,96 --scenes 1
+--size 160x120`` gives a tiny set.
+"""
+from __future__ import annotations
+
+import json
+import shlex
+import sys
+from pathlib import Path
+
+from .data_paths import shared_data_dir
+
+
+def register(subparsers) -> None:
+    parser = subparsers.add_parser("eval", help="evaluate against reference data")
+    targets = parser.add_subparsers(dest="target", metavar="TARGET", required=True)
+    sphere = targets.add_parser("sphere", help="the DP-TPU standard sphere (paper Fig. 3) on real data")
+    sphere.add_argument("--data", help="dptpu-sphere folder (default: $DPTPU_DATA/dptpu-sphere or "
+                                       "../shared/data/dptpu-sphere)")
+    sphere.add_argument("--json", action="store_true", help="print the figures as JSON")
+    sphere.set_defaults(func=run_sphere)
+    _register_unwrap(targets)
+
+
+def _register_unwrap(targets) -> None:
+    unwrap = targets.add_parser(
+        "unwrap", help="fringe-order accuracy on the paper's unseen dynamic rig: classical, median, U-Net, DP-TPU",
+        description="Render a test set on an unseen rig (default: the paper's dynamic rig) with unseen random "
+                    "scenes, f_h = 16..96 step 4, MF/MW/NT, 1 and 2 sigma noise, 3-step inputs and 12-step labels; "
+                    "evaluate the classical order, its 3x3 median, the U-Net baseline and DP-TPU; write table.csv, "
+                    "heatmap.png (Fig. 4b), error_vs_frequency.png (Fig. 6) and summary.md to --out.")
+    unwrap.add_argument("--model", action="append", default=None, metavar="PATH",
+                        help="DP-TPU model (.onnx), repeatable; default the shipped model; 'none' for no model")
+    unwrap.add_argument("--unet", default=None, metavar="PATH", help="U-Net baseline model (.onnx), optional")
+    unwrap.add_argument("--out", required=True, type=Path, metavar="DIR", help="output folder")
+    unwrap.add_argument("--data", default=None, type=Path, metavar="DIR",
+                        help="evaluate an existing test set (e.g. DIR/testset of an earlier run) instead of rendering")
+    unwrap.add_argument("--rig", default="dynamic", help="rig preset or file for the test set (default dynamic)")
+    unwrap.add_argument("--renderer", choices=("raycast", "blender"), default="raycast",
+                        help="renderer of the test scenes (default raycast; blender needs 'dptpu sim setup-blender')")
+    unwrap.add_argument("--frequencies", default=None,
+                        help="high frequencies, comma separated (default 16,20,...,96)")
+    unwrap.add_argument("--noise", default=None, help="noise levels in gray levels, comma separated "
+                                                      "(default 1.5693,3.1386)")
+    unwrap.add_argument("--scenes", type=int, default=2, help="random scenes (default 2)")
+    unwrap.add_argument("--size", default="640x480", help="camera size WIDTHxHEIGHT (default 640x480)")
+    unwrap.add_argument("--seed", type=int, default=None, help="scene seed root (default 300, unseen in training)")
+    unwrap.add_argument("--blender-samples", type=int, default=8, help="Cycles samples per pixel (default 8)")
+    unwrap.add_argument("--workers", type=int, default=1, help="processes rendering scenes (default 1)")
+    unwrap.add_argument("--vote-baseline", action="store_true",
+                        help="add the solver classical+vote: the consensus vote on DP-TPU's prior alone, no network")
+    unwrap.add_argument("--threads", type=int, default=None, help="onnxruntime threads")
+    unwrap.add_argument("--quiet", action="store_true", help="no progress bar")
+    unwrap.set_defaults(func=run_unwrap)
+
+
+def _numbers(text, option) -> tuple:
+    try:
+        values = tuple(float(v) for v in str(text).split(",") if v.strip())
+    except ValueError:
+        values = ()
+    if not values:
+        raise ValueError(f"{option} must be comma-separated numbers (e.g. 16,56,96); got {text!r}")
+    return values
+
+
+def _load_models(args) -> list:
+    from dptpu.models.inference import FringeOrderModel, shipped_model_path
+
+    paths = args.model if args.model is not None else [shipped_model_path()]
+    if any(str(p).lower() == "none" for p in paths):
+        if len(paths) > 1:
+            raise ValueError(f"--model none cannot be combined with other --model paths; got {paths}")
+        paths = []
+    paths = [p for p in paths if p is not None]  # no shipped model: classical solvers only
+    if args.unet is not None:
+        paths.append(args.unet)
+    return [FringeOrderModel.load(p, threads=args.threads) for p in paths]
+
+
+def run_unwrap(args) -> int:
+    from dptpu.experiments.unwrap_eval import (
+        DEFAULT_SEED,
+        EVAL_FREQUENCIES,
+        EVAL_NOISE,
+        UnwrapEvalSpec,
+        run_unwrap_eval,
+    )
+    from dptpu.sim.rig import parse_size
+
+    models = _load_models(args)
+    spec = UnwrapEvalSpec(
+        frequencies=_numbers(args.frequencies, "--frequencies") if args.frequencies else EVAL_FREQUENCIES,
+        noise=_numbers(args.noise, "--noise") if args.noise else EVAL_NOISE, scenes=args.scenes,
+        size=parse_size(args.size), seed=DEFAULT_SEED if args.seed is None else args.seed, rig=args.rig,
+        renderer=args.renderer, blender_samples=args.blender_samples)
+    command = "dptpu " + " ".join(shlex.quote(a) for a in sys.argv[1:]) if len(sys.argv) > 1 else ""
+    result = run_unwrap_eval(spec, args.out, models=models, data_dir=args.data, workers=args.workers,
+                             progress=not args.quiet, command=command, vote_baseline=args.vote_baseline)
+    print(result.files["summary"].read_text())
+    print("wrote " + ", ".join(str(p) for p in result.files.values()))
+    return 0
+
+
+def run_sphere(args) -> int:
+    from dptpu.fpp import real_sphere
+
+    data_dir = args.data or shared_data_dir() / "dptpu-sphere"
+    report = real_sphere.evaluate(data_dir)
+    if args.json:
+        print(json.dumps(report, indent=2))
+        return 0
+    print(f"DP-TPU standard sphere, diameter {real_sphere.SPHERE_DIAMETER_MM} mm, data: {data_dir}")
+    print("Paper's method (pinhole, x_p - 1, algebraic fit), RMS of the sphere fit in um:")
+    print(f"  {'calibration':12s}{'phase':8s}{'computed':>10s}{'Fig. 3 label':>14s}")
+    for calibration, phase in real_sphere.COMBINATIONS:
+        key = real_sphere.combination_key(calibration, phase)
+        print(f"  {calibration:12s}{phase:8s}{report['paper'][key]:10.3f}{report['paper_figures_um'][key]:14.3f}")
+    print("Own reconstruction (pose refined over all views, 0-based, camera + projector distortion, geometric fit):")
+    print(f"  {'calibration':12s}{'phase':8s}{'RMS um':>9s}{'radius mm':>11s}{'points':>8s}"
+          f"   edge band removed ({report['ours']['calib_real_phase_real']['edge_band_removed']['rule']})")
+    for calibration, phase in real_sphere.COMBINATIONS:
+        row = report["ours"][real_sphere.combination_key(calibration, phase)]
+        edge = row["edge_band_removed"]
+        print(f"  {calibration:12s}{phase:8s}{row['rms_um']:9.3f}{row['radius_mm']:11.4f}{row['points']:8d}"
+              f"   {edge['rms_um']:7.3f} um  {edge['radius_mm']:.4f} mm  {edge['points']} points")
+    return 0

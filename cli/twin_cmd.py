@@ -1,0 +1,135 @@
+"""``dptpu twin ...``: hold measured data against the digital twin.
+
+``dptpu twin diagnose --measured PATH --rig RIG [--reference sphere:DIAMETER_MM | plane | scene:FILE]
+[--self-reference] [--frequency F] --out DIR`` (:mod:`dptpu.sim.diagnosis`, docs/sim-to-real.md): registration, residuals and
+their decomposition (PNG figures), candidate effects ranked by BIC, the extended rig, the re-render and
+``report.json`` / ``report.md``.
+
+``dptpu twin finetune --measured DATA --extended RIG --model BASE --out DIR``
+(:mod:`dptpu.experiments.downstream`): the downstream gain of the extended twin on measured data.
+"""
+from __future__ import annotations
+
+import json
+
+
+def register(subparsers) -> None:
+    parser = subparsers.add_parser("twin", help="sim-to-real: what the twin gets wrong on measured data")
+    twin_subparsers = parser.add_subparsers(dest="twin_command", metavar="TWIN_COMMAND", required=True)
+    diagnose = twin_subparsers.add_parser(
+        "diagnose", help="diagnose measured data against the twin: cause, fitted effects, extended rig, gain",
+        description="Register the reference object (or use the data's own phase with --self-reference), fit each "
+                    "effect of the twin's vocabulary with the twin in the loop, rank them by BIC, write the "
+                    "extended rig, render again and report (report.json, report.md, PNG figures). "
+                    "See docs/sim-to-real.md.")
+    diagnose.add_argument("--measured", required=True,
+                          help="capture folder (raw frames), .npz phase file (absolute_phase, frequency, "
+                               "fringe_axis, projector_size) or a dptpu-sphere .mat phase file (with --frequency)")
+    diagnose.add_argument("--rig", default=None,
+                          help="dptpu-rig/1 or OpenCV rig file, 'CAM.mat,PRJ.mat' (Bouguet) or 'nominal'; "
+                               "optional with --self-reference")
+    diagnose.add_argument("--reference", default=None,
+                          help="sphere:DIAMETER_MM, plane or scene:FILE (a dptpu scene YAML, docs/twin.md: its pose "
+                               "is registered from the data by ICP)")
+    diagnose.add_argument("--self-reference", action="store_true",
+                          help="no calibration or reference object: the data's own 12-step phase is the reference")
+    diagnose.add_argument("--frequency", type=float, default=None,
+                          help="fringe frequency of a .mat phase file (96 for dptpu-sphere)")
+    diagnose.add_argument("--max-pixels", type=int, default=12000,
+                          help="pixels used by the photometric fits (default 12000, a seeded random subset)")
+    diagnose.add_argument("--rounds", type=int, default=3,
+                          help="photometric effects found greedily, the cause first (default 3)")
+    diagnose.add_argument("--seed", type=int, default=0)
+    diagnose.add_argument("--no-rerender", action="store_true", help="skip rendering the twins again")
+    diagnose.add_argument("--out", required=True, help="output folder")
+    diagnose.set_defaults(func=run_diagnose)
+
+    finetune = twin_subparsers.add_parser(
+        "finetune", help="downstream gain: fine-tune DP-TPU on the extended and on the baseline twin, score on "
+                         "measured data",
+        description="Build the network's inputs from measured data (CFPE frames or the dptpu-sphere phase), render "
+                    "two twin sets of the same scenes (baseline rig, extended rig), fine-tune the base model on "
+                    "each with the same budget, and compare fringe-order accuracy (and the sphere's 3D error). "
+                    "Writes downstream.json and report.md. See docs/sim-to-real.md, 'Downstream gain'.")
+    finetune.add_argument("--measured", required=True, help="../shared/data/cfpe or ../shared/data/dptpu-sphere")
+    finetune.add_argument("--extended", required=True,
+                          help="extended_rig.yaml or extended_effects.yaml of 'dptpu twin diagnose'")
+    finetune.add_argument("--rig", default=None, help="rig for an effects file (default nominal)")
+    finetune.add_argument("--model", required=True, help="base model: exported .onnx or a training .ckpt")
+    finetune.add_argument("--scenes", type=int, default=8, help="twin scenes per training set (default 8)")
+    finetune.add_argument("--size", default="320x240", help="twin camera WIDTHxHEIGHT (default 320x240)")
+    finetune.add_argument("--epochs", type=int, default=60, help="fine-tune epochs, the same for both (default 60)")
+    finetune.add_argument("--batch", type=int, default=4)
+    finetune.add_argument("--lr", type=float, default=3e-4)
+    finetune.add_argument("--cfpe-scenes", default="01,04,06,08")
+    finetune.add_argument("--cfpe-low", default="het12", choices=("het12", "beat123"))
+    finetune.add_argument("--seed", type=int, default=0)
+    finetune.add_argument("--threads", type=int, default=1, help="torch and onnxruntime threads (default 1)")
+    finetune.add_argument("--out", required=True, help="output folder")
+    finetune.set_defaults(func=run_finetune)
+
+
+def run_diagnose(args) -> int:
+    from dptpu.sim.diagnosis import diagnose
+    from dptpu.sim.diagnosis.measured import load_measured
+    from dptpu.sim.diagnosis.report import write_report
+    from dptpu.sim.rig import load_twin_rig
+
+    if args.self_reference and args.reference:
+        raise ValueError("give either --reference or --self-reference, not both")
+    if not args.self_reference and not args.reference:
+        raise ValueError("--reference sphere:DIAMETER_MM | plane | scene:FILE is required (or --self-reference)")
+    if args.rig is None and not args.self_reference:
+        raise ValueError("--rig is required with --reference")
+    if args.rounds < 1:
+        raise ValueError(f"--rounds must be >= 1; got {args.rounds}")
+    if args.max_pixels < 100:
+        raise ValueError(f"--max-pixels must be >= 100; got {args.max_pixels}")
+    measured = load_measured(args.measured, frequency=args.frequency, decode=not args.self_reference)
+    rig = None
+    if args.rig is not None:
+        rig = load_twin_rig(args.rig)
+        shape = measured.absolute_phase.shape
+        width, height = rig.camera.size
+        if (width, height) != (shape[1], shape[0]) and width * shape[0] == height * shape[1]:
+            rig = load_twin_rig(args.rig, size=(shape[1], shape[0]))  # same aspect: K rescaled (docs/twin.md)
+        elif (width, height) != (shape[1], shape[0]):
+            raise ValueError(f"{args.rig}: camera size {rig.camera.size[0]}x{rig.camera.size[1]} does not match the "
+                             f"measured data's {shape[1]}x{shape[0]}")
+    result = diagnose(measured, rig, reference=args.reference, self_reference=args.self_reference,
+                      max_pixels=args.max_pixels, seed=args.seed, outside_vocabulary=True,
+                      rounds=args.rounds)
+    report = write_report(result, args.out, rerender=not args.no_rerender)
+    summary = {"cause": report["cause"], "extended_rig": report["extended_rig"],
+               "effects": [{"name": e["name"], "gain": e["gain"], "named": e["evidence"]["named"]}
+                           for e in report["effects"]]}
+    if "sphere_rms_um" in report:
+        summary["sphere_rms_um"] = report["sphere_rms_um"]
+    print(json.dumps(summary, indent=2))
+    return 0
+
+
+def run_finetune(args) -> int:
+    import sys
+
+    import torch
+
+    from dptpu.experiments.downstream import DownstreamOptions, run_downstream
+    from dptpu.experiments.finetune import FinetuneOptions
+
+    try:
+        width, height = (int(v) for v in args.size.lower().split("x"))
+    except ValueError:
+        raise ValueError(f"--size must be WIDTHxHEIGHT (e.g. 320x240); got {args.size!r}") from None
+    if args.threads < 1:
+        raise ValueError(f"--threads must be >= 1; got {args.threads}")
+    torch.set_num_threads(args.threads)
+    options = DownstreamOptions(scenes=args.scenes, size=(width, height), seed=args.seed,
+                                cfpe_scenes=tuple(s.strip() for s in args.cfpe_scenes.split(",") if s.strip()),
+                                cfpe_low=args.cfpe_low,
+                                finetune=FinetuneOptions(epochs=args.epochs, batch=args.batch, lr=args.lr,
+                                                         seed=args.seed))
+    report = run_downstream(args.measured, args.extended, args.out, model=args.model, base_rig=args.rig,
+                            options=options, threads=args.threads, log=lambda text: print(text, file=sys.stderr))
+    print(json.dumps(report["summary"], indent=2))
+    return 0

@@ -1,0 +1,318 @@
+"""Downstream gain of an extended twin: fine-tune DP-TPU on it and on the baseline twin, score both on measured data.
+
+``dptpu twin finetune --measured PATH --extended RIG --model BASE.onnx --out DIR`` (docs/sim-to-real.md,
+"Downstream gain"):
+
+1. **Measured pairs** (:mod:`.cfpe_inputs`, :mod:`.sphere_inputs`): the network's inputs built from the measured
+   data, a reference order from a 12-step measurement, and what is real and what is synthesized.
+2. **Two twin sets of the same scenes** (:mod:`.twin_pairs`): the baseline rig (the extended rig without its
+   effects) and the extended rig, rendered with the measured data's sequences and pair construction; the sets
+   differ only by the effects.
+3. **Two fine-tunes with the same budget** (:mod:`.finetune`) from the base model's weights: the fine-tune on the
+   baseline twin is the control, so a difference between the two is the extension's, not the extra steps'.
+4. **Evaluation**: fringe-order accuracy of the classical order, the base model and both fine-tunes on every
+   measured pair (and on held-out scenes of both twins); for the sphere the 3D error of each order map
+   (:func:`.sphere_inputs.sphere_errors_um`). ``downstream.json`` and a "Downstream gain" section of ``report.md``.
+"""
+from __future__ import annotations
+
+import copy
+import json
+import time
+from dataclasses import asdict, dataclass, field, replace
+from pathlib import Path
+
+import numpy as np
+import yaml
+
+from .finetune import FinetuneOptions, finetune, load_start_model
+from dptpu.sim.diagnosis.measured_pair import MeasuredPair, order_accuracy
+from dptpu.sim.diagnosis.twin_pairs import CFPE_DESIGN, SPHERE_DESIGN, write_twin_set
+
+__all__ = ["DownstreamOptions", "measured_kind", "measured_pairs", "split_rigs", "evaluate_orders",
+           "run_downstream", "compare_finetunes", "twin_set_pairs", "write_downstream_report", "SIGMAS"]
+
+#: The paper's camera noise levels, DN (1 sigma, 2 sigma).
+SIGMAS = (1.5693, 3.1386)
+MODEL_NAMES = ("base", "finetuned_baseline", "finetuned_extended")
+
+
+@dataclass(frozen=True)
+class DownstreamOptions:
+    """Sizes of a downstream run.
+
+    Attributes
+    ----------
+    scenes : int
+        Random twin scenes per training set (each at every ``noise`` level).
+    size : (int, int)
+        Camera ``(width, height)`` of the twin samples.
+    noise : tuple of float
+        Camera noise of the twin inputs, DN.
+    seed : int
+        Scenes, noise draws, crops.
+    heldout_scenes : int
+        Extra twin scenes (other seeds) to check what each model learned on both twins.
+    cfpe_scenes : tuple of str
+        CFPE scenes scored.
+    cfpe_low : str
+        Low phase of the CFPE pair (:func:`.cfpe_inputs.low_phase`).
+    finetune : FinetuneOptions
+    """
+
+    scenes: int = 8
+    size: tuple = (320, 240)
+    noise: tuple = SIGMAS
+    seed: int = 0
+    heldout_scenes: int = 1
+    cfpe_scenes: tuple = ("01", "04", "06", "08")
+    cfpe_low: str = "het12"
+    finetune: FinetuneOptions = field(default_factory=FinetuneOptions)
+
+
+def measured_kind(path) -> str:
+    """``cfpe`` (a folder of CFPE frames ``CCIIh.png``) or ``sphere`` (the dptpu-sphere folder); else ValueError."""
+    path = Path(path)
+    if not path.is_dir():
+        raise FileNotFoundError(f"{path}: no such folder (--measured takes ../shared/data/cfpe or "
+                                "../shared/data/dptpu-sphere)")
+    if (path / "standardball_phase_real.mat").is_file():
+        return "sphere"
+    if any(path.glob("??00h.png")):
+        return "cfpe"
+    raise ValueError(f"{path}: neither a CFPE folder (CCIIh.png frames) nor the dptpu-sphere folder "
+                     "(standardball_phase_real.mat)")
+
+
+def measured_pairs(path, options: DownstreamOptions) -> tuple:
+    """``(design, pairs, rig)``: the pair design, the measured pairs, and the real rig for 3D errors (sphere)."""
+    kind = measured_kind(path)
+    if kind == "cfpe":
+        from dptpu.sim.diagnosis.cfpe_inputs import cfpe_pair
+
+        design = replace(CFPE_DESIGN, low=options.cfpe_low)
+        return design, [cfpe_pair(path, scene, low=options.cfpe_low) for scene in options.cfpe_scenes], None
+    from dptpu.fpp import real_sphere
+
+    from dptpu.sim.diagnosis.sphere_inputs import sphere_pair, twin_levels
+
+    rig = real_sphere.load_rig(path, "real", relative_pose="all-views")
+    levels = twin_levels(rig, real_sphere.load_phase(path, "real"))
+    pairs = [sphere_pair(path, noise_sigma=s, seed=options.seed + i, rig=rig, levels=levels)
+             for i, s in enumerate(options.noise)]
+    return SPHERE_DESIGN, pairs, rig
+
+
+def split_rigs(extended, base_rig=None) -> tuple:
+    """``(baseline rig, extended rig)`` from a rig file with effects, or an effects file and a base rig.
+
+    Parameters
+    ----------
+    extended : path
+        ``extended_rig.yaml`` (``dptpu-rig/1`` with ``effects``) or ``extended_effects.yaml`` (``effects:`` only,
+        from a self-reference diagnosis).
+    base_rig : str or Rig, optional
+        The rig for an effects file (default ``nominal``); with a rig file, its geometry is used and this is
+        ignored.
+    """
+    from dptpu.sim.effects import parse_effects
+    from dptpu.sim.rig import load_twin_rig
+
+    path = Path(extended)
+    if not path.is_file():
+        raise FileNotFoundError(f"{path}: no such extended rig or effects file")
+    document = yaml.safe_load(path.read_text()) or {}
+    if not isinstance(document, dict) or "effects" not in document:
+        raise ValueError(f"{path}: expected a dptpu-rig/1 file with 'effects' or an effects file ('effects: [...]')")
+    effects = document["effects"] or []
+    parse_effects(effects, source=str(path))  # checked here, with the file's name
+    if document.get("format") == "dptpu-rig/1":
+        rig = load_twin_rig(path)
+    else:
+        rig = load_twin_rig(base_rig if base_rig is not None else "nominal")
+    return replace(rig, effects=()), replace(rig, effects=tuple(effects))
+
+
+def evaluate_orders(pair: MeasuredPair, orders: dict, rig=None) -> dict:
+    """Accuracy of each order map of ``orders`` (name -> (H, W)) on ``pair``; 3D errors when ``rig`` is given."""
+    row = {"pair": pair.name, "pixels": int(pair.valid.sum()), "accuracy": {}, "provenance": pair.provenance}
+    for name, order in orders.items():
+        row["accuracy"][name] = order_accuracy(order, pair)
+    if rig is not None:
+        from dptpu.sim.diagnosis.sphere_inputs import sphere_errors_um
+
+        row["3d"] = {name: sphere_errors_um(pair, order, rig)
+                     for name, order in {"reference": pair.reference_order, **orders}.items()}
+    return row
+
+
+def _model_orders(models: dict, pair: MeasuredPair, threads: int) -> dict:
+    from dptpu.models.inference import FringeOrderModel
+
+    orders = {"classical": pair.coarse_order}
+    for name, path in models.items():
+        model = FringeOrderModel.load(path, threads=threads)
+        orders[name] = model.refine(pair.wrapped_high, pair.wrapped_low, pair.coarse_order.astype(np.float64),
+                                    pair.frequency_high, valid=pair.valid)
+    return orders
+
+
+def twin_set_pairs(data_dir) -> list[MeasuredPair]:
+    """Held-out twin samples as pairs (their label is the reference)."""
+    from dptpu.models.samples import list_samples, read_sample
+
+    pairs = []
+    for path in list_samples(data_dir):
+        s = read_sample(path)
+        pairs.append(MeasuredPair(
+            name=f"{Path(data_dir).name}/{s.name}", wrapped_high=s.wrapped_high.astype(np.float64),
+            wrapped_low=s.wrapped_low.astype(np.float64), coarse_order=s.coarse_order.astype(np.int32),
+            reference_order=s.label_order.astype(np.int32), reference_phase=np.full(s.valid.shape, np.nan),
+            valid=s.valid, frequency_high=s.frequency_high, frequency_low=s.frequency_low, method=s.method,
+            extent_px=0, provenance={"data": f"twin, noise {s.noise_sigma:g} DN"}))
+    return pairs
+
+
+def run_downstream(measured, extended, out_dir, *, model, base_rig=None,
+                   options: DownstreamOptions = DownstreamOptions(), threads: int = 1, log=None) -> dict:
+    """The whole downstream comparison (module docstring); writes into ``out_dir`` and returns the report dict.
+
+    Parameters
+    ----------
+    measured : path
+        ``../shared/data/cfpe`` or ``../shared/data/dptpu-sphere``.
+    extended : path
+        The diagnosis' ``extended_rig.yaml`` or ``extended_effects.yaml`` (:func:`split_rigs`).
+    out_dir : path
+    model : path
+        The base model: an exported ``.onnx`` (weights read back) or a training ``.ckpt``.
+    base_rig : str, optional
+        Rig for an effects file (default ``nominal``).
+    threads : int
+        onnxruntime threads of the evaluation (torch's are the caller's).
+    log : callable, optional
+        Called with a line of progress.
+    """
+    log = log or (lambda text: None)
+    started = time.perf_counter()
+    design, pairs, rig = measured_pairs(measured, options)
+    log(f"{len(pairs)} measured pairs ({design.name}), {time.perf_counter() - started:.0f} s")
+    baseline_rig, extended_rig = split_rigs(extended, base_rig)
+    report = compare_finetunes(pairs, design, baseline_rig, extended_rig, out_dir, model=model, options=options,
+                               sphere_rig=rig, threads=threads, log=log)
+    report.update({"measured": str(measured), "extended": str(extended),
+                   "seconds": round(time.perf_counter() - started, 1)})
+    write_downstream_report(report, out_dir)
+    return report
+
+
+def compare_finetunes(pairs: list, design, baseline_rig, extended_rig, out_dir, *, model,
+                      options: DownstreamOptions = DownstreamOptions(), sphere_rig=None, threads: int = 1,
+                      log=None) -> dict:
+    """Steps 2-4 of the module docstring on given measured ``pairs``; returns the report dict (not written).
+
+    ``design`` (:class:`~.twin_pairs.PairDesign`) is how the pairs were built; ``baseline_rig`` and
+    ``extended_rig`` differ only by their effects; ``sphere_rig`` (the real rig) adds the sphere's 3D errors.
+    """
+    log = log or (lambda text: None)
+    started = time.perf_counter()
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    sets, heldout = {}, {}
+    for name, twin in (("baseline", baseline_rig), ("extended", extended_rig)):
+        sets[name] = write_twin_set(twin, design, out / f"twin_{name}", scenes=options.scenes, size=options.size,
+                                    noise=options.noise, seed=options.seed)
+        if options.heldout_scenes > 0:
+            heldout[name] = write_twin_set(twin, replace(design, max_correction=None), out / f"heldout_{name}",
+                                           scenes=options.heldout_scenes,
+                                           size=options.size, noise=options.noise, seed=options.seed + 1000)
+        log(f"twin set {name}: {options.scenes} scenes, {time.perf_counter() - started:.0f} s")
+    start = load_start_model(model)
+    base_onnx = Path(model)
+    if base_onnx.suffix != ".onnx":  # a checkpoint: export it to score the base model like the others
+        from dptpu.models.export import export_onnx
+
+        base_onnx = export_onnx(start[0], out / "base.onnx")
+    models = {"base": str(base_onnx)}
+    runs = {}
+    for name in ("baseline", "extended"):
+        fresh = (copy.deepcopy(start[0]), *start[1:])  # the same start weights for both
+        runs[name] = finetune(fresh, sets[name], out / f"finetuned_{name}.onnx", options.finetune)
+        models[f"finetuned_{name}"] = runs[name]["onnx"]
+        log(f"fine-tune on the {name} twin: {runs[name]['epochs']} epochs, {runs[name]['seconds']:.0f} s")
+    rows = [evaluate_orders(pair, _model_orders(models, pair, threads), sphere_rig) for pair in pairs]
+    twin_rows = {name: [evaluate_orders(p, _model_orders(models, p, threads)) for p in twin_set_pairs(heldout[name])]
+                 for name in heldout}
+    return {
+        "design": design.as_dict(),
+        "effects": {"baseline": [dict(e) for e in baseline_rig.effects],
+                    "extended": [dict(e) for e in extended_rig.effects]},
+        "base_model": str(model), "start": start[3], "models": models,
+        "options": json.loads(json.dumps(asdict(options), default=str)), "finetune_runs": runs,
+        "measured_results": rows,
+        "twin_results": {name: [{k: r[k] for k in ("pair", "pixels", "accuracy")} for r in rs]
+                         for name, rs in twin_rows.items()},
+        "summary": _summary(rows, twin_rows), "seconds": round(time.perf_counter() - started, 1),
+    }
+
+
+def _mean(values) -> float:
+    return float(np.mean(values)) if values else float("nan")
+
+
+def _summary(rows: list, twin_rows: dict) -> dict:
+    names = ["classical", *MODEL_NAMES]
+    summary = {"measured_accuracy_mean": {n: _mean([r["accuracy"][n] for r in rows]) for n in names}}
+    for twin, rs in twin_rows.items():
+        summary[f"twin_{twin}_accuracy_mean"] = {n: _mean([r["accuracy"][n] for r in rs]) for n in names}
+    if rows and "3d" in rows[0]:
+        summary["interior_sphere_rms_um"] = {r["pair"]: {n: r["3d"][n]["interior_sphere_rms_um"]
+                                                         for n in ["reference", *names]} for r in rows}
+    m = summary["measured_accuracy_mean"]
+    summary["gain_of_extension"] = m["finetuned_extended"] - m["finetuned_baseline"]
+    return summary
+
+
+def _markdown(report: dict) -> str:
+    names = ["classical", *MODEL_NAMES]
+    lines = ["## Downstream gain", "",
+             f"Measured data `{report.get('measured', 'given pairs')}`, pair design `{report['design']['name']}` "
+             f"(f_h = {report['design']['frequencies'][0]:.4g}, low phase `{report['design']['low']}`); extended twin "
+             f"`{report.get('extended', '')}`: effects {report['effects']['extended']}. Base model `{report['base_model']}`; "
+             "both fine-tunes from its weights with the same budget "
+             f"({report['finetune_runs']['baseline']['steps']} steps: {report['finetune_runs']['baseline']['seconds']:.0f} s "
+             f"and {report['finetune_runs']['extended']['seconds']:.0f} s).", "",
+             "Fringe-order accuracy (fraction of valid pixels with the reference order):", "",
+             "| pair | pixels | " + " | ".join(names) + " |", "|---|---|" + "---|" * len(names)]
+    for row in report["measured_results"]:
+        lines.append(f"| {row['pair']} | {row['pixels']} | " + " | ".join(f"{row['accuracy'][n]:.4f}" for n in names)
+                     + " |")
+    for twin, rows in report["twin_results"].items():
+        for row in rows:
+            lines.append(f"| held-out {twin} twin {row['pair'].split('/')[-1]} | {row['pixels']} | "
+                         + " | ".join(f"{row['accuracy'][n]:.4f}" for n in names) + " |")
+    rows3d = [r for r in report["measured_results"] if "3d" in r]
+    if rows3d:
+        lines += ["", "3D error on the sphere (um; sphere fit with a free radius, interior = 2 px edge band left out; "
+                  "point error = RMS distance to the points of the reference order):", "",
+                  "| pair | order | interior sphere RMS | all-pixel sphere RMS | point error RMS |", "|---|---|---|---|---|"]
+        for row in rows3d:
+            for n in ["reference", *names]:
+                e = row["3d"][n]
+                lines.append(f"| {row['pair']} | {n} | {e['interior_sphere_rms_um']:.1f} | {e['sphere_rms_um']:.1f} | "
+                             f"{e['point_error_rms_um']:.1f} |")
+    lines += ["", "What is real and what is synthesized:", ""]
+    for key, value in report["measured_results"][0]["provenance"].items():
+        lines.append(f"- {key}: {value}")
+    return "\n".join(lines) + "\n"
+
+
+def write_downstream_report(report: dict, out_dir) -> None:
+    """``downstream.json`` and the "Downstream gain" section of ``report.md`` (appended, or a new file)."""
+    out = Path(out_dir)
+    (out / "downstream.json").write_text(json.dumps(report, indent=2, default=str))
+    path = out / "report.md"
+    text = path.read_text() if path.is_file() else "# Twin diagnosis\n\n"
+    if "## Downstream gain" in text:
+        text = text[:text.index("## Downstream gain")]
+    path.write_text(text.rstrip("\n") + "\n\n" + _markdown(report))

@@ -1,0 +1,313 @@
+"""Sim node: stands in for the camera and the projector's optics, answering each Trigger with the twin's frame.
+
+On each :class:`~dptpu.messages.Trigger` the node publishes the :class:`~dptpu.messages.FringeFrame` of that
+pattern (the frame of the trigger's frequency and step) of the current scene, taken from the shipped Blender
+renders of the twin (default), from live raycast renders (:mod:`dptpu.sim.raycast`), or from capture folders
+(:mod:`dptpu.nodes.sim_source`). Scenes cycle scan by scan: scan ``sequence_id`` shows scene
+``(sequence_id - 1) mod len(scenes)``. With each scan's first Trigger the node publishes that scene's ground
+truth for the scan monitor. Run it as ``python -m dptpu.nodes.sim --ros-args -p source:=raycast -p size:=160x120``
+or from a launch file (``launch/sim_rig.yaml``). Design: ``docs/scanner.md``.
+
+Topics (defaults; remappable)
+
+================================ ================= ===== ========================================================
+topic                            type              dir   notes
+================================ ================= ===== ========================================================
+``/projector/trigger``           Trigger           in    subscribed once ``/camera/image_raw`` has
+                                                         ``min_subscribers`` subscriptions (the projector's own
+                                                         scans wait for a trigger subscriber: none is lost)
+``/projector/pattern_sequence``  PatternSequence   in    transient local: checked against the source's sequences
+``/camera/image_raw``            FringeFrame       out   the frame + its Trigger; stamp = the Trigger's stamp
+``/camera/camera_info``          CameraInfo        out   transient local, depth 1: the twin rig's camera
+``/sim/ground_truth``            AbsolutePhase     out   per scan, before its frames: true ``Psi`` of the highest
+                                                         frequency (Eq. (3)), true fringe order ``floor(f x_p/W)``
+                                                         (-1 invalid), ``valid`` = lit by the projector,
+                                                         ``reliability`` 1, ``method`` = ``ground_truth:<scene>``
+``/sim/ground_truth_depth``      Image (32FC1)     out   per scan: true depth along the camera z axis, metres, NaN
+                                                         where no surface; same stamp as its ``/sim/ground_truth``
+``/scanner/status``              ScanStatus        out   ERROR ``failed`` once per scan whose Trigger asked for a
+                                                         frame the source lacks
+================================ ================= ===== ========================================================
+
+Parameters
+
+=================== ============================ =====================================================================
+name                default                      meaning
+=================== ============================ =====================================================================
+``source``          ``"shipped"``                ``shipped`` (``sim/shipped``; live raycast renders of
+                                                 ``scenes`` while none are shipped), ``raycast``, or a folder of
+                                                 ``dptpu-capture/1`` captures with ``gt.npz``
+``rig``             ``"nominal"``                raycast: rig file or ``nominal`` (:func:`dptpu.sim.rig.load_twin_rig`);
+                                                 its ``effects`` are rendered
+``size``            ``"640x480"``                raycast: camera size ``WIDTHxHEIGHT`` (the rig's ``K`` is rescaled)
+``scenes``          ``"random:1,sphere,...``     raycast: built-in names, ``random:SEED`` or scene files, in scan order
+``sequence``        ``"96x12,1x12"``             raycast: ``frequency x steps`` entries rendered (the projector's)
+``fringe_axis``     ``"x"``                      raycast: fringe axis of the rendered patterns
+``shift_sign``      -1                           raycast: phase-step sign (-1: the paper's Eq. (1))
+``seed``            0                            raycast: noise seed of the first scene (scene i: seed + i)
+``bit_depth``       8                            raycast: 8 (mono8) or 16 (mono16)
+``frame_rate_hz``   0.0                          at most this many frames per second (a camera's limit); 0 = each frame
+                                                 at once, as fast as possible
+``drop_frames``     ``""``                       ``SEQUENCE_ID/PATTERN_INDEX,...``: frames not published (tests: an
+                                                 incomplete scan)
+``min_subscribers`` 1                            subscriptions of ``/camera/image_raw`` before Triggers are taken
+``ground_truth``    true                         publish ``/sim/ground_truth`` and ``/sim/ground_truth_depth``
+``frame_id``        ``"scanner_optical_frame"``  ``header.frame_id`` of frames, CameraInfo and ground truth
+=================== ============================ =====================================================================
+"""
+from __future__ import annotations
+
+import sys
+import time
+from collections import OrderedDict, deque
+
+import numpy as np
+
+from dptpu.graph.node import Node
+from dptpu.graph.qos import DurabilityPolicy, QoSProfile
+from dptpu.messages import (
+    AbsolutePhase,
+    CameraInfo,
+    FringeFrame,
+    Header,
+    Image,
+    PatternSequence,
+    ScanStatus,
+    Trigger,
+)
+
+from .node_main import run_node
+from .sequence_assembler import same_frequency
+from .sim_source import DEFAULT_SCENES, SimScene, SimSource, load_source
+
+__all__ = ["SimNode", "main", "parse_drop_frames"]
+
+DEFAULT_FRAME_ID = "scanner_optical_frame"
+LATCHED_QOS = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+STATUS_QOS = QoSProfile(depth=50)
+_TWO_PI = 2.0 * np.pi
+_SCANS_REMEMBERED = 64
+
+
+def parse_drop_frames(text: str) -> set[tuple[int, int]]:
+    """``"3/5,7/0"`` -> ``{(3, 5), (7, 0)}`` (sequence id, pattern index); ValueError naming the parameter.
+
+    (Not ``3:5``: YAML, which types ``-p`` values, reads that as the base-60 integer 185.)
+    """
+    out = set()
+    for token in str(text).split(","):
+        token = token.strip()
+        if not token:
+            continue
+        scan, sep, pattern = token.partition("/")
+        if not sep or not scan.isdigit() or not pattern.isdigit():
+            raise ValueError(f"parameter drop_frames: {token!r} must be SEQUENCE_ID/PATTERN_INDEX (e.g. 3/5)")
+        out.add((int(scan), int(pattern)))
+    return out
+
+
+class _GroundTruth:
+    """The ``/sim/ground_truth`` arrays of one scene, made once."""
+
+    def __init__(self, scene: SimScene, frequency: float, extent_px: int):
+        ratio = frequency / extent_px
+        with np.errstate(invalid="ignore"):
+            self.absolute_phase = (_TWO_PI * ratio * scene.projector_coord).astype(np.float32)  # (H, W) rad
+            order = np.floor(ratio * scene.projector_coord.astype(np.float64))
+        self.fringe_order = np.where(scene.valid, order, -1).astype(np.int32)  # (H, W)
+        self.reliability = np.ones(scene.valid.shape, np.float32)
+        self.depth_m = np.ascontiguousarray(scene.depth_m)
+
+
+class SimNode(Node):
+    """Trigger -> the twin's FringeFrame of that pattern (see the module docstring).
+
+    Counters: ``frames_published``, ``frames_dropped`` (by ``drop_frames``), ``triggers_unknown`` (no such frame).
+    """
+
+    def __init__(self, node_name: str = "sim", **node_options):
+        super().__init__(node_name, **node_options)
+        source = self.declare_parameter("source", "shipped").value
+        rig = self.declare_parameter("rig", "nominal").value
+        size = self.declare_parameter("size", "640x480").value
+        scenes = self.declare_parameter("scenes", DEFAULT_SCENES).value
+        sequence = self.declare_parameter("sequence", "96x12,1x12").value
+        fringe_axis = self.declare_parameter("fringe_axis", "x").value
+        shift_sign = self.declare_parameter("shift_sign", -1).value
+        seed = self.declare_parameter("seed", 0).value
+        bit_depth = self.declare_parameter("bit_depth", 8).value
+        self.frame_rate_hz = float(self.declare_parameter("frame_rate_hz", 0.0).value)
+        self.drop_frames = parse_drop_frames(self.declare_parameter("drop_frames", "").value)
+        self.min_subscribers = self.declare_parameter("min_subscribers", 1).value
+        self.publish_truth = self.declare_parameter("ground_truth", True).value
+        self.frame_id = self.declare_parameter("frame_id", DEFAULT_FRAME_ID).value
+        if self.frame_rate_hz < 0:
+            raise ValueError(f"parameter frame_rate_hz must be >= 0 (0 = as fast as possible); got "
+                             f"{self.frame_rate_hz}")
+        if bit_depth not in (8, 16):
+            raise ValueError(f"parameter bit_depth must be 8 or 16; got {bit_depth}")
+        # the camera is announced as soon as it is known, before the raycast renders (seconds at 640x480): the cloud
+        # node builds its triangulation tables meanwhile, not while the first scans arrive (docs/scanner.md)
+        self.info_pub = self.create_publisher(CameraInfo, "/camera/camera_info", LATCHED_QOS)
+        self._info_published = False
+        self.source: SimSource = load_source(source, rig=rig, size=size, scenes=scenes, sequence=sequence,
+                                             fringe_axis=fringe_axis, shift_sign=shift_sign, seed=seed,
+                                             bit_depth=bit_depth, log=self.get_logger().info,
+                                             on_rig=self._publish_camera_info)
+        self.get_logger().info(self.source.note)
+        if self.source.kind != "raycast":
+            self._check_rig(rig, size)
+        extent_px = self.source.rig.projector.size[0 if self.source.fringe_axis == "x" else 1]
+        self.truth_frequency = max(f for f, _ in self.source.sequences)
+        self._truths = [_GroundTruth(scene, self.truth_frequency, extent_px) for scene in self.source.scenes]
+        self.frames_published = 0
+        self.frames_dropped = 0
+        self.triggers_unknown = 0
+        self._scans_seen: OrderedDict[int, bool] = OrderedDict()  # sequence_id -> failed already reported
+        self._queue: deque = deque()  # (trigger, due monotonic s) when paced
+        self._next_due_s = 0.0
+
+        self.image_pub = self.create_publisher(FringeFrame, "/camera/image_raw", 100)
+        self.truth_pub = self.create_publisher(AbsolutePhase, "/sim/ground_truth", 10)
+        self.truth_depth_pub = self.create_publisher(Image, "/sim/ground_truth_depth", 10)
+        self.status_pub = self.create_publisher(ScanStatus, "/scanner/status", STATUS_QOS)
+        self.sequence_sub = self.create_subscription(PatternSequence, "/projector/pattern_sequence",
+                                                     self.on_pattern_sequence, LATCHED_QOS)
+        self.trigger_sub = None  # created by on_wait_timer once the frames have subscribers
+        if not self._info_published:  # captures and shipped renders: their rig comes with the frames
+            self._publish_camera_info(self.source.rig)
+        self.wait_timer = self.create_timer(0.05, self.on_wait_timer)
+        self.pace_timer = self.create_timer(min(0.01, 1.0 / self.frame_rate_hz), self.on_pace_timer) \
+            if self.frame_rate_hz > 0 else None
+        width, height = self.source.size
+        self.get_logger().info(f"{len(self.source.scenes)} scene(s) at {width}x{height}, sequences "
+                               f"{self.source.describe_sequences()}; waiting for {self.min_subscribers} subscriber(s) "
+                               f"of {self.image_pub.topic_name}")
+
+    # -- callbacks ------------------------------------------------------------------------------------------
+
+    def on_wait_timer(self) -> None:
+        """Take Triggers once the frames have ``min_subscribers`` subscriptions."""
+        if self.image_pub.get_subscription_count() < self.min_subscribers:
+            return
+        self.wait_timer.cancel()
+        self.trigger_sub = self.create_subscription(Trigger, "/projector/trigger", self.on_trigger, 200)
+        self.get_logger().info("frames have subscribers: taking Triggers")
+
+    def on_pattern_sequence(self, msg: PatternSequence) -> None:
+        """Warn when the projector's sequence has entries the source cannot show."""
+        missing = [f"{e.frequency:g}x{e.steps}" for e in msg.entries
+                   if not any(n == e.steps and same_frequency(f, e.frequency) for f, n in self.source.sequences)]
+        if missing:
+            self.get_logger().warning(f"the projector's sequence has {', '.join(missing)}, which the source lacks "
+                                      f"({self.source.describe_sequences()}): those Triggers get no frame")
+
+    def on_trigger(self, trigger: Trigger) -> None:
+        """A pattern is on screen: publish its frame now, or when the frame rate allows."""
+        if self.frame_rate_hz <= 0:
+            self._serve(trigger)
+            return
+        now_s = time.monotonic()
+        self._next_due_s = max(now_s, self._next_due_s + 1.0 / self.frame_rate_hz)
+        self._queue.append((trigger, self._next_due_s))
+        self.on_pace_timer()
+
+    def on_pace_timer(self) -> None:
+        """Paced mode: publish the frames that are due."""
+        now_s = time.monotonic()
+        while self._queue and self._queue[0][1] <= now_s:
+            self._serve(self._queue.popleft()[0])
+
+    # -- helpers ---------------------------------------------------------------------------------------------
+
+    def scene_index(self, sequence_id: int) -> int:
+        """Scene shown during scan ``sequence_id`` (scans count from 1)."""
+        return (int(sequence_id) - 1) % len(self.source.scenes)
+
+    def _serve(self, trigger: Trigger) -> None:
+        sequence_id = trigger.sequence_id
+        index = self.scene_index(sequence_id)
+        scene = self.source.scenes[index]
+        if sequence_id not in self._scans_seen:
+            self._scans_seen[sequence_id] = False
+            while len(self._scans_seen) > _SCANS_REMEMBERED:
+                self._scans_seen.popitem(last=False)
+            if self.publish_truth:
+                self._publish_truth(trigger, index)
+        stack = scene.stack(trigger.frequency, trigger.steps)
+        if stack is None or trigger.step >= stack.shape[0]:
+            self._unknown(trigger, scene)
+            return
+        if (sequence_id, trigger.pattern_index) in self.drop_frames:
+            self.frames_dropped += 1
+            self.get_logger().info(f"dropping pattern {trigger.pattern_index} of scan {sequence_id} (drop_frames)")
+            return
+        header = Header(stamp=trigger.header.stamp, frame_id=self.frame_id)
+        self.image_pub.publish(FringeFrame(image=Image.from_array(stack[trigger.step], header=header),
+                                           trigger=trigger))
+        self.frames_published += 1
+
+    def _publish_truth(self, trigger: Trigger, index: int) -> None:
+        truth = self._truths[index]
+        header = Header(stamp=trigger.header.stamp, frame_id=self.frame_id)
+        width, height = self.source.rig.projector.size
+        self.truth_pub.publish(AbsolutePhase(
+            header=header, sequence_id=trigger.sequence_id, frequency=float(self.truth_frequency),
+            fringe_axis=self.source.fringe_axis, projector_width=width, projector_height=height,
+            absolute_phase=truth.absolute_phase, fringe_order=truth.fringe_order, valid=self.source.scenes[index].valid,
+            reliability=truth.reliability, method=f"ground_truth:{self.source.scenes[index].name}"))
+        self.truth_depth_pub.publish(Image.from_array(truth.depth_m, "32FC1", header=header))
+
+    def _unknown(self, trigger: Trigger, scene: SimScene) -> None:
+        self.triggers_unknown += 1
+        reason = (f"sim: no frame for pattern {trigger.pattern_index} of scan {trigger.sequence_id} "
+                  f"(f={trigger.frequency:g}, step {trigger.step} of {trigger.steps}); scene {scene.name} has "
+                  f"{self.source.describe_sequences()}")
+        self.get_logger().warning(f"{reason} ({self.triggers_unknown} so far)", throttle_duration_sec=1.0)
+        if self._scans_seen.get(trigger.sequence_id):
+            return
+        self._scans_seen[trigger.sequence_id] = True
+        self.status_pub.publish(ScanStatus(
+            header=Header(stamp=self.get_clock().now().to_msg()), sequence_id=trigger.sequence_id,
+            level=ScanStatus.ERROR, state="failed", reason=reason, node=self.get_fully_qualified_name(),
+            frames_expected=trigger.pattern_count, frames_dropped=1))
+
+    def _check_rig(self, rig, size) -> None:
+        """Warn when replayed captures were made with another rig than ``rig`` (which the cloud node is given)."""
+        from dptpu.sim.rig import load_twin_rig
+
+        try:
+            expected = load_twin_rig(rig, size=self.source.size)
+        except (ValueError, FileNotFoundError) as exc:
+            self.get_logger().warning(f"cannot compare the captures' calibration with parameter rig: {exc}")
+            return
+        got = self.source.rig
+        same = got.projector.size == expected.projector.size and all(
+            np.allclose(a, b, rtol=1e-6, atol=1e-6) for a, b in (
+                (got.projector.K, expected.projector.K), (got.projector.R, expected.projector.R),
+                (got.projector.T, expected.projector.T), (got.camera.R, expected.camera.R),
+                (got.camera.T, expected.camera.T), (got.camera.K, expected.camera.K)))
+        if not same:
+            self.get_logger().warning(f"the captures' calibration differs from parameter rig ({rig}); a cloud node "
+                                      "given that rig triangulates them wrongly: give it the captures' "
+                                      "calibration.yaml")
+
+    def _publish_camera_info(self, rig) -> None:
+        self.info_pub.publish(self.camera_info(rig))
+        self._info_published = True
+
+    def camera_info(self, rig=None) -> CameraInfo:
+        """The CameraInfo of ``rig``'s camera (default: the source's)."""
+        camera = (rig or self.source.rig).camera
+        width, height = camera.size
+        return CameraInfo.from_intrinsics(camera.K, camera.dist, width, height,
+                                          header=Header(stamp=self.get_clock().now().to_msg(), frame_id=self.frame_id))
+
+
+def main(argv=None) -> int:
+    """``python -m dptpu.nodes.sim [--ros-args ...]``: run the node until Ctrl-C or SIGTERM (2: bad parameters)."""
+    return run_node("sim", SimNode, argv)
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,165 @@
+"""Downstream gain (dptpu twin finetune): the pipeline's numbers, the ONNX weight loader, the measured pairs.
+
+The pipeline test hides a strong projector gamma (2.2) in a synthetic "measured" pair and runs the whole
+comparison at toy sizes (160x120, two scenes, two fine-tune epochs of two steps): it checks that the numbers are
+consistent (same pixels, accuracies in [0, 1], every accuracy equal to one computed independently), not the
+direction of the gain, which so few steps do not make robust (the real runs are in docs/sim-to-real.md).
+"""
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from dptpu.cli.data_paths import shared_data_dir
+from dptpu.fpp import tpu
+
+DATA = shared_data_dir()
+CFPE = DATA / "cfpe"
+SPHERE = DATA / "dptpu-sphere"
+GAMMA = 2.2
+
+
+@pytest.fixture(scope="module")
+def base_onnx(tmp_path_factory):
+    """A seeded, untrained DP-TPU network exported to ONNX (the base model of the toy runs)."""
+    import torch
+
+    from dptpu.models.export import export_onnx
+    from dptpu.models.factory import build_model
+
+    torch.manual_seed(0)
+    model = build_model("dptpu")
+    with torch.no_grad():  # non-trivial weights everywhere, the output head included
+        for parameter in model.parameters():
+            parameter.add_(0.01 * torch.randn_like(parameter))
+    path = export_onnx(model, tmp_path_factory.mktemp("base") / "base.onnx")
+    return path, {k: v.clone() for k, v in model.state_dict().items()}
+
+
+def test_onnx_weights_round_trip(base_onnx):
+    from dptpu.models.onnx_weights import load_onnx_model
+
+    path, state = base_onnx
+    model, training = load_onnx_model(path)
+    recovered = model.state_dict()
+    assert set(recovered) == set(state)
+    for key, value in state.items():  # every parameter, the constant-folded ones included
+        np.testing.assert_allclose(recovered[key].numpy(), value.numpy(), rtol=1e-6, atol=1e-9, err_msg=key)
+    assert training["max_abs_difference"] < 1e-4
+
+
+def test_onnx_weights_of_an_untrained_network(tmp_path):
+    """Untrained norms are all ones and zeros: the exporter merges them (Identity nodes); still recovered."""
+    from dptpu.models.export import export_onnx
+    from dptpu.models.factory import build_model
+    from dptpu.models.onnx_weights import load_onnx_model
+
+    model = build_model("dptpu")
+    recovered, training = load_onnx_model(export_onnx(model, tmp_path / "fresh.onnx"))
+    for key, value in model.state_dict().items():
+        assert np.array_equal(recovered.state_dict()[key].numpy(), value.numpy()), key
+    assert training["max_abs_difference"] == 0.0
+
+
+def test_onnx_weights_refuses_a_foreign_file(tmp_path):
+    from dptpu.models.onnx_weights import load_onnx_model
+
+    path = tmp_path / "x.onnx"
+    path.write_bytes(b"not a model")
+    with pytest.raises(ValueError, match="x.onnx"):
+        load_onnx_model(path)
+
+
+def test_finetune_pipeline_numbers_are_consistent(base_onnx, tmp_path):
+    from dptpu.models.inference import FringeOrderModel
+    from dptpu.experiments.downstream import DownstreamOptions, compare_finetunes, twin_set_pairs
+    from dptpu.experiments.finetune import FinetuneOptions
+    from dptpu.sim.diagnosis.twin_pairs import PairDesign, write_twin_set
+    from dptpu.sim.rig import nominal_rig
+
+    rig = nominal_rig(camera_size=(160, 120))
+    hidden = replace(rig, effects=({"projector_gamma": {"gamma": GAMMA}},))
+    design = PairDesign("toy", (64.0, 1.0), (3, 3))
+    measured_set = write_twin_set(hidden, design, tmp_path / "measured", scenes=1, size=(160, 120),
+                                  noise=(3.1386,), seed=77)
+    pairs = twin_set_pairs(measured_set)
+    options = DownstreamOptions(scenes=2, size=(160, 120), noise=(3.1386,), heldout_scenes=0,
+                                finetune=FinetuneOptions(epochs=2, batch=1, crop=(64, 64)))
+    report = compare_finetunes(pairs, design, rig, hidden, tmp_path / "out", model=base_onnx[0], options=options)
+
+    runs = report["finetune_runs"]
+    assert runs["baseline"]["steps"] == runs["extended"]["steps"] == 4  # the same budget: 2 epochs x 2 samples
+    (row,) = report["measured_results"]
+    pair = pairs[0]
+    assert row["pixels"] == int(pair.valid.sum()) > 1000
+    assert set(row["accuracy"]) == {"classical", "base", "finetuned_baseline", "finetuned_extended"}
+    assert all(0.0 <= a <= 1.0 for a in row["accuracy"].values())
+    # the classical order: Eq. (5) recomputed here
+    mf = tpu.unwrap_mf(pair.wrapped_high, pair.wrapped_low, 64.0, 1.0, valid=pair.valid).fringe_order
+    expected = np.mean(mf[pair.valid] == pair.reference_order[pair.valid])
+    assert row["accuracy"]["classical"] == pytest.approx(expected, abs=1e-12)
+    # the strong gamma breaks the 3-step MF order on some pixels: there is something to correct
+    assert row["accuracy"]["classical"] < 0.999
+    # each model's accuracy: the ONNX file run here, independently of the pipeline
+    for name, path in report["models"].items():
+        order = FringeOrderModel.load(path).refine(pair.wrapped_high, pair.wrapped_low, pair.coarse_order, 64.0,
+                                                   valid=pair.valid)
+        assert row["accuracy"][name] == pytest.approx(np.mean((order == pair.reference_order)[pair.valid]),
+                                                      abs=1e-12), name
+    # the two sets hold the same scenes: the same pixels are lit, only the frames differ
+    lit = [np.load(p)["valid"].sum() for p in sorted((tmp_path / "out" / "twin_baseline" / "samples").glob("*.npz"))]
+    assert len(lit) == 2 and min(lit) > 0
+    assert (tmp_path / "out" / "finetuned_extended.onnx").is_file()
+
+
+@pytest.mark.skipif(not (CFPE / "0600h.png").exists(), reason=f"CFPE data not found in {CFPE} (set DPTPU_DATA)")
+def test_cfpe_three_step_inputs_against_the_twelve_step_phases():
+    from dptpu.sim.diagnosis.cfpe_inputs import (FREQUENCIES, INPUT_STEPS, SHIFT_SIGN, _phases, cfpe_pair,
+                                                 input_rms, load_cfpe_frames)
+
+    # the 3-step phase of period 42 px is within 0.14 rad RMS of the 12-step one (measured 0.118 rad on scene 06:
+    # 0.115 of it periodic in the phase, the projector's response; 0.025 random)
+    rms = input_rms(CFPE, "06")
+    assert 0.09 < rms["high_rad"] < 0.14
+    assert rms["pixels"] > 250_000
+    # het12: the MF order of the pair is the classical 3-step three-frequency heterodyne order (measured: the same
+    # on 92 % of the pixels; 69 % of the others are pixels whose beat of beats fell below 0, which het12 reads as a
+    # small negative phase and unwrap_heterodyne as one near 2 pi: het12 is right on 70.1 %, the heterodyne 68.8 %)
+    pair = cfpe_pair(CFPE, "06")
+    frames = load_cfpe_frames(CFPE, "06")
+    psi3, mask3 = _phases(frames[:, list(INPUT_STEPS)])
+    heterodyne = tpu.unwrap_heterodyne(psi3, FREQUENCIES, valid=mask3)
+    both = pair.valid & heterodyne.valid
+    assert np.mean(heterodyne.fringe_order[both] == pair.coarse_order[both]) > 0.9
+    # measured: 70 % of the pixels have the 12-step order (the real projector response breaks the rest)
+    accuracy = np.mean(pair.coarse_order[pair.valid] == pair.reference_order[pair.valid])
+    assert 0.6 < accuracy < 0.8
+    assert SHIFT_SIGN == 1
+
+
+@pytest.mark.skipif(not (SPHERE / "standardball_phase_real.mat").exists(),
+                    reason=f"DP-TPU sphere data not found in {SPHERE} (set DPTPU_DATA)")
+def test_sphere_pair_reference_is_the_measured_sphere():
+    from dptpu.fpp import real_sphere
+    from dptpu.sim.diagnosis.sphere_inputs import sphere_errors_um, sphere_pair
+
+    rig = real_sphere.load_rig(SPHERE, "real", relative_pose="all-views")
+    pair = sphere_pair(SPHERE, noise_sigma=1.5693, rig=rig)
+    assert pair.valid.sum() > 16_000  # of the 16,796 valid measured pixels
+    errors = sphere_errors_um(pair, pair.reference_order, rig)
+    # the reference orders give back the measured sphere: 27.6 um interior RMS, radius 25.400 mm (sim-to-real.md)
+    assert errors["interior_sphere_rms_um"] == pytest.approx(27.6, abs=0.5)
+    assert errors["interior_radius_mm"] == pytest.approx(25.400, abs=0.005)
+    assert errors["point_error_rms_um"] == 0.0
+    # the synthesized 1-sigma low phase breaks the classical MF order (96 x its noise) on some pixels
+    accuracy = np.mean(pair.coarse_order[pair.valid] == pair.reference_order[pair.valid])
+    assert 0.7 < accuracy < 0.95
+
+
+def test_cli_refuses_a_folder_that_is_no_measured_data(tmp_path, capsys):
+    from dptpu.cli.main import main
+
+    code = main(["twin", "finetune", "--measured", str(tmp_path), "--extended", "x.yaml", "--model", "y.onnx",
+                 "--out", str(tmp_path / "out")])
+    assert code == 2
+    assert f"{tmp_path}: neither a CFPE folder" in capsys.readouterr().err

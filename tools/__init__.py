@@ -1,0 +1,1 @@
+"""Tools built on the runtime (:mod:`dptpu.graph`): launch files, MCAP recording and playback, introspection."""
