@@ -11,11 +11,11 @@ quality, float32), all at ``--size``. Arrays travel as views (zero-copy) on both
 per-message Python and msgpack work that the runtime adds to every publish and every receive. The frames
 decoded are ``zmq.Frame`` objects, received over an inproc socket as a subscription receives them.
 
-- ``ours``: :func:`dptpu.messages.codec.encode` / :func:`~dptpu.messages.codec.decode`, which take the
+- ``ours``: :func:`dptpu.messages.encoder.encode` / :func:`~dptpu.messages.decoder.decode`, which take the
   class's precomputed plan (the fast path) and fall back to the general path for anything it does not
   accept;
 - ``general`` (the reference, what every message with a nested field took before the fast path covered nested
-  messages): :func:`dptpu.messages.codec.encode_checked` / :func:`~dptpu.messages.codec.decode_checked`,
+  messages): :func:`dptpu.messages.encoder.encode_checked` / :func:`~dptpu.messages.decoder.decode_checked`,
   which check and convert field by field and name the first problem.
 
 Times are microseconds of CPU a message (``timeit`` with ``time.process_time`` as its clock: the work is
@@ -105,7 +105,7 @@ def _time(stmt, number: int, repeats: int) -> dict:
 def measure(size=DEFAULT_SIZE, number: int = 2000, repeats: int = 5) -> dict:
     import zmq
 
-    from dptpu.messages import codec
+    from dptpu.messages import decoder, encoder
 
     topic = b"/bench/codec"
     results = {}
@@ -114,20 +114,20 @@ def measure(size=DEFAULT_SIZE, number: int = 2000, repeats: int = 5) -> dict:
     sender.bind("inproc://codec-bench")
     receiver.connect("inproc://codec-bench")
     for name, msg in scanner_messages(*size).items():
-        sender.send_multipart(codec.encode(topic, msg), copy=False)
+        sender.send_multipart(encoder.encode(topic, msg), copy=False)
         frames = receiver.recv_multipart(copy=False)  # zmq.Frame objects, as a subscription receives them
-        general_frames = codec.encode_checked(topic, msg)
-        decoded = codec.decode(frames)[1]
-        decoded_general = codec.decode_checked(general_frames)[1]
+        general_frames = encoder.encode_checked(topic, msg)
+        decoded = decoder.decode(frames)[1]
+        decoded_general = decoder.decode_checked(general_frames)[1]
         entry = {
             "header_bytes": len(frames[1].bytes),
             "array_bytes": sum(frame.buffer.nbytes for frame in frames[2:]),
             "same_header": frames[1].bytes == bytes(general_frames[1]),
             "round_trip_equal": _same(decoded, msg) and _same(decoded_general, msg),
-            "encode": {"ours": _time(lambda m=msg: codec.encode(topic, m), number, repeats),
-                       "general": _time(lambda m=msg: codec.encode_checked(topic, m), number, repeats)},
-            "decode": {"ours": _time(lambda f=frames: codec.decode(f), number, repeats),
-                       "general": _time(lambda f=frames: codec.decode_checked(f), number, repeats)},
+            "encode": {"ours": _time(lambda m=msg: encoder.encode(topic, m), number, repeats),
+                       "general": _time(lambda m=msg: encoder.encode_checked(topic, m), number, repeats)},
+            "decode": {"ours": _time(lambda f=frames: decoder.decode(f), number, repeats),
+                       "general": _time(lambda f=frames: decoder.decode_checked(f), number, repeats)},
         }
         for part in ("encode", "decode"):
             entry[part]["speedup"] = entry[part]["general"]["best_us"] / entry[part]["ours"]["best_us"]

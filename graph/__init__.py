@@ -27,6 +27,7 @@ snapshots), :mod:`.transport` (sockets, endpoints, Curve), :mod:`.peers` (other 
 
 from __future__ import annotations
 
+from .arguments import remove_ros_args
 from .callback_groups import CallbackGroup, MutuallyExclusiveCallbackGroup, ReentrantCallbackGroup
 from .clock import Clock, ClockType, Duration, Time
 from .context import Context, get_default_context, init, ok, shutdown, try_shutdown
@@ -53,7 +54,6 @@ from .exceptions import (
 from .executors import Executor, MultiThreadedExecutor, SingleThreadedExecutor
 from .interfaces import Empty, SetBool, String, Trigger, lookup_service, service_type
 from .logging import LoggingSeverity, get_logger
-from .arguments import remove_ros_args
 from .node import Node
 from .parameter_client import AsyncParameterClient
 from .parameters import Parameter

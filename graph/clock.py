@@ -128,7 +128,7 @@ class Time:
         return TimeMsg.from_ns(self._ns)
 
     @classmethod
-    def from_msg(cls, msg: TimeMsg, clock_type=ClockType.ROS_TIME) -> "Time":
+    def from_msg(cls, msg: TimeMsg, clock_type=ClockType.ROS_TIME) -> Time:
         if not isinstance(msg, TimeMsg):
             raise ValueError(f"msg must be a builtin_interfaces Time message; got {type(msg).__name__}")
         return cls(nanoseconds=msg.to_ns(), clock_type=clock_type)

@@ -115,7 +115,7 @@ class RcutilsLogger:
         self._sites_lock = threading.Lock()
         _ensure_handler()
 
-    def get_child(self, name: str) -> "RcutilsLogger":
+    def get_child(self, name: str) -> RcutilsLogger:
         """The logger ``<this name>.<name>``."""
         if not name:
             raise ValueError("child logger name must not be empty")

@@ -23,8 +23,16 @@ from .discovery import snapshot_from_entries
 from .exceptions import NotInitializedException
 from .interfaces import is_service_type
 from .logging import get_logger, set_logger_level
-from .names import (expand_topic_name, fully_qualified_name, logger_name_of, normalize_namespace, remap_name,
-                    remap_namespace, remap_node_name, validate_node_name)
+from .names import (
+    expand_topic_name,
+    fully_qualified_name,
+    logger_name_of,
+    normalize_namespace,
+    remap_name,
+    remap_namespace,
+    remap_node_name,
+    validate_node_name,
+)
 from .param_files import overrides_for_node
 from .parameters import NodeParameters, Parameter
 from .publisher import Publisher

@@ -15,8 +15,16 @@ from __future__ import annotations
 
 from .parameters import Parameter, parameter_value_to_python
 from .qos import qos_profile_services_default
-from .rcl_interfaces import (DescribeParameters, GetParameters, GetParameterTypes, ListParameters, SetParameters,
-                             SetParametersAtomically, strings, texts)
+from .rcl_interfaces import (
+    DescribeParameters,
+    GetParameters,
+    GetParameterTypes,
+    ListParameters,
+    SetParameters,
+    SetParametersAtomically,
+    strings,
+    texts,
+)
 
 __all__ = ["AsyncParameterClient"]
 

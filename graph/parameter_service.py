@@ -13,8 +13,18 @@ import numpy as np
 
 from .exceptions import ParameterException
 from .parameters import Parameter
-from .rcl_interfaces import (DescribeParameters, GetParameters, GetParameterTypes, ListParameters, ParameterDescriptor,
-                             ParameterValue, SetParameters, SetParametersAtomically, SetParametersResult, texts)
+from .rcl_interfaces import (
+    DescribeParameters,
+    GetParameters,
+    GetParameterTypes,
+    ListParameters,
+    ParameterDescriptor,
+    ParameterValue,
+    SetParameters,
+    SetParametersAtomically,
+    SetParametersResult,
+    texts,
+)
 
 __all__ = ["ParameterService"]
 

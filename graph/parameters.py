@@ -33,9 +33,17 @@ from .exceptions import (
     ParameterNotDeclaredException,
     ParameterUninitializedException,
 )
-from .rcl_interfaces import FloatingPointRange, IntegerRange, ListParametersResult, ParameterDescriptor
+from .rcl_interfaces import (
+    FloatingPointRange,
+    IntegerRange,
+    ListParametersResult,
+    ParameterDescriptor,
+    ParameterValue,
+    SetParametersResult,
+    strings,
+    texts,
+)
 from .rcl_interfaces import Parameter as ParameterMsg
-from .rcl_interfaces import ParameterValue, SetParametersResult, strings, texts
 
 __all__ = ["Parameter", "NodeParameters", "parameter_value_to_python", "validate_parameter_name",
            "ParameterDescriptor", "SetParametersResult", "FloatingPointRange", "IntegerRange"]
@@ -85,7 +93,7 @@ class Parameter:
         STRING_ARRAY = 9
 
         @classmethod
-        def from_parameter_value(cls, value) -> "Parameter.Type":
+        def from_parameter_value(cls, value) -> Parameter.Type:
             """The type a Python value has as a parameter; ValueError when it has none."""
             if value is None:
                 return cls.NOT_SET
@@ -156,7 +164,7 @@ class Parameter:
         return self._name
 
     @property
-    def type_(self) -> "Parameter.Type":
+    def type_(self) -> Parameter.Type:
         return self._type
 
     @property
@@ -174,7 +182,7 @@ class Parameter:
         return ParameterMsg(name=self._name, value=self.get_parameter_value())
 
     @classmethod
-    def from_parameter_msg(cls, msg: ParameterMsg) -> "Parameter":
+    def from_parameter_msg(cls, msg: ParameterMsg) -> Parameter:
         return cls(msg.name, Parameter.Type(msg.value.type), parameter_value_to_python(msg.value))
 
     def __eq__(self, other):
@@ -195,7 +203,7 @@ def _is_empty(value) -> bool:
         return False
 
 
-def _normalize(type_: "Parameter.Type", value):
+def _normalize(type_: Parameter.Type, value):
     T = Parameter.Type
     if value is None or type_ == T.NOT_SET:
         return None
@@ -216,7 +224,7 @@ def _normalize(type_: "Parameter.Type", value):
     return [convert(v) for v in items]
 
 
-def python_to_parameter_value(type_: "Parameter.Type", value) -> ParameterValue:
+def python_to_parameter_value(type_: Parameter.Type, value) -> ParameterValue:
     """A ParameterValue message holding ``value`` of type ``type_``."""
     T = Parameter.Type
     msg = ParameterValue(type=int(type_))

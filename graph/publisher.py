@@ -1,6 +1,6 @@
 """Publishers: one ZeroMQ XPUB socket per publisher, sends that never block.
 
-``publish(msg)`` encodes with :func:`dptpu.messages.codec.encode`, appends the envelope and sends
+``publish(msg)`` encodes with :func:`dptpu.messages.encoder.encode`, appends the envelope and sends
 with ``copy=False``: the arrays' memory goes to ZeroMQ without a copy, so do not modify an array after
 publishing it (allocate a new one per message). The send never blocks: when a subscriber's pipe is
 full, ZeroMQ drops the message for that subscriber only (it sees the sequence gap and counts it).
@@ -26,7 +26,7 @@ from collections import deque
 
 import zmq
 
-from ..messages.codec import encode
+from ..messages.encoder import encode
 from .qos import DurabilityPolicy, QoSProfile, pipe_high_water_mark, queue_limit
 from .transport import FLAG_HISTORY, bind_endpoints, configure_server, pack_envelope, remove_ipc_file
 

@@ -144,7 +144,7 @@ class QoSProfile:
     def durability(self, value):
         self._durability = _policy(DurabilityPolicy, value, "durability")
 
-    def resolved(self) -> "QoSProfile":
+    def resolved(self) -> QoSProfile:
         """SYSTEM_DEFAULT policies replaced by what they mean here (KEEP_LAST 10, RELIABLE, VOLATILE)."""
         history = HistoryPolicy.KEEP_LAST if self._history == HistoryPolicy.SYSTEM_DEFAULT else self._history
         depth = self._depth if self._depth or history == HistoryPolicy.KEEP_ALL else (
@@ -161,7 +161,7 @@ class QoSProfile:
                 "reliability": self._reliability.name.lower(), "durability": self._durability.name.lower()}
 
     @classmethod
-    def from_dict(cls, data: dict) -> "QoSProfile":
+    def from_dict(cls, data: dict) -> QoSProfile:
         """Inverse of :meth:`to_dict` (unknown or missing keys raise InvalidQoSProfileException)."""
         try:
             return cls(history=HistoryPolicy[str(data["history"]).upper()], depth=int(data["depth"]),
@@ -177,7 +177,7 @@ class QoSProfile:
 
     __hash__ = None  # mutable
 
-    def copy(self) -> "QoSProfile":
+    def copy(self) -> QoSProfile:
         return QoSProfile(history=self._history, depth=self._depth, reliability=self._reliability,
                           durability=self._durability)
 

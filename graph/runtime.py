@@ -29,9 +29,19 @@ import time
 
 import zmq
 
-from .discovery import (FORMAT, SCAN_INTERVAL_S, DirectoryScanner, announcement_file_name, base_directory,
-                        domain_directory, ensure_private_directory, host_identity, process_start_ticks,
-                        remove_announcement, write_announcement)
+from .discovery import (
+    FORMAT,
+    SCAN_INTERVAL_S,
+    DirectoryScanner,
+    announcement_file_name,
+    base_directory,
+    domain_directory,
+    ensure_private_directory,
+    host_identity,
+    process_start_ticks,
+    remove_announcement,
+    write_announcement,
+)
 from .lease import IO, POLLING, SocketLease, drain_socket
 from .logging import get_logger
 from .qos import QoSProfile, qos_compatibility

@@ -24,11 +24,22 @@ from collections import deque
 
 import zmq
 
-from ..messages.codec import DecodeError, decode, encode
+from ..messages.decoder import decode
+from ..messages.encoder import encode
+from ..messages.wire_format import DecodeError
 from .exceptions import ServiceCallError
 from .task import Future
-from .transport import (FLAG_ERROR, FLAG_REQUEST, FLAG_RESPONSE, EnvelopeError, bind_endpoints, configure_client,
-                        configure_server, pack_envelope, unpack_envelope)
+from .transport import (
+    FLAG_ERROR,
+    FLAG_REQUEST,
+    FLAG_RESPONSE,
+    EnvelopeError,
+    bind_endpoints,
+    configure_client,
+    configure_server,
+    pack_envelope,
+    unpack_envelope,
+)
 
 __all__ = ["Service", "Client", "ServiceHost", "MAX_QUEUED_REQUESTS"]
 
@@ -46,7 +57,7 @@ class ServiceHost:
 
     def __init__(self, node):
         self._node = node
-        self.services: dict[str, "Service"] = {}
+        self.services: dict[str, Service] = {}
         self.endpoints: list[str] = []
         self._socket = None
         self.malformed_count = 0

@@ -26,7 +26,8 @@ from functools import partial
 
 import zmq
 
-from ..messages.codec import DecodeError, decode
+from ..messages.decoder import decode
+from ..messages.wire_format import DecodeError
 from .qos import QoSProfile, ReliabilityPolicy, pipe_high_water_mark, queue_limit
 from .transport import FLAG_HISTORY, EnvelopeError, configure_client, unpack_envelope
 

@@ -3,7 +3,7 @@
 Wire form of one published message (one ZeroMQ multipart message)::
 
     [topic, header, *arrays]  +  [envelope]
-     ^ dptpu.messages.codec.encode, untouched      ^ 40 bytes, added by the runtime
+     ^ dptpu.messages.encoder.encode, untouched      ^ 40 bytes, added by the runtime
 
 The envelope carries what the runtime needs and the codec does not: the publisher's id, a sequence
 number (gaps = messages dropped in transport; repeats = late-joiner history already seen), the send
@@ -116,7 +116,7 @@ class CurveKeys:
     authorized_keys_dir: Path
 
     @classmethod
-    def load(cls, secret_key_file, authorized_keys_dir) -> "CurveKeys":
+    def load(cls, secret_key_file, authorized_keys_dir) -> CurveKeys:
         """Load a secret certificate file written by ``zmq.auth.create_certificates``.
 
         Raises
@@ -163,7 +163,7 @@ class TransportConfig:
     curve: CurveKeys | None = None
 
     @classmethod
-    def from_environment(cls, env=None, *, want_tcp: bool = False) -> "TransportConfig":
+    def from_environment(cls, env=None, *, want_tcp: bool = False) -> TransportConfig:
         """Read the ``DPTPU_*`` variables (see the module docstring); ``want_tcp`` binds tcp too (peers)."""
         env = os.environ if env is None else env
         local = env.get("DPTPU_TRANSPORT", "ipc").strip().lower() or "ipc"

@@ -4,20 +4,26 @@
 - :mod:`.sensor`: ``Image``, ``CameraInfo``, ``RegionOfInterest``, ``PointField``, ``PointCloud2``.
 - :mod:`.scanner`: ``PatternEntry``, ``PatternSequence``, ``Trigger``, ``FringeFrame``, ``PhaseMaps``,
   ``AbsolutePhase``, ``ScanStatus``.
-- :mod:`.codec`: ``encode(topic, msg) -> frames``, ``decode(frames) -> (topic, msg)``, ``DecodeError``,
-  ``DecodeLimits``.
+- the codec: :mod:`.encoder` (``encode(topic, msg) -> frames``), :mod:`.decoder` (``decode(frames) -> (topic,
+  msg)``), :mod:`.decode_limits` (``DecodeLimits``), :mod:`.wire_format` (``DecodeError``, ``EncodeError``, the
+  frame layout); their parts: :mod:`.codec_plan`, :mod:`.field_encoding`, :mod:`.frame_reading`,
+  :mod:`.field_decoding`, :mod:`.fast_decoding`.
+- :mod:`.schema`: ``Message`` and ``message()``; :mod:`.field_spec`: the field specifiers.
 - :mod:`.registry`: type names such as ``"sensor_msgs/msg/Image"`` to classes.
 
 This package imports numpy and msgpack only (never ``dptpu.graph``, never pickle). Importing it
 registers every message type. The wire format is specified in ``docs/messages.md``.
 """
 
-from .codec import ALLOWED_DTYPES, DEFAULT_LIMITS, DecodeError, DecodeLimits, EncodeError, decode, encode
+from .decode_limits import DEFAULT_LIMITS, DecodeLimits
+from .decoder import decode
+from .encoder import encode
 from .registry import lookup, registered_types
 from .scanner import AbsolutePhase, FringeFrame, PatternEntry, PatternSequence, PhaseMaps, ScanStatus, Trigger
 from .schema import Message, message_definition
 from .sensor import CameraInfo, Image, PointCloud2, PointField, RegionOfInterest
 from .std import Header, Time
+from .wire_format import ALLOWED_DTYPES, DecodeError, EncodeError
 
 __all__ = [
     "Time",

@@ -64,7 +64,7 @@ class Image(Message):
     data: np.ndarray = array("uint8", ("step * height",))
 
     @classmethod
-    def from_array(cls, array: np.ndarray, encoding: str | None = None, *, header: Header | None = None) -> "Image":
+    def from_array(cls, array: np.ndarray, encoding: str | None = None, *, header: Header | None = None) -> Image:
         """An Image whose ``data`` is the bytes of ``array`` (a view when ``array`` is C-contiguous).
 
         Parameters
@@ -212,7 +212,7 @@ class CameraInfo(Message):
 
     @classmethod
     def from_intrinsics(cls, camera_matrix, distortion, width: int, height: int, *,
-                        header: Header | None = None) -> "CameraInfo":
+                        header: Header | None = None) -> CameraInfo:
         """CameraInfo of a monocular ``plumb_bob`` camera: ``r`` = identity, ``p = [K | 0]``.
 
         Parameters
@@ -310,7 +310,7 @@ class PointCloud2(Message):
 
     @classmethod
     def from_structured(cls, points: np.ndarray, *, header: Header | None = None,
-                        is_dense: bool | None = None) -> "PointCloud2":
+                        is_dense: bool | None = None) -> PointCloud2:
         """A cloud whose points are the records of a structured array (a view when C-contiguous).
 
         Parameters
@@ -366,7 +366,7 @@ class PointCloud2(Message):
 
     @classmethod
     def from_array(cls, array: np.ndarray, field_names, *, header: Header | None = None,
-                   is_dense: bool | None = None) -> "PointCloud2":
+                   is_dense: bool | None = None) -> PointCloud2:
         """A cloud of ``C`` float fields from an (H, W, C) or (N, C) array (a view when C-contiguous).
 
         Parameters

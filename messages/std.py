@@ -28,7 +28,7 @@ class Time(Message):
     nanosec: int = scalar("uint32")
 
     @classmethod
-    def from_ns(cls, nanoseconds: int) -> "Time":
+    def from_ns(cls, nanoseconds: int) -> Time:
         """The time ``nanoseconds`` ns (an int, e.g. ``time.time_ns()``) after the epoch."""
         if isinstance(nanoseconds, bool) or not isinstance(nanoseconds, int):
             raise ValueError(f"nanoseconds must be an int; got {type(nanoseconds).__name__}")

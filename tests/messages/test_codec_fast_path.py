@@ -3,7 +3,7 @@ byte for byte the msgpack map of the wire specification: for flat types (scalars
 with nested messages, message lists and sequences (every scanner message has a nested Header).
 
 Each input is decoded twice, once as ``decode`` does (fast path first) and once by the general path alone
-(``codec.decode_checked``); both must give an equal message, or the same ``DecodeError`` text.
+(``decoder.decode_checked``); both must give an equal message, or the same ``DecodeError`` text.
 """
 from __future__ import annotations
 
@@ -18,13 +18,17 @@ from hypothesis import strategies as st
 from dptpu.messages import (
     DecodeError,
     DecodeLimits,
+    EncodeError,
     Header,
     Message,
     Time,
-    codec,
     decode,
     encode,
 )
+from dptpu.messages.decode_limits import DEFAULT_LIMITS
+from dptpu.messages.decoder import decode_checked
+from dptpu.messages.encoder import encode_checked
+from dptpu.messages.fast_decoding import decode_well_formed
 from dptpu.messages.registry import is_registered, lookup
 from dptpu.messages.schema import array, message, nested, nested_list, scalar, sequence
 
@@ -98,7 +102,7 @@ def _same_outcome(frames, **kwargs):
     except DecodeError as error:
         fast = ("error", str(error))
     try:
-        general = codec.decode_checked(frames, **kwargs)
+        general = decode_checked(frames, **kwargs)
     except DecodeError as error:
         general = ("error", str(error))
     assert type(fast[1]) is type(general[1]) and fast == general
@@ -131,26 +135,26 @@ def test_well_formed_message_decodes_to_read_only_views_of_its_frames():
     assert topic == "/flat" and msg == _sample()
     assert not msg.depth_mm.flags.writeable and not msg.mask.flags.writeable
     assert np.shares_memory(msg.depth_mm, np.frombuffer(frames[2], np.uint8))  # viewed, not copied
-    assert codec._decode_well_formed(frames, FlatSample, codec.DEFAULT_LIMITS) is not None  # the fast path took it
+    assert decode_well_formed(frames, FlatSample, DEFAULT_LIMITS) is not None  # the fast path took it
 
 
 def test_nested_message_encodes_like_the_general_path_and_decodes_on_the_fast_path():
     msg = _nested_sample()
     frames = encode("/nested", msg)
-    assert frames[1] == codec.encode_checked("/nested", msg)[1]  # the same header, byte for byte
+    assert frames[1] == encode_checked("/nested", msg)[1]  # the same header, byte for byte
     header = msgpack.unpackb(frames[1], ext_hook=msgpack.ExtType)
     assert header["fields"]["parts"][1] == {"name": "p1", "weights": msgpack.ExtType(1, b"\0\0\0\1")}
     assert header["arrays"] == [["<f4", [1]], ["<f4", [2]], ["<f4", [2, 3]]]  # depth first, in field order
     frames = [bytes(frame) for frame in frames]
     _topic, decoded = _same_outcome(frames, expected_type=NestedSample)
     assert decoded == msg and decoded.header.stamp.nanosec == 6 and decoded.parts[1].weights.tolist() == [1.0, 1.0]
-    assert codec._decode_well_formed(frames, NestedSample, codec.DEFAULT_LIMITS) is not None  # the fast path took it
+    assert decode_well_formed(frames, NestedSample, DEFAULT_LIMITS) is not None  # the fast path took it
 
 
 def test_nested_fast_encode_falls_back_and_raises_the_general_paths_error():
     msg = _nested_sample()
     msg.parts[0].name = "bad"  # a nested check_consistency fails: the general path names where
-    with pytest.raises(codec.EncodeError, match=r"NestedSample.parts\[0\]: Part.name must not be 'bad'"):
+    with pytest.raises(EncodeError, match=r"NestedSample.parts\[0\]: Part.name must not be 'bad'"):
         encode("/nested", msg)
     msg = _nested_sample()
     msg.gains = [1, 2, 3]  # a list of ints: converted by the general path

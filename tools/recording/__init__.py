@@ -8,8 +8,15 @@
 The file layout and both encodings are specified in ``docs/recording.md``.
 """
 
-from .mcap_io import (ChannelSummary, McapReadError, McapRecordWriter, RecordedMessage, describe_mcap, read_mcap,
-                      read_metadata)
+from .mcap_io import (
+                      ChannelSummary,
+                      McapReadError,
+                      McapRecordWriter,
+                      RecordedMessage,
+                      describe_mcap,
+                      read_mcap,
+                      read_metadata,
+)
 
 __all__ = ["McapRecordWriter", "RecordedMessage", "ChannelSummary", "McapReadError", "read_mcap", "describe_mcap",
            "read_metadata"]

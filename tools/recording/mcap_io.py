@@ -30,9 +30,10 @@ from __future__ import annotations
 import os
 import threading
 from collections import Counter
+from collections.abc import Iterable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
-from typing import IO, Iterable, Iterator, NamedTuple
+from typing import IO, NamedTuple
 
 from mcap.exceptions import McapError
 from mcap.reader import make_reader
@@ -240,7 +241,7 @@ class McapRecordWriter:
         """True once :meth:`close` ran."""
         return self._closed
 
-    def __enter__(self) -> "McapRecordWriter":
+    def __enter__(self) -> McapRecordWriter:
         return self
 
     def __exit__(self, *exc_info) -> None:

@@ -27,8 +27,8 @@ from __future__ import annotations
 import msgpack
 
 from dptpu.messages import DEFAULT_LIMITS, DecodeError, DecodeLimits, decode, encode, lookup
-from dptpu.messages.codec import WIRE_VERSION
 from dptpu.messages.schema import Message, message_definition
+from dptpu.messages.wire_format import WIRE_VERSION
 
 __all__ = ["ENCODING", "FORMAT_VERSION", "schema_data", "parse_schema_data", "pack_message", "unpack_message"]
 

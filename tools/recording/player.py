@@ -18,11 +18,11 @@ import threading
 import time
 from dataclasses import dataclass, field
 
-from dptpu.messages import lookup
-
 from dptpu.graph.context import Context
 from dptpu.graph.node import Node
 from dptpu.graph.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from dptpu.messages import lookup
+
 from .mcap_io import describe_mcap, read_mcap, read_metadata
 from .recorder import TOPIC_QOS_METADATA
 

@@ -22,13 +22,13 @@ import threading
 import time
 from dataclasses import dataclass, field
 
-from dptpu.messages import lookup
-from dptpu.messages.registry import is_registered
-
 from dptpu.graph.context import Context
 from dptpu.graph.executors import SingleThreadedExecutor
 from dptpu.graph.node import Node
 from dptpu.graph.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from dptpu.messages import lookup
+from dptpu.messages.registry import is_registered
+
 from .mcap_io import McapRecordWriter
 
 __all__ = ["Recorder", "RecordResult", "record", "recording_qos", "TOPIC_QOS_METADATA"]
