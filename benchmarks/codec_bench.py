@@ -140,7 +140,8 @@ def measure(size=DEFAULT_SIZE, number: int = 2000, repeats: int = 5) -> dict:
 
 
 def format_report(report: dict) -> str:
-    title = f"dptpu bench codec ({report['size']}; best of {report['repeats']} x {report['number']} calls, us a message)"
+    title = (f"dptpu bench codec ({report['size']}; best of {report['repeats']} x {report['number']} calls, "
+             "us a message)")
     columns = (f"{'message':<14} {'header B':>8} {'arrays B':>10}   {'encode ours':>11} {'general':>8} {'x':>5}   "
                f"{'decode ours':>11} {'general':>8} {'x':>5}  equal")
     lines = [title, columns]

@@ -802,7 +802,7 @@ def format_report(report: dict) -> str:
         f"(< {t['bound_mm']:g} mm); rms error vs scene {t['rms_error_vs_scene_mm']:.4f} mm"
     )
     n = report["node_paths"]
-    lines.append(f"(d) node hot paths per scan (best / median wall ms, best process CPU ms; ratio = before / ours)")
+    lines.append("(d) node hot paths per scan (best / median wall ms, best process CPU ms; ratio = before / ours)")
 
     def node_row(name, timing, ratio=None):
         ratio_text = f"{ratio:8.2f}" if ratio is not None else ""

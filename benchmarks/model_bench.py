@@ -214,7 +214,8 @@ def main(argv=None) -> int:
     parser.add_argument("--size", type=_size, default=DEFAULT_SIZE, metavar="HxW", help="input size (480x640)")
     parser.add_argument("--threads", type=_positive, default=DEFAULT_THREADS, help="onnxruntime intra-op threads")
     parser.add_argument("--spinning", action="store_true",
-                        help="let idle onnxruntime threads spin (FringeOrderModel.load(spinning=True)); idle machines only")
+                        help="let idle onnxruntime threads spin (FringeOrderModel.load(spinning=True)); "
+                             "idle machines only")
     parser.add_argument("--runs", type=_positive, default=DEFAULT_RUNS, help="timed runs (default 30)")
     parser.add_argument("--warmup", type=int, default=DEFAULT_WARMUP, help="untimed runs first (default 3)")
     parser.add_argument("--profile", action="store_true",
@@ -243,15 +244,16 @@ def main(argv=None) -> int:
         print(json.dumps(report, indent=2))
     else:
         h, w = report["size"]
-        print(f"model {report['model']} ({report['kind']}, graph {report['graph']}), {h}x{w}, {report['threads']} threads"
-              f"{' (spinning)' if report['spinning'] else ''}, "
+        print(f"model {report['model']} ({report['kind']}, graph {report['graph']}), {h}x{w}, "
+              f"{report['threads']} threads{' (spinning)' if report['spinning'] else ''}, "
               f"{report['runs']} runs, load average {report['loadavg_start']} -> {report['loadavg_end']}")
         print(f"  inference  p50 {report['inference_ms_p50']:8.1f} ms   p99 {report['inference_ms_p99']:8.1f} ms"
               f"   CPU p50 {report['inference_cpu_ms_p50']:8.1f} ms   min {report['inference_ms_min']:8.1f} ms")
         if "baseline" in report:
             print(f"  baseline   p50 {report['baseline_inference_ms_p50']:8.1f} ms   p99 "
-                  f"{report['baseline_inference_ms_p99']:8.1f} ms   CPU p50 {report['baseline_inference_cpu_ms_p50']:8.1f}"
-                  f" ms   min {report['baseline_inference_ms_min']:8.1f} ms   ({report['baseline']}, graph "
+                  f"{report['baseline_inference_ms_p99']:8.1f} ms   CPU p50 "
+                  f"{report['baseline_inference_cpu_ms_p50']:8.1f} ms   min "
+                  f"{report['baseline_inference_ms_min']:8.1f} ms   ({report['baseline']}, graph "
                   f"{report['baseline_graph']}; max |difference| {report['baseline_max_abs_difference']:.2g} orders)")
         print(f"  refine     p50 {report['refine_ms_p50']:8.1f} ms   CPU p50 {report['refine_cpu_ms_p50']:8.1f} ms")
         print(f"  classical  p50 {report['classical_ms_p50']:8.1f} ms   p99 {report['classical_ms_p99']:8.1f} ms"

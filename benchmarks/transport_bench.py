@@ -160,7 +160,8 @@ class IntegrityCheck:
         if self.timed_cpu_start is not None and self.timed_cpu_end is not None and self.timed > 1:
             # the receiving thread's own CPU a message (decode, executor, callback), without libzmq's I/O thread
             report["main_thread_cpu_us_per_message"] = (self.timed_cpu_end - self.timed_cpu_start) / self.timed * 1e6
-            report["cpu_us_per_message"] = (self.timed_process_cpu_end - self.timed_process_cpu_start) / self.timed * 1e6
+            cpu_s = self.timed_process_cpu_end - self.timed_process_cpu_start
+            report["cpu_us_per_message"] = cpu_s / self.timed * 1e6
         return report
 
 
@@ -675,7 +676,8 @@ def _receiver_cpu(figures: dict) -> str:
     receiver = figures["receiver"]
     if "cpu_us_per_message" not in receiver:
         return "n/a"
-    return f"{receiver['cpu_us_per_message']:.0f} us/msg, {receiver['main_thread_cpu_us_per_message']:.0f} in its thread"
+    return (f"{receiver['cpu_us_per_message']:.0f} us/msg, "
+            f"{receiver['main_thread_cpu_us_per_message']:.0f} in its thread")
 
 
 def format_report(report: dict) -> str:

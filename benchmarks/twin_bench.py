@@ -97,8 +97,8 @@ def run_benchmarks(*, size=(640, 480), repeats=DEFAULT_REPEATS, scenes=DEFAULT_S
               "repeats": repeats}
     trace(rig, sphere_scene(rig, subdivisions=2))  # warm-up: open3d import and first scene
     for name, scene in (("random_scene_0", random_scene(rig, 0)), ("sphere", sphere_scene(rig))):
-        samples, trace_time = _timed(lambda: trace(rig, scene), repeats)
-        _, frames_time = _timed(lambda: render_frames(rig, samples, sequences), repeats)
+        samples, trace_time = _timed(lambda scene=scene: trace(rig, scene), repeats)
+        _, frames_time = _timed(lambda samples=samples: render_frames(rig, samples, sequences), repeats)
         total = trace_time["best_s"] + frames_time["best_s"]
         report[f"raycast_{name}"] = {
             "triangles": int(sum(len(m.triangles) for m in scene.meshes)), "trace": trace_time,

@@ -8,11 +8,15 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 import pytest
 
-from dptpu.cli.data_paths import shared_data_dir
+from dptpu.fpp.measured_data import shared_data_dir
+
+if TYPE_CHECKING:
+    from dptpu.fpp.capture import GraycodeFrames, PhaseFrames
 
 _MISSING_REASON = "real data not found: set DPTPU_DATA or place ../shared/data"
 
