@@ -11,7 +11,7 @@ import shlex
 import sys
 from pathlib import Path
 
-from .data_paths import shared_data_dir
+from dptpu.fpp.measured_data import shared_data_dir
 
 
 def register(subparsers) -> None:

@@ -71,7 +71,8 @@ def register(sim_subparsers) -> None:
 
 
 def run(args) -> int:
-    from dptpu.sim.dataset import DatasetSpec, open_dataset, parse_shard, write_dataset
+    from dptpu.fpp.dataset import open_dataset
+    from dptpu.sim.dataset import DatasetSpec, parse_shard, write_dataset
     from dptpu.sim.rig import load_twin_rig, parse_size
 
     shard = parse_shard(args.shard)

@@ -3,16 +3,16 @@
 ``dptpu twin finetune --measured PATH --extended RIG --model BASE.onnx --out DIR`` (docs/sim-to-real.md,
 "Downstream gain"):
 
-1. **Measured pairs** (:mod:`.cfpe_inputs`, :mod:`.sphere_inputs`): the network's inputs built from the measured
+1. **Measured pairs** (:mod:`dptpu.sim.diagnosis.cfpe_inputs`, :mod:`dptpu.sim.diagnosis.sphere_inputs`): the network's inputs built from the measured
    data, a reference order from a 12-step measurement, and what is real and what is synthesized.
-2. **Two twin sets of the same scenes** (:mod:`.twin_pairs`): the baseline rig (the extended rig without its
+2. **Two twin sets of the same scenes** (:mod:`dptpu.sim.diagnosis.twin_pairs`): the baseline rig (the extended rig without its
    effects) and the extended rig, rendered with the measured data's sequences and pair construction; the sets
    differ only by the effects.
 3. **Two fine-tunes with the same budget** (:mod:`.finetune`) from the base model's weights: the fine-tune on the
    baseline twin is the control, so a difference between the two is the extension's, not the extra steps'.
 4. **Evaluation**: fringe-order accuracy of the classical order, the base model and both fine-tunes on every
    measured pair (and on held-out scenes of both twins); for the sphere the 3D error of each order map
-   (:func:`.sphere_inputs.sphere_errors_um`). ``downstream.json`` and a "Downstream gain" section of ``report.md``.
+   (:func:`dptpu.sim.diagnosis.sphere_inputs.sphere_errors_um`). ``downstream.json`` and a "Downstream gain" section of ``report.md``.
 """
 from __future__ import annotations
 
@@ -25,9 +25,17 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-from .finetune import FinetuneOptions, finetune, load_start_model
+from dptpu.fpp import real_sphere
+from dptpu.fpp.dataset import list_samples, read_sample
+from dptpu.models.inference import FringeOrderModel
+from dptpu.sim.diagnosis.cfpe_inputs import cfpe_pair
 from dptpu.sim.diagnosis.measured_pair import MeasuredPair, order_accuracy
+from dptpu.sim.diagnosis.sphere_inputs import sphere_errors_um, sphere_pair, twin_levels
 from dptpu.sim.diagnosis.twin_pairs import CFPE_DESIGN, SPHERE_DESIGN, write_twin_set
+from dptpu.sim.effects import parse_effects
+from dptpu.sim.rig import load_twin_rig
+
+from .finetune import FinetuneOptions, finetune, load_start_model
 
 __all__ = ["DownstreamOptions", "measured_kind", "measured_pairs", "split_rigs", "evaluate_orders",
            "run_downstream", "compare_finetunes", "twin_set_pairs", "write_downstream_report", "SIGMAS"]
@@ -88,14 +96,8 @@ def measured_pairs(path, options: DownstreamOptions) -> tuple:
     """``(design, pairs, rig)``: the pair design, the measured pairs, and the real rig for 3D errors (sphere)."""
     kind = measured_kind(path)
     if kind == "cfpe":
-        from dptpu.sim.diagnosis.cfpe_inputs import cfpe_pair
-
         design = replace(CFPE_DESIGN, low=options.cfpe_low)
         return design, [cfpe_pair(path, scene, low=options.cfpe_low) for scene in options.cfpe_scenes], None
-    from dptpu.fpp import real_sphere
-
-    from dptpu.sim.diagnosis.sphere_inputs import sphere_pair, twin_levels
-
     rig = real_sphere.load_rig(path, "real", relative_pose="all-views")
     levels = twin_levels(rig, real_sphere.load_phase(path, "real"))
     pairs = [sphere_pair(path, noise_sigma=s, seed=options.seed + i, rig=rig, levels=levels)
@@ -115,9 +117,6 @@ def split_rigs(extended, base_rig=None) -> tuple:
         The rig for an effects file (default ``nominal``); with a rig file, its geometry is used and this is
         ignored.
     """
-    from dptpu.sim.effects import parse_effects
-    from dptpu.sim.rig import load_twin_rig
-
     path = Path(extended)
     if not path.is_file():
         raise FileNotFoundError(f"{path}: no such extended rig or effects file")
@@ -139,16 +138,12 @@ def evaluate_orders(pair: MeasuredPair, orders: dict, rig=None) -> dict:
     for name, order in orders.items():
         row["accuracy"][name] = order_accuracy(order, pair)
     if rig is not None:
-        from dptpu.sim.diagnosis.sphere_inputs import sphere_errors_um
-
         row["3d"] = {name: sphere_errors_um(pair, order, rig)
                      for name, order in {"reference": pair.reference_order, **orders}.items()}
     return row
 
 
 def _model_orders(models: dict, pair: MeasuredPair, threads: int) -> dict:
-    from dptpu.models.inference import FringeOrderModel
-
     orders = {"classical": pair.coarse_order}
     for name, path in models.items():
         model = FringeOrderModel.load(path, threads=threads)
@@ -159,8 +154,6 @@ def _model_orders(models: dict, pair: MeasuredPair, threads: int) -> dict:
 
 def twin_set_pairs(data_dir) -> list[MeasuredPair]:
     """Held-out twin samples as pairs (their label is the reference)."""
-    from dptpu.models.samples import list_samples, read_sample
-
     pairs = []
     for path in list_samples(data_dir):
         s = read_sample(path)
@@ -230,7 +223,7 @@ def compare_finetunes(pairs: list, design, baseline_rig, extended_rig, out_dir, 
     start = load_start_model(model)
     base_onnx = Path(model)
     if base_onnx.suffix != ".onnx":  # a checkpoint: export it to score the base model like the others
-        from dptpu.models.export import export_onnx
+        from dptpu.models.export import export_onnx  # torch: only to export a checkpoint
 
         base_onnx = export_onnx(start[0], out / "base.onnx")
     models = {"base": str(base_onnx)}

@@ -6,7 +6,8 @@ resumed from a checkpoint written here: the start weights, a fresh AdamW state a
 epoch 0. Two fine-tunes with the same options on two sets of the same size take the same steps on the same crops
 (crops and order are functions of ``(seed, epoch, index)``), so a difference between them is the data's.
 
-Imports torch (through :mod:`dptpu.models`) only when called: the rest of :mod:`dptpu.sim` does not need it.
+Imports torch (through :mod:`dptpu.models`) only when called: the downstream comparison's other steps and its
+importers do not need it.
 """
 from __future__ import annotations
 
@@ -39,16 +40,16 @@ def load_start_model(path):
 
     ValueError (naming the file) when neither can be read as a dptpu network.
     """
-    from dptpu.models.factory import model_config
+    from dptpu.models.factory import model_config  # torch
 
     path = Path(path)
     if path.suffix == ".onnx":
-        from dptpu.models.onnx_weights import load_onnx_model
+        from dptpu.models.onnx_weights import load_onnx_model  # torch, onnx
 
         model, training = load_onnx_model(path)
         return model, training["kind"], model_config(model), {"onnx": str(path),
                                                               "max_abs_difference": training["max_abs_difference"]}
-    from dptpu.models.export import load_checkpoint_model
+    from dptpu.models.export import load_checkpoint_model  # torch
 
     model, checkpoint = load_checkpoint_model(path)
     return model, checkpoint["kind"], model_config(model), {"checkpoint": str(path),
@@ -58,9 +59,9 @@ def load_start_model(path):
 def finetune(start, data_dir, out_onnx, options: FinetuneOptions = FinetuneOptions()) -> dict:
     """Fine-tune ``start`` (a path, or a ``(model, kind, config, source)`` tuple) on ``data_dir``; export to
     ``out_onnx``. Returns the run's record: steps, seconds, first and last epoch loss."""
-    import torch
+    import torch  # training only
 
-    from dptpu.models.training import CHECKPOINT_FORMAT, TrainOptions, train
+    from dptpu.models.training import CHECKPOINT_FORMAT, TrainOptions, train  # torch
 
     model, kind, config, source = start if isinstance(start, tuple) else load_start_model(start)
     out_onnx = Path(out_onnx)

@@ -25,6 +25,7 @@ Torch is imported only when a model is trained.
 from __future__ import annotations
 
 import hashlib
+import inspect
 import json
 import math
 import os
@@ -36,6 +37,14 @@ from pathlib import Path
 
 import numpy as np
 import yaml
+
+from dptpu.fpp.dataset import DATASET_FORMAT, list_samples, open_dataset
+from dptpu.models.evaluate import evaluate_dataset
+from dptpu.sim.dataset import DatasetSpec, write_dataset
+from dptpu.sim.rig import load_twin_rig, parse_size
+
+from .study_plot import write_boxplots
+from .study_report import write_study_table, write_summary
 
 __all__ = ["PAPER_SETS", "PAPER_TEST_FREQUENCIES", "TEST_GRID", "StudyOptions", "StudyRun", "StudyRow",
            "equal_step_epochs", "plan_runs", "subset_dataset", "run_study", "add_study_arguments",
@@ -264,9 +273,6 @@ def _say(options: StudyOptions, text: str) -> None:
 
 def _render(options: StudyOptions, frequencies, scenes: int, seed: int, out: Path) -> Path:
     """A twin dataset (``dptpu sim dataset``); kept when it is already complete."""
-    from dptpu.sim.dataset import DatasetSpec, open_dataset, write_dataset
-    from dptpu.sim.rig import load_twin_rig
-
     spec = DatasetSpec(frequencies=tuple(frequencies), methods=tuple(options.methods), scenes=scenes,
                        noise=tuple(options.noise), size=tuple(options.size), seed=seed)
     write_dataset(load_twin_rig(options.rig), spec, out, progress=False)
@@ -281,8 +287,6 @@ def subset_dataset(pool: Path, frequencies, out: Path) -> int:
 
     Returns the number of samples linked. The folder's ``dataset.yaml`` names the pool and the frequencies.
     """
-    from dptpu.models.samples import DATASET_FORMAT, list_samples
-
     wanted = {round(float(f), 6) for f in frequencies}
     chosen = []
     for path in list_samples(pool):
@@ -309,10 +313,10 @@ def _train(run: StudyRun, data_dir: Path, runs_dir: Path, options: StudyOptions)
     onnx = runs_dir / f"{run.name}.onnx"
     if record_path.is_file() and onnx.is_file():
         return json.loads(record_path.read_text())
-    import torch
+    import torch  # training only
 
-    from dptpu.models.loss import LossWeights
-    from dptpu.models.training import TrainOptions, train
+    from dptpu.models.loss import LossWeights  # torch
+    from dptpu.models.training import TrainOptions, train  # torch
 
     torch.set_num_threads(options.threads)
     checkpoint = runs_dir / f"{run.name}.ckpt"
@@ -333,8 +337,6 @@ def _train(run: StudyRun, data_dir: Path, runs_dir: Path, options: StudyOptions)
 
 def _evaluate(run_records: list[dict], runs_dir: Path, test_dir: Path, options: StudyOptions) -> list[StudyRow]:
     """Rows of every model and of the classical solvers on the test set."""
-    from dptpu.models.evaluate import evaluate_dataset
-
     rows: list[StudyRow] = []
     for index, record in enumerate(run_records):
         for r in evaluate_dataset(test_dir, [runs_dir / f"{record['name']}.onnx"], threads=options.threads):
@@ -371,13 +373,11 @@ def run_study(options: StudyOptions, *, command: str | None = None) -> dict:
     command : str, optional
         The command line, quoted in ``summary.md``.
     """
-    from dptpu.models.network import DPTPUConfig
-    from .study_plot import write_boxplots
-    from .study_report import write_study_table, write_summary
+    from dptpu.models.network import DPTPUConfig  # torch
 
     # the code that trains: network.py is imported (and frozen for this process) with DPTPUConfig above
     commit = _git_commit()
-    network_sha1 = hashlib.sha1(Path(__file__).with_name("network.py").read_bytes()).hexdigest()[:12]
+    network_sha1 = hashlib.sha1(Path(inspect.getfile(DPTPUConfig)).read_bytes()).hexdigest()[:12]
     out = Path(options.out)
     data_dir, runs_dir = out / "data", out / "runs"
     runs_dir.mkdir(parents=True, exist_ok=True)
@@ -482,8 +482,6 @@ def add_study_arguments(parser) -> None:
 
 def options_from_args(args) -> StudyOptions:
     """:class:`StudyOptions` from parsed ``dptpu model study`` flags (ValueError on bad values)."""
-    from dptpu.sim.rig import parse_size
-
     return StudyOptions(
         out=args.out, sets=_names(args.sets, "sets"), methods=_names(args.methods, "methods"), scenes=args.scenes,
         test_scenes=args.test_scenes, size=parse_size(args.size), noise=_numbers(args.noise, "noise"),

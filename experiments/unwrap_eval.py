@@ -18,7 +18,14 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from dptpu.fpp.dataset import read_dataset_yaml
+from dptpu.fpp.methods import TWO_FREQUENCY_METHODS
 from dptpu.models.evaluate import Row, evaluate_dataset, format_summary, solver_names, write_table
+from dptpu.sim.dataset import DatasetSpec, write_dataset
+from dptpu.sim.dataset_samples import check_combination
+from dptpu.sim.rig import load_twin_rig, resize_camera
+
+from .unwrap_eval_blender import write_blender_test_set
 from .unwrap_eval_plots import accuracy_heatmap, error_versus_frequency, write_png
 
 __all__ = [
@@ -42,7 +49,7 @@ __all__ = [
 EVAL_FREQUENCIES = tuple(float(f) for f in range(16, 97, 4))
 #: The paper's 1 sigma and 2 sigma camera noise, gray levels.
 EVAL_NOISE = (1.5693, 3.1386)
-EVAL_METHODS = ("mf", "mw", "nt")
+EVAL_METHODS = TWO_FREQUENCY_METHODS  # the methods evaluated
 #: Scene seed root of the test set: the shipped model's training set used 100, its held-out set 200.
 DEFAULT_SEED = 300
 RENDERERS = ("raycast", "blender")
@@ -94,8 +101,6 @@ class UnwrapEvalSpec:
 
 def spec_from_dataset(data_dir) -> UnwrapEvalSpec:
     """The :class:`UnwrapEvalSpec` an existing test set was made with (its ``dataset.yaml``; rig: the folder's)."""
-    from dptpu.models.samples import read_dataset_yaml
-
     meta = read_dataset_yaml(data_dir)
     try:
         return UnwrapEvalSpec(frequencies=tuple(float(f) for f in meta["frequencies"]),
@@ -111,19 +116,12 @@ def spec_from_dataset(data_dir) -> UnwrapEvalSpec:
 
 def make_test_set(spec: UnwrapEvalSpec, out_dir, *, workers: int = 1, progress: bool = False) -> Path:
     """Render the test set of ``spec`` into ``out_dir`` (a ``dptpu-dataset/1`` folder); samples on disk are kept."""
-    from dptpu.sim.dataset import DatasetSpec, write_dataset
-    from dptpu.sim.rig import load_twin_rig, resize_camera
-
     dataset = DatasetSpec(frequencies=tuple(spec.frequencies), methods=tuple(spec.methods), scenes=spec.scenes,
                           input_steps=3, label_steps=12, noise=tuple(spec.noise), size=tuple(spec.size),
                           seed=spec.seed)  # checks every field, names the option in its messages
     rig = load_twin_rig(spec.rig)
     if spec.renderer == "raycast":
         return write_dataset(rig, dataset, out_dir, workers=workers, progress=progress)
-    from dptpu.sim.dataset_samples import check_combination
-
-    from .unwrap_eval_blender import write_blender_test_set
-
     for f in dataset.frequencies:
         for method in dataset.methods:
             check_combination(method, f, rig.projector.size[0])

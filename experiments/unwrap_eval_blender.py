@@ -18,7 +18,14 @@ import numpy as np
 import yaml
 
 from dptpu.fpp import phase, tpu
+from dptpu.fpp.calibration import save_rig
 from dptpu.fpp.capture import load_ground_truth, load_sequence_images, read_capture
+from dptpu.fpp.dataset import DATASET_FORMAT, sample_name
+from dptpu.sim.dataset import scene_seed
+from dptpu.sim.dataset_samples import low_frequency
+from dptpu.sim.image_formation import SequenceSpec
+from dptpu.sim.render import render_capture
+from dptpu.sim.scenes import random_scene
 
 __all__ = ["blender_scene_samples", "write_blender_test_set"]
 
@@ -59,10 +66,6 @@ def blender_scene_samples(rig, scene, *, scene_seed: int, frequencies, methods, 
     list of dict
         The ``.npz`` keys of a ``dptpu-dataset/1`` sample.
     """
-    from dptpu.sim.dataset_samples import low_frequency
-    from dptpu.sim.image_formation import SequenceSpec
-    from dptpu.sim.render import render_capture
-
     extent = float(rig.projector.size[0])
     needed = sorted({float(f) for f in frequencies} | {low_frequency(m, f) for f in frequencies for m in methods})
     capture_dir = Path(work_dir)
@@ -123,10 +126,6 @@ def write_blender_test_set(rig, out_dir, *, frequencies, methods, noise, scenes:
     dptpu.sim.blender.BlenderNotInstalledError
         No Blender environment (``dptpu sim setup-blender``).
     """
-    from dptpu.fpp.calibration import save_rig
-    from dptpu.sim.dataset import DATASET_FORMAT, sample_name, scene_seed
-    from dptpu.sim.scenes import random_scene
-
     out = Path(out_dir)
     (out / "samples").mkdir(parents=True, exist_ok=True)
     per_scene = len(frequencies) * len(methods) * len(noise)

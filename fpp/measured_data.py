@@ -1,8 +1,14 @@
-"""Where the real measured data lives: ``$DPTPU_DATA``, else ``../shared/data`` beside the checkout."""
+"""Where the real measured data lives: ``$DPTPU_DATA``, else ``../shared/data`` beside the checkout.
+
+The real data sets (``dptpu-sphere/``, ``cfpe/``) are never copied into the repository; the twin's validation,
+the CLI and the tests find them here.
+"""
 from __future__ import annotations
 
 import os
 from pathlib import Path
+
+__all__ = ["shared_data_dir"]
 
 
 def shared_data_dir() -> Path:

@@ -1,6 +1,6 @@
 """Torch access to a ``dptpu-dataset/1`` folder: random crops, reproducible per (seed, epoch, sample).
 
-Samples are read once (:func:`dptpu.models.samples.read_sample`) and kept in memory. The crop of sample
+Samples are read once (:func:`dptpu.fpp.dataset.read_sample`) and kept in memory. The crop of sample
 ``i`` in epoch ``e`` is drawn from ``numpy.random.default_rng([seed, e, i])``, and the sample order of an
 epoch from ``default_rng([seed, e])``, so a run resumed at epoch ``e`` sees exactly the batches an
 uninterrupted run would (no hidden random state to save).
@@ -12,8 +12,9 @@ import dataclasses
 import numpy as np
 import torch
 
+from dptpu.fpp.dataset import Sample, list_samples, read_sample
+
 from .refine import network_prior
-from .samples import Sample, list_samples, read_sample
 
 __all__ = ["FringeOrderDataset", "collate", "epoch_order"]
 

@@ -22,10 +22,11 @@ from pathlib import Path
 
 import numpy as np
 
+from dptpu.fpp.dataset import list_samples, read_sample
+
 from .consensus import consensus_order
 from .inference import FringeOrderModel
 from .refine import network_prior, refine_order
-from .samples import list_samples, read_sample
 
 __all__ = ["Row", "evaluate_dataset", "format_summary", "median_order", "solver_names", "write_table"]
 

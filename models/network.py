@@ -48,7 +48,7 @@ the output back.
 
 Convention: images are ``(B, 1, H, W)`` float32, ``frequency_high`` is ``(B,)`` float32 (periods across
 the projector); invalid pixels must carry 0 in all three images (the inference wrapper and
-:func:`dptpu.models.samples.read_sample` do that).
+:func:`dptpu.fpp.dataset.read_sample` do that).
 """
 from __future__ import annotations
 

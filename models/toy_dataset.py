@@ -23,8 +23,7 @@ import numpy as np
 import yaml
 
 from dptpu.fpp import phase, tpu
-
-from .samples import DATASET_FORMAT
+from dptpu.fpp.dataset import DATASET_FORMAT
 
 __all__ = ["LOW_FREQUENCY", "low_frequency", "toy_scene", "toy_sample", "write_toy_dataset"]
 

@@ -34,6 +34,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from dptpu.fpp.calibration import DeviceModel, Rig
+from dptpu.fpp.distortion import pixels_to_normalized, undistort
 
 __all__ = ["BlenderCamera", "BlenderProjector", "blender_rotation", "camera_parameters", "euler_xyz_from_matrix",
            "matrix_from_euler_xyz", "project_blender_camera", "projector_parameters", "spot_size_rad",
@@ -208,8 +209,6 @@ def spot_size_rad(device: DeviceModel, *, margin_rad: float = 0.01) -> float:
     The cone must reach the projector image's outer corners ``(-0.5, -0.5)`` .. ``(W - 0.5, H - 0.5)`` after
     undistortion; ``margin_rad`` widens it slightly (the pattern itself clips at the image edge).
     """
-    from dptpu.fpp.distortion import pixels_to_normalized, undistort
-
     width, height = device.size
     corners = np.array([[-0.5, -0.5], [width - 0.5, -0.5], [-0.5, height - 0.5], [width - 0.5, height - 0.5]])
     edges = np.concatenate([corners, [[width / 2 - 0.5, -0.5], [width / 2 - 0.5, height - 0.5],

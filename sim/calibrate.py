@@ -26,6 +26,7 @@ from scipy.spatial.transform import Rotation
 from dptpu.fpp.calibration import Rig
 from dptpu.fpp.capture import PhaseFrames, write_capture
 from dptpu.fpp.rig_calibration import Board, RigCalibration, calibrate_from_folders
+from dptpu.fpp.stereo_calibration import project
 
 from .image_formation import SequenceSpec, quantize, render_frames_float
 from .raycast import trace
@@ -68,8 +69,6 @@ def board_poses(rig: Rig, board: Board, count: int, *, seed: int = 0, max_tilt_d
     ValueError
         When the board cannot be placed in view (too big for the camera's field of view).
     """
-    from dptpu.fpp.stereo_calibration import project
-
     if count < 3:
         raise ValueError(f"a calibration needs at least 3 board poses; got {count}")
     rng = np.random.default_rng(seed)

@@ -1,4 +1,4 @@
-"""Training datasets of the twin, format ``dptpu-dataset/1``: write them (sharded, in processes) and read them lazily.
+"""Writing the twin's training datasets, format ``dptpu-dataset/1`` (sharded, in processes).
 
 A dataset is ``scenes`` random scenes (:func:`dptpu.sim.scenes.random_scene`) times every combination of high
 frequency, method and noise level; each combination of each scene is one sample file
@@ -16,7 +16,8 @@ Sample ``index = scene_index * per_scene + combination`` with combinations order
 (innermost); scene ``i`` has the seed ``scene_seed(seed, i)``. Shard ``I`` of ``N`` renders the scenes
 ``i % N == I``, so the shards' samples together are exactly the unsharded set (same indices, same arrays); only
 the ``<shard>`` prefix of the file names differs. Shards may write into one folder (each writes the same
-``dataset.yaml``) or into separate folders whose ``samples/`` are merged later.
+``dataset.yaml``) or into separate folders whose ``samples/`` are merged later. They are read through
+:mod:`dptpu.fpp.dataset` (:func:`~dptpu.fpp.dataset.open_dataset`, :func:`~dptpu.fpp.dataset.read_sample`).
 """
 from __future__ import annotations
 
@@ -24,9 +25,8 @@ import os
 import re
 import sys
 import time
-from collections.abc import Sequence
 from concurrent.futures import ProcessPoolExecutor
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass
 from multiprocessing import get_context
 from pathlib import Path
 
@@ -34,32 +34,20 @@ import numpy as np
 import yaml
 
 from dptpu.fpp.calibration import Rig, load_rig, save_rig
+from dptpu.fpp.dataset import DATASET_FORMAT, SAMPLE_RIG, sample_name
 
 from .dataset_samples import METHODS, check_combination, low_frequency, scene_samples
+from .rig import resize_camera
+from .scenes import random_scene
 
 __all__ = [
-    "DATASET_FORMAT",
-    "SAMPLE_ARRAYS",
-    "SAMPLE_RIG",
-    "SAMPLE_SCALARS",
-    "Dataset",
     "DatasetSpec",
-    "open_dataset",
     "parse_shard",
-    "sample_name",
     "scene_rig",
     "scene_seed",
     "write_dataset",
 ]
 
-DATASET_FORMAT = "dptpu-dataset/1"
-#: Array keys of a sample file, each (H, W).
-SAMPLE_ARRAYS = ("wrapped_high", "wrapped_low", "coarse_order", "label_order", "valid")
-#: Scalar keys of a sample file.
-SAMPLE_SCALARS = ("frequency_high", "frequency_low", "method", "noise_sigma", "scene_seed", "label_rejected")
-#: Optional scalar key: the name of the sample's rig (written since multi-rig datasets; older samples lack it).
-SAMPLE_RIG = "rig"
-_NAME = re.compile(r"^(\d+)-(\d{6,})\.npz$")
 _RIG_NAME = re.compile(r"^[A-Za-z0-9_.+-]+$")
 
 
@@ -148,11 +136,6 @@ def parse_shard(text) -> tuple[int, int]:
     if not match or not int(match.group(1)) < int(match.group(2)):
         raise ValueError(f"--shard must be I/N with 0 <= I < N (e.g. 0/4); got {text!r}")
     return int(match.group(1)), int(match.group(2))
-
-
-def sample_name(shard: int, index: int) -> str:
-    """``<shard>-<index:06d>.npz``."""
-    return f"{int(shard)}-{int(index):06d}.npz"
 
 
 def scene_rig(scene_index: int, rig_count: int) -> int:
@@ -254,7 +237,6 @@ def _save_sample(path: Path, sample: dict) -> None:
 def _render_scene(job) -> int:
     """Worker: render scene ``scene_index`` and write its samples; returns the number written."""
     rig_path, rig_name, spec_dict, scene_index, shard, samples_dir = job
-    from .scenes import random_scene
 
     spec = DatasetSpec(**spec_dict)
     rig = load_rig(rig_path)
@@ -332,8 +314,6 @@ def write_dataset(rig, spec: DatasetSpec, out_dir, *, shard=(0, 1), workers: int
         A frequency a method cannot unwrap (e.g. an ambiguous NT pair), a bad shard or worker count, or a folder
         holding another dataset.
     """
-    from .rig import resize_camera
-
     rigs = _named_rigs(rig)
     index, total = shard
     if not (0 <= int(index) < int(total)):
@@ -371,128 +351,3 @@ def write_dataset(rig, spec: DatasetSpec, out_dir, *, shard=(0, 1), workers: int
     finally:
         bar.close()
     return out
-
-
-# --------------------------------------------------------------------------------------------------
-# Reading
-# --------------------------------------------------------------------------------------------------
-
-@dataclass(frozen=True, eq=False)
-class Dataset(Sequence):
-    """A ``dptpu-dataset/1`` folder as a lazy sequence: ``len(dataset)``, ``dataset[i]`` reads one file.
-
-    Attributes
-    ----------
-    root : Path
-    meta : dict
-        The parsed ``dataset.yaml``.
-    paths : tuple of Path
-        Sample files in global-index order.
-    """
-
-    root: Path
-    meta: dict
-    paths: tuple = field(default_factory=tuple)
-
-    def __len__(self) -> int:
-        return len(self.paths)
-
-    def __getitem__(self, index):
-        if isinstance(index, slice):
-            return [self[i] for i in range(*index.indices(len(self)))]
-        if not isinstance(index, (int, np.integer)):
-            raise TypeError(f"dataset indices must be integers or slices; got {type(index).__name__}")
-        if not -len(self) <= index < len(self):
-            raise IndexError(f"sample {index} out of range for {len(self)} samples")
-        sample = read_sample(self.paths[index])
-        if sample[SAMPLE_RIG] is None:
-            sample[SAMPLE_RIG] = self.rig_names[0]  # a one-rig folder from before samples named their rig
-        return sample
-
-    @property
-    def missing(self) -> int:
-        """Samples ``dataset.yaml`` announces that are not (yet) on disk (e.g. shards still running)."""
-        return int(self.meta.get("count", len(self))) - len(self)
-
-    @property
-    def rig(self) -> Rig:
-        """The (first) rig the samples were rendered with."""
-        return load_rig(self.root / str(self.meta.get("rig", "rig.yaml")))
-
-    @property
-    def rig_names(self) -> list[str]:
-        """Names of the rigs in ``dataset.yaml`` order; ``["rig"]`` for folders that do not list them."""
-        return [str(entry["name"]) for entry in self._rig_entries()]
-
-    @property
-    def rigs(self) -> dict:
-        """``{name: Rig}`` of every rig of the dataset, in ``dataset.yaml`` order."""
-        return {str(e["name"]): load_rig(self.root / str(e["file"])) for e in self._rig_entries()}
-
-    def _rig_entries(self) -> list[dict]:
-        entries = self.meta.get("rigs")
-        if entries is None:
-            return [{"name": "rig", "file": str(self.meta.get("rig", "rig.yaml"))}]
-        if not isinstance(entries, list) or not all(isinstance(e, dict) and "name" in e and "file" in e
-                                                    for e in entries) or not entries:
-            raise ValueError(f"{self.root / 'dataset.yaml'}: rigs must be a list of {{name, file}} entries; "
-                             f"got {entries!r}")
-        return entries
-
-
-def read_sample(path) -> dict:
-    """One sample file as a dict: arrays ``(H, W)`` (SAMPLE_ARRAYS), Python scalars (SAMPLE_SCALARS) and ``rig``
-    (the rig's name, str, or None for samples written before datasets named their rigs)."""
-    path = Path(path)
-    try:
-        archive = np.load(path, allow_pickle=False)
-    except (OSError, ValueError) as exc:
-        raise ValueError(f"{path}: not a readable .npz sample ({exc})") from None
-    with archive:
-        missing = [k for k in SAMPLE_ARRAYS + SAMPLE_SCALARS if k not in archive.files]
-        if missing:
-            raise ValueError(f"{path}: missing keys {missing} ({DATASET_FORMAT} samples hold "
-                             f"{', '.join(SAMPLE_ARRAYS + SAMPLE_SCALARS)})")
-        sample = {k: archive[k] for k in SAMPLE_ARRAYS}
-        sample["method"] = str(archive["method"])
-        for key in ("frequency_high", "frequency_low", "noise_sigma"):
-            sample[key] = float(archive[key])
-        for key in ("scene_seed", "label_rejected"):
-            sample[key] = int(archive[key])
-        sample[SAMPLE_RIG] = str(archive[SAMPLE_RIG]) if SAMPLE_RIG in archive.files else None
-    return sample
-
-
-def open_dataset(path) -> Dataset:
-    """Open a dataset folder for reading (no sample is read until indexed).
-
-    Raises
-    ------
-    FileNotFoundError
-        No ``dataset.yaml``.
-    ValueError
-        ``dataset.yaml`` is not ``dptpu-dataset/1``, or ``samples/`` holds files not named
-        ``<shard>-<index:06d>.npz`` or two files of the same index.
-    """
-    root = Path(path)
-    yaml_path = root / "dataset.yaml"
-    if not yaml_path.is_file():
-        raise FileNotFoundError(f"{yaml_path}: no such file (a {DATASET_FORMAT} folder, from 'dptpu sim dataset')")
-    try:
-        meta = yaml.safe_load(yaml_path.read_text())
-    except yaml.YAMLError as exc:
-        raise ValueError(f"{yaml_path}: not valid YAML ({exc})") from None
-    if not isinstance(meta, dict) or meta.get("format") != DATASET_FORMAT:
-        found = meta.get("format") if isinstance(meta, dict) else meta
-        raise ValueError(f"{yaml_path}: format must be {DATASET_FORMAT!r}; got {found!r}")
-    indexed = {}
-    for file in sorted((root / "samples").glob("*.npz")) if (root / "samples").is_dir() else []:
-        match = _NAME.match(file.name)
-        if not match:
-            raise ValueError(f"{file}: sample files must be named <shard>-<index:06d>.npz")
-        sample_index = int(match.group(2))
-        if sample_index in indexed:
-            raise ValueError(f"{file}: index {sample_index} is also in {indexed[sample_index].name} "
-                             f"(shards of two different runs in one folder?)")
-        indexed[sample_index] = file
-    return Dataset(root=root, meta=meta, paths=tuple(indexed[i] for i in sorted(indexed)))

@@ -35,7 +35,8 @@ from dptpu.fpp.capture import PatternLevels, PhaseFrames, write_capture
 
 from .effects import effects_to_yaml, parse_effects
 from .effects.camera import apply_camera_effects
-from .effects.geometry import render_rig
+from .effects.geometry import has_motion, render_rig
+from .effects.pattern import projector_images
 from .image_formation import DEFAULT_AMPLITUDE, DEFAULT_OFFSET, _as_sequences, quantize, render_frames_float
 from .raycast import SurfaceSamples, trace
 from .rig import resize_camera
@@ -73,15 +74,13 @@ def ground_truth(rig: Rig, samples: SurfaceSamples, sequences) -> dict:
 
 def _blender_frames(rig: Rig, meshes, sequences, effects, *, seed, bit_depth, exposure, samples_per_pixel, albedo,
                     hit):
-    try:
+    try:  # the Blender renderer is optional: an installation may lack it
         from dptpu.sim import blender
     except ModuleNotFoundError as exc:
         if exc.name != "dptpu.sim.blender":
             raise
         raise ValueError("engine 'blender' needs dptpu.sim.blender, which this installation lacks; "
                          "use engine='raycast'") from None
-    from .effects.geometry import has_motion
-    from .effects.pattern import projector_images
 
     if has_motion(effects):
         raise ValueError("the motion effect is raycast-only; use engine='raycast'")

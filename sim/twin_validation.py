@@ -23,10 +23,12 @@ from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
+from scipy.optimize import least_squares
 
 from dptpu.fpp import real_sphere
 from dptpu.fpp.calibration import DeviceModel, Rig
 from dptpu.fpp.fitting import fit_sphere
+from dptpu.fpp.measured_data import shared_data_dir
 from dptpu.fpp.triangulate import Triangulator, camera_rays, projector_coordinate
 
 from .raycast import project_to_projector, trace
@@ -70,8 +72,6 @@ def fit_sphere_pose(rig: Rig, projector_x: np.ndarray, *, with_offset: bool = Fa
     fitted when ``with_offset``, else fixed at ``offset_px``; ``radius=None`` fits the radius too. The start is a
     fixed-radius geometric fit of the triangulated points. Returns ``(center, radius, dx, rms_px)``.
     """
-    from scipy.optimize import least_squares
-
     valid = np.isfinite(projector_x)
     rays = camera_rays(rig.camera).reshape(-1, 3)[valid.ravel()]
     target = projector_x[valid]
@@ -181,7 +181,5 @@ def validate(data_dir, *, full: bool = True) -> dict:
 
 
 if __name__ == "__main__":  # pragma: no cover
-    from dptpu.cli.data_paths import shared_data_dir
-
     folder = Path(sys.argv[1]) if len(sys.argv) > 1 else shared_data_dir() / "dptpu-sphere"
     print(json.dumps(validate(folder), indent=2))

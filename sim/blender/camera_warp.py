@@ -15,6 +15,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.ndimage import map_coordinates
 
 from dptpu.fpp.calibration import DeviceModel
 from dptpu.fpp.distortion import pixels_to_normalized, undistort
@@ -110,8 +111,6 @@ def warp_to_device(frames: np.ndarray, render: RenderCamera, device: DeviceModel
         The frames as the real camera sees them (cubic B-spline, clipped at 0; unchanged when ``render.warp`` is
         False).
     """
-    from scipy.ndimage import map_coordinates
-
     frames = np.asarray(frames, dtype=np.float32)
     expected = (render.size[1], render.size[0])
     if frames.ndim != 3 or frames.shape[1:] != expected:

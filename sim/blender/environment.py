@@ -13,6 +13,7 @@ import os
 import subprocess
 import sys
 from pathlib import Path
+from shutil import which
 
 __all__ = ["BPY_REQUIREMENT", "BlenderNotInstalledError", "blender_env_dir", "blender_python",
            "installed_bpy_version", "setup_blender"]
@@ -112,8 +113,6 @@ def setup_blender(env_dir=None, *, python: str | None = None, requirement: str =
 
 
 def _find_python311() -> str:
-    from shutil import which
-
     found = which("python3.11")
     if found:
         return found

@@ -16,9 +16,11 @@ from __future__ import annotations
 
 import json
 import os
+import resource
 import shutil
 import subprocess
 import tempfile
+import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -26,6 +28,7 @@ import numpy as np
 
 from dptpu.fpp.calibration import DeviceModel, Rig
 from dptpu.sim.blender_params import camera_parameters, projector_parameters
+from dptpu.sim.rig import working_point
 from dptpu.sim.scene_mesh import SceneMesh
 
 from .camera_warp import RenderCamera, render_camera, warp_to_device
@@ -123,8 +126,6 @@ def render(rig: Rig, meshes, patterns, *, samples: int = 16, seed: int = 0, ambi
     -------
     BlenderRender
     """
-    import time
-
     started = time.perf_counter()
     meshes = _check_meshes(meshes)
     patterns = _check_patterns(patterns, rig.projector)
@@ -158,8 +159,6 @@ def render(rig: Rig, meshes, patterns, *, samples: int = 16, seed: int = 0, ambi
 
 def reference_distance(rig: Rig) -> float:
     """``d_ref``: distance from the projector's centre to the rig's working point, rig units."""
-    from dptpu.sim.rig import working_point
-
     return float(np.linalg.norm(working_point(rig) - rig.projector.center))
 
 
@@ -242,8 +241,6 @@ def _write_job(job_dir: Path, rig: Rig, meshes, patterns, pinhole: RenderCamera,
 
 def _run_worker(python: Path, job_dir: Path, timeout_s: float | None) -> float:
     """Run the worker on ``job_dir``; returns its CPU time (user + system, seconds)."""
-    import resource
-
     before = resource.getrusage(resource.RUSAGE_CHILDREN)
     log_path = job_dir / "worker.log"
     with open(log_path, "w") as log:

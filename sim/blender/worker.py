@@ -276,7 +276,7 @@ def main(job_dir):
     started = time.perf_counter()
     with open(os.path.join(job_dir, "job.json")) as handle:
         job = json.load(handle)
-    import bpy
+    import bpy  # only inside Blender's Python
 
     scene, texture = build_scene(bpy, job, job_dir)
     patterns = np.load(os.path.join(job_dir, job["patterns"]), mmap_mode="r")  # (N, Hp, Wp), (N, 1, Wp) or (N, Hp, 1)

@@ -24,6 +24,7 @@ from scipy.optimize import minimize_scalar
 from dptpu.fpp.calibration import DeviceModel, Rig
 
 from .forward import PixelSet, intensity_residual
+from .registration import register
 from .selection import delta_bic, gain
 
 __all__ = ["Candidate", "PHOTOMETRIC", "NOT_IDENTIFIABLE", "not_identifiable", "fit_photometric",
@@ -169,8 +170,6 @@ def fit_geometric_extra(rig: Rig, reference, measured_x, baseline) -> list[dict]
     never in the extended rig): ``sphere_diameter`` (the apparent sphere is smaller or larger: volume
     scattering under the surface, a scale error of the calibration) and ``projector_offset`` (a constant
     projector-coordinate offset: a pixel-centre convention, a phase offset)."""
-    from .registration import register
-
     out = []
     if reference.kind == "sphere":
         fitted = register(rig, reference, measured_x, baseline.mask, pose0=baseline.pose, free_diameter=True)
@@ -186,8 +185,6 @@ def fit_geometric_extra(rig: Rig, reference, measured_x, baseline) -> list[dict]
 def fit_lens_distortion(rig: Rig, reference, measured_x, baseline) -> tuple[dict, object]:
     """Camera ``k1`` the calibration lacks, fitted with the pose (phase domain). Returns the entry and the
     :class:`~dptpu.sim.diagnosis.registration.Registration` with it."""
-    from .registration import register
-
     fitted = register(rig, reference, measured_x, baseline.mask, rig_of=add_camera_k1, extra0=[0.0],
                       pose0=baseline.pose)
     mask = baseline.mask & fitted.mask

@@ -19,6 +19,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from dptpu.fpp.calibration import Rig
+from dptpu.sim.scenes import load_scene
 
 from .candidates import (
     NOT_IDENTIFIABLE,
@@ -32,11 +33,13 @@ from .forward import intensity_residual
 from .measured import Measured, load_measured
 from .motion import fit_motion, identifiable_directions
 from .noise import fit_sensor_noise
+from .phase_candidates import PHASE_VISIBLE, fit_phase_candidate
 from .pixels import DEFAULT_MAX_PIXELS, erode_mask, reference_pixels, self_reference_pixels
 from .reference import Reference, load_scene_reference, parse_reference
 from .registration import register_robust
 from .response import fit_response
-from .selection import MIN_DELTA_BIC, significant
+from .scene_registration import fit_scene_lens_distortion, register_scene
+from .selection import MIN_DELTA_BIC, delta_bic, gain, significant
 
 __all__ = ["Diagnosis", "diagnose", "effect_entry", "EDGE_BAND_PX"]
 
@@ -81,8 +84,6 @@ def effect_entry(entry: dict) -> dict:
 def rescore_in_intensity(entry: dict, rss_before: float, rss_after: float, values: int) -> None:
     """Re-score a phase-domain entry on the intensity residual (same pixels, same values), keeping the phase
     figures in its evidence: with raw frames every candidate is then judged on one residual."""
-    from .selection import delta_bic, gain
-
     evidence = entry["evidence"]
     evidence.update({"phase_residual_before_px": entry["residual_before"],
                      "phase_residual_after_px": entry["residual_after"], "phase_delta_bic": evidence["delta_bic"],
@@ -115,8 +116,6 @@ def _response_entry(pixels, entries, *, refine: int, rss_before: float) -> dict:
 
 
 def _reference_material(reference: Reference, rig: Rig):
-    from dptpu.sim.scenes import load_scene
-
     if reference.kind == "scene":
         return None  # a traced scene carries its own materials
     name = "plane" if reference.kind == "plane" else "sphere"
@@ -178,8 +177,6 @@ def diagnose(measured, rig: Rig, *, reference=None, self_reference: bool = False
         # the silhouette's mixed pixels are the edge band of the decomposition, not evidence for an effect
         fit_mask = erode_mask(measured.valid, EDGE_BAND_PX)
         if reference.kind == "scene":
-            from .scene_registration import register_scene
-
             registration = register_scene(rig, reference, measured.projector_x, fit_mask,
                                           period_px=measured.extent / measured.frequency)
         else:
@@ -191,8 +188,6 @@ def diagnose(measured, rig: Rig, *, reference=None, self_reference: bool = False
             phase = measured.absolute_phase
             measured.absolute_phase = phase + period * np.round((model - phase) / period)
         if reference.kind == "scene":
-            from .scene_registration import fit_scene_lens_distortion
-
             lens, with_lens = fit_scene_lens_distortion(rig, reference, measured.projector_x, registration)
         else:
             lens, with_lens = fit_lens_distortion(rig, reference, measured.projector_x, registration)
@@ -210,7 +205,6 @@ def diagnose(measured, rig: Rig, *, reference=None, self_reference: bool = False
             lens_pixels, _ = reference_pixels(measured, with_lens.rig, reference, with_lens.pose, material,
                                               index=pixels.index, motion=False)
         else:  # a phase file: the photometric effects a 12-step phase shows, judged on the phase
-            from .phase_candidates import PHASE_VISIBLE, fit_phase_candidate
 
             for candidate in PHASE_VISIBLE if phase_candidates else ():
                 entry = fit_phase_candidate(measured, rig, reference, material, registration, candidate)

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import cv2
 import numpy as np
 
 __all__ = ["map_figure", "profile_figure"]
@@ -16,8 +17,6 @@ _FONT_SCALE = 0.4
 
 
 def _panel(image: np.ndarray, title: str, scale: float, height: int) -> np.ndarray:
-    import cv2
-
     finite = np.isfinite(image)
     normalized = np.clip(np.where(finite, image, 0.0) / max(scale, 1e-12), -1.0, 1.0)  # [-1, 1]
     red = np.clip(1.0 + np.minimum(normalized, 0.0), 0.0, 1.0)
@@ -36,8 +35,6 @@ def _panel(image: np.ndarray, title: str, scale: float, height: int) -> np.ndarr
 def map_figure(path, maps: dict, *, unit: str, scale: float | None = None, height: int = 240) -> Path:
     """Panels of signed maps ``{title: (H, W)}`` in one row; the colour scale is +-``scale`` (default 3x the
     largest RMS)."""
-    import cv2
-
     rms = {k: float(np.sqrt(np.nanmean(v ** 2))) if np.isfinite(v).any() else 0.0 for k, v in maps.items()}
     scale = scale or 3.0 * max(max(rms.values(), default=0.0), 1e-9)
     panels = [_panel(v, f"{k}: {rms[k]:.3g} {unit}", scale, height) for k, v in maps.items()]
@@ -54,8 +51,6 @@ def map_figure(path, maps: dict, *, unit: str, scale: float | None = None, heigh
 
 def profile_figure(path, profiles: dict, *, x_label: str, unit: str, size=(320, 200)) -> Path:
     """One panel per ``{title: y (M,)}`` profile, x from 0 to 1 over the samples."""
-    import cv2
-
     width, height = size
     panels = []
     for title, values in profiles.items():

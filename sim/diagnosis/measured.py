@@ -13,8 +13,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
+from scipy.io import loadmat
 
-from dptpu.fpp.capture import PatternLevels, read_capture, load_sequence_images
+from dptpu.fpp.capture import PatternLevels, load_sequence_images, read_capture
 from dptpu.fpp.reconstruct import unwrap_capture
 from dptpu.sim.image_formation import SequenceSpec
 
@@ -132,8 +133,6 @@ def _from_npz(path: Path) -> Measured:
 
 
 def _from_mat(path: Path, frequency) -> Measured:
-    from scipy.io import loadmat
-
     if frequency is None:
         raise ValueError(f"{path}: a .mat phase file needs --frequency (96 for the dptpu-sphere data)")
     try:

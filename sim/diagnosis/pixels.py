@@ -15,6 +15,7 @@ from __future__ import annotations
 
 from types import SimpleNamespace
 
+import cv2
 import numpy as np
 
 from dptpu.fpp.phase import wrapped_phase
@@ -33,8 +34,6 @@ MIN_MODULATION_FRACTION = 0.04
 
 def erode_mask(mask: np.ndarray, pixels: int = 1) -> np.ndarray:
     """``mask`` (H, W) bool eroded by ``pixels`` (a square neighbourhood; outside the image counts as False)."""
-    import cv2
-
     if pixels <= 0:
         return mask
     kernel = np.ones((2 * pixels + 1, 2 * pixels + 1), np.uint8)

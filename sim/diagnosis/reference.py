@@ -18,7 +18,9 @@ import numpy as np
 
 from dptpu.fpp.calibration import Rig
 from dptpu.fpp.triangulate import camera_rays
-from dptpu.sim.raycast import project_to_projector
+from dptpu.sim.raycast import project_to_projector, trace
+from dptpu.sim.scene_mesh import SceneMesh
+from dptpu.sim.scenes import load_scene_file
 
 __all__ = ["Reference", "parse_reference", "load_scene_reference", "SurfaceHits", "surface_hits", "reference_hits",
            "translated_pose", "posed_meshes"]
@@ -77,7 +79,6 @@ def load_scene_reference(reference: Reference, rig: Rig) -> Reference:
     """
     if reference.kind != "scene" or reference.scene is not None:
         return reference
-    from dptpu.sim.scenes import load_scene_file
 
     return replace(reference, scene=load_scene_file(reference.path, rig))
 
@@ -99,8 +100,6 @@ class SurfaceHits:
 
 def posed_meshes(reference: Reference, pose) -> tuple:
     """The scene's meshes moved by the rigid transform ``pose`` (4, 4): ``X -> R X + t`` (world frame)."""
-    from dptpu.sim.scene_mesh import SceneMesh
-
     pose = np.asarray(pose, dtype=np.float64)
     R, t = pose[:3, :3], pose[:3, 3]
     return tuple(SceneMesh(name=m.name, vertices=m.vertices @ R.T + t, triangles=m.triangles, material=m.material,
@@ -113,7 +112,6 @@ def reference_hits(rig: Rig, reference: Reference, pose) -> SurfaceHits:
     scene."""
     if reference.kind != "scene":
         return surface_hits(rig, reference.kind, pose, diameter=reference.diameter)
-    from dptpu.sim.raycast import trace
 
     if reference.scene is None:
         raise ValueError(f"reference {reference.label!r}: the scene file is not loaded (load_scene_reference)")

@@ -18,10 +18,12 @@ from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
+import yaml
 
 from dptpu.fpp.calibration import save_rig
 from dptpu.sim.effects import parse_effects
 from dptpu.sim.effects.geometry import render_rig
+from dptpu.sim.image_formation import SequenceSpec
 
 from .figures import map_figure, profile_figure
 from .forward import fit_gain
@@ -106,7 +108,6 @@ def _rerender(diagnosis, extended_effects) -> dict:
         x_extended = decode(extended, measured.sequences, bit_depth=measured.bit_depth) * measured.extent / (
             2 * np.pi * measured.frequency)
     else:  # a phase file: render the paper's sequences (f x 12 and 1 x 12, 8 bit) and decode them the same way
-        from dptpu.sim.image_formation import SequenceSpec
 
         sequences = [SequenceSpec(measured.frequency, 12), SequenceSpec(1.0, 12)]
         twin = render_twin(rig, reference, geometry.pose, diagnosis.material, sequences)
@@ -147,8 +148,6 @@ def write_report(diagnosis, out_dir, *, rerender: bool = True) -> dict:
     if diagnosis.rig is not None:
         path = save_rig(replace(diagnosis.rig, effects=tuple(extended)), out_dir / "extended_rig.yaml")
     else:
-        import yaml
-
         path = out_dir / "extended_effects.yaml"
         path.write_text(yaml.safe_dump({"effects": extended}, sort_keys=False))
     report["extended_rig"] = str(path)

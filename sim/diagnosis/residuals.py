@@ -19,6 +19,7 @@ ambient, clipping) and the ``random`` remainder.
 """
 from __future__ import annotations
 
+import cv2
 import numpy as np
 
 __all__ = ["decompose_phase", "decompose_intensity", "harmonics"]
@@ -53,8 +54,6 @@ def _rms(values) -> float:
 
 
 def _edge_band(mask: np.ndarray, width: int = 2) -> np.ndarray:
-    import cv2
-
     kernel = np.ones((2 * width + 1, 2 * width + 1), np.uint8)
     eroded = cv2.erode(mask.astype(np.uint8), kernel, borderType=cv2.BORDER_CONSTANT, borderValue=0).astype(bool)
     return mask & ~eroded

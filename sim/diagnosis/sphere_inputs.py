@@ -29,6 +29,7 @@ from dptpu.fpp.fitting import fit_sphere
 from dptpu.fpp.phase import quality_mask, wrapped_phase
 from dptpu.fpp.triangulate import Triangulator
 from dptpu.sim.image_formation import SequenceSpec, quantize, render_frames_float
+from dptpu.sim.scenes import load_scene
 
 from .measured_pair import MeasuredPair, mf_coarse_order, reference_order
 from .pixels import erode_mask
@@ -50,8 +51,6 @@ def twin_levels(rig, phase: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     NaN where the twin's sphere does not cover the pixel. The pose is fitted on the measured interior
     (2 px edge band left out), as the diagnosis does.
     """
-    from dptpu.sim.scenes import load_scene
-
     reference = Reference("sphere", diameter=real_sphere.SPHERE_DIAMETER_MM)
     valid = np.isfinite(phase)
     projector_x = np.where(valid, phase, 0.0) * real_sphere.PROJECTOR_SIZE[0] / (_TWO_PI * FREQUENCY_HIGH)

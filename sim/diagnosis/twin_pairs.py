@@ -1,14 +1,14 @@
 """Training samples of the twin built like a measured pair: the same sequences, the same pair construction.
 
-The downstream gain (:mod:`.downstream`) fine-tunes the network on twin renders and scores it on measured pairs
-(:mod:`.cfpe_inputs`, :mod:`.sphere_inputs`). Those pairs are not the paper's plain MF set (``dptpu sim
+The downstream gain (:mod:`dptpu.experiments.downstream`) fine-tunes the network on twin renders and scores it
+on measured pairs (:mod:`.cfpe_inputs`, :mod:`.sphere_inputs`). Those pairs are not the paper's plain MF set (``dptpu sim
 dataset``): CFPE's low phase is a heterodyne of three close periods, the sphere's high phase is a 12-step phase.
 A :class:`PairDesign` names the sequences and the construction, and :func:`twin_pair_sample` renders a random
 scene through the twin (the rig's effects, Gaussian camera noise, 8 bits) and builds the pair from the rendered
 frames with the SAME functions as the measured one; the label is the order of the noise-free 12-step phase,
 unwrapped the same way and checked against the ray cast (within ``pi / 2``), as :mod:`dptpu.sim.dataset_samples`
-does. Samples are written in the ``dptpu-dataset/1`` format (:mod:`dptpu.models.samples`) so ``dptpu train``
-reads them.
+does. Samples are written in the ``dptpu-dataset/1`` format (read by :mod:`dptpu.fpp.dataset`) so
+``dptpu train`` reads them.
 
 Every input sequence is rendered as 12 frames and its ``N``-step input is every ``12/N``-th frame (steps 0, 4, 8
 for ``N = 3``: a 3-step sequence of Eq. (1)), as the CFPE inputs are taken from the real 12-step frames.
@@ -24,6 +24,13 @@ import yaml
 
 from dptpu.fpp import phase, tpu
 from dptpu.fpp.calibration import Rig, save_rig
+from dptpu.sim.dataset import scene_seed as dataset_scene_seed
+from dptpu.sim.effects import parse_effects
+from dptpu.sim.effects.geometry import render_rig
+from dptpu.sim.image_formation import SequenceSpec, quantize, render_frames_float
+from dptpu.sim.raycast import trace
+from dptpu.sim.rig import resize_camera
+from dptpu.sim.scenes import random_scene
 
 from .cfpe_inputs import FREQUENCIES as CFPE_FREQUENCIES
 from .cfpe_inputs import build_pair
@@ -86,8 +93,6 @@ SPHERE_DESIGN = PairDesign("sphere", (96.0, 1.0), (12, 3), low="mf")
 
 def _effects(effects, sigma: float):
     """The rig's effects with ``sensor_noise`` replaced by Gaussian noise of ``sigma`` DN (none at 0)."""
-    from dptpu.sim.effects import parse_effects
-
     kept = [e for e in parse_effects(effects) if e.name != "sensor_noise"]
     if sigma > 0:
         kept.append({"sensor_noise": {"read_noise_dn": float(sigma), "gain_dn_per_electron": 0.0, "dark_dn": 0.0}})
@@ -130,10 +135,6 @@ def twin_pair_sample(rig: Rig, scene, design: PairDesign, *, noise_sigma: float,
     seed : int
         Seed of the noise.
     """
-    from dptpu.sim.effects.geometry import render_rig
-    from dptpu.sim.image_formation import SequenceSpec, quantize, render_frames_float
-    from dptpu.sim.raycast import trace
-
     effects = rig.effects if effects is None else effects
     meshes = scene.meshes if hasattr(scene, "meshes") else list(scene)
     traced_rig = render_rig(rig, _effects(effects, 0.0))
@@ -182,10 +183,6 @@ def write_twin_set(rig: Rig, design: PairDesign, out_dir, *, scenes: int, size=(
     Scene ``i`` has the seed of ``dptpu sim dataset`` (:func:`dptpu.sim.dataset.scene_seed`): two rigs that
     differ only in their effects render the same scenes, so two sets differ only by the effects.
     """
-    from dptpu.sim.dataset import scene_seed as dataset_scene_seed
-    from dptpu.sim.rig import resize_camera
-    from dptpu.sim.scenes import random_scene
-
     if int(scenes) < 1:
         raise ValueError(f"--scenes must be >= 1; got {scenes}")
     noise = tuple(float(s) for s in noise)

@@ -19,6 +19,7 @@ The final quantization ``clip(round(I), 0, FS)`` to ``bit_depth`` is part of eve
 """
 from __future__ import annotations
 
+import cv2
 import numpy as np
 
 from .registry import find_effect
@@ -40,8 +41,6 @@ def vignetting_factor(shape, k1: float, k2: float, *, rows=None, cols=None) -> n
 
 def gaussian_blur(image: np.ndarray, sigma_px: float) -> np.ndarray:
     """Gaussian blur (H, W) with reflecting borders (OpenCV, kernel +-4 sigma)."""
-    import cv2
-
     if sigma_px <= 0:
         return image
     radius = max(int(np.ceil(4.0 * sigma_px)), 1)

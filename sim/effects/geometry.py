@@ -15,6 +15,7 @@ import numpy as np
 
 from dptpu.fpp.calibration import DeviceModel, Rig
 from dptpu.sim.scene_mesh import SceneMesh
+from dptpu.sim.scenes.scene import euler_xyz_deg
 
 from .registry import find_effect
 
@@ -41,8 +42,6 @@ def has_motion(effects) -> bool:
 
 def moved_meshes(meshes, effects, frame_index: int) -> tuple:
     """The meshes as frame ``frame_index`` sees them under the ``motion`` effect."""
-    from dptpu.sim.scenes.scene import euler_xyz_deg
-
     effect = find_effect(effects, "motion")
     if effect is None or frame_index == 0:
         return tuple(meshes)

@@ -135,9 +135,7 @@ def projector_images(*, frequency: float, steps: int, axis: str, shift_sign: int
     pixel images (Blender): each micromirror shows the level at its centre, so ``projector_pixelation``'s rounding
     is built in; ``projector_defocus`` blurs along the fringe axis with its constant ``sigma_px`` (a depth-dependent
     focus needs the raycast engine)."""
-    from .registry import find_effect as _find
-
-    defocus = _find(effects, "projector_defocus")
+    defocus = find_effect(effects, "projector_defocus")
     if defocus is not None and defocus["focus_distance"] > 0:
         raise ValueError("projector_defocus with focus_distance > 0 (depth-dependent blur) is raycast-only; "
                          "use engine='raycast' or a constant sigma_px")

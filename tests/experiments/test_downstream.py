@@ -10,8 +10,8 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from dptpu.cli.data_paths import shared_data_dir
 from dptpu.fpp import tpu
+from dptpu.fpp.measured_data import shared_data_dir
 
 DATA = shared_data_dir()
 CFPE = DATA / "cfpe"
@@ -71,9 +71,9 @@ def test_onnx_weights_refuses_a_foreign_file(tmp_path):
 
 
 def test_finetune_pipeline_numbers_are_consistent(base_onnx, tmp_path):
-    from dptpu.models.inference import FringeOrderModel
     from dptpu.experiments.downstream import DownstreamOptions, compare_finetunes, twin_set_pairs
     from dptpu.experiments.finetune import FinetuneOptions
+    from dptpu.models.inference import FringeOrderModel
     from dptpu.sim.diagnosis.twin_pairs import PairDesign, write_twin_set
     from dptpu.sim.rig import nominal_rig
 
@@ -114,8 +114,15 @@ def test_finetune_pipeline_numbers_are_consistent(base_onnx, tmp_path):
 
 @pytest.mark.skipif(not (CFPE / "0600h.png").exists(), reason=f"CFPE data not found in {CFPE} (set DPTPU_DATA)")
 def test_cfpe_three_step_inputs_against_the_twelve_step_phases():
-    from dptpu.sim.diagnosis.cfpe_inputs import (FREQUENCIES, INPUT_STEPS, SHIFT_SIGN, _phases, cfpe_pair,
-                                                 input_rms, load_cfpe_frames)
+    from dptpu.sim.diagnosis.cfpe_inputs import (
+        FREQUENCIES,
+        INPUT_STEPS,
+        SHIFT_SIGN,
+        _phases,
+        cfpe_pair,
+        input_rms,
+        load_cfpe_frames,
+    )
 
     # the 3-step phase of period 42 px is within 0.14 rad RMS of the 12-step one (measured 0.118 rad on scene 06:
     # 0.115 of it periodic in the phase, the projector's response; 0.025 random)

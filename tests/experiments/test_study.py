@@ -110,7 +110,7 @@ def test_tiny_study_trains_every_model_for_equal_steps(tiny_study):
 
 def test_tiny_study_subsets_hold_only_their_frequencies(tiny_study):
     out, _ = tiny_study
-    from dptpu.models.samples import list_samples, read_sample
+    from dptpu.fpp.dataset import list_samples, read_sample
 
     for name in ("S1", "S2"):
         samples = [read_sample(p) for p in list_samples(out / "data" / name)]

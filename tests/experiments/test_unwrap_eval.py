@@ -13,9 +13,6 @@ import cv2
 import numpy as np
 import pytest
 
-from dptpu.models.evaluate import Row
-from dptpu.models.inference import FringeOrderModel, shipped_model_path
-from dptpu.models.samples import list_samples, read_sample
 from dptpu.experiments.unwrap_eval import (
     DEFAULT_SEED,
     UnwrapEvalSpec,
@@ -26,6 +23,9 @@ from dptpu.experiments.unwrap_eval import (
     spec_from_dataset,
 )
 from dptpu.experiments.unwrap_eval_plots import error_plot_size, heatmap_size
+from dptpu.fpp.dataset import list_samples, read_sample
+from dptpu.models.evaluate import Row
+from dptpu.models.inference import FringeOrderModel, shipped_model_path
 
 FREQUENCIES = (16.0, 56.0, 96.0)
 NOISE = (1.5693, 3.1386)

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from dptpu.cli.main import main
-from dptpu.models.samples import list_samples, read_sample
+from dptpu.fpp.dataset import list_samples, read_sample
 
 from .conftest import TINY_DPTPU
 

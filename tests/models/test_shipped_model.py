@@ -35,7 +35,7 @@ def shipped():
 @pytest.fixture(scope="module")
 def twin_samples(tmp_path_factory):
     """One 320x240 twin scene at f_h = 96, 1 sigma, every method: {method: Sample}."""
-    from dptpu.models.samples import list_samples, read_sample
+    from dptpu.fpp.dataset import list_samples, read_sample
     from dptpu.sim.dataset import DatasetSpec, write_dataset
     from dptpu.sim.rig import nominal_rig
 

@@ -3,9 +3,16 @@ import numpy as np
 import pytest
 
 from dptpu.fpp.calibration import DeviceModel, load_bouguet_pair
-from dptpu.sim.blender_params import (blender_rotation, camera_parameters, euler_xyz_from_matrix,
-                                      matrix_from_euler_xyz, project_blender_camera, projector_parameters,
-                                      spot_size_rad, twin_parameters)
+from dptpu.sim.blender_params import (
+    blender_rotation,
+    camera_parameters,
+    euler_xyz_from_matrix,
+    matrix_from_euler_xyz,
+    project_blender_camera,
+    projector_parameters,
+    spot_size_rad,
+    twin_parameters,
+)
 
 
 def _random_rotation(rng) -> np.ndarray:

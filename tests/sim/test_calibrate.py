@@ -6,9 +6,9 @@ import yaml
 from dptpu.cli.main import main
 from dptpu.fpp.calibration import load_rig
 from dptpu.fpp.capture import read_capture
+from dptpu.fpp.rig_calibration import calibrate_from_folders
 from dptpu.fpp.stereo_calibration import project
 from dptpu.sim.calibrate import DEFAULT_BOARD, board_poses, compare_with_truth, render_calibration_poses
-from dptpu.fpp.rig_calibration import calibrate_from_folders
 from dptpu.sim.rig import nominal_rig
 
 SIZE = (320, 240)  # the nominal rig's 640x480 camera, K scaled by 1/2 (fx = 1300 px)

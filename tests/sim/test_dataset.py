@@ -4,17 +4,8 @@ import pytest
 import yaml
 
 from dptpu.cli.main import main
-from dptpu.sim.dataset import (
-    DATASET_FORMAT,
-    SAMPLE_ARRAYS,
-    SAMPLE_RIG,
-    SAMPLE_SCALARS,
-    DatasetSpec,
-    open_dataset,
-    parse_shard,
-    scene_seed,
-    write_dataset,
-)
+from dptpu.fpp.dataset import DATASET_FORMAT, SAMPLE_ARRAYS, SAMPLE_RIG, SAMPLE_SCALARS, open_dataset
+from dptpu.sim.dataset import DatasetSpec, parse_shard, scene_seed, write_dataset
 from dptpu.sim.raycast import trace
 from dptpu.sim.rig import nominal_rig
 from dptpu.sim.scenes import random_scene
@@ -35,7 +26,7 @@ def dataset_dir(rig, tmp_path_factory):
 
 
 def _by_key(dataset):
-    return {(s["scene_seed"], s["frequency_high"], s["method"], s["noise_sigma"]): s for s in dataset}
+    return {(s.scene_seed, s.frequency_high, s.method, s.noise_sigma): s for s in dataset}
 
 
 def test_files_and_keys_are_as_documented(dataset_dir):
@@ -56,17 +47,17 @@ def test_files_and_keys_are_as_documented(dataset_dir):
     assert dtypes == {"wrapped_high": np.float32, "wrapped_low": np.float32, "coarse_order": np.float32,
                       "label_order": np.int16, "valid": np.bool_}
     sample = dataset[13]  # scene 1, combination 1: f 32, mf, noise 3.1386
-    assert (sample["frequency_high"], sample["method"], sample["noise_sigma"]) == (32.0, "mf", 3.1386)
-    assert sample["scene_seed"] == scene_seed(5, 1) and sample["rig"] == "rig"  # an unnamed Rig
+    assert (sample.frequency_high, sample.method, sample.noise_sigma) == (32.0, "mf", 3.1386)
+    assert sample.scene_seed == scene_seed(5, 1) and sample.rig == "rig"  # an unnamed Rig
     assert meta["rigs"] == [{"name": "rig", "file": "rig.yaml", "scenes": 2}] and dataset.rig_names == ["rig"]
-    lows = {(s["method"], s["frequency_high"]): s["frequency_low"] for s in dataset}
+    lows = {(s.method, s.frequency_high): s.frequency_low for s in dataset}
     assert lows == {("mf", 32.0): 1.0, ("mf", 64.0): 1.0, ("mw", 32.0): 31.0, ("mw", 64.0): 63.0,
                     ("nt", 32.0): 10.9, ("nt", 64.0): 10.9}
     for s in dataset:
         for key in ("wrapped_high", "wrapped_low"):
-            assert s[key].shape == (SIZE[1], SIZE[0])
-            assert s[key].min() >= 0 and s[key].max() < 2 * np.pi
-        assert s["valid"].mean() > 0.2
+            assert getattr(s, key).shape == (SIZE[1], SIZE[0])
+            assert getattr(s, key).min() >= 0 and getattr(s, key).max() < 2 * np.pi
+        assert s.valid.mean() > 0.2
 
 
 def test_labels_agree_with_the_ray_cast_on_noiseless_valid_pixels(rig, dataset_dir):
@@ -77,25 +68,25 @@ def test_labels_agree_with_the_ray_cast_on_noiseless_valid_pixels(rig, dataset_d
         samples = trace(twin, random_scene(twin, seed))
         x_p = samples.projector_xy[..., 0]
         for s in dataset:
-            if s["scene_seed"] != seed or s["noise_sigma"] != 0.0:
+            if s.scene_seed != seed or s.noise_sigma != 0.0:
                 continue
-            valid, f = s["valid"], s["frequency_high"]
+            valid, f = s.valid, s.frequency_high
             true_phase = 2 * np.pi * f * x_p[valid] / 912
-            absolute = s["wrapped_high"][valid] + 2 * np.pi * s["label_order"][valid]
+            absolute = s.wrapped_high[valid] + 2 * np.pi * s.label_order[valid]
             error = np.abs(absolute - true_phase)  # the input phase made absolute, radians
             assert np.median(error) < 0.01 and error.max() < 0.3  # 8-bit quantization; a wrong order is 2 pi
             true_order = np.floor(f * x_p[valid] / 912)
-            assert np.mean(s["label_order"][valid] == true_order) > 0.995  # differs only at the wraps
+            assert np.mean(s.label_order[valid] == true_order) > 0.995  # differs only at the wraps
             assert not (valid & ~samples.lit).any()
-            assert s["label_rejected"] == 0  # noise-free 12-step labels of an effect-free rig are all right
+            assert s.label_rejected == 0  # noise-free 12-step labels of an effect-free rig are all right
 
 
 def test_classical_coarse_order_errors_increase_with_noise(dataset_dir):
     samples = _by_key(open_dataset(dataset_dir))
     rates = {}
     for (seed, f, method, sigma), s in samples.items():
-        valid = s["valid"]
-        wrong = np.count_nonzero(s["coarse_order"][valid] != s["label_order"][valid])
+        valid = s.valid
+        wrong = np.count_nonzero(s.coarse_order[valid] != s.label_order[valid])
         rates.setdefault((f, method, sigma), []).append(wrong / valid.sum())
     rate = {k: float(np.mean(v)) for k, v in rates.items()}
     for f in (32.0, 64.0):
@@ -118,8 +109,8 @@ def test_shards_merged_equal_the_unsharded_set(rig, tmp_path):
     assert len(merged) == len(whole) == 3
     for a, b in zip(whole, merged):
         for key in SAMPLE_ARRAYS:
-            np.testing.assert_array_equal(a[key], b[key])
-        assert a["scene_seed"] == b["scene_seed"] and a["method"] == b["method"]
+            np.testing.assert_array_equal(getattr(a, key), getattr(b, key))
+        assert a.scene_seed == b.scene_seed and a.method == b.method
 
 
 def test_a_partial_shard_reports_missing_samples_and_resumes(rig, tmp_path):
@@ -179,7 +170,7 @@ def test_cli_writes_a_dataset_with_a_progress_bar(tmp_path, capsys):
     assert "1 of 1 samples on disk" in captured.out
     assert "dataset [" in captured.err and "1/1 scenes" in captured.err
     sample = open_dataset(tmp_path / "set")[0]
-    assert sample["method"] == "nt" and sample["frequency_low"] == 10.9
+    assert sample.method == "nt" and sample.frequency_low == 10.9
 
 
 def test_open_dataset_rejects_duplicate_indices_and_misnamed_samples(dataset_dir, tmp_path):

@@ -6,13 +6,8 @@ import yaml
 
 from dptpu.cli.main import main
 from dptpu.cli.sim_dataset_cmd import rig_sources
-from dptpu.sim.dataset import (
-    DatasetSpec,
-    open_dataset,
-    scene_rig,
-    scene_seed,
-    write_dataset,
-)
+from dptpu.fpp.dataset import open_dataset
+from dptpu.sim.dataset import DatasetSpec, scene_rig, scene_seed, write_dataset
 from dptpu.sim.rig import (
     dynamic_rig,
     load_twin_rig,
@@ -70,16 +65,16 @@ def test_a_two_rig_dataset_splits_scenes_and_names_each_samples_rig(two_rig_dir)
     assert dataset.rig_names == ["nominal", "wide"] and len(dataset) == 2
     rigs = dataset.rigs
     assert rigs["wide"].camera.K[0, 0] == pytest.approx(250.0) and rigs["nominal"].camera.K[0, 0] == 650.0
-    assert [s["rig"] for s in dataset] == ["nominal", "wide"]
+    assert [s.rig for s in dataset] == ["nominal", "wide"]
     assert [scene_rig(i, 2) for i in range(2)] == [0, 1]
-    assert [s["scene_seed"] for s in dataset] == [scene_seed(100, 0), scene_seed(100, 1)]
+    assert [s.scene_seed for s in dataset] == [scene_seed(100, 0), scene_seed(100, 1)]
 
 
 def test_wide_rig_labels_reach_order_zero_and_the_last_order(two_rig_dir):
     orders = {}
     for s in open_dataset(two_rig_dir):
-        labels = s["label_order"][s["valid"]]
-        orders[s["rig"]] = (int(labels.min()), int(labels.max()))
+        labels = s.label_order[s.valid]
+        orders[s.rig] = (int(labels.min()), int(labels.max()))
     # measured (seed 100, 160x120, f_h = 32): wide 0..31, nominal 9..20
     assert orders["wide"] == (0, int(F_H) - 1)
     assert orders["nominal"][0] >= 5 and orders["nominal"][1] <= F_H - 6
@@ -110,6 +105,6 @@ def test_a_one_rig_folder_without_rig_names_still_reads_and_resumes(tmp_path):
     np.savez_compressed(path, **arrays)
     dataset = open_dataset(out)
     assert dataset.rig_names == ["rig"] and list(dataset.rigs) == ["rig"]
-    assert dataset[0]["rig"] == "rig" and dataset.rig.camera.size == (96, 72)
+    assert dataset[0].rig == "rig" and dataset.rig.camera.size == (96, 72)
     write_dataset(nominal_rig(), spec, out, shard=(1, 2), progress=False)  # the other shard joins the old folder
     assert len(open_dataset(out)) == 2 and open_dataset(out).missing == 0

@@ -10,8 +10,9 @@ from dptpu.sim.effects.camera import apply_camera_effects, vignetting_factor
 from dptpu.sim.effects.geometry import render_rig
 from dptpu.sim.effects.pattern import defocus_attenuation
 from dptpu.sim.effects.phase import phase_filter
-from dptpu.sim.image_formation import (DEFAULT_AMPLITUDE as A, DEFAULT_OFFSET as O, SequenceSpec,
-                                       reflectance_factor, render_frames, render_frames_float)
+from dptpu.sim.image_formation import DEFAULT_AMPLITUDE as A
+from dptpu.sim.image_formation import DEFAULT_OFFSET as O
+from dptpu.sim.image_formation import SequenceSpec, reflectance_factor, render_frames, render_frames_float
 from dptpu.sim.raycast import trace
 from dptpu.sim.scenes import load_scene
 from dptpu.sim.scenes.scene import posed_mesh

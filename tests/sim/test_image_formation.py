@@ -2,8 +2,15 @@ import numpy as np
 import pytest
 
 from dptpu.fpp.phase import wrapped_phase
-from dptpu.sim.image_formation import (DEFAULT_AMPLITUDE, DEFAULT_OFFSET, SequenceSpec, parse_sequences,
-                                       reflectance_factor, render_frames, render_frames_float)
+from dptpu.sim.image_formation import (
+    DEFAULT_AMPLITUDE,
+    DEFAULT_OFFSET,
+    SequenceSpec,
+    parse_sequences,
+    reflectance_factor,
+    render_frames,
+    render_frames_float,
+)
 from dptpu.sim.raycast import trace
 from dptpu.sim.rig import working_point
 from dptpu.sim.scene_mesh import Material

@@ -1,9 +1,9 @@
 import numpy as np
 import pytest
 
-from dptpu.cli.data_paths import shared_data_dir
 from dptpu.fpp.calibration import save_opencv_rig, save_rig
 from dptpu.fpp.distortion import distort, normalized_to_pixels
+from dptpu.fpp.measured_data import shared_data_dir
 from dptpu.sim.rig import load_twin_rig, nominal_rig, resize_camera, working_distance, working_point
 
 SPHERE_DATA = shared_data_dir() / "dptpu-sphere"

@@ -4,8 +4,14 @@ import yaml
 
 from dptpu.sim.raycast import trace
 from dptpu.sim.rig import working_point
-from dptpu.sim.scenes import (STANDARD_SPHERE_DIAMETER_MM, board_scene, load_scene, primitives, random_scene,
-                              sphere_scene)
+from dptpu.sim.scenes import (
+    STANDARD_SPHERE_DIAMETER_MM,
+    board_scene,
+    load_scene,
+    primitives,
+    random_scene,
+    sphere_scene,
+)
 from dptpu.sim.scenes.scene import euler_xyz_deg
 
 

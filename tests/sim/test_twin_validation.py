@@ -1,7 +1,7 @@
 """Our twin against the paper's twin on the standard sphere (docs/twin-validation.md); needs the paper's data."""
 import pytest
 
-from dptpu.cli.data_paths import shared_data_dir
+from dptpu.fpp.measured_data import shared_data_dir
 
 SPHERE_DATA = shared_data_dir() / "dptpu-sphere"
 pytestmark = pytest.mark.skipif(not SPHERE_DATA.is_dir(),

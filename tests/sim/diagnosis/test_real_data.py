@@ -4,8 +4,8 @@ self-reference. The figures asserted are those of docs/sim-to-real.md."""
 import numpy as np
 import pytest
 
-from dptpu.cli.data_paths import shared_data_dir
 from dptpu.fpp import real_sphere
+from dptpu.fpp.measured_data import shared_data_dir
 from dptpu.sim.diagnosis import diagnose
 from dptpu.sim.diagnosis.measured import load_measured
 from dptpu.sim.diagnosis.report import write_report
