@@ -15,7 +15,7 @@ What is measured, in one run, on one synthetic input of ``--size`` (height x wid
   :func:`dptpu.models.refine.refine_capture_result` calls it for ``dptpu unwrap``;
 - ``classical``: :func:`dptpu.fpp.tpu.unwrap_mf` (Eq. (5) of the paper) of the same wrapped phases;
 - with ``--baseline PATH``, ``baseline_inference`` too: the same inference of a second model file (e.g. the
-  same weights in the traced graph, :func:`dptpu.models.export.convert_onnx`), interleaved run by run.
+  same weights in the traced graph, :func:`dptpu.models.onnx_weights.convert_onnx`), interleaved run by run.
 
 The input is an analytic step scene (:func:`dptpu.models.toy_dataset.toy_sample`, MF, ``f_h = 96``,
 1 sigma noise, 3 steps). Each timing is ``--warmup`` untimed runs then ``--runs`` timed runs (wall clock,

@@ -38,6 +38,7 @@ def register(subparsers) -> None:
 
 
 def run(args) -> int:
+    # imported when the command runs, not at start-up: keeps `dptpu --help` fast
     from dptpu.fpp.calibration import save_rig
     from dptpu.fpp.rig_calibration import calibrate_from_folders, parse_board
 
@@ -56,6 +57,7 @@ def run(args) -> int:
 
 
 def _run_twin(args, board) -> int:
+    # imported when the command runs, not at start-up: keeps `dptpu --help` fast
     from dptpu.fpp.calibration import save_rig
     from dptpu.sim.calibrate import format_report, round_trip
     from dptpu.sim.rig import load_twin_rig

@@ -68,6 +68,7 @@ def _numbers(text, option) -> tuple:
 
 
 def _load_models(args) -> list:
+    # imported when the command runs, not at start-up: keeps `dptpu --help` fast
     from dptpu.models.inference import FringeOrderModel, shipped_model_path
 
     paths = args.model if args.model is not None else [shipped_model_path()]
@@ -82,6 +83,7 @@ def _load_models(args) -> list:
 
 
 def run_unwrap(args) -> int:
+    # imported when the command runs, not at start-up: keeps `dptpu --help` fast
     from dptpu.experiments.unwrap_eval import (
         DEFAULT_SEED,
         EVAL_FREQUENCIES,
@@ -106,6 +108,7 @@ def run_unwrap(args) -> int:
 
 
 def run_sphere(args) -> int:
+    # imported when the command runs, not at start-up: keeps `dptpu --help` fast
     from dptpu.fpp import real_sphere
 
     data_dir = args.data or shared_data_dir() / "dptpu-sphere"

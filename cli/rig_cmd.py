@@ -34,6 +34,7 @@ def register(subparsers) -> None:
 
 
 def run_convert(args) -> int:
+    # imported when the command runs, not at start-up: keeps `dptpu --help` fast
     from dptpu.fpp import calibration
 
     camera_size = _size(args.camera_size) if args.camera_size else None

@@ -40,6 +40,7 @@ def register(sim_subparsers) -> None:
 
 
 def run_twin(args) -> int:
+    # imported when the command runs, not at start-up: keeps `dptpu --help` fast
     from dptpu.sim.blender_params import DEFAULT_PIXEL_PITCH_MM, twin_parameters
     from dptpu.sim.rig import load_twin_rig
 
@@ -56,6 +57,7 @@ def run_twin(args) -> int:
 
 
 def run_setup(args) -> int:
+    # imported when the command runs, not at start-up: keeps `dptpu --help` fast
     from dptpu.sim.blender.environment import BlenderNotInstalledError, setup_blender
 
     try:

@@ -53,6 +53,7 @@ def register(subparsers) -> None:
 
 
 def run_render(args) -> int:
+    # imported when the command runs, not at start-up: keeps `dptpu --help` fast
     from dptpu.sim.effects import load_effects
     from dptpu.sim.image_formation import parse_sequences
     from dptpu.sim.render import render_capture

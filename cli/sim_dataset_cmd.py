@@ -26,6 +26,7 @@ def rig_sources(values) -> list[tuple[str, str]]:
     whose comma-separated parts are all presets (``nominal,wide``) names several rigs. Names: the preset, or the
     file's stem (the camera file's for a Bouguet pair).
     """
+    # imported when the command runs, not at start-up: keeps `dptpu --help` fast
     from dptpu.sim.rig import RIG_PRESETS
 
     sources = []
@@ -71,6 +72,7 @@ def register(sim_subparsers) -> None:
 
 
 def run(args) -> int:
+    # imported when the command runs, not at start-up: keeps `dptpu --help` fast
     from dptpu.fpp.dataset import open_dataset
     from dptpu.sim.dataset import DatasetSpec, parse_shard, write_dataset
     from dptpu.sim.rig import load_twin_rig, parse_size

@@ -104,8 +104,9 @@ def register(subparsers) -> None:
 
 
 def run_train(args: argparse.Namespace) -> int:
-    import torch
+    import torch  # training only
 
+    # imported when the command runs, not at start-up: keeps `dptpu --help` fast
     from dptpu.models.loss import LossWeights
     from dptpu.models.training import TrainOptions, train
 
@@ -127,6 +128,7 @@ def run_train(args: argparse.Namespace) -> int:
 
 
 def run_export(args: argparse.Namespace) -> int:
+    # imported when the command runs, not at start-up: keeps `dptpu --help` fast
     from dptpu.models.export import export_onnx, load_checkpoint_model
 
     model, checkpoint = load_checkpoint_model(args.checkpoint)
@@ -137,6 +139,7 @@ def run_export(args: argparse.Namespace) -> int:
 
 
 def run_eval(args: argparse.Namespace) -> int:
+    # imported when the command runs, not at start-up: keeps `dptpu --help` fast
     from dptpu.models.evaluate import evaluate_dataset, format_summary, write_table
     from dptpu.models.inference import shipped_model_path
 
@@ -155,6 +158,7 @@ def run_eval(args: argparse.Namespace) -> int:
 
 
 def run_toy_data(args: argparse.Namespace) -> int:
+    # imported when the command runs, not at start-up: keeps `dptpu --help` fast
     from dptpu.models.toy_dataset import write_toy_dataset
 
     methods = tuple(m.strip() for m in args.methods.split(",") if m.strip())

@@ -11,6 +11,7 @@ their decomposition (PNG figures), candidate effects ranked by BIC, the extended
 from __future__ import annotations
 
 import json
+import sys
 
 
 def register(subparsers) -> None:
@@ -70,6 +71,7 @@ def register(subparsers) -> None:
 
 
 def run_diagnose(args) -> int:
+    # imported when the command runs, not at start-up: keeps `dptpu --help` fast
     from dptpu.sim.diagnosis import diagnose
     from dptpu.sim.diagnosis.measured import load_measured
     from dptpu.sim.diagnosis.report import write_report
@@ -110,10 +112,9 @@ def run_diagnose(args) -> int:
 
 
 def run_finetune(args) -> int:
-    import sys
+    import torch  # training only
 
-    import torch
-
+    # imported when the command runs, not at start-up: keeps `dptpu --help` fast
     from dptpu.experiments.downstream import DownstreamOptions, run_downstream
     from dptpu.experiments.finetune import FinetuneOptions
 

@@ -50,7 +50,6 @@ __all__ = [
     "MODEL_FORMAT",
     "OPSET",
     "OUTPUT_NAME",
-    "convert_onnx",
     "export_onnx",
     "load_checkpoint_model",
 ]
@@ -85,7 +84,7 @@ def export_onnx(model: nn.Module, out, *, training: dict | None = None, graph: s
     graph : {"fast", "torch"}
         How the DP-TPU graph is written (module docstring); the U-Net baseline is always traced.
     """
-    import onnx
+    import onnx  # an optional dependency (training)
 
     if graph not in GRAPHS:
         raise ValueError(f"export graph must be one of {', '.join(GRAPHS)}; got {graph!r}")
@@ -129,7 +128,7 @@ def _trace(model: nn.Module, path: Path) -> None:
 def _fast_model(model: nn.Module):
     """The ``"fast"`` ModelProto of a DPTPUNet: the graph of :func:`build_dptpu_graph` and, in ``training_info``,
     the raw parameters under their ``state_dict`` names."""
-    from onnx import helper, numpy_helper
+    from onnx import helper, numpy_helper  # an optional dependency (training)
 
     state = {key: value.detach().cpu().numpy().astype(np.float32) for key, value in model.state_dict().items()}
     proto = helper.make_model(build_dptpu_graph(state, model.config),
@@ -150,7 +149,7 @@ def _check_fast_graph(model: nn.Module, proto) -> None:
     """Raise ValueError unless onnxruntime on ``proto`` reproduces ``model`` on a random 37x45 input with invalid
     pixels to :data:`FAST_GRAPH_TOLERANCE` (a guard for edits of ``DPTPUNet.forward`` that
     :mod:`dptpu.models.onnx_graph` does not follow)."""
-    import onnxruntime
+    import onnxruntime  # the check runs only at export; importers of export need not load it
 
     rng = np.random.default_rng(0)
     shape = (1, 1, 37, 45)
@@ -170,19 +169,6 @@ def _check_fast_graph(model: nn.Module, proto) -> None:
         raise ValueError(f"the fast ONNX graph of this network is {difference:.3g} fringe orders away from "
                          f"DPTPUNet.forward (limit {FAST_GRAPH_TOLERANCE:g}): models/onnx_graph.py does not "
                          "follow models/network.py; export with graph='torch'")
-
-
-def convert_onnx(path, out, *, graph: str = "fast") -> Path:
-    """Write the model of the exported file ``path`` again with ``graph`` (e.g. a traced model as a fast one).
-
-    The weights are read back with :func:`dptpu.models.onnx_weights.load_onnx_model` (checked against
-    onnxruntime), the metadata's ``training`` is kept; returns ``out``.
-    """
-    from .onnx_weights import load_onnx_model
-
-    model, training = load_onnx_model(path)
-    training = {k: v for k, v in training.items() if k not in ("kind", "config", "max_abs_difference")}
-    return export_onnx(model, out, training=training, graph=graph)
 
 
 def load_checkpoint_model(path) -> tuple[nn.Module, dict]:

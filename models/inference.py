@@ -72,7 +72,7 @@ class FringeOrderModel:
             Let idle intra-op threads spin (``allow_spinning = 1``): only on otherwise idle cores, where a
             thread woken for every parallel op costs more than the op.
         """
-        import onnxruntime as ort
+        import onnxruntime as ort  # heavy: loaded with the first model, not with the module
 
         path = Path(path)
         if not path.is_file():

@@ -62,7 +62,7 @@ class _Graph:
         return self.const(np.array(values, dtype=np.int64), dtype=np.int64, hint="ints")
 
     def op(self, op_type: str, inputs, outputs: int = 1, **attrs):
-        from onnx import helper
+        from onnx import helper  # an optional dependency (training)
 
         names = [self.name(op_type) for _ in range(outputs)]
         self.nodes.append(helper.make_node(op_type, list(inputs), names, name=names[0], **attrs))
@@ -276,9 +276,9 @@ def build_dptpu_graph(state: dict, config):
         ``frequency_high`` ``(B,)``; output ``fringe_order`` ``(B, 1, H, W)``: the continuous fringe order of
         ``DPTPUNet.forward`` (:mod:`dptpu.models.export`).
     """
-    from onnx import TensorProto, helper, numpy_helper
+    from onnx import TensorProto, helper, numpy_helper  # an optional dependency (training)
 
-    from .network import (
+    from .network import (  # torch: the inference side imports this module without it
         CONSISTENCY_CLIP,
         FILL,
         GATE_GAIN,

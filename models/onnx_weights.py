@@ -23,9 +23,11 @@ import numpy as np
 import torch
 from torch import nn
 
+from .export import export_onnx
 from .factory import build_model
+from .inference import FringeOrderModel
 
-__all__ = ["MAX_ABS_DIFFERENCE", "load_onnx_model"]
+__all__ = ["MAX_ABS_DIFFERENCE", "convert_onnx", "load_onnx_model"]
 
 #: Largest accepted difference (fringe orders) between the recovered torch network and onnxruntime.
 MAX_ABS_DIFFERENCE = 1e-3
@@ -33,7 +35,7 @@ MAX_ABS_DIFFERENCE = 1e-3
 
 def _initializers(proto) -> dict:
     """The graph's initializers and those of its ``training_info`` (where a fast graph keeps the raw parameters)."""
-    from onnx import numpy_helper
+    from onnx import numpy_helper  # onnx: an optional dependency (training)
 
     found = {init.name: numpy_helper.to_array(init) for init in proto.graph.initializer}
     for info in proto.training_info:
@@ -88,9 +90,7 @@ def _folded_names_cached(kind: str, config_json: str, keys: tuple) -> tuple:
     scale is no marker). The anonymous names (``onnx::Mul_N``) depend on what the exporter traced before in the
     process, so they are matched by their position among the anonymous initializers, which the architecture fixes.
     """
-    import onnx
-
-    from .export import export_onnx
+    import onnx  # an optional dependency (training)
 
     model = build_model(kind, json.loads(config_json))
     state = model.state_dict()
@@ -130,8 +130,6 @@ def _folded_names_cached(kind: str, config_json: str, keys: tuple) -> tuple:
 
 
 def _check_against_onnxruntime(model: nn.Module, path: Path) -> float:
-    from .inference import FringeOrderModel
-
     generator = np.random.default_rng(0)
     high, low = (generator.uniform(0, 2 * np.pi, (1, 48, 80)).astype(np.float32) for _ in range(2))
     coarse = generator.integers(0, 40, (1, 48, 80)).astype(np.float32)
@@ -162,7 +160,7 @@ def load_onnx_model(path) -> tuple[nn.Module, dict]:
         Not a dptpu ONNX model, a parameter that cannot be found in it, or a network that does not reproduce
         onnxruntime's output (then pass the training checkpoint instead).
     """
-    import onnx
+    import onnx  # an optional dependency (training)
 
     path = Path(path)
     if not path.is_file():
@@ -207,3 +205,14 @@ def load_onnx_model(path) -> tuple[nn.Module, dict]:
                          f"orders away from onnxruntime's (limit {MAX_ABS_DIFFERENCE:g}); pass the training "
                          "checkpoint instead")
     return model, {**training, "kind": kind, "config": config, "max_abs_difference": difference}
+
+
+def convert_onnx(path, out, *, graph: str = "fast") -> Path:
+    """Write the model of the exported file ``path`` again with ``graph`` (e.g. a traced model as a fast one).
+
+    The weights are read back with :func:`load_onnx_model` (checked against onnxruntime), the metadata's
+    ``training`` is kept; returns ``out``.
+    """
+    model, training = load_onnx_model(path)
+    training = {k: v for k, v in training.items() if k not in ("kind", "config", "max_abs_difference")}
+    return export_onnx(model, out, training=training, graph=graph)

@@ -147,7 +147,7 @@ def trace(rig: Rig, meshes) -> SurfaceSamples:
     -------
     SurfaceSamples
     """
-    import open3d as o3d
+    import open3d as o3d  # heavy: loaded on first use
 
     if hasattr(meshes, "meshes"):
         meshes = meshes.meshes

@@ -75,7 +75,7 @@ def ground_truth(rig: Rig, samples: SurfaceSamples, sequences) -> dict:
 def _blender_frames(rig: Rig, meshes, sequences, effects, *, seed, bit_depth, exposure, samples_per_pixel, albedo,
                     hit):
     try:  # the Blender renderer is optional: an installation may lack it
-        from dptpu.sim import blender
+        from dptpu.sim import blender  # optional
     except ModuleNotFoundError as exc:
         if exc.name != "dptpu.sim.blender":
             raise

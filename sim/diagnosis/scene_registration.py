@@ -32,7 +32,7 @@ ICP_DISTANCES_MM = (10.0, 3.0, 1.0, 0.3)
 
 
 def _point_cloud(points, normals=None):
-    import open3d as o3d
+    import open3d as o3d  # heavy: loaded on first use
 
     cloud = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(np.ascontiguousarray(points, dtype=np.float64)))
     if normals is not None:
@@ -45,7 +45,7 @@ def icp_pose(measured_points: np.ndarray, surface_points: np.ndarray, surface_no
     """Rigid transform (4, 4) carrying the surface (N, 3) onto the measured points (M, 3): point-to-plane
     ICP of the measured points onto the surface (its ``normals``), inverted; ``mm`` is one millimetre in the
     points' units."""
-    import open3d as o3d
+    import open3d as o3d  # heavy: loaded on first use
 
     registration = o3d.pipelines.registration
     source, target = _point_cloud(measured_points), _point_cloud(surface_points, surface_normals)

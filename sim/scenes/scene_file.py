@@ -258,7 +258,7 @@ def _fit(vertices, size):
 
 def load_mesh_file(path) -> tuple[np.ndarray, np.ndarray]:
     """Vertices (V, 3) float64 and triangles (T, 3) int32 of a mesh file (STL, OBJ, PLY, OFF, ... via open3d)."""
-    import open3d as o3d
+    import open3d as o3d  # heavy: loaded on first use
 
     path = Path(path)
     if not path.is_file():

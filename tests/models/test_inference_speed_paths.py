@@ -11,7 +11,8 @@ import numpy as np
 import pytest
 import torch
 
-from dptpu.models.export import convert_onnx, export_onnx
+from dptpu.models.export import export_onnx
+from dptpu.models.onnx_weights import convert_onnx
 from dptpu.models.factory import build_model
 from dptpu.models.inference import FringeOrderModel, shipped_model_path
 from dptpu.models.onnx_graph import GRAPH_FORMAT
