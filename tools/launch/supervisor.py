@@ -33,7 +33,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TextIO
 
-from .launch_file import NodeLaunch
+from .launch_plan import NodeLaunch
 from .output_prefix import LineSink, start_pipe_reader
 from .process_groups import group_alive, signal_group
 from .respawn import RespawnPolicy
