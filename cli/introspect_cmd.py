@@ -22,11 +22,14 @@ Every command takes ``--domain-id`` (default ``$DPTPU_DOMAIN_ID``, ``$ROS_DOMAIN
 ``--spin-time S`` (how long to wait for a named node/topic/service to appear; default 0.5 s).
 Exit codes: 0 done; 1 a runtime failure (no message or response within ``--timeout``, a parameter
 refused, a service error); 2 bad input or an unknown node, topic or service (one line on stderr).
-The work is done in :mod:`dptpu.tools.introspection`; the user guide is ``docs/introspection.md``.
+The work is done in :mod:`dptpu.tools.introspection`; this module parses the arguments, prints and picks the
+exit code. The user guide is ``docs/introspection.md``.
+
+Each command imports the introspection tools inside its function: ``dptpu`` imports every command module to
+build its parser, and the tools bring the runtime (ZeroMQ) with them, which the other commands do not need.
 """
 from __future__ import annotations
 
-import re
 import sys
 import time
 
@@ -34,11 +37,6 @@ import time
 DEFAULT_SPIN_TIME_S = 0.5
 #: Default seconds to wait for a service (parameter services too) and its response.
 DEFAULT_SERVICE_TIMEOUT_S = 5.0
-#: Seconds between two ``hz`` / ``bw`` reports (as ros2).
-REPORT_PERIOD_S = 1.0
-
-_PARAMETER_TYPE_NAMES = ("not set", "boolean", "integer", "double", "string", "byte array", "boolean array",
-                         "integer array", "double array", "string array")
 
 
 # --------------------------------------------------------------------------------------------------
@@ -177,7 +175,7 @@ def _check_seconds(value, option: str, *, allow_none: bool = True) -> None:
 
 
 def _domain(args) -> int:
-    from dptpu.graph.discovery import resolve_domain_id
+    from dptpu.graph.discovery import resolve_domain_id  # deferred: CLI start-up (see the module docstring)
 
     return resolve_domain_id(args.domain_id)
 
@@ -187,53 +185,9 @@ def _spin_time(args) -> float:
     return args.spin_time
 
 
-def _topic_name(name: str) -> str:
-    from dptpu.graph.names import expand_topic_name
-
-    return expand_topic_name(name, "_dptpu_cli", "/")
-
-
-def _service_name(name: str) -> str:
-    from dptpu.graph.names import expand_topic_name
-
-    return expand_topic_name(name, "_dptpu_cli", "/", is_service=True)
-
-
-def _node_name(name: str) -> str:
-    if not isinstance(name, str) or not re.match(r"^/?[A-Za-z_][A-Za-z0-9_]*(/[A-Za-z_][A-Za-z0-9_]*)*$", name):
-        raise ValueError(f"node name must look like /name or /namespace/name; got {name!r}")
-    return name if name.startswith("/") else "/" + name
-
-
 def _fail(args, message: str) -> int:
     print(f"dptpu {args.command} {args.verb}: {message}", file=sys.stderr, flush=True)
     return 1
-
-
-def _message_class(info, *, required: bool):
-    """The registered class of a topic's single type; None (raw) when unknown and not ``required``."""
-    from dptpu.messages.registry import is_registered, lookup
-
-    types = [t for t in info.types if t != "*"]
-    if len(types) != 1:
-        raise ValueError(f"topic {info.name} has {len(types)} types ({', '.join(types) or 'none'}); "
-                         "expected exactly one")
-    if is_registered(types[0]):
-        return lookup(types[0])
-    if required:
-        raise ValueError(f"topic {info.name} has type {types[0]}, which this dptpu does not know; "
-                         "`dptpu topic hz` and `bw` still work on it")
-    return None
-
-
-class _Timeout(Exception):
-    pass
-
-
-def _result(future, timeout_s: float, what: str):
-    if not future.wait(timeout_s):
-        raise _Timeout(f"no response to {what} within {timeout_s:g} s")
-    return future.result()
 
 
 # --------------------------------------------------------------------------------------------------
@@ -241,7 +195,7 @@ def _result(future, timeout_s: float, what: str):
 # --------------------------------------------------------------------------------------------------
 
 def run_node_list(args) -> int:
-    from dptpu.tools.introspection import node_names, read_graph
+    from dptpu.tools.introspection import node_names, read_graph  # deferred: CLI start-up
 
     names = node_names(read_graph(_domain(args), include_hidden=args.all))
     if args.count_nodes:
@@ -257,9 +211,9 @@ def run_node_list(args) -> int:
 
 
 def run_node_info(args) -> int:
-    from dptpu.tools.introspection import find_node, format_node_info
+    from dptpu.tools.introspection import find_node, format_node_info, node_name  # deferred: CLI start-up
 
-    print(format_node_info(find_node(_node_name(args.node), _domain(args), wait_s=_spin_time(args))))
+    print(format_node_info(find_node(node_name(args.node), _domain(args), wait_s=_spin_time(args))))
     return 0
 
 
@@ -268,7 +222,7 @@ def run_node_info(args) -> int:
 # --------------------------------------------------------------------------------------------------
 
 def run_topic_list(args) -> int:
-    from dptpu.tools.introspection import read_graph
+    from dptpu.tools.introspection import read_graph  # deferred: CLI start-up
 
     graph = read_graph(_domain(args), include_hidden=args.all)
     if args.count_topics:
@@ -281,101 +235,69 @@ def run_topic_list(args) -> int:
 
 
 def run_topic_info(args) -> int:
-    from dptpu.tools.introspection import find_topic, format_topic_info
+    from dptpu.tools.introspection import find_topic, format_topic_info, topic_name  # deferred: CLI start-up
 
-    info = find_topic(_topic_name(args.topic), _domain(args), wait_s=_spin_time(args), need_publisher=False)
+    info = find_topic(topic_name(args.topic), _domain(args), wait_s=_spin_time(args), need_publisher=False)
     print(format_topic_info(info, verbose=args.verbose))
     return 0
 
 
 def run_topic_type(args) -> int:
-    from dptpu.tools.introspection import find_topic
+    from dptpu.tools.introspection import find_topic, topic_name  # deferred: CLI start-up
 
-    info = find_topic(_topic_name(args.topic), _domain(args), wait_s=_spin_time(args), need_publisher=False)
+    info = find_topic(topic_name(args.topic), _domain(args), wait_s=_spin_time(args), need_publisher=False)
     for type_name in info.types:
         print(type_name)
     return 0
 
 
-def _spin_until(executor, done, deadline) -> bool:
-    """Spin until ``done()``; False when ``deadline`` (monotonic s, or None) passed first."""
-    while not done():
-        if deadline is None:
-            executor.spin_once(timeout_sec=0.5)
-            continue
-        remaining = deadline - time.monotonic()
-        if remaining <= 0:
-            return False
-        executor.spin_once(timeout_sec=remaining)
-    return True
-
-
 def run_topic_echo(args) -> int:
-    from dptpu.tools.introspection import (cli_node, find_topic, message_to_dict, message_to_json, message_to_yaml,
-                                           subscription_qos)
+    from dptpu.tools.introspection import (  # deferred: CLI start-up
+        echo_topic,
+        message_to_dict,
+        message_to_json,
+        message_to_yaml,
+        topic_name,
+    )
 
     _check_seconds(args.timeout, "--timeout")
     if args.count is not None and args.count < 1:
         raise ValueError(f"--count must be >= 1; got {args.count}")
     if args.qos_depth < 1:
         raise ValueError(f"--qos-depth must be >= 1; got {args.qos_depth}")
-    limit = 1 if args.once else args.count
-    topic = _topic_name(args.topic)
-    domain = _domain(args)
-    info = find_topic(topic, domain, wait_s=_spin_time(args))
-    msg_type = _message_class(info, required=True)
-    qos = subscription_qos([p.qos for p in info.publishers], depth=args.qos_depth)
-    printed = [0]
+    topic = topic_name(args.topic)
 
     def on_message(msg) -> None:
-        if limit is not None and printed[0] >= limit:
-            return
         data = message_to_dict(msg)
         if args.json:
             print(message_to_json(data), flush=True)
         else:
             print(message_to_yaml(data) + "\n---", flush=True)
-        printed[0] += 1
 
-    deadline = None if args.timeout is None else time.monotonic() + args.timeout
     try:
-        with cli_node(domain) as (node, executor):
-            node.create_subscription(msg_type, topic, on_message, qos)
-            finished = _spin_until(executor, lambda: limit is not None and printed[0] >= limit, deadline)
+        printed = echo_topic(topic, _domain(args), on_message, wait_s=_spin_time(args), depth=args.qos_depth,
+                             limit=1 if args.once else args.count, timeout_s=args.timeout)
     except KeyboardInterrupt:
         return 0
-    if not finished and not printed[0]:
+    if not printed:
         return _fail(args, f"no message on {topic} within {args.timeout:g} s")
     return 0
 
 
 def _measure(args, on_frames, report) -> int:
-    """Subscribe raw to the topic, call ``on_frames(views)`` per message and ``report()`` every second."""
-    from dptpu.tools.introspection import cli_node, find_topic, subscription_qos
+    """Subscribe raw to the topic, call ``on_frames(frames)`` per message and ``report()`` every second."""
+    from dptpu.tools.introspection import measure_topic, topic_name  # deferred: CLI start-up
 
     _check_seconds(args.timeout, "--timeout")
-    topic = _topic_name(args.topic)
-    domain = _domain(args)
-    info = find_topic(topic, domain, wait_s=_spin_time(args))
-    msg_type = _message_class(info, required=False)
-    qos = subscription_qos([p.qos for p in info.publishers], depth=100)
-    deadline = None if args.timeout is None else time.monotonic() + args.timeout
-    reports = 0
+    topic = topic_name(args.topic)
+
+    def on_subscribed() -> None:
+        if args.verb == "bw":
+            print(f"Subscribed to [{topic}]", flush=True)
+
     try:
-        with cli_node(domain) as (node, executor):
-            node.create_subscription(msg_type, topic, on_frames, qos, raw=True)
-            if args.verb == "bw":
-                print(f"Subscribed to [{topic}]", flush=True)
-            next_report = time.monotonic() + REPORT_PERIOD_S
-            while True:
-                now = time.monotonic()
-                if deadline is not None and now >= deadline:
-                    break
-                until = next_report if deadline is None else min(next_report, deadline)
-                executor.spin_once(timeout_sec=max(0.0, until - now))
-                if time.monotonic() >= next_report:
-                    next_report += REPORT_PERIOD_S
-                    reports += bool(report())
+        reports = measure_topic(topic, _domain(args), on_frames, report, wait_s=_spin_time(args),
+                                timeout_s=args.timeout, on_subscribed=on_subscribed)
     except KeyboardInterrupt:
         return 0
     if not reports:
@@ -385,8 +307,7 @@ def _measure(args, on_frames, report) -> int:
 
 
 def run_topic_hz(args) -> int:
-    from dptpu.tools.introspection import RateWindow, format_rate
-    from dptpu.tools.introspection.rate_statistics import DEFAULT_RATE_WINDOW
+    from dptpu.tools.introspection import DEFAULT_RATE_WINDOW, RateWindow, format_rate  # deferred: CLI start-up
 
     window = RateWindow(DEFAULT_RATE_WINDOW if args.window is None else args.window)
     seen = [0]
@@ -406,8 +327,11 @@ def run_topic_hz(args) -> int:
 
 
 def run_topic_bw(args) -> int:
-    from dptpu.tools.introspection import BandwidthWindow, format_bandwidth
-    from dptpu.tools.introspection.bandwidth_statistics import DEFAULT_BANDWIDTH_WINDOW
+    from dptpu.tools.introspection import (  # deferred: CLI start-up
+        DEFAULT_BANDWIDTH_WINDOW,
+        BandwidthWindow,
+        format_bandwidth,
+    )
 
     window = BandwidthWindow(DEFAULT_BANDWIDTH_WINDOW if args.window is None else args.window)
 
@@ -428,69 +352,40 @@ def run_topic_bw(args) -> int:
 # param
 # --------------------------------------------------------------------------------------------------
 
-def _parameter_node(args, name: str, domain: int):
-    """The NodeInfo of ``name``, which must serve the parameter services."""
-    from dptpu.tools.introspection import find_node
-
-    info = find_node(_node_name(name), domain, wait_s=_spin_time(args))
-    if f"{info.fully_qualified_name}/get_parameters" not in {service for service, _ in info.services}:
-        raise ValueError(f"node {info.fully_qualified_name} serves no parameter services (it was created with "
-                         "start_parameter_services=False)")
-    return info
-
-
-def _parameter_client(node, fqn: str, timeout_s: float):
-    from dptpu.graph.parameter_client import AsyncParameterClient
-
-    client = AsyncParameterClient(node, fqn)
-    if not client.wait_for_services(timeout_sec=timeout_s):
-        raise _Timeout(f"the parameter services of {fqn} did not become available within {timeout_s:g} s")
-    return client
-
-
 def _with_parameters(args, node_names, work) -> int:
     """Run ``work(client, fqn)`` for each node with a connected parameter client; map failures to exit 1."""
-    from dptpu.graph import ServiceCallError
-    from dptpu.tools.introspection import cli_node
+    from dptpu.graph import ServiceCallError  # deferred: CLI start-up
+    from dptpu.tools.introspection import with_parameter_clients
 
     _check_seconds(args.timeout, "--timeout", allow_none=False)
-    domain = _domain(args)
-    infos = [_parameter_node(args, name, domain) for name in node_names]
     try:
-        with cli_node(domain) as (node, _executor):
-            code = 0
-            for info in infos:
-                client = _parameter_client(node, info.fully_qualified_name, args.timeout)
-                code = max(code, work(client, info.fully_qualified_name) or 0)
-            return code
-    except (_Timeout, ServiceCallError) as exc:
+        return with_parameter_clients(node_names, _domain(args), work, wait_s=_spin_time(args),
+                                      timeout_s=args.timeout)
+    except (TimeoutError, ServiceCallError) as exc:
         return _fail(args, str(exc))
     except KeyboardInterrupt:
         return 1
 
 
-def _parameter_names(client, fqn: str, timeout_s: float) -> list[str]:
-    return client.names_of(_result(client.list_parameters(), timeout_s, f"list_parameters of {fqn}"))
-
-
 def run_param_list(args) -> int:
-    from dptpu.tools.introspection import read_graph
+    from dptpu.tools.introspection import (  # deferred: CLI start-up
+        parameter_names,
+        parameter_types,
+        read_graph,
+        serves_parameters,
+    )
 
     if args.node is None:
-        graph = read_graph(_domain(args))
-        names = [n.fully_qualified_name for n in graph.nodes
-                 if f"{n.fully_qualified_name}/get_parameters" in {s for s, _ in n.services}]
+        names = [n.fully_qualified_name for n in read_graph(_domain(args)).nodes if serves_parameters(n)]
     else:
         names = [args.node]
 
     def work(client, fqn: str) -> int:
-        parameters = _parameter_names(client, fqn, args.timeout)
+        parameters = parameter_names(client, fqn, args.timeout)
         if args.node is None:
             print(f"{fqn}:")
         if args.param_type and parameters:
-            response = _result(client.get_parameter_types(parameters), args.timeout, f"get_parameter_types of {fqn}")
-            for name, code in zip(parameters, [int(c) for c in response.types]):
-                kind = _PARAMETER_TYPE_NAMES[code] if 0 <= code < len(_PARAMETER_TYPE_NAMES) else str(code)
+            for name, kind in zip(parameters, parameter_types(client, fqn, parameters, args.timeout)):
                 print(f"  {name} (type: {kind})")
         else:
             for name in parameters:
@@ -501,34 +396,23 @@ def run_param_list(args) -> int:
 
 
 def run_param_get(args) -> int:
-    from dptpu.graph import Parameter
-    from dptpu.tools.introspection import UnknownNameError, format_parameter_value
-    from dptpu.graph.parameters import parameter_value_to_python
+    from dptpu.tools.introspection import format_parameter_value, get_parameter  # deferred: CLI start-up
 
     def work(client, fqn: str) -> int:
-        response = _result(client.get_parameters([args.name]), args.timeout, f"get_parameters of {fqn}")
-        value = response.values[0]
-        if value.type == Parameter.Type.NOT_SET:
-            names = _parameter_names(client, fqn, args.timeout)
-            if args.name not in names:
-                raise UnknownNameError(f"node {fqn} has no parameter {args.name!r}; its parameters: "
-                                       f"{', '.join(names) or '(none)'}")
-        print(format_parameter_value(value.type, parameter_value_to_python(value), hide_type=args.hide_type))
+        type_code, value = get_parameter(client, fqn, args.name, args.timeout)
+        print(format_parameter_value(type_code, value, hide_type=args.hide_type))
         return 0
 
     return _with_parameters(args, [args.node], work)
 
 
 def run_param_set(args) -> int:
-    from dptpu.graph import Parameter
-    from dptpu.tools.introspection import parse_parameter_value
+    from dptpu.tools.introspection import parse_parameter_value, set_parameter  # deferred: CLI start-up
 
     value = parse_parameter_value(args.value)
 
     def work(client, fqn: str) -> int:
-        response = _result(client.set_parameters([Parameter(args.name, value=value)]), args.timeout,
-                           f"set_parameters of {fqn}")
-        result = response.results[0]
+        result = set_parameter(client, fqn, args.name, value, args.timeout)
         if result.successful:
             print("Set parameter successful")
             return 0
@@ -539,12 +423,10 @@ def run_param_set(args) -> int:
 
 
 def run_param_dump(args) -> int:
-    from dptpu.tools.introspection import parameters_yaml
+    from dptpu.tools.introspection import parameter_values, parameters_yaml  # deferred: CLI start-up
 
     def work(client, fqn: str) -> int:
-        names = _parameter_names(client, fqn, args.timeout)
-        response = _result(client.get_parameters(names), args.timeout, f"get_parameters of {fqn}")
-        sys.stdout.write(parameters_yaml(fqn, dict(zip(names, client.values_of(response)))))
+        sys.stdout.write(parameters_yaml(fqn, parameter_values(client, fqn, args.timeout)))
         return 0
 
     return _with_parameters(args, [args.node], work)
@@ -555,7 +437,7 @@ def run_param_dump(args) -> int:
 # --------------------------------------------------------------------------------------------------
 
 def run_service_list(args) -> int:
-    from dptpu.tools.introspection import read_graph
+    from dptpu.tools.introspection import read_graph  # deferred: CLI start-up
 
     graph = read_graph(_domain(args), include_hidden=args.all)
     served = {name: info for name, info in graph.services.items() if info.servers}
@@ -568,51 +450,38 @@ def run_service_list(args) -> int:
 
 
 def run_service_type(args) -> int:
-    from dptpu.tools.introspection import find_service
+    from dptpu.tools.introspection import find_service, service_name  # deferred: CLI start-up
 
-    for type_name in find_service(_service_name(args.service), _domain(args), wait_s=_spin_time(args)).types:
+    for type_name in find_service(service_name(args.service), _domain(args), wait_s=_spin_time(args)).types:
         print(type_name)
     return 0
 
 
-def _service_class(type_name: str):
-    from dptpu.graph.interfaces import lookup_service
-
-    match = re.match(r"^([a-z][a-z0-9_]*)/(?:srv/)?([A-Z][A-Za-z0-9]*)$", type_name or "")
-    if match is None:
-        raise ValueError(f"service type must look like package/srv/Name (e.g. std_srvs/srv/Trigger); "
-                         f"got {type_name!r}")
-    full = f"{match.group(1)}/srv/{match.group(2)}"
-    try:
-        return lookup_service(full)
-    except KeyError as exc:
-        raise ValueError(exc.args[0]) from None
-
-
 def run_service_call(args) -> int:
-    from dptpu.graph import ServiceCallError
-    from dptpu.tools.introspection import (cli_node, find_service, message_from_yaml, message_repr, message_to_dict,
-                                           message_to_json)
+    from dptpu.graph import ServiceCallError  # deferred: CLI start-up
+    from dptpu.tools.introspection import (
+        call_service,
+        message_from_yaml,
+        message_repr,
+        message_to_dict,
+        message_to_json,
+        service_class,
+        service_name,
+    )
 
     _check_seconds(args.timeout, "--timeout", allow_none=False)
-    service = _service_name(args.service)
-    srv_type = _service_class(args.type)
+    service = service_name(args.service)
+    srv_type = service_class(args.type)
     request = message_from_yaml(srv_type.Request, args.values)
-    domain = _domain(args)
-    info = find_service(service, domain, wait_s=_spin_time(args))
-    if srv_type.TYPE_NAME not in info.types:
-        raise ValueError(f"service {service} has type {', '.join(info.types)}; got {srv_type.TYPE_NAME}")
+
+    def before_call() -> None:
+        if not args.json:
+            print(f"requester: making request: {message_repr(request)}\n", flush=True)
+
     try:
-        with cli_node(domain) as (node, _executor):
-            client = node.create_client(srv_type, service)
-            if not client.wait_for_service(timeout_sec=args.timeout):
-                return _fail(args, f"service {service} did not become available within {args.timeout:g} s")
-            if not args.json:
-                print(f"requester: making request: {message_repr(request)}\n", flush=True)
-            response = client.call(request, timeout_sec=args.timeout)
-    except TimeoutError as exc:
-        return _fail(args, str(exc))
-    except ServiceCallError as exc:
+        response = call_service(service, srv_type, request, _domain(args), wait_s=_spin_time(args),
+                                timeout_s=args.timeout, before_call=before_call)
+    except (TimeoutError, ServiceCallError) as exc:
         return _fail(args, str(exc))
     except KeyboardInterrupt:
         return 1
@@ -621,4 +490,3 @@ def run_service_call(args) -> int:
     else:
         print(f"response:\n{message_repr(response)}\n")
     return 0
-

@@ -14,8 +14,14 @@ from __future__ import annotations
 
 import time
 
-from dptpu.graph.discovery import (DirectoryScanner, GraphSnapshot, domain_directory, host_identity, resolve_domain_id,
-                         snapshot_from_entries)
+from dptpu.graph.discovery import (
+    DirectoryScanner,
+    GraphSnapshot,
+    domain_directory,
+    host_identity,
+    resolve_domain_id,
+    snapshot_from_entries,
+)
 
 __all__ = ["UnknownNameError", "is_hidden_node", "read_graph", "find_node", "find_topic", "find_service",
            "node_names", "format_node_info", "format_topic_info", "LOOKUP_POLL_S"]
