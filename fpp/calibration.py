@@ -12,7 +12,7 @@ Readers:
   ``T`` as written by projector-camera calibration tools, world = camera frame; our writer adds ``cam_R``,
   ``cam_T``, ``cam_size``, ``proj_size``, ``units``) or one file per device (``camera_matrix``,
   ``distortion_coefficients``, ``image_width``, ``image_height``, optional ``R`` or ``rvec`` and ``T``);
-- ``dptpu-rig/1`` YAML (ARCHITECTURE.md).
+- ``dptpu-rig/1`` YAML (docs/architecture.md).
 
 Writers: ``dptpu-rig/1`` YAML and the OpenCV FileStorage rig file.
 """

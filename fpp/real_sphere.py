@@ -8,7 +8,7 @@ calibration/phase combinations:
   ``|phase| >= 10``; projector column ``x_p - 1`` with ``x_p = phase / (2 pi 96) * 912``; one pinhole 3x3
   solve per pixel, no lens distortion; algebraic sphere fit; RMS of (distance to centre - radius).
 - :func:`own_reconstruction` is the project's: the camera-projector pose refined over all nine calibration
-  views instead of taken from view 1, the 0-based convention of ARCHITECTURE.md (no ``- 1``), camera and
+  views instead of taken from view 1, the 0-based convention of docs/architecture.md (no ``- 1``), camera and
   projector lens distortion (:class:`~dptpu.fpp.triangulate.Triangulator`), a geometric sphere fit, and, as a
   second figure, the same after removing the unreliable edge band by a stated incidence rule.
 

@@ -32,7 +32,7 @@ _AXES = {"x": 0, "y": 1}
 def projector_coordinate(absolute_phase: np.ndarray, frequency: float, extent: float) -> np.ndarray:
     """Projector coordinate along the fringe axis from absolute phase, ``x_p = phi W / (2 pi f)``.
 
-    Inverse of the convention ``phi = 2 pi f x_p / W`` (ARCHITECTURE.md). NaN stays NaN.
+    Inverse of the convention ``phi = 2 pi f x_p / W`` (docs/architecture.md). NaN stays NaN.
     """
     if not np.isfinite(frequency) or frequency <= 0:
         raise ValueError(f"frequency must be a positive number of periods; got {frequency}")

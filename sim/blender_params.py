@@ -19,7 +19,7 @@ those ratios, so for angles within +-90 deg Table 1 gives the same numbers as ``
 test on the DP-TPU calibration); ``atan2`` also keeps the quadrant beyond that.
 
 Blender's pinhole (``sensor_fit='HORIZONTAL'``): focal length in pixels ``f = lens / sensor_width * W``; the
-principal point, 0-based (ARCHITECTURE.md), is ``cx = W/2 - 0.5 - shift_x W`` and ``cy = H/2 - 0.5 + shift_y W``
+principal point, 0-based (docs/architecture.md), is ``cx = W/2 - 0.5 - shift_x W`` and ``cy = H/2 - 0.5 + shift_y W``
 (both shifts are fractions of the fitted dimension, the width; Blender's image y grows upwards). What Blender's
 camera cannot represent: skew (``K[0, 1]``), unequal focal lengths ``fx != fy`` (only through the render's pixel
 aspect, which changes the pixel grid) and lens distortion. :mod:`dptpu.sim.blender` therefore renders an ideal

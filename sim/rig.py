@@ -12,7 +12,7 @@ model of Table 1). Sources:
 - ``"dynamic"``: :func:`dynamic_rig`, the paper's second ("dynamic", unseen) rig from its published numbers;
 - ``"wide"``: :func:`wide_rig`, a training rig whose camera sees the whole projector width (every fringe order).
 
-Convention: pixel centres are 0-based (ARCHITECTURE.md); resizing the camera keeps the image's outer edges
+Convention: pixel centres are 0-based (docs/architecture.md); resizing the camera keeps the image's outer edges
 fixed, so pixel ``u`` of the original maps to ``(u + 0.5) * s - 0.5`` of the resized image.
 """
 from __future__ import annotations

@@ -8,7 +8,7 @@ few pixels wide by ~0.05 projector pixels where the two grids keep a constant su
 brings that under 0.005). When the real camera is itself such a pinhole (to ``tolerance_px``), the render is the
 frame and nothing is resampled.
 
-Convention: 0-based pixel centres (ARCHITECTURE.md); ``f = max(fx, fy)`` so the render never undersamples.
+Convention: 0-based pixel centres (docs/architecture.md); ``f = max(fx, fy)`` so the render never undersamples.
 """
 from __future__ import annotations
 

@@ -1,7 +1,7 @@
 """Registration: the reference object's pose fitted to the measured projector coordinate.
 
 The measured absolute phase gives each pixel's projector coordinate ``x_p = phi W / (2 pi f)`` (the
-convention of ARCHITECTURE.md). The pose (sphere centre with the certified diameter; plane tilts and depth) is
+convention of docs/architecture.md). The pose (sphere centre with the certified diameter; plane tilts and depth) is
 the one whose exact ray-surface hits (:func:`dptpu.sim.diagnosis.reference.surface_hits`) project to the measured
 coordinates in least squares; optional extra parameters change the rig (e.g. the lens distortion the calibration
 lacks) and are fitted jointly. The start is a geometric fit of the triangulated points.

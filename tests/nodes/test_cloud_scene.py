@@ -38,7 +38,7 @@ class PlaneScene:
     lit: np.ndarray             # (H, W) bool: the column lies on the projector
 
     def absolute_phase(self, frequency: float) -> np.ndarray:
-        """``phi = 2*pi*f*x_p/W`` (H, W) float64, the convention of ARCHITECTURE.md."""
+        """``phi = 2*pi*f*x_p/W`` (H, W) float64, the convention of docs/architecture.md."""
         return 2.0 * np.pi * frequency * self.projector_x / EXTENT_PX
 
     def wrapped_phase(self, frequency: float) -> np.ndarray:
