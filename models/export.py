@@ -22,10 +22,10 @@ ONNX metadata (``metadata_props``): ``dptpu_format`` (``dptpu-model/1``), ``kind
 Two ways to write the graph (``graph=``):
 
 - ``"fast"`` (default for DP-TPU): :func:`dptpu.models.onnx_graph.build_dptpu_graph` writes the same function op
-  by op from the weights (space-to-depth layout at full resolution, folded linear maps, static reshapes; 480x640
-  about 30 % faster on onnxruntime, docs/benchmarks.md "bench model"). The raw parameters ride along under their
-  ``state_dict`` names in the model's ``training_info`` (ignored by onnxruntime), for
-  :func:`dptpu.models.onnx_weights.load_onnx_model`.
+  by op from the weights (space-to-depth layout at full resolution, folded linear maps, static reshapes: fewer and
+  cheaper kernels on onnxruntime than the traced graph, docs/benchmarks.md "Model: the fast graph"). The raw
+  parameters ride along under their ``state_dict`` names in the model's ``training_info`` (ignored by
+  onnxruntime), for :func:`dptpu.models.onnx_weights.load_onnx_model`.
 - ``"torch"``: ``torch.onnx.export`` of the module with the TorchScript-based exporter (``dynamo=False``), which
   handles the data-dependent padding in seconds. The U-Net baseline always goes this way; models shipped before
   the fast graph have such a graph and still run.

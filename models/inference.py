@@ -66,8 +66,7 @@ class FringeOrderModel:
         threads : int, optional
             onnxruntime intra-op threads (default: onnxruntime's choice). Idle threads sleep instead of
             spinning (``session.intra_op.allow_spinning = 0``): on a machine shared with the scanner's
-            other nodes, spinning threads steal the cores they wait for (480x640 on 2 threads of a loaded
-            2-core machine: 320 ms with spinning, 165 ms without; docs/benchmarks.md, "bench model").
+            other nodes, spinning threads steal the cores they wait for (docs/benchmarks.md, "Model: results").
         spinning : bool
             Let idle intra-op threads spin (``allow_spinning = 1``): only on otherwise idle cores, where a
             thread woken for every parallel op costs more than the op.

@@ -66,9 +66,9 @@ def refine_capture_result(result, model: FringeOrderModel, *, consensus: bool = 
         and ``quality``.
     model : FringeOrderModel
     consensus : bool
-        Post-process the rounded order with :func:`dptpu.models.consensus.consensus_order` (default; 54-259 ms
-        more for 480x640 at load average 1.5, docs/model-eval.md); False gives the network's rounded
-        order alone.
+        Post-process the rounded order with :func:`dptpu.models.consensus.consensus_order` (default; it costs
+        more than the network, docs/benchmarks.md "Model: the consensus vote"); False gives the network's
+        rounded order alone.
 
     Returns
     -------
