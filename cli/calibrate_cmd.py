@@ -20,8 +20,10 @@ def register(subparsers) -> None:
         description="Zhang's method for the camera, the projector as an inverse camera from the absolute phase of "
                     "vertical and horizontal fringes at the board corners, then the pair (docs/calibration.md).")
     parser.add_argument("pose_dirs", nargs="*", metavar="POSE_DIR",
-                        help="calibration pose folders (each with x/ and y/ dptpu-capture/1 folders), or folders of them")
-    parser.add_argument("--board", required=True, help="COLSxROWS:SQUARE_MM: inner corners and square edge, e.g. 10x8:13")
+                        help="calibration pose folders (each with x/ and y/ dptpu-capture/1 folders), or folders "
+                             "of them")
+    parser.add_argument("--board", required=True,
+                        help="COLSxROWS:SQUARE_MM: inner corners and square edge, e.g. 10x8:13")
     parser.add_argument("--out", required=True, help="rig file to write (dptpu-rig/1 YAML)")
     parser.add_argument("--window", type=int, default=6,
                         help="half-size in camera pixels of the local homography around each corner (default 6)")
@@ -33,7 +35,8 @@ def register(subparsers) -> None:
     twin.add_argument("--frequency", type=float, default=16.0, help="fringe frequency of both directions (default 16)")
     twin.add_argument("--supersample", type=int, default=2, help="rays per pixel along each axis (default 2)")
     twin.add_argument("--seed", type=int, default=0, help="seed of the board poses (default 0)")
-    twin.add_argument("--keep", metavar="DIR", help="write the rendered pose folders here (default: a temporary folder)")
+    twin.add_argument("--keep", metavar="DIR",
+                      help="write the rendered pose folders here (default: a temporary folder)")
     parser.set_defaults(func=run)
 
 
@@ -65,8 +68,8 @@ def _run_twin(args, board) -> int:
     rig = load_twin_rig(args.twin, size=args.size)
     with tempfile.TemporaryDirectory(prefix="dptpu-calibrate-") as scratch:
         out_dir = args.keep or scratch
-        print(f"rendering {args.poses} board poses in the twin ({rig.camera.size[0]}x{rig.camera.size[1]}) -> {out_dir}",
-              file=sys.stderr)
+        width, height = rig.camera.size
+        print(f"rendering {args.poses} board poses in the twin ({width}x{height}) -> {out_dir}", file=sys.stderr)
         result, report = round_trip(rig, out_dir, board=board, count=args.poses, frequency=args.frequency,
                                     supersample=args.supersample, seed=args.seed)
     _print_errors(result)

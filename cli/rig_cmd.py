@@ -53,9 +53,9 @@ def run_convert(args) -> int:
         elif args.relative_pose != "view":
             raise ValueError("--relative-pose all-views needs a Bouguet pair (.mat files with every view's corners)")
         else:
-            rig = calibration.Rig(camera=calibration.load_device(args.camera, size=camera_size, pose=args.pose),
-                                  projector=calibration.load_device(args.projector, size=projector_size, pose=args.pose),
-                                  units=args.units)
+            camera = calibration.load_device(args.camera, size=camera_size, pose=args.pose)
+            projector = calibration.load_device(args.projector, size=projector_size, pose=args.pose)
+            rig = calibration.Rig(camera=camera, projector=projector, units=args.units)
     if args.to == "opencv":
         calibration.save_opencv_rig(rig, args.out)
     else:

@@ -122,7 +122,8 @@ def run_train(args: argparse.Namespace) -> int:
     if result.onnx is not None:
         last = result.history[-1] if result.history else {}
         print(f"{args.model}: {result.epochs_done} epochs, {result.parameters} parameters, "
-              f"{result.world_size} process(es), {result.seconds:.1f} s, final loss {last.get('loss', float('nan')):.5f} "
+              f"{result.world_size} process(es), {result.seconds:.1f} s, "
+              f"final loss {last.get('loss', float('nan')):.5f} "
               f"-> {result.onnx} (checkpoint {result.checkpoint})")
     return 0
 

@@ -1,8 +1,8 @@
 """``dptpu twin ...``: hold measured data against the digital twin.
 
 ``dptpu twin diagnose --measured PATH --rig RIG [--reference sphere:DIAMETER_MM | plane | scene:FILE]
-[--self-reference] [--frequency F] --out DIR`` (:mod:`dptpu.sim.diagnosis`, docs/sim-to-real.md): registration, residuals and
-their decomposition (PNG figures), candidate effects ranked by BIC, the extended rig, the re-render and
+[--self-reference] [--frequency F] --out DIR`` (:mod:`dptpu.sim.diagnosis`, docs/sim-to-real.md): registration,
+residuals and their decomposition (PNG figures), candidate effects ranked by BIC, the extended rig, the re-render and
 ``report.json`` / ``report.md``.
 
 ``dptpu twin finetune --measured DATA --extended RIG --model BASE --out DIR``

@@ -3,16 +3,18 @@
 ``dptpu twin finetune --measured PATH --extended RIG --model BASE.onnx --out DIR`` (docs/sim-to-real.md,
 "Downstream gain"):
 
-1. **Measured pairs** (:mod:`dptpu.sim.diagnosis.cfpe_inputs`, :mod:`dptpu.sim.diagnosis.sphere_inputs`): the network's inputs built from the measured
-   data, a reference order from a 12-step measurement, and what is real and what is synthesized.
-2. **Two twin sets of the same scenes** (:mod:`dptpu.sim.diagnosis.twin_pairs`): the baseline rig (the extended rig without its
-   effects) and the extended rig, rendered with the measured data's sequences and pair construction; the sets
-   differ only by the effects.
+1. **Measured pairs** (:mod:`dptpu.sim.diagnosis.cfpe_inputs`, :mod:`dptpu.sim.diagnosis.sphere_inputs`): the
+   network's inputs built from the measured data, a reference order from a 12-step measurement, and what is real
+   and what is synthesized.
+2. **Two twin sets of the same scenes** (:mod:`dptpu.sim.diagnosis.twin_pairs`): the baseline rig (the extended rig
+   without its effects) and the extended rig, rendered with the measured data's sequences and pair construction; the
+   sets differ only by the effects.
 3. **Two fine-tunes with the same budget** (:mod:`.finetune`) from the base model's weights: the fine-tune on the
    baseline twin is the control, so a difference between the two is the extension's, not the extra steps'.
 4. **Evaluation**: fringe-order accuracy of the classical order, the base model and both fine-tunes on every
    measured pair (and on held-out scenes of both twins); for the sphere the 3D error of each order map
-   (:func:`dptpu.sim.diagnosis.sphere_inputs.sphere_errors_um`). ``downstream.json`` and a "Downstream gain" section of ``report.md``.
+   (:func:`dptpu.sim.diagnosis.sphere_inputs.sphere_errors_um`). ``downstream.json`` and a "Downstream gain"
+   section of ``report.md``.
 """
 from __future__ import annotations
 
@@ -268,13 +270,14 @@ def _summary(rows: list, twin_rows: dict) -> dict:
 
 def _markdown(report: dict) -> str:
     names = ["classical", *MODEL_NAMES]
+    runs = report["finetune_runs"]
     lines = ["## Downstream gain", "",
              f"Measured data `{report.get('measured', 'given pairs')}`, pair design `{report['design']['name']}` "
              f"(f_h = {report['design']['frequencies'][0]:.4g}, low phase `{report['design']['low']}`); extended twin "
-             f"`{report.get('extended', '')}`: effects {report['effects']['extended']}. Base model `{report['base_model']}`; "
-             "both fine-tunes from its weights with the same budget "
-             f"({report['finetune_runs']['baseline']['steps']} steps: {report['finetune_runs']['baseline']['seconds']:.0f} s "
-             f"and {report['finetune_runs']['extended']['seconds']:.0f} s).", "",
+             f"`{report.get('extended', '')}`: effects {report['effects']['extended']}. "
+             f"Base model `{report['base_model']}`; both fine-tunes from its weights with the same budget "
+             f"({runs['baseline']['steps']} steps: {runs['baseline']['seconds']:.0f} s "
+             f"and {runs['extended']['seconds']:.0f} s).", "",
              "Fringe-order accuracy (fraction of valid pixels with the reference order):", "",
              "| pair | pixels | " + " | ".join(names) + " |", "|---|---|" + "---|" * len(names)]
     for row in report["measured_results"]:
@@ -288,7 +291,8 @@ def _markdown(report: dict) -> str:
     if rows3d:
         lines += ["", "3D error on the sphere (um; sphere fit with a free radius, interior = 2 px edge band left out; "
                   "point error = RMS distance to the points of the reference order):", "",
-                  "| pair | order | interior sphere RMS | all-pixel sphere RMS | point error RMS |", "|---|---|---|---|---|"]
+                  "| pair | order | interior sphere RMS | all-pixel sphere RMS | point error RMS |",
+                  "|---|---|---|---|---|"]
         for row in rows3d:
             for n in ["reference", *names]:
                 e = row["3d"][n]

@@ -214,8 +214,9 @@ def format_report(rows: list[Row], *, spec: UnwrapEvalSpec, data_dir, models=(),
             note += "; NT through its band prior in the MF representation (dptpu.models.nt_prior)"
         solvers.append(f"`{name}` ({model.kind} model `{model.path}`, trained for "
                        f"{', '.join(model.trained_methods)}{note})")
-    lines += ["Solvers: " + ", ".join(solvers) + ".", "", "## Accuracy (% of valid pixels with the exact fringe order)", "", format_summary(rows)]
-    for name, model in zip(names, models):
+    lines += ["Solvers: " + ", ".join(solvers) + ".", "", "## Accuracy (% of valid pixels with the exact fringe order)",
+              "", format_summary(rows)]
+    for name in names:
         ratios = error_ratio(rows, name)
         lines += [f"## Error rate of `{name}` over classical, f_h >= {GOALS['high_frequency']:g} (pixels pooled)", "",
                   "| method | noise | classical error % | " + name + " error % | ratio |", "|---|---|---|---|---|"]

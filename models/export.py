@@ -66,7 +66,10 @@ PARAMETERS_GRAPH = "dptpu_parameters"
 
 def _example_inputs(height: int = 64, width: int = 96) -> tuple[torch.Tensor, ...]:
     generator = torch.Generator().manual_seed(0)
-    phase = lambda: torch.rand(2, 1, height, width, generator=generator) * 2 * torch.pi
+
+    def phase() -> torch.Tensor:
+        return torch.rand(2, 1, height, width, generator=generator) * 2 * torch.pi
+
     return phase(), phase(), torch.randint(0, 60, (2, 1, height, width), generator=generator).float(), \
         torch.tensor([64.0, 48.0])
 

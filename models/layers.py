@@ -110,8 +110,8 @@ class RecursiveAtrousSelfAttention(nn.Module):
     Queries come from one depthwise 3x3 kernel applied at dilations 1, 3 and 5 (shared weights, summed:
     multi-scale context at no extra parameters); keys and values from the map average-pooled by
     ``reduction`` (global attention at a bounded cost; ``ceil_mode``: a partial window at the border
-    averages the pixels it has, so a map smaller than ``reduction`` still gives one key); the attention is applied ``recursions`` times with
-    the same weights, feeding ``x + previous output`` back in.
+    averages the pixels it has, so a map smaller than ``reduction`` still gives one key); the attention is
+    applied ``recursions`` times with the same weights, feeding ``x + previous output`` back in.
     """
 
     def __init__(self, channels: int, heads: int, reduction: int = 1, recursions: int = 2,

@@ -248,7 +248,9 @@ def network_features(wrapped_high, wrapped_low, coarse_order, frequency_high):
     median, weight = patch_median(periods)  # (B, 1, H/4, W/4)
     # r: bilinear x4 upsampling of the medians of the patches with enough valid pixels, normalized by the
     # upsampled weights (normalized convolution); 0 far inside invalid areas
-    upsample = lambda x: F.interpolate(x, scale_factor=PATCH, mode="bilinear", align_corners=False)
+    def upsample(x: torch.Tensor) -> torch.Tensor:
+        return F.interpolate(x, scale_factor=PATCH, mode="bilinear", align_corners=False)
+
     reference = upsample(median) / torch.clamp(upsample(weight), min=1e-6)
     deviation = reference - periods
     full = [torch.sin(wrapped_high), torch.cos(wrapped_high), torch.sin(wrapped_low), torch.cos(wrapped_low),
@@ -289,7 +291,8 @@ class DPTPUNet(nn.Module):
             nn.Sequential(nn.Conv2d(w[0] + PATCH_CHANNELS, w[0], 1), ChannelNorm(w[0])),  # + stride-4 maps
             *[nn.Sequential(nn.Conv2d(w[i - 1], w[i], 3, stride=2, padding=1), ChannelNorm(w[i])) for i in (1, 2, 3)],
         ])
-        stages = [nn.Sequential(*[EncoderBlock(w[0], ConvSelfAttention(w[0], h[0]), config.mlp_ratio) for _ in range(d[0])])]
+        stages = [nn.Sequential(*[EncoderBlock(w[0], ConvSelfAttention(w[0], h[0]), config.mlp_ratio)
+                                  for _ in range(d[0])])]
         for i in (1, 2, 3):
             stages.append(nn.Sequential(*[
                 EncoderBlock(w[i], RecursiveAtrousSelfAttention(w[i], h[i], config.reductions[i - 1],

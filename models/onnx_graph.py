@@ -85,7 +85,8 @@ class _Graph:
 
     def affine(self, x: str, weight, bias) -> str:
         scale = np.asarray(weight).reshape(1, -1, 1, 1)
-        return self.op("Add", [self.op("Mul", [x, self.const(scale)]), self.const(np.asarray(bias).reshape(1, -1, 1, 1))])
+        shift = np.asarray(bias).reshape(1, -1, 1, 1)
+        return self.op("Add", [self.op("Mul", [x, self.const(scale)]), self.const(shift)])
 
     def gelu(self, x: str) -> str:
         """Exact GELU written as the pattern onnxruntime fuses into one kernel."""
@@ -240,7 +241,8 @@ def _mix_attention(g: _Graph, p, prefix: str, query: str, mixed: str, heads: int
     query_w, query_b = _query(p, prefix, heads, _norm_params(p, prefix + "norm_q"))
     kv_w, kv_b, folded = _key_value(p, prefix, heads, _norm_params(p, prefix + "norm_kv"))
     q = g.conv(g.normalize(query, query_w.shape[1]), query_w, query_b)
-    out = _attention(g, q, g.conv(g.normalize(mixed, kv_w.shape[1]), kv_w, kv_b), g.op("Shape", [query]), query_w.shape[0], heads)
+    key_value = g.conv(g.normalize(mixed, kv_w.shape[1]), kv_w, kv_b)
+    out = _attention(g, q, key_value, g.op("Shape", [query]), query_w.shape[0], heads)
     if not folded:
         out = g.conv(out, _w(p, prefix + "proj.weight"), _w(p, prefix + "proj.bias"))
     return _mlp(g, p, prefix, g.op("Add", [query, out]), _norm_params(p, prefix + "norm_mlp"))
@@ -376,7 +378,10 @@ def build_dptpu_graph(state: dict, config):
     order_map = g.op("DepthToSpace", [g.op("Add", [coarse, delta])], blocksize=PATCH, mode="CRD")
     g.nodes.append(helper.make_node("Slice", [order_map, g.ints(0, 0), hw, g.ints(2, 3)], ["fringe_order"]))
     initializers = [numpy_helper.from_array(v, name=k) for k, v in g.initializers.items()]
-    image = lambda name: helper.make_tensor_value_info(name, TensorProto.FLOAT, ["batch", 1, "height", "width"])
+
+    def image(name: str):
+        return helper.make_tensor_value_info(name, TensorProto.FLOAT, ["batch", 1, "height", "width"])
+
     inputs = [image(name) for name in names] + [helper.make_tensor_value_info("frequency_high", TensorProto.FLOAT,
                                                                               ["batch"])]
     return helper.make_graph(g.nodes, "dptpu_fast", inputs, [image("fringe_order")], initializer=initializers)

@@ -53,10 +53,10 @@ def _metadata(proto, path: Path) -> tuple[str, dict, dict]:
 
 def _anonymous_uses(proto, state) -> list:
     """``[((node index, op type, input slot), initializer name)]`` of every use of an initializer that is not a
-    ``state_dict`` entry (of every initializer when ``state`` is None), in graph order. The nodes of two exports of one architecture are the same; their
-    anonymous names are not (they count what the exporter traced before), and equal constants (e.g. the norms of
-    an untrained network, all ones) are merged into one initializer read through ``Identity`` nodes, which are
-    resolved and not counted."""
+    ``state_dict`` entry (of every initializer when ``state`` is None), in graph order. The nodes of two exports of one
+    architecture are the same; their anonymous names are not (they count what the exporter traced before), and equal
+    constants (e.g. the norms of an untrained network, all ones) are merged into one initializer read through
+    ``Identity`` nodes, which are resolved and not counted."""
     initializers = {init.name for init in proto.graph.initializer}
     alias = {node.output[0]: node.input[0] for node in proto.graph.node
              if node.op_type == "Identity" and node.input and node.input[0] in initializers}

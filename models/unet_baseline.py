@@ -35,7 +35,7 @@ class UNetConfig:
         return {k: list(v) for k, v in asdict(self).items()}
 
     @classmethod
-    def from_dict(cls, values: dict) -> "UNetConfig":
+    def from_dict(cls, values: dict) -> UNetConfig:
         if set(values) - {"widths"}:
             raise ValueError(f"unknown U-Net config keys {sorted(set(values) - {'widths'})}; expected 'widths'")
         return cls(widths=tuple(values.get("widths", cls.widths)))

@@ -217,9 +217,10 @@ def format_report(report: dict) -> str:
     lines = []
     for name in ("camera", "projector"):
         e = report[name]
-        lines.append(f"{name}: fx {e['fx']['estimated']:.2f} (true {e['fx']['true']:.2f}), fy {e['fy']['estimated']:.2f} "
-                     f"(true {e['fy']['true']:.2f}), focal error {e['focal_error_percent']:.3f} %, principal point "
-                     f"error {e['principal_point_error_px']:.2f} px")
+        lines.append(f"{name}: fx {e['fx']['estimated']:.2f} (true {e['fx']['true']:.2f}), "
+                     f"fy {e['fy']['estimated']:.2f} (true {e['fy']['true']:.2f}), "
+                     f"focal error {e['focal_error_percent']:.3f} %, "
+                     f"principal point error {e['principal_point_error_px']:.2f} px")
     b = report["baseline_mm"]
     lines.append(f"baseline: {b['estimated']:.3f} mm (true {b['true']:.3f}), error {b['error_mm']:.3f} mm; "
                  f"relative pose error {report['rotation_error_deg']:.4f} deg, {report['translation_error_mm']:.3f} mm")

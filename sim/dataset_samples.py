@@ -16,8 +16,9 @@ For one scene (one trace) and every combination of high frequency ``f_h``, metho
    across a wrap, where ``k12`` would be off by one for the network's input);
 3. ``valid``: the camera ray hits a surface the projector lights (the ray cast), the 12-step absolute phase agrees
    with the ray cast's ``2 pi f_h x_p / W`` within ``pi / 2`` (a label whose order is wrong is 2 pi off; these are
-   dropped, and counted where the inputs were usable), and the input frames pass :func:`dptpu.fpp.phase.quality_mask` (modulation >= 2 % of
-   full scale in both inputs, no saturated frame): the pixels the classical pipeline would use too.
+   dropped, and counted where the inputs were usable), and the input frames pass
+   :func:`dptpu.fpp.phase.quality_mask` (modulation >= 2 % of full scale in both inputs, no saturated frame): the
+   pixels the classical pipeline would use too.
 
 Convention: fringes along projector x (vertical stripes), ``W`` = projector width; ``phi = 2 pi f x_p / W``;
 wrapped phases in ``[0, 2 pi)``; orders ``k = floor(phi / 2 pi)``.

@@ -109,9 +109,8 @@ def parse_sequences(text: str, *, shift_sign: int = -1) -> list[SequenceSpec]:
         try:
             sequences.append(SequenceSpec(float(frequency), int(steps), axis=axis or "x", shift_sign=shift_sign))
         except ValueError as exc:
-            if not sep:
-                exc = "expected FREQxSTEPS"
-            raise ValueError(f"--sequence {token!r}: {exc} (e.g. 96x12,1x12 or 64x3:y, white, black)") from None
+            reason = exc if sep else "expected FREQxSTEPS"
+            raise ValueError(f"--sequence {token!r}: {reason} (e.g. 96x12,1x12 or 64x3:y, white, black)") from None
     if not sequences:
         raise ValueError("--sequence must list at least one sequence, e.g. 96x12,1x12")
     return sequences

@@ -59,7 +59,8 @@ def load_twin_rig(source, *, camera_size=None, projector_size=None, size=None) -
     ----------
     source : str, path-like, tuple of two paths, or Rig
         ``dptpu-rig/1`` or OpenCV rig file; ``"CAM.mat,PRJ.mat"`` or ``(CAM.mat, PRJ.mat)`` (Bouguet toolbox, world
-        frame = calibration view 1); ``"nominal"`` (:func:`nominal_rig`), ``"dynamic"`` (:func:`dynamic_rig`) or ``"wide"`` (:func:`wide_rig`); a :class:`Rig` is passed through.
+        frame = calibration view 1); ``"nominal"`` (:func:`nominal_rig`), ``"dynamic"`` (:func:`dynamic_rig`) or
+        ``"wide"`` (:func:`wide_rig`); a :class:`Rig` is passed through.
     camera_size, projector_size : (int, int), optional
         ``(width, height)`` of the devices when the source does not hold them (Bouguet files, OpenCV rig files
         without ``cam_size``/``proj_size``); default 640x480 and 912x1140.
@@ -162,7 +163,8 @@ def nominal_rig(*, camera_size=DEFAULT_CAMERA_SIZE, distance_mm: float = 800.0, 
 def dynamic_rig(*, distance_mm: float = 600.0, angle_deg: float = 10.07, focal_length_mm: float = 18.7,
                 pixel_pitch_mm: float = 0.0048, camera_size=DEFAULT_CAMERA_SIZE,
                 projector_focal_px: float = 5000.0) -> Rig:
-    """The paper's dynamic rig (section "dynamic scenes"), unseen by the training data: a rig for tests of generalization.
+    """The paper's dynamic rig (section "dynamic scenes"), unseen by the training data: a rig for tests of
+    generalization.
 
     Published: an 18.7 mm camera lens, a 1024x768 DMD projector, a 0.12 m baseline, a 0.6 m object distance and
     10.07 deg between the camera and projector axes. Built like :func:`nominal_rig`: the world frame is the

@@ -289,7 +289,7 @@ def main(job_dir):
     previous = None
     for index in range(len(patterns)):
         tick, tick_cpu = time.perf_counter(), time.process_time()
-        image = _new_image(bpy, "pattern_%04d" % index, np.asarray(patterns[index], dtype=np.float32))
+        image = _new_image(bpy, f"pattern_{index:04d}", np.asarray(patterns[index], dtype=np.float32))
         texture.image = image  # a new datablock per pattern: rewriting one image's pixels is ignored
         scene.cycles.seed = int(job["render"]["seed"]) + index  # independent sampling noise per frame
         if previous is not None:

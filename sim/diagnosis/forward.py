@@ -94,7 +94,7 @@ class PixelSet:
         """Number of measured values (frames x pixels)."""
         return int(sum(m.size for m in self.measured))
 
-    def subset(self, keep: np.ndarray) -> "PixelSet":
+    def subset(self, keep: np.ndarray) -> PixelSet:
         """The pixels where ``keep`` (P,) is True."""
         return PixelSet(index=tuple(i[keep] for i in self.index), coords=[c[keep] for c in self.coords],
                         factor=self.factor[keep], albedo=self.albedo[keep],

@@ -8,8 +8,8 @@ lacks) and are fitted jointly. The start is a geometric fit of the triangulated 
 """
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Callable
 
 import numpy as np
 from scipy.optimize import least_squares

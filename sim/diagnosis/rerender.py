@@ -1,10 +1,11 @@
 """Render the twin (and the extended twin) of the registered reference again, and decode it like the data.
 
-The registered analytic surface (:func:`dptpu.sim.diagnosis.reference.surface_hits`) stands in for the
-raycast trace (no facets; a scene reference is traced at its registered pose): its points, normals, projector coordinates and visibility go through the twin's own
-image formation, :func:`dptpu.sim.image_formation.render_frames_float`, with the effects given, and the frames
-are quantized like a render (:func:`dptpu.sim.image_formation.quantize`). Decoding uses Eq. (2) and MF (a
-1-period sequence present) or heterodyne unwrapping, as :func:`dptpu.sim.diagnosis.measured.load_measured` does.
+The registered analytic surface (:func:`dptpu.sim.diagnosis.reference.surface_hits`) stands in for the raycast trace (no
+facets; a scene reference is traced at its registered pose): its points, normals, projector coordinates and visibility
+go through the twin's own image formation, :func:`dptpu.sim.image_formation.render_frames_float`, with the effects
+given, and the frames are quantized like a render (:func:`dptpu.sim.image_formation.quantize`). Decoding uses Eq. (2)
+and MF (a 1-period sequence present) or heterodyne unwrapping, as :func:`dptpu.sim.diagnosis.measured.load_measured`
+does.
 """
 from __future__ import annotations
 

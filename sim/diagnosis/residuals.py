@@ -119,7 +119,7 @@ def decompose_intensity(pixels, residual: list, model: list) -> dict:
              "total_rms_dn": _rms(np.concatenate([r.ravel() for r in residual]))}
     per_frame, periodic, random_parts = [], {}, []
     level_values, level_residual = [], []
-    for s, (sequence, coord, res, mod) in enumerate(zip(pixels.sequences, pixels.coords, residual, model)):
+    for sequence, coord, res, mod in zip(pixels.sequences, pixels.coords, residual, model):
         mean_model = mod.mean(axis=1)
         per_frame += [float(v) for v in res.mean(axis=1) / np.maximum(mean_model, 1e-9)]
         res = res - res.mean(axis=1, keepdims=True)

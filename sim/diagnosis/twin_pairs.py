@@ -1,7 +1,7 @@
 """Training samples of the twin built like a measured pair: the same sequences, the same pair construction.
 
-The downstream gain (:mod:`dptpu.experiments.downstream`) fine-tunes the network on twin renders and scores it
-on measured pairs (:mod:`.cfpe_inputs`, :mod:`.sphere_inputs`). Those pairs are not the paper's plain MF set (``dptpu sim
+The downstream gain (:mod:`dptpu.experiments.downstream`) fine-tunes the network on twin renders and scores it on
+measured pairs (:mod:`.cfpe_inputs`, :mod:`.sphere_inputs`). Those pairs are not the paper's plain MF set (``dptpu sim
 dataset``): CFPE's low phase is a heterodyne of three close periods, the sphere's high phase is a 12-step phase.
 A :class:`PairDesign` names the sequences and the construction, and :func:`twin_pair_sample` renders a random
 scene through the twin (the rig's effects, Gaussian camera noise, 8 bits) and builds the pair from the rendered

@@ -28,7 +28,8 @@ def test_train_then_export_then_eval(tiny_dataset, tmp_path, capsys):
     assert "epoch 1/1" in stderr  # the progress bar
     assert out.is_file() and (tmp_path / "m.ckpt").is_file()
 
-    code, stdout, _ = _run(capsys, ["model", "export", "--checkpoint", tmp_path / "m.ckpt", "--out", tmp_path / "e.onnx"])
+    code, stdout, _ = _run(capsys, ["model", "export", "--checkpoint", tmp_path / "m.ckpt",
+                                    "--out", tmp_path / "e.onnx"])
     assert code == 0 and stdout.strip() == f"dptpu (epoch 1) -> {tmp_path / 'e.onnx'}"
     from dptpu.models.inference import FringeOrderModel
 

@@ -12,11 +12,10 @@ import pytest
 import torch
 
 from dptpu.models.export import export_onnx
-from dptpu.models.onnx_weights import convert_onnx
 from dptpu.models.factory import build_model
 from dptpu.models.inference import FringeOrderModel, shipped_model_path
 from dptpu.models.onnx_graph import GRAPH_FORMAT
-from dptpu.models.onnx_weights import load_onnx_model
+from dptpu.models.onnx_weights import convert_onnx, load_onnx_model
 
 from .conftest import phase_inputs
 
@@ -34,7 +33,10 @@ def _random_model(config: dict, seed: int):
     from dptpu.models.layers import ChannelNorm
 
     generator = torch.Generator().manual_seed(seed)
-    noise = lambda p: torch.randn(p.shape, generator=generator)
+
+    def noise(p: torch.Tensor) -> torch.Tensor:
+        return torch.randn(p.shape, generator=generator)
+
     with torch.no_grad():
         for name, module in model.named_modules():
             if isinstance(module, ChannelNorm):

@@ -91,7 +91,10 @@ def _ramp(height=32, width=64, errors=()):
     coarse = label.copy()
     for row, col, offset in errors:
         coarse[row, col] += offset
-    as_tensor = lambda a: torch.from_numpy(a.astype(np.float32))[None, None]
+
+    def as_tensor(a: np.ndarray) -> torch.Tensor:
+        return torch.from_numpy(a.astype(np.float32))[None, None]
+
     return as_tensor(psi_h), as_tensor(coarse), label
 
 

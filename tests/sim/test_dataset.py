@@ -84,7 +84,7 @@ def test_labels_agree_with_the_ray_cast_on_noiseless_valid_pixels(rig, dataset_d
 def test_classical_coarse_order_errors_increase_with_noise(dataset_dir):
     samples = _by_key(open_dataset(dataset_dir))
     rates = {}
-    for (seed, f, method, sigma), s in samples.items():
+    for (_seed, f, method, sigma), s in samples.items():
         valid = s.valid
         wrong = np.count_nonzero(s.coarse_order[valid] != s.label_order[valid])
         rates.setdefault((f, method, sigma), []).append(wrong / valid.sum())

@@ -1,6 +1,6 @@
 """Hidden-effect fixtures: "measured" captures of the standard sphere and a plane rendered by the twin with
-exactly one effect switched on, chosen and sized by a seed (``numpy.random.default_rng(seed)``): the 8 effects the issue requires and the
-twin's grid and motion effects (vignetting, camera_defocus, projector_pixelation, motion).
+exactly one effect switched on, chosen and sized by a seed (``numpy.random.default_rng(seed)``): the 8 effects the
+issue requires and the twin's grid and motion effects (vignetting, camera_defocus, projector_pixelation, motion).
 
 The diagnosis sees only the frames (the capture declares the projected pattern's offset and amplitude, as the
 capture format allows) and the baseline rig. ``MAIN`` names each effect's main parameter and how it is compared:
