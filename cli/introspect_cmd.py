@@ -354,7 +354,8 @@ def run_topic_bw(args) -> int:
 
 def _with_parameters(args, node_names, work) -> int:
     """Run ``work(client, fqn)`` for each node with a connected parameter client; map failures to exit 1."""
-    from dptpu.graph import ServiceCallError  # deferred: CLI start-up
+    # deferred: CLI start-up
+    from dptpu.graph import ServiceCallError
     from dptpu.tools.introspection import with_parameter_clients
 
     _check_seconds(args.timeout, "--timeout", allow_none=False)
@@ -458,7 +459,8 @@ def run_service_type(args) -> int:
 
 
 def run_service_call(args) -> int:
-    from dptpu.graph import ServiceCallError  # deferred: CLI start-up
+    # deferred: CLI start-up
+    from dptpu.graph import ServiceCallError
     from dptpu.tools.introspection import (
         call_service,
         message_from_yaml,

@@ -71,7 +71,7 @@ def _stop_on_signals():
 
 def run_record(args) -> int:
     """Record until stopped; print a table of counts; 1 when a topic never appeared, else 0."""
-    from dptpu.tools.recording.recorder import record
+    from dptpu.tools.recording.recorder import record  # deferred: CLI start-up (the runtime and mcap)
 
     if args.duration is not None and not args.duration > 0:
         raise ValueError(f"--duration must be > 0 seconds; got {args.duration}")
@@ -100,7 +100,7 @@ def run_record(args) -> int:
 
 def run_play(args) -> int:
     """Play the file; print what was published; 0 on success."""
-    from dptpu.tools.recording.player import play
+    from dptpu.tools.recording.player import play  # deferred: CLI start-up (the runtime and mcap)
 
     def ready(result) -> None:
         planned = ", ".join(f"{topic} [{type_name}]" for topic, type_name in result.types.items())

@@ -18,6 +18,7 @@ when two set the same parameter, the later one wins.
 
 from __future__ import annotations
 
+import sys
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -130,8 +131,6 @@ def _parse_log_level(text: str, levels: dict) -> None:
 def remove_ros_args(args=None) -> list[str]:
     """``args`` without the ROS part (rclpy.utilities.remove_ros_args); ``None`` means ``sys.argv``."""
     if args is None:
-        import sys
-
         args = sys.argv
     out, in_ros = [], False
     for arg in args:

@@ -23,6 +23,7 @@ import weakref
 from .arguments import RosArguments, parse_ros_arguments
 from .discovery import resolve_domain_id
 from .exceptions import NotInitializedException
+from .runtime import GraphRuntime
 
 __all__ = ["Context", "get_default_context", "init", "shutdown", "try_shutdown", "ok"]
 
@@ -128,8 +129,6 @@ class Context:
             if not self._ok:
                 raise NotInitializedException()
             if self._runtime_instance is None:
-                from .runtime import GraphRuntime
-
                 self._runtime_instance = GraphRuntime(self._domain_id)
             return self._runtime_instance
 

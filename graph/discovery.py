@@ -32,6 +32,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from .qos import QoSProfile
+from .transport import remove_ipc_file
 
 __all__ = [
     "FORMAT", "SCAN_INTERVAL_S", "LIVENESS_INTERVAL_S", "DOMAIN_ID_MAX",
@@ -280,8 +281,6 @@ class DirectoryScanner:
         return changed
 
     def _remove_stale(self, name: str) -> None:
-        from .transport import remove_ipc_file
-
         path = self.directory / name
         entry = read_announcement(path)
         if entry is not None and entry_is_alive(entry, self.host, self.boot_id):

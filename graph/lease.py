@@ -1,7 +1,7 @@
 """Socket leases: a waiting executor receives from its nodes' subscription sockets itself.
 
 Passing each message from the runtime's I/O thread to the executor's thread costs a thread wake-up and
-a hand-over of the GIL, about 0.1 ms per message on a 2-core VM (``docs/benchmarks.md``). So while an
+a hand-over of the GIL (``docs/benchmarks.md``, "With socket leases", has the measured cost). So while an
 executor waits for work, the I/O thread *lends* it the SUB sockets of the subscriptions of its nodes.
 The executor's wait is then one ``zmq_poll`` over those sockets and its own wake pipe, and a message is
 received, queued, taken and handed to its callback by one thread.
@@ -48,8 +48,8 @@ __all__ = ["BUSY", "DRAIN_BATCH", "IO", "POLLING", "TAKEOVER_S", "SocketLease", 
 IO, BUSY, POLLING = "io", "busy", "polling"
 
 #: Seconds an executor may hold its lent sockets without polling them before the I/O thread takes them back.
-#: Also how often the I/O thread wakes to watch a lease while messages flow: at 10 ms the I/O threads of the sim
-#: rig's processes took 3.7-4.8 ms of CPU a 640x480 scan, at 25 ms 2.3-3.1 ms (docs/benchmarks.md, Run 9).
+#: Also how often the I/O thread wakes to watch a lease while messages flow, so a longer period costs less CPU
+#: a scan (docs/benchmarks.md, Run 9, measured 10 ms against 25 ms).
 TAKEOVER_S = 0.025
 #: Seconds after the last poll that received messages during which the I/O thread watches the lease every TAKEOVER_S.
 WATCH_AFTER_TRAFFIC_S = 1.0

@@ -34,6 +34,7 @@ from .names import (
     validate_node_name,
 )
 from .param_files import overrides_for_node
+from .parameter_service import ParameterService
 from .parameters import NodeParameters, Parameter
 from .publisher import Publisher
 from .qos import as_qos_profile, qos_profile_services_default
@@ -140,8 +141,6 @@ class Node:
         self._runtime.add_node(self)
         self._parameter_service = None
         if start_parameter_services:
-            from .parameter_service import ParameterService
-
             self._parameter_service = ParameterService(self)
 
     # -- identity ------------------------------------------------------------------------------------

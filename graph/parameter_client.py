@@ -13,6 +13,8 @@ service response (as rclpy). The ``*_values`` helpers convert to plain Python, w
 
 from __future__ import annotations
 
+import time
+
 from .parameters import Parameter, parameter_value_to_python
 from .qos import qos_profile_services_default
 from .rcl_interfaces import (
@@ -53,8 +55,6 @@ class AsyncParameterClient:
         return all(c.service_is_ready() for c in self._clients)
 
     def wait_for_services(self, timeout_sec: float | None = None) -> bool:
-        import time
-
         deadline = None if timeout_sec is None else time.monotonic() + timeout_sec
         for client in self._clients:
             remaining = None if deadline is None else max(0.0, deadline - time.monotonic())

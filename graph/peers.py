@@ -56,7 +56,7 @@ def parse_peers(text: str) -> tuple:
             raise ValueError(f"DPTPU_PEERS items must look like host:port (optionally =public.key); got {item!r}")
         key = None
         if key_file:
-            import zmq.auth
+            import zmq.auth  # deferred: optional CURVE security; zmq.auth brings asyncio in
 
             try:
                 key, _ = zmq.auth.load_certificate(key_file)

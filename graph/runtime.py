@@ -21,9 +21,11 @@ thread hop. Any error inside the loop is logged and the loop goes on.
 
 from __future__ import annotations
 
+import hashlib
 import math
 import os
 import queue
+import tempfile
 import threading
 import time
 
@@ -44,7 +46,9 @@ from .discovery import (
 )
 from .lease import IO, POLLING, SocketLease, drain_socket
 from .logging import get_logger
+from .peers import PeerExchange, peers_from_environment
 from .qos import QoSProfile, qos_compatibility
+from .services import ServiceHost
 from .transport import MAX_IPC_PATH_BYTES, TransportConfig, choose_endpoint, connect, remove_ipc_file
 
 __all__ = ["GraphRuntime", "EVENTS_INTERVAL_S", "STATS_INTERVAL_S"]
@@ -61,8 +65,6 @@ class GraphRuntime:
     """Everything a context needs to take part in a domain (created with the context's first node)."""
 
     def __init__(self, domain_id: int, *, peers=None):
-        from .peers import PeerExchange, peers_from_environment
-
         self.domain_id = domain_id
         self.logger = get_logger("dptpu.graph")
         peer_config = peers if peers is not None else peers_from_environment()
@@ -76,7 +78,7 @@ class GraphRuntime:
         self.zmq_context = zmq.Context(io_threads=1)
         self._authenticator = None
         if self.transport.curve is not None:
-            from zmq.auth.thread import ThreadAuthenticator
+            from zmq.auth.thread import ThreadAuthenticator  # deferred: only with CURVE; brings asyncio in
 
             self._authenticator = ThreadAuthenticator(self.zmq_context)
             self._authenticator.start()
@@ -113,9 +115,6 @@ class GraphRuntime:
     def _ipc_directory(self):
         folder = self.directory / "ep"
         if len(str(folder / ("x" * 16)).encode()) > MAX_IPC_PATH_BYTES:
-            import hashlib
-            import tempfile
-
             digest = hashlib.sha1(str(self.directory).encode()).hexdigest()[:12]
             folder = type(self.directory)(tempfile.gettempdir()) / f"dptpu-{os.getuid()}-ep-{digest}"
         return ensure_private_directory(folder)
@@ -229,7 +228,7 @@ class GraphRuntime:
     def stop(self) -> None:
         """Stop the I/O thread, remove this process's announcements, close every socket."""
         with self._lock:
-            for gid, name in list(self._files.items()):
+            for name in list(self._files.values()):
                 remove_announcement(self.directory, name)
             self._files.clear()
             self._nodes.clear()
@@ -296,16 +295,16 @@ class GraphRuntime:
                         continue
                     handler = self._handlers.get(sock)
                     if handler is not None:
-                        self._guard(lambda: self._drain(sock, handler, notify))
+                        self._guard(self._drain, sock, handler, notify)
                 for node in notify:  # first, so the executors start while the rest of the loop runs
                     node._notify_executor()
             if woken or not self._commands.empty():
                 self._guard(self._run_commands)
             for client in list(self._pending_clients):
-                self._guard(lambda: self._flush_client(client))
+                self._guard(self._flush_client, client)
             now = time.monotonic()
             if self._leases:
-                self._guard(lambda: self._reclaim_leases(now))
+                self._guard(self._reclaim_leases, now)
             if self._deferred:
                 self._guard(self._run_deferred)
             if now >= next_events:
@@ -316,7 +315,7 @@ class GraphRuntime:
             if now >= next_scan or self._rematch or self._dirty:
                 if now >= next_scan:
                     next_scan = now + SCAN_INTERVAL_S
-                    self._guard(lambda: self._scan(now))
+                    self._guard(self._scan, now)
                 self._guard(self._write_announcements)
                 if self._rematch:
                     self._rematch = False
@@ -328,11 +327,12 @@ class GraphRuntime:
                     self._guard(self._peers.step)
             if self._leases and not self._rematch and not self._deferred:
                 # last: sockets go out only once connects, disconnects and closes are done with them
-                self._guard(lambda: self._grant_leases(now))
+                self._guard(self._grant_leases, now)
 
-    def _guard(self, function) -> None:
+    def _guard(self, function, *args) -> None:
+        """``function(*args)``, logging (not raising) whatever it raises."""
         try:
-            function()
+            function(*args)
         except Exception as exc:  # noqa: BLE001 -- the I/O thread must survive anything
             if self._running:
                 self.logger.error(f"graph I/O thread: {type(exc).__name__}: {exc}", exc_info=True,
@@ -467,8 +467,6 @@ class GraphRuntime:
                 other.invalidate()  # the node moved to another executor: that one's lease must include it
 
     def _host(self, node):
-        from .services import ServiceHost
-
         host = self._hosts.get(node._gid)
         if host is None:
             host = ServiceHost(node)
@@ -559,9 +557,9 @@ class GraphRuntime:
                 if isinstance(srv, dict) and isinstance(srv.get("name"), str):
                     servers.setdefault(srv["name"], []).append((entry, srv))
         for sub in list(self._subscriptions):
-            self._guard(lambda: self._match_subscription(sub, publishers.get(sub.topic_name, [])))
+            self._guard(self._match_subscription, sub, publishers.get(sub.topic_name, []))
         for client in list(self._clients):
-            self._guard(lambda: self._match_client(client, servers.get(client.srv_name, [])))
+            self._guard(self._match_client, client, servers.get(client.srv_name, []))
 
     def _same_host(self, entry: dict) -> bool:
         return entry.get("host") == self.host and entry.get("boot_id") == self.boot_id

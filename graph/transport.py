@@ -124,7 +124,7 @@ class CurveKeys:
         ValueError
             When the file has no secret key, or the authorized-keys folder is missing.
         """
-        import zmq.auth
+        import zmq.auth  # deferred: optional CURVE security; zmq.auth brings asyncio in
 
         path = Path(secret_key_file)
         try:

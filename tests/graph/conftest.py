@@ -139,7 +139,8 @@ def domain_dir(graph_env) -> Path:
 
 @pytest.fixture
 def spawn(graph_env):
-    """``spawn("talker", "--count", "5", env={...})`` runs ``tests/graph/nodes/talker.py``; all are killed at the end."""
+    """``spawn("talker", "--count", "5", env={...})`` runs ``tests/graph/nodes/talker.py``; all are killed at the
+    end."""
     started: list[NodeProcess] = []
 
     def start(script: str, *args, env=None) -> NodeProcess:

@@ -10,8 +10,16 @@ import uuid
 
 import pytest
 
-from dptpu.graph.discovery import (FORMAT, DirectoryScanner, ensure_private_directory, get_graph, host_identity,
-                                   process_start_ticks, resolve_domain_id, write_announcement)
+from dptpu.graph.discovery import (
+    FORMAT,
+    DirectoryScanner,
+    ensure_private_directory,
+    get_graph,
+    host_identity,
+    process_start_ticks,
+    resolve_domain_id,
+    write_announcement,
+)
 
 
 def _entry(name: str, pid: int, pid_start, **extra) -> dict:

@@ -5,8 +5,15 @@ from __future__ import annotations
 import threading
 import time
 
-from dptpu.graph import (MultiThreadedExecutor, MutuallyExclusiveCallbackGroup, Node, ReentrantCallbackGroup,
-                         SingleThreadedExecutor, String, Trigger)
+from dptpu.graph import (
+    MultiThreadedExecutor,
+    MutuallyExclusiveCallbackGroup,
+    Node,
+    ReentrantCallbackGroup,
+    SingleThreadedExecutor,
+    String,
+    Trigger,
+)
 from dptpu.graph.task import Future
 
 

@@ -6,8 +6,15 @@ import pytest
 
 from dptpu.graph import InvalidNamespaceException, InvalidNodeNameException, InvalidTopicNameException, Node
 from dptpu.graph.exceptions import ROSArgumentsError
-from dptpu.graph.names import (expand_topic_name, normalize_namespace, parse_remap_rule, remap_name,
-                               remap_namespace, remap_node_name, validate_node_name)
+from dptpu.graph.names import (
+    expand_topic_name,
+    normalize_namespace,
+    parse_remap_rule,
+    remap_name,
+    remap_namespace,
+    remap_node_name,
+    validate_node_name,
+)
 
 
 @pytest.mark.parametrize("name, expected", [

@@ -6,9 +6,17 @@ import textwrap
 
 import pytest
 
-from dptpu.graph import (IntegerRange, InvalidParameterTypeException, InvalidParameterValueException, Node,
-                         Parameter, ParameterDescriptor, ParameterNotDeclaredException, ROSArgumentsError,
-                         SetParametersResult)
+from dptpu.graph import (
+    IntegerRange,
+    InvalidParameterTypeException,
+    InvalidParameterValueException,
+    Node,
+    Parameter,
+    ParameterDescriptor,
+    ParameterNotDeclaredException,
+    ROSArgumentsError,
+    SetParametersResult,
+)
 from dptpu.graph.param_files import node_pattern_matches, parse_params_yaml, read_params_file
 
 

@@ -6,11 +6,26 @@ import time
 
 import pytest
 
-from dptpu.graph import (DurabilityPolicy, HistoryPolicy, InvalidQoSProfileException, Node, QoSProfile,
-                         ReliabilityPolicy, SingleThreadedExecutor, String, qos_profile_sensor_data,
-                         qos_profile_system_default)
-from dptpu.graph.qos import (KEEP_ALL_QUEUE_LIMIT, RELIABLE_PIPE_MESSAGES, as_qos_profile, pipe_high_water_mark,
-                             qos_compatibility, queue_limit)
+from dptpu.graph import (
+    DurabilityPolicy,
+    HistoryPolicy,
+    InvalidQoSProfileException,
+    Node,
+    QoSProfile,
+    ReliabilityPolicy,
+    SingleThreadedExecutor,
+    String,
+    qos_profile_sensor_data,
+    qos_profile_system_default,
+)
+from dptpu.graph.qos import (
+    KEEP_ALL_QUEUE_LIMIT,
+    RELIABLE_PIPE_MESSAGES,
+    as_qos_profile,
+    pipe_high_water_mark,
+    qos_compatibility,
+    queue_limit,
+)
 
 
 def test_int_shorthand_becomes_a_profile_at_once():

@@ -39,7 +39,7 @@ def test_spinning_executor_receives_on_its_own_thread_through_the_lease(context)
     executor.add_node(node)
     for index in range(20):
         publisher.publish(String(data=str(index)))
-        assert _spin_until(executor, lambda: len(seen) == index + 1)
+        assert _spin_until(executor, lambda expected=index + 1: len(seen) == expected)
     assert [data for data, _, _ in seen] == [str(i) for i in range(20)]
     assert {ident for _, ident, _ in seen} == {threading.get_ident()}
     assert sum(lent for _, _, lent in seen) >= 10  # typically all but the first, received before the grant

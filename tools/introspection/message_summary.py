@@ -28,6 +28,7 @@ import math
 import numpy as np
 import yaml
 
+from dptpu.graph.interfaces import registered_services
 from dptpu.messages.schema import ARRAY, MESSAGE, MESSAGE_LIST, SEQUENCE, Message
 
 __all__ = ["ArraySummary", "summarize_array", "message_to_dict", "message_to_yaml", "message_to_json",
@@ -225,8 +226,6 @@ def _type_path(type_name: str) -> str:
     package, kind, name = type_name.split("/")
     for suffix in ("Request", "Response"):
         if kind == "msg" and name.endswith(suffix) and len(name) > len(suffix):
-            from dptpu.graph.interfaces import registered_services  # deferred: only for service types
-
             service = f"{package}/srv/{name[:-len(suffix)]}"
             if service in registered_services():
                 return f"{package}.srv.{name[:-len(suffix)]}_{suffix}"

@@ -3,9 +3,9 @@
 On ROS 2, replace the three imports marked ``# ROS 2:`` and nothing else.
 """
 
-import dptpu.graph as rclpy                    # ROS 2: import rclpy
-from dptpu.graph.interfaces import String      # ROS 2: from std_msgs.msg import String
-from dptpu.graph.node import Node              # ROS 2: from rclpy.node import Node
+import dptpu.graph as rclpy  # ROS 2: import rclpy
+from dptpu.graph.interfaces import String  # ROS 2: from std_msgs.msg import String
+from dptpu.graph.node import Node  # ROS 2: from rclpy.node import Node
 
 
 class MinimalPublisher(Node):

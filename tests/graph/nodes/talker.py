@@ -1,7 +1,7 @@
 """Test node: publishes ``String(data=f"{prefix}{i}")`` for i = 0..count-1, then lingers.
 
-Prints JSON lines on stdout: ``{"event": "ready", "topic": ..., "endpoints": [...]}`` once the publisher exists, ``{"event": "published",
-"count": n}`` when done. Options come before ``--ros-args``.
+Prints JSON lines on stdout: ``{"event": "ready", "topic": ..., "endpoints": [...]}`` once the publisher exists,
+``{"event": "published", "count": n}`` when done. Options come before ``--ros-args``.
 """
 
 import argparse

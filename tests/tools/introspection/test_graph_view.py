@@ -7,8 +7,17 @@ import os
 import pytest
 
 from dptpu.graph.discovery import FORMAT, host_identity, process_start_ticks, snapshot_from_entries, write_announcement
-from dptpu.tools.introspection import (UnknownNameError, find_node, find_service, find_topic, format_node_info,
-                                       format_topic_info, is_hidden_node, node_names, read_graph)
+from dptpu.tools.introspection import (
+    UnknownNameError,
+    find_node,
+    find_service,
+    find_topic,
+    format_node_info,
+    format_topic_info,
+    is_hidden_node,
+    node_names,
+    read_graph,
+)
 
 DOMAIN_ID = 63
 QOS = {"history": "keep_last", "depth": 5, "reliability": "best_effort", "durability": "volatile"}

@@ -9,9 +9,8 @@ import pytest
 import yaml
 
 from dptpu.graph import SetBool, Trigger
-from dptpu.tools.introspection import (message_repr, message_to_dict, message_to_json, message_to_yaml,
-                                       summarize_array)
 from dptpu.messages import CameraInfo, Header, Image, PhaseMaps, PointCloud2, Time
+from dptpu.tools.introspection import message_repr, message_to_dict, message_to_json, message_to_yaml, summarize_array
 
 
 def test_summary_of_a_uint8_image_stack_gives_dtype_shape_min_max_mean():

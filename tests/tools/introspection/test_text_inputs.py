@@ -7,10 +7,9 @@ import pytest
 import yaml
 
 from dptpu.graph import Parameter, SetBool, Trigger
-from dptpu.tools.introspection import (format_parameter_value, message_from_yaml, parameters_yaml,
-                                       parse_parameter_value)
 from dptpu.graph.rcl_interfaces import GetParameters, ListParameters
 from dptpu.messages import CameraInfo, Image
+from dptpu.tools.introspection import format_parameter_value, message_from_yaml, parameters_yaml, parse_parameter_value
 
 
 def test_request_from_yaml_fills_scalars_nested_lists_and_defaults():

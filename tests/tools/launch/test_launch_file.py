@@ -133,20 +133,20 @@ def test_several_problems_are_reported_together(write_file):
 
 
 @pytest.mark.parametrize(("node_text", "line", "expected"), [
-    ("{module: %s, respawn: maybe}" % TICKER, 2, "node: respawn must be true or false (or 1 / 0); got 'maybe'"),
-    ("{module: %s, output: scren}" % TICKER, 2,
+    (f"{{module: {TICKER}, respawn: maybe}}", 2, "node: respawn must be true or false (or 1 / 0); got 'maybe'"),
+    (f"{{module: {TICKER}, output: scren}}", 2,
      "node: output must be one of screen, log, both; got 'scren' (did you mean 'screen'?)"),
-    ("{module: %s, param: [{name: gains, value: [1, 2.5]}]}" % TICKER, 2,
+    (f"{{module: {TICKER}, param: [{{name: gains, value: [1, 2.5]}}]}}", 2,
      "param 'gains': array items must all have one type (bool, int, float or str); got float and int"),
-    ("{module: %s, param: [{name: camera, value: {a: 1}}]}" % TICKER, 2,
+    (f"{{module: {TICKER}, param: [{{name: camera, value: {{a: 1}}}}]}}", 2,
      "param 'camera': a value cannot be a mapping"),
-    ("{module: %s, remap: [{from: /a}]}" % TICKER, 2, "remap: missing required key 'to'"),
+    (f"{{module: {TICKER}, remap: [{{from: /a}}]}}", 2, "remap: missing required key 'to'"),
     ("{name: a}", 2, "node: give exactly one of 'module' (run with python -m) or 'executable'"),
     ("{executable: no-such-program-xyz}", 2, "node: executable 'no-such-program-xyz' not found on PATH"),
-    ("{module: %s, name: my/node}" % TICKER, 2, "node: name 'my/node' is not a valid node name"),
-    ("{module: %s, respawn: true, required: true}" % TICKER, 2,
+    (f"{{module: {TICKER}, name: my/node}}", 2, "node: name 'my/node' is not a valid node name"),
+    (f"{{module: {TICKER}, respawn: true, required: true}}", 2,
      "node: a node cannot be both required and respawn: true"),
-    ("{module: %s, respawn_delay: 2.0, respawn_max_delay: 1.0}" % TICKER, 2,
+    (f"{{module: {TICKER}, respawn_delay: 2.0, respawn_max_delay: 1.0}}", 2,
      "node: respawn_max_delay (1.0 s) must be >= respawn_delay (2.0 s)"),
 ])
 def test_bad_values_are_errors_with_file_and_line(write_file, node_text, line, expected):

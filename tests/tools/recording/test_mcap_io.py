@@ -14,8 +14,7 @@ from mcap_ros2.decoder import DecoderFactory
 from mcap_ros2.writer import Writer as Ros2Writer
 
 from dptpu.messages import CameraInfo, EncodeError, Image, PhaseMaps, PointCloud2, Trigger, registered_types
-from dptpu.tools.recording import McapReadError, McapRecordWriter, describe_mcap, read_mcap
-from dptpu.tools.recording import msgpack_records
+from dptpu.tools.recording import McapReadError, McapRecordWriter, describe_mcap, msgpack_records, read_mcap
 from dptpu.tools.recording.ros2_cdr import from_ros2, is_ros2_type, ros2_schema_text, to_ros2_dict
 
 from .sample_messages import sample_messages
