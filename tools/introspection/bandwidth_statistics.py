@@ -1,7 +1,7 @@
 """Bandwidth of a topic over a sliding window of messages (``dptpu topic bw``, as ``ros2 topic bw``).
 
 A message's size is its serialized size: the bytes of every frame of the wire message (topic,
-msgpack header, raw array frames; ``dptpu.messages.codec``), without the runtime's 40-byte envelope.
+msgpack header, raw array frames; ``dptpu.messages.encoder``), without the runtime's 40-byte envelope.
 Over the last ``window`` messages received at times ``t_0 <= ... <= t_{n-1}``:
 
 - ``bytes_per_s = sum(sizes) / (now - t_0)``, as ``ros2 topic bw`` computes it;

@@ -1,6 +1,6 @@
 """The ``dptpu-msgpack`` MCAP encoding of the scanner's own messages (``dptpu_msgs/msg/...``).
 
-A scanner message is stored as the frames our wire codec (:mod:`dptpu.messages.codec`) sends, so a
+A scanner message is stored as the frames our wire codec (:mod:`dptpu.messages.encoder`) sends, so a
 recording is bit-exact and the codec's strict checks guard the reading side too.
 
 Schema record (one per type): ``encoding = "dptpu-msgpack"``, ``name`` = the type name
