@@ -22,7 +22,11 @@ Modules (one concept each): :mod:`.context` (init/ok/shutdown), :mod:`.node`, :m
 :mod:`.task`, :mod:`.interfaces` and :mod:`.rcl_interfaces` (service and parameter types),
 :mod:`.parameter_service`, :mod:`.parameter_client`, :mod:`.discovery` (announcements, graph
 snapshots), :mod:`.transport` (sockets, endpoints, Curve), :mod:`.peers` (other hosts),
-:mod:`.runtime` (the I/O thread). Design and behaviour: ``docs/graph.md``.
+:mod:`.runtime` (the I/O thread), :mod:`.lease` (sockets lent to a waiting executor),
+:mod:`.endpoint_matching` (which publishers and servers to connect to). Design and behaviour: ``docs/graph.md``.
+
+Tools built on the runtime (launch, recording, introspection) live in :mod:`dptpu.tools`; the runtime imports only
+:mod:`dptpu.messages`, never its scanner types.
 """
 
 from __future__ import annotations

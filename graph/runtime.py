@@ -44,12 +44,12 @@ from .discovery import (
     remove_announcement,
     write_announcement,
 )
+from .endpoint_matching import index_endpoints, wanted_publishers, wanted_servers
 from .lease import IO, POLLING, SocketLease, drain_socket
 from .logging import get_logger
 from .peers import PeerExchange, peers_from_environment
-from .qos import QoSProfile, qos_compatibility
 from .services import ServiceHost
-from .transport import MAX_IPC_PATH_BYTES, TransportConfig, choose_endpoint, connect, remove_ipc_file
+from .transport import MAX_IPC_PATH_BYTES, TransportConfig, connect, remove_ipc_file
 
 __all__ = ["GraphRuntime", "EVENTS_INTERVAL_S", "STATS_INTERVAL_S"]
 
@@ -547,15 +547,7 @@ class GraphRuntime:
             foreign.extend(self._peers.entries())
         entries = foreign + own
         self.entries = entries
-        publishers: dict[str, list] = {}
-        servers: dict[str, list] = {}
-        for entry in entries:
-            for pub in entry.get("publishers", []):
-                if isinstance(pub, dict) and isinstance(pub.get("topic"), str):
-                    publishers.setdefault(pub["topic"], []).append((entry, pub))
-            for srv in entry.get("services", []):
-                if isinstance(srv, dict) and isinstance(srv.get("name"), str):
-                    servers.setdefault(srv["name"], []).append((entry, srv))
+        publishers, servers = index_endpoints(entries)
         for sub in list(self._subscriptions):
             self._guard(self._match_subscription, sub, publishers.get(sub.topic_name, []))
         for client in list(self._clients):
@@ -567,27 +559,7 @@ class GraphRuntime:
     def _match_subscription(self, sub, candidates) -> None:
         if sub._socket is None or sub._destroyed:
             return
-        wanted: dict[str, tuple] = {}
-        for entry, pub in candidates:
-            gid = str(pub.get("gid", ""))
-            problem = None
-            if sub.msg_type is not None and pub.get("type") != sub.msg_type.TYPE_NAME:
-                problem = f"it publishes {pub.get('type')}, the subscription expects {sub.msg_type.TYPE_NAME}"
-            else:
-                try:
-                    problem = qos_compatibility(QoSProfile.from_dict(pub.get("qos")), sub.qos_profile)
-                except ValueError as exc:
-                    problem = f"its QoS is unreadable ({exc})"
-            if problem:
-                if gid not in sub._warned:
-                    sub._warned.add(gid)
-                    sub._node.get_logger().warning(
-                        f"not connecting subscription on {sub.topic_name} to the publisher of node "
-                        f"{entry.get('fqn')}: {problem}")
-                continue
-            endpoint = choose_endpoint(pub.get("endpoints"), same_host=self._same_host(entry), config=self.transport)
-            if endpoint is not None:
-                wanted[endpoint] = (gid, entry.get("curve_public_key"))
+        wanted = wanted_publishers(sub, candidates, same_host=self._same_host, transport=self.transport)
         if set(wanted) != set(sub._connected):
             lease = self._lent.get(sub._socket)
             if lease is not None:  # lent to an executor: (dis)connect once it is back
@@ -612,20 +584,7 @@ class GraphRuntime:
     def _match_client(self, client, candidates) -> None:
         if client._socket is None:
             return
-        wanted: dict[str, tuple] = {}
-        for entry, srv in candidates:
-            if srv.get("type") != client.srv_type.TYPE_NAME:
-                gid = str(entry.get("gid"))
-                if ("type", gid) not in getattr(client, "_warned", set()):
-                    client._warned = getattr(client, "_warned", set()) | {("type", gid)}
-                    client._node.get_logger().warning(
-                        f"not connecting client of {client.srv_name} to node {entry.get('fqn')}: it serves type "
-                        f"{srv.get('type')}, the client expects {client.srv_type.TYPE_NAME}")
-                continue
-            endpoint = choose_endpoint(entry.get("service_endpoints"), same_host=self._same_host(entry),
-                                       config=self.transport)
-            if endpoint is not None:
-                wanted[endpoint] = (str(entry.get("gid")), entry.get("curve_public_key"))
+        wanted = wanted_servers(client, candidates, same_host=self._same_host, transport=self.transport)
         for endpoint in set(client._connected) - set(wanted):
             client._connected.pop(endpoint)
             try:
