@@ -190,6 +190,6 @@ def _slice_reference_index(value) -> int | None:
 
 
 def _array_ref_index(value) -> int | None:
-    """Array frame of a header value unpacked by :func:`_ext_hook`: an :class:`ArrayRef`."""
+    """Array frame of a header value unpacked by :func:`~.frame_reading.unpack_header`: an :class:`ArrayRef`."""
     return value.index if type(value) is ArrayRef else None
 
