@@ -74,9 +74,7 @@ class CodecPlan:
         self.fast = tuple(entries)
 
 
-
 PLANS: dict = {}  # message class -> CodecPlan (registration is permanent, so is a plan)
-
 
 
 def plan_for(cls: type) -> CodecPlan | None:
@@ -88,4 +86,3 @@ def plan_for(cls: type) -> CodecPlan | None:
         plan = PLANS[cls] = CodecPlan(cls)
         plan.build_fast()
     return plan
-

@@ -48,6 +48,4 @@ class DecodeLimits:
             raise ValueError(f"DecodeLimits.max_frames must be >= 2 (topic and header); got {self.max_frames}")
 
 
-
 DEFAULT_LIMITS = DecodeLimits()
-

@@ -117,4 +117,3 @@ def _expected_class(expected_type):
         _EXPECTED_CLASSES.add(expected_type)
         return expected_type
     raise ValueError(f"expected_type must be a message class or type name; got {expected_type!r}")
-

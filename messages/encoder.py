@@ -38,7 +38,6 @@ _ARRAY_REFS = tuple(msgpack.ExtType(ARRAY_REF_EXT_CODE, ARRAY_INDEX.pack(index))
 _ARRAYS_KEY = msgpack.packb("arrays", use_bin_type=True)
 
 
-
 def encode(topic, msg: Message) -> list:
     """Encode ``msg`` for ``topic`` as multipart frames ``[topic, header, *arrays]``.
 
@@ -168,4 +167,3 @@ def _topic_bytes(topic) -> bytes:
     if not isinstance(encoded, bytes) or not encoded:
         raise EncodeError(f"topic must be a non-empty str or bytes; got {short_repr(topic)}")
     return encoded
-

@@ -192,4 +192,3 @@ def _slice_reference_index(value) -> int | None:
 def _array_ref_index(value) -> int | None:
     """Array frame of a header value unpacked by :func:`~.frame_reading.unpack_header`: an :class:`ArrayRef`."""
     return value.index if type(value) is ArrayRef else None
-

@@ -91,4 +91,3 @@ def _decode_array_ref(spec: FieldSpec, value, arrays: list, used: list, path: st
         raise DecodeError(f"{where} must have {len(spec.axes)} dimension(s) ({', '.join(spec.axes)}); "
                           f"got shape {values.shape}")
     return values
-

@@ -128,4 +128,3 @@ def _encode_array(spec: FieldSpec, value, path: str) -> np.ndarray:
     if not value.flags.c_contiguous:  # one copy into C order
         return np.ascontiguousarray(value)
     return value
-

@@ -183,4 +183,3 @@ def array_view(index: int, descriptor, view: memoryview, limits: DecodeLimits) -
     values = np.frombuffer(view, dtype=dtype).reshape(shape)
     values.flags.writeable = False
     return values
-

@@ -227,4 +227,3 @@ def _definition_body(cls: type) -> str:
             line += f"  # shape ({', '.join(spec.axes)}), row-major"
         lines.append(line)
     return "\n".join(lines)
-

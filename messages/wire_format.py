@@ -33,29 +33,24 @@ ARRAY_REF_EXT_CODE = 1
 #: Wire dtype strings a decoder accepts (numpy ``dtype.str``), all little-endian or single-byte.
 ALLOWED_DTYPES: dict[str, np.dtype] = {dtype.str: dtype for dtype in ARRAY_DTYPES.values()}
 
-
 #: The header's keys, in the order the encoder writes them.
 HEADER_KEYS = ("wire", "type", "version", "fields", "arrays")
-
 HEADER_KEY_SET = frozenset(HEADER_KEYS)
 
-# primitive -> (exact Python type on the wire, inclusive integer range or None).
+#: primitive -> (exact Python type on the wire, inclusive integer range or None).
 SCALAR_CHECKS = {"string": (str, None, None), "float64": (float, None, None), "bool": (bool, None, None),
-                  **{name: (int, low, high) for name, (low, high) in INTEGER_RANGES.items()}}
+                 **{name: (int, low, high) for name, (low, high) in INTEGER_RANGES.items()}}
 
 #: An array reference's payload: the array's index, big-endian uint32.
 ARRAY_INDEX = struct.Struct(">I")
-
 
 
 class DecodeError(ValueError):
     """A received message is malformed, oversized, of an unexpected type or of another schema version."""
 
 
-
 class EncodeError(ValueError):
     """A message cannot be encoded: a field has the wrong type, dtype, shape or range."""
-
 
 
 def short_repr(value) -> str:

@@ -62,4 +62,3 @@ class DocumentChecker:
         if not isinstance(value, list):
             self.fail(f"{key} must be a list of file names; got {value!r}")
         return [self.file_name(v, f"{key}[{i}]") for i, v in enumerate(value)]
-

@@ -118,4 +118,3 @@ def load_ground_truth(capture: Capture) -> GroundTruth:
     if valid.dtype != np.bool_:
         raise ValueError(f"{path.name}: valid must be bool; got {valid.dtype}")
     return GroundTruth(projector_x=projector_x, valid=valid)
-

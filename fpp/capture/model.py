@@ -268,4 +268,3 @@ def format_number(value) -> str:
     """``96.0 -> "96"``, ``10.9 -> "10.9"``."""
     value = float(value)
     return str(int(value)) if value.is_integer() else repr(value)
-

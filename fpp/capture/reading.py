@@ -231,4 +231,3 @@ def _listed_files(capture: Capture) -> list[Path]:
     files.extend(capture.references.values())
     files.extend(p for p in (capture.calibration, capture.ground_truth) if p is not None)
     return files
-

@@ -277,4 +277,3 @@ def _write_ground_truth(folder: Path, ground_truth: Mapping[str, np.ndarray], sh
     arrays["valid"] = arrays["valid"].astype(bool)
     np.savez_compressed(folder / name, **arrays)
     return name
-

@@ -153,7 +153,6 @@ def declared_arguments(path: str | os.PathLike) -> tuple[LaunchArgument, ...]:
     return tuple(found)
 
 
-
 class LaunchLoader:
     """Reads a launch file and its includes: files, entries, ``arg``/``let``/``include``/``group``; every problem
     recorded in :attr:`problems` (file and line) rather than raised at the first.

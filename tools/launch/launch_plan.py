@@ -115,4 +115,3 @@ class LaunchPlan:
     arguments: tuple[LaunchArgument, ...]
     values: Mapping[str, str]
     nodes: tuple[NodeLaunch, ...]
-

@@ -71,7 +71,6 @@ def type_name(value) -> str:
     return f"{type(value).__name__} {value!r}"
 
 
-
 class ValueReader:
     """Typed values of an entry's keys, with ``$(...)`` substitutions done against ``environ``."""
 

@@ -38,7 +38,6 @@ class NodeDraft:
     line: int
 
 
-
 class NodeReader:
     """The ``node`` entries of a launch, read into :class:`NodeLaunch` drafts in the order they come."""
 
