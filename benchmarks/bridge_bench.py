@@ -83,8 +83,8 @@ class _Bench:
         from dptpu.graph import Context, Node
         from dptpu.graph.executors import SingleThreadedExecutor
         from dptpu.messages import PointCloud2
-        from dptpu.nodes.ros2_idl import PointCloud2_
-        from dptpu.nodes.ros2_qos import ros2_qos
+        from dptpu.nodes.ros2_bridge.ros2_idl import PointCloud2_
+        from dptpu.nodes.ros2_bridge.ros2_qos import ros2_qos
 
         self.pool = _pool(width, height)
         self.pool_bytes = [cloud.tobytes() for cloud in self.pool]

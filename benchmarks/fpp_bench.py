@@ -551,7 +551,7 @@ def bench_node_paths(images_high, images_low, size, repeats) -> dict:
     def phase_before():
         return [reference_phase_node(stack, NODE_MIN_MODULATION_DN, NODE_SATURATION_DN) for stack in stacks]
 
-    def phase_as_called():  # dptpu.nodes.phase.scan_phase_maps today: float64 maps, cast by the node
+    def phase_as_called():  # dptpu.fpp.scan_phase.scan_phase_maps today: float64 maps, cast by the node
         maps_list = []
         for stack in stacks:
             maps = wrapped_phase(stack, shift_sign=-1, phase_offset=0.0)

@@ -17,6 +17,7 @@ import numpy as np
 from dptpu.cli.unwrap_cmd import add_unwrap_arguments
 from dptpu.fpp.calibration import load_rig
 from dptpu.fpp.capture import CAPTURE_FILE, read_capture
+from dptpu.fpp.point_cloud_file import write_point_cloud
 from dptpu.fpp.reconstruct import unwrap_capture
 from dptpu.fpp.triangulate import Triangulator, projector_coordinate
 
@@ -60,15 +61,6 @@ def run(args: argparse.Namespace) -> int:
     cloud_points = points[keep]  # (M, 3)
     if cloud_points.shape[0] == 0:
         raise ValueError(f"no valid pixel to triangulate in {capture.root} ({args.method}); nothing written")
-    _write_point_cloud(args.out, cloud_points)
+    write_point_cloud(args.out, cloud_points, unit=rig.units)
     print(f"{args.method}: {cloud_points.shape[0]} points ({rig.units}) -> {args.out}")
     return 0
-
-
-def _write_point_cloud(path: Path, points: np.ndarray) -> None:
-    """Write points (M, 3) with open3d (imported here: it is slow to import)."""
-    import open3d as o3d
-
-    cloud = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(np.ascontiguousarray(points, dtype=np.float64)))
-    if not o3d.io.write_point_cloud(str(path), cloud):
-        raise ValueError(f"{path}: open3d could not write the point cloud (is the suffix .ply/.pcd/.xyz?)")

@@ -15,9 +15,9 @@ from pathlib import Path
 import numpy as np
 
 from dptpu.fpp.capture import read_capture
+from dptpu.fpp.methods import CAPTURE_METHODS
 from dptpu.fpp.reconstruct import (
     DEFAULT_MIN_MODULATION_FRACTION,
-    METHODS,
     CaptureResult,
     unwrap_capture,
 )
@@ -31,7 +31,7 @@ def add_unwrap_arguments(parser: argparse.ArgumentParser) -> None:
     """The options shared by ``unwrap`` and ``triangulate``: capture, method, sequence choice, threshold."""
     parser.add_argument("--capture", required=True, type=Path, metavar="DIR",
                         help="capture folder (dptpu-capture/1, docs/capture-format.md) or its capture.yaml")
-    parser.add_argument("--method", required=True, choices=METHODS,
+    parser.add_argument("--method", required=True, choices=CAPTURE_METHODS,
                         help="temporal unwrapping: mf (f_l <= 1), mw (f_h - f_l <= 1), nt (number-theoretic), "
                              "heterodyne (every phase sequence), graycode (Gray-code sequence)")
     parser.add_argument("--high", type=float, metavar="F",
@@ -70,6 +70,7 @@ def register(subparsers) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    # imported when the command runs, not at start-up: keeps `dptpu --help` fast
     from dptpu.models.refine import (
         DEFAULT_MAX_PERIODS_PER_PIXEL,
         fringe_density,

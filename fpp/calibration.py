@@ -1,4 +1,5 @@
-"""The rig model: a camera and a projector (an inverse camera), and the files it is read from and written to.
+"""The files a rig (:mod:`dptpu.fpp.rig_model`: a camera and a projector, an inverse camera) is read from and
+written to.
 
 One model serves every reader: each device has ``K`` (3x3 intrinsics, skew allowed), ``dist`` (Brown-Conrady
 k1 k2 p1 p2 k3, OpenCV order), ``R``, ``T`` (world to device: ``X_dev = R @ X_world + T``) and ``size``
@@ -18,101 +19,18 @@ Writers: ``dptpu-rig/1`` YAML and the OpenCV FileStorage rig file.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
 from pathlib import Path
 
+import cv2
 import numpy as np
 import yaml
 
+from .rig_model import DeviceModel, Rig, checked_array
+
+__all__ = ["RIG_FORMAT", "DeviceModel", "Rig", "load_bouguet", "load_bouguet_pair", "load_device", "load_opencv_device",
+           "load_opencv_rig", "load_rig", "save_opencv_rig", "save_rig"]
+
 RIG_FORMAT = "dptpu-rig/1"
-
-
-@dataclass(frozen=True)
-class DeviceModel:
-    """One pinhole device (camera, or projector as an inverse camera) with Brown-Conrady distortion.
-
-    Attributes
-    ----------
-    K : ndarray (3, 3)
-        Intrinsics ``[[fx, s, cx], [0, fy, cy], [0, 0, 1]]``, pixels.
-    dist : ndarray (5,)
-        ``k1, k2, p1, p2, k3`` (OpenCV order; Bouguet's ``kc`` is the same order).
-    R : ndarray (3, 3)
-        Rotation world -> device.
-    T : ndarray (3,)
-        Translation world -> device, in the rig's units.
-    size : tuple of int
-        ``(width, height)`` in pixels.
-
-    Convention: pixel centres are 0-based, ``X_dev = R @ X_world + T``, ``x_pix = K @ distort(X_dev / z)``.
-    """
-
-    K: np.ndarray
-    dist: np.ndarray
-    R: np.ndarray
-    T: np.ndarray
-    size: tuple[int, int]
-
-    def __post_init__(self):
-        K = _as_matrix(self.K, (3, 3), "K")
-        if K[2, 0] != 0 or K[2, 1] != 0 or K[2, 2] != 1 or K[1, 0] != 0:
-            raise ValueError(f"K must be upper triangular with K[2] = [0, 0, 1]; got {K.tolist()}")
-        dist = np.zeros(5)
-        given = np.asarray(self.dist, dtype=np.float64).ravel()
-        if given.size not in (4, 5) or not np.all(np.isfinite(given)):
-            raise ValueError(f"dist must hold 4 or 5 finite coefficients (k1 k2 p1 p2 [k3]); got {given.tolist()}")
-        dist[: given.size] = given
-        R = _as_matrix(self.R, (3, 3), "R")
-        if not np.allclose(R @ R.T, np.eye(3), atol=1e-6) or np.linalg.det(R) < 0:
-            raise ValueError("R must be a rotation matrix (orthonormal, det +1)")
-        T = _as_matrix(self.T, (3,), "T")
-        size = tuple(int(v) for v in np.asarray(self.size).ravel())
-        if len(size) != 2 or min(size) <= 0:
-            raise ValueError(f"size must be (width, height) > 0; got {self.size}")
-        for name, value in (("K", K), ("dist", dist), ("R", R), ("T", T), ("size", size)):
-            object.__setattr__(self, name, value)
-
-    @property
-    def projection_matrix(self) -> np.ndarray:
-        """``K [R | T]``, (3, 4): the paper's Eq. (10) without distortion."""
-        return self.K @ np.hstack([self.R, self.T[:, None]])
-
-    @property
-    def center(self) -> np.ndarray:
-        """Optical centre in world coordinates, ``-R^T T`` (the paper's Eq. (13)), shape (3,)."""
-        return -self.R.T @ self.T
-
-
-@dataclass(frozen=True)
-class Rig:
-    """A camera and a projector in one world frame, with the twin's physical effects (docs/effects.md)."""
-
-    camera: DeviceModel
-    projector: DeviceModel
-    units: str = "mm"
-    effects: tuple = field(default_factory=tuple)
-
-    @property
-    def scale_to_m(self) -> float:
-        """Factor from the rig's units to metres."""
-        try:
-            return {"m": 1.0, "mm": 1e-3, "cm": 1e-2, "um": 1e-6}[self.units]
-        except KeyError:
-            raise ValueError(f"rig units must be one of m, cm, mm, um; got {self.units!r}") from None
-
-
-def _as_matrix(value, shape, name) -> np.ndarray:
-    try:
-        array = np.asarray(value, dtype=np.float64)
-    except (TypeError, ValueError):
-        raise ValueError(f"{name} must be numeric with shape {shape}; got {value!r}") from None
-    if array.shape != shape:
-        array = array.reshape(-1) if shape == (3,) and array.size == 3 else array
-    if array.shape != shape:
-        raise ValueError(f"{name} must have shape {shape}; got {array.shape}")
-    if not np.all(np.isfinite(array)):
-        raise ValueError(f"{name} contains NaN or inf")
-    return array
 
 
 # --- Bouguet toolbox ------------------------------------------------------------------------------------
@@ -130,7 +48,7 @@ def load_bouguet(path, size, *, pose: int = 1) -> DeviceModel:
     pose : int
         Calibration pose whose extrinsics define the world frame (1-based, as in the toolbox).
     """
-    from scipy.io import loadmat
+    from scipy.io import loadmat  # scipy: heavy to import, and only a .mat file needs it
 
     path = Path(path)
     if not path.exists():
@@ -142,7 +60,8 @@ def load_bouguet(path, size, *, pose: int = 1) -> DeviceModel:
     fields = {"KK": (3, 3), "kc": None, f"Rc_{pose}": (3, 3), f"Tc_{pose}": None}
     for name, shape in fields.items():
         if name not in data:
-            raise ValueError(f"{path}: missing field '{name}' (a Bouguet calibration needs KK, kc, Rc_{pose}, Tc_{pose})")
+            raise ValueError(f"{path}: missing field '{name}' (a Bouguet calibration needs KK, kc, Rc_{pose}, "
+                             f"Tc_{pose})")
         if shape is not None and np.shape(data[name]) != shape:
             raise ValueError(f"{path}: field '{name}' must have shape {shape}; got {np.shape(data[name])}")
     if size is None:
@@ -179,6 +98,7 @@ def load_bouguet_pair(camera_path, projector_path, *, camera_size=None, projecto
 
 def _projector_from_all_views(camera_path, projector_path, camera: DeviceModel,
                               projector: DeviceModel) -> DeviceModel:
+    # scipy (loadmat, least squares): heavy to import, and only this option needs it
     from scipy.io import loadmat
 
     from .stereo_calibration import CalibrationViews, refine_relative_pose
@@ -262,15 +182,13 @@ def load_rig(path) -> Rig:
     rig = Rig(camera=_device_from_dict(document["camera"], f"{path}: camera"),
               projector=_device_from_dict(document["projector"], f"{path}: projector"),
               units=str(document.get("units", "mm")), effects=tuple(effects))
-    rig.scale_to_m  # validates units
+    _ = rig.scale_to_m  # ValueError for units other than m, cm, mm, um
     return rig
 
 
 # --- OpenCV FileStorage --------------------------------------------------------------------------------
 
 def _read_node(storage, name, path, *, required=True):
-    import cv2
-
     node = storage.getNode(name)
     if node.empty():
         if required:
@@ -286,8 +204,6 @@ def _read_node(storage, name, path, *, required=True):
 
 
 def _open_storage(path):
-    import cv2
-
     path = Path(path)
     if not path.exists():
         raise FileNotFoundError(f"{path}: no such file")
@@ -329,8 +245,8 @@ def load_opencv_rig(path, *, camera_size=None, projector_size=None, units=None) 
     cam_R = np.eye(3) if cam_R is None else cam_R
     cam_T = np.zeros(3) if cam_T is None else np.ravel(cam_T)
     try:
-        R_cp = _as_matrix(R_cp, (3, 3), "R")
-        T_cp = _as_matrix(T_cp, (3,), "T")
+        R_cp = checked_array(R_cp, (3, 3), "R")
+        T_cp = checked_array(T_cp, (3,), "T")
         camera = DeviceModel(K=cam_K, dist=np.ravel(cam_kc), R=cam_R, T=cam_T, size=camera_size)
         projector = DeviceModel(K=proj_K, dist=np.ravel(proj_kc), R=R_cp @ camera.R,
                                 T=R_cp @ camera.T + T_cp, size=projector_size)
@@ -341,8 +257,6 @@ def load_opencv_rig(path, *, camera_size=None, projector_size=None, units=None) 
 
 def save_opencv_rig(rig: Rig, path) -> Path:
     """Write ``rig`` as an OpenCV FileStorage YAML rig file (readable by :func:`load_opencv_rig`)."""
-    import cv2
-
     path = Path(path)
     R_cp = rig.projector.R @ rig.camera.R.T
     T_cp = rig.projector.T - R_cp @ rig.camera.T
@@ -364,8 +278,6 @@ def save_opencv_rig(rig: Rig, path) -> Path:
 def load_opencv_device(path, *, size=None) -> DeviceModel:
     """Read one device from an OpenCV calibration file (``camera_matrix``, ``distortion_coefficients``,
     ``image_width``, ``image_height``; optional world pose ``R`` or ``rvec``, and ``T``/``tvec``)."""
-    import cv2
-
     storage = _open_storage(path)
     try:
         K = _read_node(storage, "camera_matrix", path)

@@ -45,7 +45,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from dptpu.fpp.checks import check_image_stack, check_projector_size
-from dptpu.fpp.phase import PhaseMaps
+from dptpu.fpp.phase import WrappedPhase
 from dptpu.fpp.tpu import Unwrapped
 
 __all__ = [
@@ -234,7 +234,7 @@ def unwrap_graycode(
 
     Parameters
     ----------
-    wrapped : ndarray (H, W) or PhaseMaps
+    wrapped : ndarray (H, W) or WrappedPhase
         Wrapped phase ``psi`` of the sequence indexed by the code, radians in ``[0, 2*pi)``
         (map a raw ``arctan2`` phase with ``np.mod(psi, 2*pi)`` first); NaN marks invalid pixels.
     images : ndarray (bits, H, W)
@@ -441,7 +441,7 @@ def _min_contrast(min_contrast, stack, inverse, white) -> float:
 
 
 def _wrapped(wrapped) -> np.ndarray:
-    if isinstance(wrapped, PhaseMaps):
+    if isinstance(wrapped, WrappedPhase):
         wrapped = wrapped.phase
     psi = np.asarray(wrapped)
     if psi.ndim != 2:

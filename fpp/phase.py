@@ -17,7 +17,7 @@ Convention: wrapped phase is in ``[0, 2*pi)``, so ``phi = psi + 2*pi*k`` with
 
 Speed: the three sums are one (3, N) @ (N, H*W) matrix product, in float32 for 8/16-bit images (exact
 inputs; the phase is then within about 5e-7 rad of the float64 result), float64 otherwise; kernels in
-:mod:`._lsq_phase`. A 12-frame 640x480 8-bit stack takes a few milliseconds on one core.
+:mod:`._lsq_phase`. Timings: docs/benchmarks.md (``dptpu bench fpp``).
 """
 
 from __future__ import annotations
@@ -31,7 +31,7 @@ import numpy as np
 from ._lsq_phase import angle_0_2pi_float32, angle_0_2pi_float64, phase_sums
 from .checks import check_image_stack
 
-__all__ = ["PhaseMaps", "wrapped_phase", "quality_mask", "check_bit_depth", "sequence_sums", "maps_from_sums"]
+__all__ = ["WrappedPhase", "wrapped_phase", "quality_mask", "check_bit_depth", "sequence_sums", "maps_from_sums"]
 
 _TWO_PI = 2.0 * np.pi
 #: Integer image dtypes whose values float32 holds exactly: their sums are computed in float32.
@@ -39,8 +39,10 @@ _FLOAT32_EXACT = (np.uint8, np.int8, np.uint16, np.int16)
 
 
 @dataclass(frozen=True)
-class PhaseMaps:
-    """Per-pixel result of phase-shifting analysis.
+class WrappedPhase:
+    """The wrapped phase, modulation and background of one N-step sequence (what :func:`wrapped_phase` returns).
+
+    Not the wire message :class:`dptpu.messages.PhaseMaps`, which carries a whole scan's maps between nodes.
 
     Attributes
     ----------
@@ -57,7 +59,7 @@ class PhaseMaps:
     background: np.ndarray
 
 
-def wrapped_phase(images, *, shift_sign=-1, phase_offset=0.0, bit_depth=None, dtype=np.float64) -> PhaseMaps:
+def wrapped_phase(images, *, shift_sign=-1, phase_offset=0.0, bit_depth=None, dtype=np.float64) -> WrappedPhase:
     """Least-squares wrapped phase of an N-step sequence (Eq. (2) of the paper).
 
     Parameters
@@ -77,7 +79,7 @@ def wrapped_phase(images, *, shift_sign=-1, phase_offset=0.0, bit_depth=None, dt
 
     Returns
     -------
-    PhaseMaps
+    WrappedPhase
         ``phase`` (H, W) in ``[0, 2*pi)`` rad, ``modulation`` ``B`` and ``background`` ``A``
         (H, W) in the images' intensity units, all of ``dtype``.
 
@@ -121,7 +123,7 @@ def wrapped_phase(images, *, shift_sign=-1, phase_offset=0.0, bit_depth=None, dt
     else:
         modulation = np.hypot(sine, cosine)
         phase = angle_0_2pi_float64(sine, cosine)
-    return PhaseMaps(phase=phase.astype(dtype, copy=False), modulation=modulation.astype(dtype, copy=False),
+    return WrappedPhase(phase=phase.astype(dtype, copy=False), modulation=modulation.astype(dtype, copy=False),
                      background=background.astype(dtype, copy=False))
 
 
@@ -143,14 +145,14 @@ def sequence_sums(images, *, shift_sign=-1, phase_offset=0.0) -> np.ndarray:
     return phase_sums(images, shift_sign=shift_sign, phase_offset=float(phase_offset), dtype=np.float32)
 
 
-def maps_from_sums(sums: np.ndarray) -> PhaseMaps:
+def maps_from_sums(sums: np.ndarray) -> WrappedPhase:
     """Phase in ``[0, 2*pi)``, modulation ``B`` and background ``A`` (H, W) float32 from the sums of Eq. (2).
 
     ``sums`` (3, H, W) float32 holds ``B sin(psi)``, ``B cos(psi)`` and ``A`` (:func:`sequence_sums`).
     """
     sine, cosine, background = sums
     modulation = cv2.magnitude(cosine, sine)  # B = hypot(B sin(psi), B cos(psi))
-    return PhaseMaps(phase=angle_0_2pi_float32(sine, cosine, modulation), modulation=modulation,
+    return WrappedPhase(phase=angle_0_2pi_float32(sine, cosine, modulation), modulation=modulation,
                      background=background)
 
 
@@ -162,7 +164,7 @@ def quality_mask(images, modulation, *, min_modulation, saturation_level=None) -
     images : ndarray (N, H, W)
         The phase-shifted images the modulation came from.
     modulation : ndarray (H, W)
-        Modulation ``B`` in the images' intensity units (e.g. ``PhaseMaps.modulation``).
+        Modulation ``B`` in the images' intensity units (e.g. ``WrappedPhase.modulation``).
     min_modulation : float
         Smallest acceptable ``B``, >= 0, in the images' intensity units.
     saturation_level : float, optional

@@ -20,6 +20,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+from scipy.io import loadmat
 
 from .calibration import Rig, load_bouguet_pair
 from .fitting import fit_sphere, fit_sphere_algebraic
@@ -78,8 +79,6 @@ def load_rig(data_dir, calibration: str, *, relative_pose: str = "view") -> Rig:
 def load_phase(data_dir, phase: str) -> np.ndarray:
     """Absolute phase (480, 640) float64 of the ``real`` or ``twin`` sphere, NaN where invalid
     (the paper's rule ``|phase| >= 10``)."""
-    from scipy.io import loadmat
-
     if phase not in _PHASE_FILES:
         raise ValueError(f"phase must be 'real' or 'twin'; got {phase!r}")
     name, field = _PHASE_FILES[phase]

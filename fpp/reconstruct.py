@@ -13,8 +13,9 @@ heterodyne every phase sequence (beat tree down to a beat ``<= 1``)            E
 graycode   the phase sequence whose period is the Gray code's, + the code      Eq. (3)
 ========== ================================================================== ===========================
 
-``high`` and ``low`` select sequences by frequency (periods across the projector extent), matched within
-a relative ``1e-3`` so ``45.714`` finds ``1920 / 42``.
+``high`` and ``low`` select sequences by frequency (periods across the projector extent), matched by
+:func:`dptpu.fpp.frequencies.same_frequency` (within a relative ``1e-3``, so ``45.714`` finds ``1920 / 42``);
+the choice of the sequences is :func:`dptpu.fpp.frequencies.select_frequencies`, the unwrap node's too.
 
 Validity: a pixel is valid where the unwrapping method accepts it AND every phase sequence it used has
 modulation ``B >= min_modulation`` and no saturated frame (:func:`dptpu.fpp.phase.quality_mask`) AND
@@ -45,14 +46,13 @@ from .capture import (
     load_reference,
     load_sequence_images,
 )
+from .frequencies import find_frequency, same_frequency, select_frequencies
+from .methods import CAPTURE_METHODS
 
-__all__ = ["METHODS", "DEFAULT_MIN_MODULATION_FRACTION", "CaptureResult", "unwrap_capture"]
+__all__ = ["DEFAULT_MIN_MODULATION_FRACTION", "CaptureResult", "unwrap_capture"]
 
-#: Unwrapping methods of :func:`unwrap_capture`.
-METHODS = ("mf", "mw", "nt", "heterodyne", "graycode")
 #: Default ``min_modulation`` as a fraction of the camera's full scale ``2**bit_depth - 1``.
 DEFAULT_MIN_MODULATION_FRACTION = 0.02
-_FREQUENCY_MATCH_RELATIVE = 1e-3
 
 
 @dataclass(frozen=True, eq=False)
@@ -77,7 +77,7 @@ class CaptureResult:
     frequency : float
         Frequency ``f`` of the high sequence (periods across ``W_p``).
     method : str
-        One of :data:`METHODS`.
+        One of :data:`dptpu.fpp.methods.CAPTURE_METHODS`.
     frequencies : tuple of float
         Frequencies of the phase sequences used, the high one first.
     fringe_axis : str
@@ -161,8 +161,8 @@ def unwrap_capture(
     Eq. (5) (mf), Eqs. (6)-(7) (mw, heterodyne), Eqs. (8)-(9) (nt) or the Gray code, absolute phase by
     Eq. (3).
     """
-    if method not in METHODS:
-        raise ValueError(f"unknown unwrapping method {method!r}; expected one of {', '.join(METHODS)}")
+    if method not in CAPTURE_METHODS:
+        raise ValueError(f"unknown unwrapping method {method!r}; expected one of {', '.join(CAPTURE_METHODS)}")
     full_scale = float(2**capture.bit_depth - 1)
     if min_modulation is None:
         min_modulation = DEFAULT_MIN_MODULATION_FRACTION * full_scale
@@ -224,48 +224,11 @@ def unwrap_capture(
 # --------------------------------------------------------------------------------------------------
 
 def _select_phase_sequences(capture: Capture, method: str, high, low) -> list[PhaseSequence]:
-    """The phase sequences a TPU method uses, the high one first."""
+    """The phase sequences a TPU method uses, the high one first (:func:`dptpu.fpp.frequencies.select_frequencies`)."""
     sequences = capture.phase_sequences
-    if method == "heterodyne":
-        if high is not None or low is not None:
-            raise ValueError("heterodyne unwraps with every phase sequence of the capture; "
-                             "--high/--low do not apply to it")
-        if len(sequences) < 2:
-            raise ValueError(f"heterodyne needs 2 or more phase sequences; the capture has {len(sequences)}")
-        _reject_duplicate_frequencies(capture, sequences)
-        return sorted(sequences, key=lambda s: -capture.frequency_of(s))
-
-    high_sequence = (_find_by_frequency(capture, high, "high") if high is not None
-                     else _highest(capture, sequences))
-    f_h = capture.frequency_of(high_sequence)
-    if low is not None:
-        low_sequence = _find_by_frequency(capture, low, "low")
-        if low_sequence is high_sequence:
-            raise ValueError(f"--low {low:g} selects the same sequence as the high frequency {f_h:g}")
-        return [high_sequence, low_sequence]
-
-    others = [s for s in sequences if s is not high_sequence]
-    if not others:
-        raise ValueError(f"{method} needs two phase sequences; the capture has only one "
-                         f"({high_sequence.label})")
-    if method == "mf":
-        low_sequence = min(others, key=capture.frequency_of)
-        if capture.frequency_of(low_sequence) > 1 + 1e-9:
-            raise ValueError(f"mf needs a low frequency <= 1 (one fringe across the projector, Eq. (5)); the "
-                             f"capture has {_list_frequencies(capture)}: use heterodyne or nt")
-        return [high_sequence, low_sequence]
-    if method == "mw":
-        candidates = [s for s in others if 0 < f_h - capture.frequency_of(s) <= 1 + 1e-9]
-        if not candidates:
-            raise ValueError(
-                f"mw needs a low frequency with 0 < f_h - f_l <= 1 for f_h = {f_h:g}; the capture has "
-                f"{_list_frequencies(capture)}: pass --low, or use another method"
-            )
-        return [high_sequence, max(candidates, key=lambda s: f_h - capture.frequency_of(s))]
-    if len(others) != 1:  # nt
-        raise ValueError(f"nt takes the one other phase sequence by default, but the capture has "
-                         f"{_list_frequencies(capture)}: pass --low")
-    return [high_sequence, others[0]]
+    chosen = select_frequencies(method, [capture.frequency_of(s) for s in sequences], high=high, low=low,
+                                options=("--high", "--low"), context=f"the capture has {_list_frequencies(capture)}")
+    return [sequences[i] for i in chosen]
 
 
 def _select_graycode(capture: Capture, high, low) -> tuple[list[PhaseSequence], GraycodeSequence]:
@@ -276,57 +239,21 @@ def _select_graycode(capture: Capture, high, low) -> tuple[list[PhaseSequence], 
     if not codes:
         raise ValueError("graycode needs a sequence of kind 'graycode'; the capture has none "
                          f"(it has {_list_frequencies(capture)})")
+    sequences = capture.phase_sequences
     phase_sequences = (
-        [_find_by_frequency(capture, high, "high")] if high is not None
-        else sorted(capture.phase_sequences, key=lambda s: -capture.frequency_of(s))
+        [sequences[find_frequency([capture.frequency_of(s) for s in sequences], high, option="--high",
+                                  context=f"the capture has {_list_frequencies(capture)}")]]
+        if high is not None else sorted(sequences, key=lambda s: -capture.frequency_of(s))
     )
     for sequence in phase_sequences:
         f = capture.frequency_of(sequence)
         for code in codes:
-            if _same_frequency(capture.frequency_of(code), f):
+            if same_frequency(capture.frequency_of(code), f):
                 return [sequence], code
     periods = ", ".join(f"{c.period:g}" for c in codes)
     raise ValueError(f"no phase sequence has the period of the Gray code (period {periods} projector pixels, "
                      f"frequency {', '.join(f'{capture.frequency_of(c):g}' for c in codes)}); "
                      f"the capture has {_list_frequencies(capture)}")
-
-
-def _highest(capture: Capture, sequences) -> PhaseSequence:
-    best = max(sequences, key=capture.frequency_of)
-    f_best = capture.frequency_of(best)
-    if sum(_same_frequency(capture.frequency_of(s), f_best) for s in sequences) > 1:
-        raise ValueError(f"two phase sequences have the highest frequency {f_best:g}; sequences chosen by "
-                         f"frequency must be distinct (the capture has {_list_frequencies(capture)})")
-    return best
-
-
-def _find_by_frequency(capture: Capture, frequency, role: str) -> PhaseSequence:
-    try:
-        frequency = float(frequency)
-    except (TypeError, ValueError):
-        raise ValueError(f"--{role} must be a frequency (periods across the projector); got {frequency!r}") from None
-    if not np.isfinite(frequency) or frequency <= 0:
-        raise ValueError(f"--{role} must be a frequency > 0; got {frequency:g}")
-    matches = [s for s in capture.phase_sequences if _same_frequency(capture.frequency_of(s), frequency)]
-    if not matches:
-        raise ValueError(f"no phase sequence has frequency {frequency:g} (--{role}); "
-                         f"the capture has {_list_frequencies(capture)}")
-    if len(matches) > 1:
-        raise ValueError(f"{len(matches)} phase sequences have frequency {frequency:g} (--{role}); "
-                         f"the capture has {_list_frequencies(capture)}")
-    return matches[0]
-
-
-def _reject_duplicate_frequencies(capture: Capture, sequences) -> None:
-    frequencies = [capture.frequency_of(s) for s in sequences]
-    for i, f in enumerate(frequencies):
-        if any(_same_frequency(f, g) for g in frequencies[i + 1:]):
-            raise ValueError(f"two phase sequences have frequency {f:g}; heterodyne needs distinct "
-                             f"frequencies (the capture has {_list_frequencies(capture)})")
-
-
-def _same_frequency(a: float, b: float) -> bool:
-    return abs(a - b) <= _FREQUENCY_MATCH_RELATIVE * max(abs(a), abs(b))
 
 
 def _list_frequencies(capture: Capture) -> str:
@@ -341,7 +268,7 @@ def _list_frequencies(capture: Capture) -> str:
 # Gray code
 # --------------------------------------------------------------------------------------------------
 
-def _unwrap_graycode(capture: Capture, code: GraycodeSequence, maps: phase.PhaseMaps):
+def _unwrap_graycode(capture: Capture, code: GraycodeSequence, maps: phase.WrappedPhase):
     """Binarize with the inverse patterns, else the white/black references, else the phase background.
 
     The last fallback thresholds each bit at the background ``A`` of the indexed phase sequence, which

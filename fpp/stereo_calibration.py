@@ -21,8 +21,8 @@ import numpy as np
 from scipy.optimize import least_squares
 from scipy.spatial.transform import Rotation
 
-from .calibration import DeviceModel
 from .distortion import distort, normalized_to_pixels
+from .rig_model import DeviceModel
 
 
 @dataclass(frozen=True)

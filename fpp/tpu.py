@@ -39,6 +39,8 @@ from itertools import pairwise
 
 import numpy as np
 
+from .methods import TWO_FREQUENCY_METHODS
+
 __all__ = [
     "NTLookupTable",
     "Unwrapped",
@@ -54,7 +56,6 @@ __all__ = [
 ]
 
 TWO_PI = 2.0 * np.pi
-METHODS = ("mf", "mw", "nt")
 
 # A wrapped phase may exceed [0, 2*pi) by this much (radians) through float rounding of np.mod.
 _WRAP_TOLERANCE_RAD = 1e-6
@@ -578,8 +579,8 @@ def unwrap(method, psi_h, psi_l, f_h, f_l, *, extent=None, valid=None) -> Unwrap
     -------
     Unwrapped
     """
-    if method not in METHODS:
-        raise ValueError(f"unknown TPU method {method!r}; expected one of {', '.join(METHODS)}")
+    if method not in TWO_FREQUENCY_METHODS:
+        raise ValueError(f"unknown TPU method {method!r}; expected one of {', '.join(TWO_FREQUENCY_METHODS)}")
     if method == "mf":
         return unwrap_mf(psi_h, psi_l, f_h, f_l, valid=valid)
     if method == "mw":

@@ -80,9 +80,9 @@ class Triangulator:
     Notes
     -----
     The construction (camera rays, and with projector distortion the per-pixel polynomials of
-    :mod:`._ray_distortion`) costs about 0.3 s and keeps about 70 MiB at 640x480; :meth:`points` and
-    :meth:`camera_points` then cost a few dozen passes over (H, W) arrays, 6-8 ms on one core with a real
-    calibration's distortion (``dptpu bench fpp``, node paths).
+    :mod:`._ray_distortion`) is the expensive part, done once per rig and axis; :meth:`points` and
+    :meth:`camera_points` then cost a few dozen passes over (H, W) arrays (timings and memory:
+    docs/benchmarks.md, ``dptpu bench fpp``, node paths).
     """
 
     def __init__(self, rig: Rig, *, axis: str = "x", distortion: bool = True, projector_iterations: int = 6):

@@ -16,6 +16,8 @@ from pathlib import Path
 
 import numpy as np
 
+from dptpu.fpp.methods import TWO_FREQUENCY_METHODS
+
 from .consensus import consensus_order
 from .inference import FringeOrderModel, shipped_model_path
 from .nt_prior import mf_representation
@@ -25,7 +27,7 @@ __all__ = ["DEFAULT_MAX_PERIODS_PER_PIXEL", "REFINABLE_METHODS", "fringe_density
            "refine_capture_result", "refine_order", "resolve_model"]
 
 #: Classical methods whose result the network refines (the paper's three two-frequency methods).
-REFINABLE_METHODS = ("mf", "mw", "nt")
+REFINABLE_METHODS = TWO_FREQUENCY_METHODS
 #: The shipped model is applied by default only to fringes of at most this many periods per camera pixel
 #: (a period of 4 pixels or more). Its training fringes had periods of about 6 to 15 pixels; near the
 #: Nyquist limit (0.5 periods per pixel) the 3x3 neighbourhoods it relies on no longer see a smooth phase,

@@ -39,6 +39,7 @@ from dptpu.graph import Context, Parameter, SingleThreadedExecutor
 from dptpu.graph.node import Node
 from dptpu.graph.qos import QoSProfile
 from dptpu.messages import FringeFrame, Header, Image, Time, Trigger
+from dptpu.nodes.plumbing import DEFAULT_FRAME_ID
 
 __all__ = ["NodeHarness", "Collector", "fringe_frames"]
 
@@ -92,7 +93,7 @@ class NodeHarness:
 
     # -- lifecycle --------------------------------------------------------------------------------------
 
-    def __enter__(self) -> "NodeHarness":
+    def __enter__(self) -> NodeHarness:
         if self.private:
             self._folder = tempfile.mkdtemp(prefix="dh", dir="/tmp")  # short: ipc socket paths must fit
             self._saved_env = os.environ.get("DPTPU_DISCOVERY_DIR")
@@ -194,7 +195,7 @@ class NodeHarness:
 
 
 def fringe_frames(stacks, frequencies, *, sequence_id: int, stamp_ns: int = 1_700_000_000_000_000_000,
-                  frame_period_ns: int = 1_333_333, frame_id: str = "scanner_optical_frame") -> list:
+                  frame_period_ns: int = 1_333_333, frame_id: str = DEFAULT_FRAME_ID) -> list:
     """The FringeFrames of one scan, in projection order, as a camera publishes them.
 
     Parameters

@@ -8,13 +8,14 @@ Two process-wide settings come with it:
 
 - :func:`keep_freed_memory`: a scanner node allocates and frees megabyte arrays for every scan (frames, phase
   maps, clouds, ZeroMQ's receive buffers). glibc gives such blocks back to the kernel on ``free`` (``mmap``
-  above 128 KiB, heap trimming), so the next scan page-faults the same amount again: 4,000-6,000 faults and
-  20-28 ms of kernel time a scan in the phase and unwrap nodes at 640x480 (docs/benchmarks.md, "Run 5"). The
-  node keeps freed memory for reuse instead; its resident size stays at its peak (a few scans' worth).
+  above 128 KiB, heap trimming), so the next scan page-faults the same amount again, in kernel time charged to
+  every scan (docs/benchmarks.md, "Run 5", has the figures). The node keeps freed memory for reuse instead; its
+  resident size stays at its peak (a few scans' worth).
 - :func:`freeze_startup_objects`: once the node is built, the objects of its start-up (modules, the rig, tables,
   renders: tens of thousands) go to the garbage collector's permanent generation, so a full collection during
-  the scans walks only what the scans made (~9 ms for 37,000 objects otherwise, a stall of that node in the
-  scan it hits), and the youngest generation is collected every 5,000 allocations instead of 700.
+  the scans walks only what the scans made (otherwise it walks them all, a stall of that node in the scan it
+  hits; docs/benchmarks.md, "Run 9"), and the youngest generation is collected every 5,000 allocations
+  instead of 700.
 - ``DPTPU_PROFILE_DIR``: when set, the node's main thread runs under :mod:`cProfile` and writes
   ``<dir>/<name>-<pid>.prof`` at exit (read it with ``python -m pstats``); how docs/benchmarks.md's per-node
   breakdown was taken. It counts the main thread's CPU time (``time.thread_time``: no waits, and no time lost
@@ -22,10 +23,12 @@ Two process-wide settings come with it:
 """
 from __future__ import annotations
 
+import cProfile
 import ctypes
 import gc
 import os
 import sys
+import time
 from collections.abc import Callable
 
 import dptpu.graph as rclpy
@@ -83,8 +86,8 @@ def freeze_startup_objects() -> int:
     """Collect once, then move every object alive now to the collector's permanent generation (``gc.freeze``).
 
     A node builds everything it keeps for its lifetime at start-up; frozen, those objects are never walked again
-    by a full collection, which otherwise stalls a node for ~9 ms every few thousand messages (37,000 start-up
-    objects in the sim rig's nodes). The youngest generation is collected every :data:`_GC_YOUNG_THRESHOLD`
+    by a full collection, which otherwise stalls a node every few thousand messages (tens of thousands of
+    start-up objects in the sim rig's nodes). The youngest generation is collected every :data:`_GC_YOUNG_THRESHOLD`
     allocations (Python's default: 700), the older ones as before.
 
     Returns
@@ -106,9 +109,6 @@ def spin_profiled(name: str, spin: Callable[[], None]) -> None:
     if not folder:
         spin()
         return
-    import cProfile
-    import time
-
     # the main thread's CPU time (no waits, no time lost to other processes) unless DPTPU_PROFILE_CLOCK=wall
     clock = time.perf_counter if os.environ.get(PROFILE_CLOCK_ENV, "cpu") == "wall" else time.thread_time
     profiler = cProfile.Profile(clock)

@@ -29,6 +29,7 @@ import numpy as np
 
 from dptpu.fpp import phase, tpu
 from dptpu.fpp.calibration import Rig
+from dptpu.fpp.methods import TWO_FREQUENCY_METHODS
 
 from .effects import parse_effects
 from .effects.geometry import render_rig
@@ -38,7 +39,7 @@ from .raycast import trace
 __all__ = ["METHODS", "NT_LOW_FREQUENCY", "low_frequency", "check_combination", "scene_samples",
            "MIN_MODULATION_FRACTION", "LABEL_TOLERANCE_RAD"]
 
-METHODS = ("mf", "mw", "nt")
+METHODS = TWO_FREQUENCY_METHODS  # the methods a dataset may hold samples of
 #: The NT auxiliary frequency of the paper's training set.
 NT_LOW_FREQUENCY = 10.9
 #: Input pixels need a modulation of at least this fraction of full scale (as dptpu.fpp.reconstruct's default).

@@ -26,8 +26,9 @@ import threading
 import time
 from collections import deque
 
+from dptpu.nodes.plumbing import backoff_delay_s
+
 from .genicam_device import CameraSettings, CameraUnavailable, GenICamDevice
-from .projector_link import backoff_delay_s
 
 __all__ = ["FramePairer", "Acquisition"]
 

@@ -19,6 +19,9 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+from genicam.genapi import EAccessMode
+from genicam.gentl import TimeoutException
+from harvesters.core import Harvester
 
 __all__ = ["TRIGGER_MODES", "PIXEL_FORMATS", "CameraUnavailable", "CameraSettings", "GenICamDevice",
            "list_devices", "buffer_to_array"]
@@ -62,8 +65,6 @@ class CameraSettings:
 
 
 def _harvester(cti_paths) -> object:
-    from harvesters.core import Harvester
-
     if not cti_paths:
         raise CameraUnavailable("no GenTL producer: set the cti parameter (the genicam wheel's viky.cti was not found)")
     harvester = Harvester()
@@ -124,7 +125,7 @@ class GenICamDevice:
         self.frames = 0
 
     @classmethod
-    def open(cls, settings: CameraSettings) -> "GenICamDevice":
+    def open(cls, settings: CameraSettings) -> GenICamDevice:
         """Find the device, configure it and start acquisition; :class:`CameraUnavailable` if it cannot."""
         harvester = _harvester(settings.cti_paths)
         try:
@@ -174,8 +175,6 @@ class GenICamDevice:
 
     def fetch(self, timeout_s: float) -> tuple[np.ndarray, int] | None:
         """The next frame ``((H, W) array, host receive time ns)``, or None after ``timeout_s`` seconds."""
-        from genicam.gentl import TimeoutException
-
         try:
             buffer = self._acquirer.fetch(timeout=timeout_s)
         except TimeoutException:
@@ -193,7 +192,7 @@ class GenICamDevice:
         return frame, stamp_ns
 
     def close(self) -> None:
-        for action in (lambda: self._acquirer.stop(), lambda: self._acquirer.destroy(), lambda: self._harvester.reset()):
+        for action in (self._acquirer.stop, self._acquirer.destroy, self._harvester.reset):
             try:
                 action()
             except Exception:  # noqa: BLE001 - closing a lost device may fail in any way; nothing to do
@@ -255,8 +254,6 @@ def _configure(node_map, settings: CameraSettings) -> list[str]:
 
 def _set(node_map, name: str, value) -> None:
     """Write feature ``name`` unless it already holds ``value``; a read-only feature holding another value fails."""
-    from genicam.genapi import EAccessMode
-
     node = getattr(node_map, name)
     if node.value == value:
         return

@@ -3,7 +3,7 @@
 Run it as ``python -m dptpu.nodes.camera --ros-args -p cti:=/opt/pylon/lib/gentlproducer/gtl/ProducerU3V.cti
 -p serial:=22334455`` or from a launch file (``module: dptpu.nodes.camera``). Without a ``cti`` it uses
 the ``viky.cti`` simulated producer shipped in the genicam wheel (docs/camera.md). How frames are paired
-with Triggers in each trigger mode: ``dptpu.nodes.genicam_acquisition``.
+with Triggers in each trigger mode: ``dptpu.nodes.camera.genicam_acquisition``.
 
 Topics (defaults; remappable):
 
@@ -50,19 +50,18 @@ time earlier.
 
 from __future__ import annotations
 
-import sys
 from collections import deque
 
 from dptpu.fpp.calibration import load_rig
 from dptpu.graph.node import Node
-from dptpu.graph.qos import DurabilityPolicy, QoSProfile
 from dptpu.graph.rcl_interfaces import ParameterDescriptor
 from dptpu.messages import CameraInfo, FringeFrame, Header, Image, ScanStatus, Time, Trigger
+from dptpu.nodes.node_main import run_node
+from dptpu.nodes.plumbing import DEFAULT_FRAME_ID, LATCHED_QOS, scan_status
 
 from .genicam_acquisition import Acquisition
 from .genicam_device import CameraSettings
 from .genicam_producers import split_cti_paths
-from .node_main import run_node
 
 __all__ = ["CameraNode", "main"]
 
@@ -86,14 +85,13 @@ class CameraNode(Node):
         frame_timeout_s = self.declare_parameter("frame_timeout_s", 1.0).value
         publish_unpaired = self.declare_parameter("publish_unpaired", False).value
         rig_path = self.declare_parameter("rig", "").value
-        self.frame_id = self.declare_parameter("frame_id", "scanner_optical_frame").value
+        self.frame_id = self.declare_parameter("frame_id", DEFAULT_FRAME_ID).value
         initial_s = self.declare_parameter("reconnect_initial_s", 0.5).value
         max_s = self.declare_parameter("reconnect_max_s", 5.0).value
         self.camera_info = self.rig_camera_info(rig_path) if rig_path else None
 
         self.image_pub = self.create_publisher(FringeFrame, "/camera/image_raw", 30)
-        self.info_pub = self.create_publisher(
-            CameraInfo, "/camera/camera_info", QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL))
+        self.info_pub = self.create_publisher(CameraInfo, "/camera/camera_info", LATCHED_QOS)
         self.status_pub = self.create_publisher(ScanStatus, "/scanner/status", 20)
         self.trigger_sub = self.create_subscription(Trigger, "/projector/trigger", self.on_trigger, 100)
 
@@ -133,10 +131,9 @@ class CameraNode(Node):
         if trigger.sequence_id in self._failed_scans:
             return
         self._failed_scans.append(trigger.sequence_id)
-        self.status_pub.publish(ScanStatus(
-            header=Header(stamp=self.get_clock().now().to_msg()), sequence_id=trigger.sequence_id,
-            level=ScanStatus.ERROR, state="failed", reason=f"camera: {where}: {reason}",
-            node=self.get_fully_qualified_name(), frames_expected=trigger.pattern_count, frames_dropped=1))
+        self.status_pub.publish(scan_status(self, trigger.sequence_id, ScanStatus.ERROR, "failed",
+                                            f"camera: {where}: {reason}", frames_expected=trigger.pattern_count,
+                                            frames_dropped=1))
 
     def on_connected(self, device) -> None:
         """Acquisition thread: the camera is open and acquiring."""
@@ -179,6 +176,3 @@ def main(argv=None) -> int:
     """``python -m dptpu.nodes.camera [--ros-args ...]``; returns the exit code (2 for bad parameters)."""
     return run_node("camera", CameraNode, argv)
 
-
-if __name__ == "__main__":
-    sys.exit(main())

@@ -22,30 +22,33 @@ topic                       type          dir   notes
 
 Parameters
 
-====================== ========================= ============================================================================
+====================== ========================= ===================================================================
 name                   default                   meaning
-====================== ========================= ============================================================================
-``rig``                "" (required)             a ``dptpu-rig/1`` (or OpenCV rig) file: camera and projector calibration
-``use_camera_info``    false                     take the camera's K, distortion and size from ``/camera/camera_info``
-                                                 (R, T and the projector still from ``rig``)
+====================== ========================= ===================================================================
+``rig``                "" (required)             a ``dptpu-rig/1`` (or OpenCV rig) file: camera and projector
+                                                 calibration
+``use_camera_info``    false                     take the camera's K, distortion and size from
+                                                 ``/camera/camera_info`` (R, T and the projector still from ``rig``)
 ``frame_id``           "scanner_optical_frame"   ``header.frame_id`` of the cloud and the depth image
 ``distortion``         true                      correct both lens distortions (false: the pinhole model)
 ``ply_dir``            ""                        folder for PLY snapshots through open3d ("" = none)
-``ply_every``          0                         write scan 1, 1 + n, 1 + 2n, ... as PLY (0 = none)
-``intensity_wait_s``   0.2                       how long a scan may wait for its intensity image (published first, but the
-                                                 two topics race); only while an intensity publisher is connected
-``camera_info_wait_s`` 5.0                       with ``use_camera_info``: how long a scan may wait for the first CameraInfo
-                                                 (at most 8 scans wait; a scan that waited in vain fails with the reason)
-====================== ========================= ============================================================================
+``ply_every``          0                         write scan 1, 1 + n, 1 + 2n, ... as PLY (0 = none), in metres
+``intensity_wait_s``   0.2                       how long a scan may wait for its intensity image (published first,
+                                                 but the two topics race); only while an intensity publisher is
+                                                 connected
+``camera_info_wait_s`` 5.0                       with ``use_camera_info``: how long a scan may wait for the first
+                                                 CameraInfo (at most 8 scans wait; a scan that waited in vain fails
+                                                 with the reason)
+====================== ========================= ===================================================================
 
 Fields of the cloud: ``x, y, z`` NaN where the pixel is invalid (``is_dense`` false); ``intensity`` the fringe
 modulation B of the unwrapped frequency in camera digital numbers, from ``/scanner/intensity`` (NaN when the
-scan's intensity image was not seen); ``quality`` the unwrapping margin ``AbsolutePhase.reliability`` in [0, 1] (0 where invalid). Run:
+scan's intensity image was not seen); ``quality`` the unwrapping margin ``AbsolutePhase.reliability`` in [0, 1]
+(0 where invalid). Run:
 ``python -m dptpu.nodes.cloud --ros-args -p rig:=calibration.yaml``; design: ``docs/nodes.md``.
 """
 from __future__ import annotations
 
-import sys
 import time
 from collections import OrderedDict
 from pathlib import Path
@@ -54,9 +57,9 @@ import cv2
 import numpy as np
 
 from dptpu.fpp.calibration import DeviceModel, Rig, load_rig
+from dptpu.fpp.point_cloud_file import write_point_cloud
 from dptpu.fpp.triangulate import Triangulator, projector_coordinate
 from dptpu.graph.node import Node
-from dptpu.graph.qos import DurabilityPolicy, QoSProfile
 from dptpu.messages import (
     AbsolutePhase,
     CameraInfo,
@@ -65,15 +68,12 @@ from dptpu.messages import (
     PointCloud2,
     ScanStatus,
 )
+from dptpu.nodes.node_main import run_node
+from dptpu.nodes.plumbing import DEFAULT_FRAME_ID, LATCHED_QOS, STATUS_QOS, DecodeErrorCount, scan_status
 
-from .node_main import run_node
-
-__all__ = ["FIELDS", "CloudNode", "camera_points_m", "main", "write_ply"]
+__all__ = ["FIELDS", "CloudNode", "camera_points_m", "main"]
 
 FIELDS = ("x", "y", "z", "intensity", "quality")
-DEFAULT_FRAME_ID = "scanner_optical_frame"
-STATUS_QOS = QoSProfile(depth=50)
-LATCHED_QOS = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
 _INTENSITIES_KEPT = 4
 #: Scans held at most while the first CameraInfo is awaited (each a full-size AbsolutePhase).
 _CAMERA_INFO_WAITING_MAX = 8
@@ -104,24 +104,6 @@ def camera_points_m(triangulator: Triangulator, absolute_phase: np.ndarray, freq
     return triangulator.camera_points(coord, scale=triangulator.rig.scale_to_m, dtype=np.float32)  # (H, W, 3) m
 
 
-def write_ply(path, points_m: np.ndarray, intensity: np.ndarray) -> int:
-    """Write the finite points of (H, W, 3) ``points_m`` as a binary PLY through open3d; returns their count.
-
-    Colours are grey levels of ``intensity`` (H, W) scaled to its 99th percentile.
-    """
-    import open3d as o3d  # imported on first use: it is slow to load and only PLY snapshots need it
-
-    finite = np.isfinite(points_m).all(axis=-1)
-    cloud = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(points_m[finite].astype(np.float64)))
-    grey = np.nan_to_num(intensity[finite].astype(np.float64))
-    scale = np.percentile(grey, 99) if grey.size else 1.0
-    grey = np.clip(grey / (scale if scale > 0 else 1.0), 0.0, 1.0)
-    cloud.colors = o3d.utility.Vector3dVector(np.repeat(grey[:, None], 3, axis=1))
-    if not o3d.io.write_point_cloud(str(path), cloud, write_ascii=False):
-        raise OSError(f"open3d could not write {path}")
-    return int(np.count_nonzero(finite))
-
-
 class CloudNode(Node):
     """AbsolutePhase -> PointCloud2 + depth Image (see the module docstring).
 
@@ -149,10 +131,10 @@ class CloudNode(Node):
             raise ValueError(f"parameter camera_info_wait_s must be > 0 seconds; got {self.camera_info_wait_s}")
         self.rig = load_rig(rig_path)
         if self.ply_dir and self.ply_every:
-            import open3d  # noqa: F401 -- loaded now (seconds), not in the first scan's callback
+            import open3d  # noqa: F401 -- a heavy import: loaded now, not in the first scan's callback
         self._triangulators: dict[str, Triangulator] = {}
         if not self.use_camera_info:
-            self._triangulator("x")  # the per-rig tables now (~0.3-2 s at 640x480), not in the first scan
+            self._triangulator("x")  # the per-rig tables now, not in the first scan
         self._intensities: OrderedDict[int, Image] = OrderedDict()  # scan stamp ns -> its intensity image
         self._waiting: dict[int, tuple[AbsolutePhase, float]] = {}  # sequence_id -> (scan, deadline), monotonic s
         self._camera_info_seen = not self.use_camera_info
@@ -161,7 +143,6 @@ class CloudNode(Node):
         self.scans_rejected = 0
         self.ply_written = 0
         self.pixels_nan = 0
-        self._decode_errors_reported = 0
 
         self.points_publisher = self.create_publisher(PointCloud2, "/scanner/points", 10)
         self.depth_publisher = self.create_publisher(Image, "/scanner/depth", 10)
@@ -174,6 +155,7 @@ class CloudNode(Node):
         if self.use_camera_info:
             self._subscriptions_in.append(
                 self.create_subscription(CameraInfo, "/camera/camera_info", self.on_camera_info, LATCHED_QOS))
+        self.decode_errors = DecodeErrorCount(*self._subscriptions_in)
         self.wait_timer = self.create_timer(self.intensity_wait_s / 4, self.on_timer)
 
     # -- callbacks ------------------------------------------------------------------------------------------
@@ -188,7 +170,7 @@ class CloudNode(Node):
             return
         self.rig = Rig(camera=camera, projector=self.rig.projector, units=self.rig.units, effects=self.rig.effects)
         self._triangulators.clear()
-        self._triangulator("x")  # the per-rig tables now (~0.3-2 s at 640x480), not in the first scan
+        self._triangulator("x")  # the per-rig tables now, not in the first scan
         self.get_logger().info(f"camera intrinsics from CameraInfo: {msg.width}x{msg.height}")
         self._camera_info_seen = True
         while self._waiting_for_camera_info:
@@ -286,7 +268,7 @@ class CloudNode(Node):
     def _triangulator(self, axis: str) -> Triangulator:
         """The rig's triangulation tables for ``axis`` (rays, projector distortion), made once per rig, and one
         triangulation of the projector's middle column: the first scan's one-time costs (the camera-frame rays of
-        ``camera_points``, ~80 ms at 640x480) are paid here, not in that scan's latency."""
+        ``camera_points``; docs/benchmarks.md) are paid here, not in that scan's latency."""
         if axis not in self._triangulators:
             triangulator = Triangulator(self.rig, axis=axis, distortion=self.distortion)
             middle_px = 0.5 * self.rig.projector.size[0 if axis == "x" else 1]
@@ -334,8 +316,8 @@ class CloudNode(Node):
         path = Path(self.ply_dir) / f"scan_{sequence_id:08d}.ply"
         try:
             path.parent.mkdir(parents=True, exist_ok=True)
-            count = write_ply(path, points, intensity)
-        except (OSError, ImportError, RuntimeError) as exc:
+            count = write_point_cloud(path, points, unit="m", intensity=intensity)
+        except (OSError, ImportError, RuntimeError, ValueError) as exc:
             self.get_logger().warning(f"PLY snapshot {path} failed: {exc}")
             return [f"PLY snapshot failed: {exc}"]
         self.ply_written += 1
@@ -343,12 +325,10 @@ class CloudNode(Node):
         return []
 
     def _status(self, msg, level, state, reason, **counts) -> None:
-        malformed = sum(s.malformed_count for s in self._subscriptions_in)
-        decode_errors, self._decode_errors_reported = malformed - self._decode_errors_reported, malformed
         now = self.get_clock().now()
-        self.status_publisher.publish(ScanStatus(
-            header=Header(stamp=now.to_msg(), frame_id=""), sequence_id=msg.sequence_id, level=level, state=state,
-            reason=reason, node=self.get_fully_qualified_name(), decode_errors=decode_errors,
+        self.status_publisher.publish(scan_status(
+            self, msg.sequence_id, level, state, reason, stamp=now.to_msg(),
+            decode_errors=self.decode_errors.since_last_report(),
             duration_s=max(0.0, (now.nanoseconds - msg.header.stamp.to_ns()) * 1e-9), **counts))
 
 
@@ -356,6 +336,3 @@ def main(argv=None) -> int:
     """``python -m dptpu.nodes.cloud --ros-args -p rig:=FILE``: run the node until Ctrl-C or SIGTERM."""
     return run_node("cloud", CloudNode, argv)
 
-
-if __name__ == "__main__":
-    sys.exit(main())

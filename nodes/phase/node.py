@@ -1,15 +1,11 @@
 """Phase node: assembles the fringe frames of each scan and publishes its wrapped phase maps.
 
-Frames are collected per ``sequence_id`` (:mod:`dptpu.nodes.sequence_assembler`); a complete scan gives one
-wrapped phase, modulation and quality mask per frequency by least squares (Eq. (2) of the paper). The work
-is done as the frames arrive (:class:`ScanSums`): each frame goes into its entry's stack, and an entry's Eq. (2)
-sums are computed the moment its last frame is in (:func:`dptpu.fpp.phase.sequence_sums`, one float32 matrix
-product), so after a scan's last frame only its last entry's sums, the arctangents and the masks are left
-(:func:`dptpu.fpp.phase.maps_from_sums`; the same numbers as :func:`dptpu.fpp.phase.wrapped_phase` and
-:func:`dptpu.fpp.phase.quality_mask`, :func:`scan_phase_maps`, which a scan placed otherwise than its final
-layout falls back to). Sums accumulated frame by frame (three fused passes per frame) would leave even less
-after the last frame but cost 1.4x the CPU of the matrix product at 640x480 (docs/benchmarks.md, Run 5), and
-on a machine the graph keeps busy the CPU is the limit. An incomplete scan is
+Frames are collected per ``sequence_id`` (:mod:`dptpu.nodes.phase.sequence_assembler`); a complete scan gives one
+wrapped phase, modulation and quality mask per frequency by least squares (Eq. (2) of the paper). The node feeds
+each frame to :class:`dptpu.fpp.scan_phase.IncrementalScanPhase` as it arrives (an entry's sums are computed the
+moment its last frame is in), so after a scan's last frame only its last entry is left; a scan placed otherwise
+than its final layout falls back to :func:`dptpu.fpp.scan_phase.scan_phase_maps` on the stacked frames (why not
+sums accumulated frame by frame: docs/benchmarks.md, Run 5). An incomplete scan is
 dropped ``timeout_s`` after its first frame, an inconsistent one at once; either way a ``ScanStatus``
 (ERROR, ``failed``) says why, and frames of two scans are never mixed.
 
@@ -45,14 +41,13 @@ launch file. Conventions: ``docs/messages.md``; node design: ``docs/nodes.md``.
 """
 from __future__ import annotations
 
-import sys
 import time
 
 import numpy as np
 
-from dptpu.fpp import phase as fpp_phase
+from dptpu.fpp.scan_phase import IncrementalScanPhase, scan_phase_maps
 from dptpu.graph.node import Node
-from dptpu.graph.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+from dptpu.graph.qos import QoSProfile, ReliabilityPolicy
 from dptpu.messages import (
     FringeFrame,
     Header,
@@ -61,108 +56,19 @@ from dptpu.messages import (
     ScanStatus,
     Time,
 )
+from dptpu.nodes.node_main import run_node
+from dptpu.nodes.plumbing import DEFAULT_FRAME_ID, LATCHED_QOS, STATUS_QOS, DecodeErrorCount, scan_status
 
-from .node_main import run_node
 from .sequence_assembler import (
     AssembledScan,
     DroppedScan,
     FrameInfo,
-    FrameSlot,
     RejectedFrame,
     ScanLayout,
     SequenceAssembler,
 )
 
-__all__ = ["PhaseNode", "ScanSums", "main", "scan_phase_maps"]
-
-_TWO_PI = 2.0 * np.pi
-DEFAULT_FRAME_ID = "scanner_optical_frame"
-STATUS_QOS = QoSProfile(depth=50)
-LATCHED_QOS = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
-
-
-def scan_phase_maps(scan: AssembledScan, *, min_modulation: float, saturation_level: float | None):
-    """Wrapped phase (F, H, W), modulation (F, H, W) and validity (H, W) of an assembled scan.
-
-    One :func:`dptpu.fpp.phase.wrapped_phase` per entry (Eq. (2) of the paper, with the scan's shift sign and
-    each entry's phase offset); a pixel is valid where every entry passes :func:`dptpu.fpp.phase.quality_mask`.
-    Phases are returned as float32 in ``[0, 2*pi)`` (a float64 phase just below 2*pi that rounds up to it in
-    float32 becomes 0, the same angle).
-    """
-    phases, modulations = [], []
-    valid = np.ones(scan.stacks[0].shape[1:], dtype=bool)
-    for stack, offset in zip(scan.stacks, scan.layout.phase_offsets):
-        maps = fpp_phase.wrapped_phase(stack, shift_sign=scan.layout.shift_sign, phase_offset=offset,
-                                       dtype=np.float32)
-        valid &= fpp_phase.quality_mask(stack, maps.modulation, min_modulation=min_modulation,
-                                        saturation_level=saturation_level)
-        phase32 = maps.phase.astype(np.float32, copy=False)
-        phases.append(np.where(phase32 >= _TWO_PI, np.float32(0.0), phase32))
-        modulations.append(maps.modulation.astype(np.float32, copy=False))
-    return np.stack(phases), np.stack(modulations), valid
-
-
-class ScanSums:
-    """One scan's entries worked on as their frames arrive: each frame is copied into its entry's (N, H, W) stack
-    and the brightest value of each pixel is kept; an entry's Eq. (2) sums are computed the moment its last frame
-    is in (:func:`dptpu.fpp.phase.sequence_sums`), so after the scan's last frame only its last entry is left.
-
-    ``sums[entry_start]`` is the (3, H, W) float32 ``B sin(psi)``, ``B cos(psi)``, ``A`` of the entry starting at
-    that pattern index; ``slots`` records where each added frame was put, so :meth:`maps` can check them against
-    the scan's final layout.
-    """
-
-    def __init__(self):
-        self.sums: dict[int, np.ndarray] = {}
-        self.slots: dict[int, FrameSlot] = {}  # pattern_index -> where it was added
-        self.brightest: np.ndarray | None = None  # (H, W) max over the frames, for the saturation mask
-        self._stacks: dict[int, np.ndarray] = {}  # entry_start -> (N, H, W) frames of an entry not complete yet
-        self._filled: dict[int, int] = {}  # entry_start -> frames in its stack
-
-    def add(self, pattern_index: int, image: np.ndarray, slot: FrameSlot) -> None:
-        """Add frame ``pattern_index`` (H, W) at ``slot``; computes its entry's sums when it completes the entry."""
-        start = slot.entry_start
-        stack = self._stacks.get(start)
-        if stack is None:
-            stack = self._stacks[start] = np.empty((slot.steps, *image.shape), dtype=image.dtype)
-            self._filled[start] = 0
-        stack[slot.step] = image
-        self._filled[start] += 1
-        if self.brightest is None:
-            self.brightest = image.copy()
-        else:
-            np.maximum(self.brightest, image, out=self.brightest)
-        self.slots[int(pattern_index)] = slot
-        if self._filled[start] == slot.steps:  # every step of the entry (a step added twice fails the scan first)
-            self.sums[start] = fpp_phase.sequence_sums(self._stacks.pop(start), shift_sign=slot.shift_sign,
-                                                       phase_offset=slot.phase_offset)
-
-    def maps(self, scan: AssembledScan, *, min_modulation: float, saturation_level: float | None):
-        """Wrapped phase (F, H, W), modulation (F, H, W) and validity (H, W) of ``scan``, as
-        :func:`scan_phase_maps` gives them; None when a frame was added at another place than the scan's final
-        layout says (the caller then computes the maps from the frames)."""
-        if len(self.slots) != scan.frame_count or self.brightest is None:
-            return None
-        for pattern_index, slot in self.slots.items():
-            if slot != scan.slot(pattern_index):
-                return None
-        starts = [int(start) for start in np.cumsum((0, *scan.layout.steps[:-1]))]
-        if any(start not in self.sums for start in starts):
-            return None
-        height, width = self.brightest.shape
-        phases = np.empty((len(starts), height, width), dtype=np.float32)
-        modulations = np.empty((len(starts), height, width), dtype=np.float32)
-        valid = np.ones((height, width), dtype=bool)
-        for index, start in enumerate(starts):
-            maps = fpp_phase.maps_from_sums(self.sums[start])
-            phases[index] = maps.phase  # in [0, 2*pi) in float32
-            modulations[index] = maps.modulation
-            valid &= maps.modulation >= min_modulation  # NaN compares False
-        if saturation_level is None and np.issubdtype(self.brightest.dtype, np.integer):
-            saturation_level = np.iinfo(self.brightest.dtype).max
-        if saturation_level is not None:
-            valid &= self.brightest < saturation_level  # no frame at the saturation level
-        return phases, modulations, valid
+__all__ = ["PhaseNode", "main"]
 
 
 class PhaseNode(Node):
@@ -195,8 +101,7 @@ class PhaseNode(Node):
         self.scans_published = 0
         self.scans_dropped = 0
         self.frames_rejected = 0
-        self._sums: dict[int, ScanSums] = {}  # sequence_id -> the Eq. (2) sums of a scan being assembled
-        self._decode_errors_reported = 0
+        self._sums: dict[int, IncrementalScanPhase] = {}  # sequence_id -> the Eq. (2) sums of a scan being assembled
         self._frame_id = DEFAULT_FRAME_ID  # the camera's, from its latest frame
 
         self.phase_publisher = self.create_publisher(PhaseMaps, "/scanner/phase", 10)
@@ -207,6 +112,7 @@ class PhaseNode(Node):
                                                            frame_qos)
         self.sequence_subscription = self.create_subscription(PatternSequence, "/projector/pattern_sequence",
                                                               self.on_pattern_sequence, LATCHED_QOS)
+        self.decode_errors = DecodeErrorCount(self.frame_subscription, self.sequence_subscription)
         self.expiry_timer = self.create_timer(min(0.25, self.timeout_s / 4), self.on_timer)
 
     # -- callbacks ------------------------------------------------------------------------------------------
@@ -242,7 +148,7 @@ class PhaseNode(Node):
         events = self.assembler.add(frame, now_s)
         slot = self.assembler.slot(frame.sequence_id, frame.pattern_index)  # None unless kept by a pending scan
         if slot is not None:
-            self._sums.setdefault(frame.sequence_id, ScanSums()).add(frame.pattern_index, image, slot)
+            self._sums.setdefault(frame.sequence_id, IncrementalScanPhase()).add(frame.pattern_index, image, slot)
         for event in events:
             self._report(event)
 
@@ -275,17 +181,19 @@ class PhaseNode(Node):
 
     def _publish_scan(self, scan: AssembledScan) -> None:
         saturation = self.saturation_level if self.saturation_level > 0 else None
-        sums = self._sums.pop(scan.sequence_id, ScanSums())
+        sums = self._sums.pop(scan.sequence_id, None) or IncrementalScanPhase()
+        layout = scan.slots()
         try:
             pattern_index = 0
             for images in scan.images:
                 for image in images:  # the frame that completed the scan (normally the only one not added yet)
                     if pattern_index not in sums.slots:
-                        sums.add(pattern_index, image, scan.slot(pattern_index))
+                        sums.add(pattern_index, image, layout[pattern_index])
                     pattern_index += 1
-            maps = sums.maps(scan, min_modulation=self.min_modulation, saturation_level=saturation)
+            maps = sums.maps(layout, min_modulation=self.min_modulation, saturation_level=saturation)
             if maps is None:
-                maps = scan_phase_maps(scan, min_modulation=self.min_modulation, saturation_level=saturation)
+                maps = scan_phase_maps(scan.stacks, scan.layout.phase_offsets, shift_sign=scan.layout.shift_sign,
+                                       min_modulation=self.min_modulation, saturation_level=saturation)
             phases, modulation, valid = maps
         except ValueError as exc:
             self._report(DroppedScan(scan.sequence_id, f"phase computation refused the frames: {exc}",
@@ -304,18 +212,12 @@ class PhaseNode(Node):
                      valid_pixels=int(np.count_nonzero(valid)), total_pixels=int(valid.size))
 
     def _status(self, sequence_id, level, state, reason, first_arrival_s, **counts) -> None:
-        malformed = self.frame_subscription.malformed_count + self.sequence_subscription.malformed_count
-        decode_errors, self._decode_errors_reported = malformed - self._decode_errors_reported, malformed
-        self.status_publisher.publish(ScanStatus(
-            header=Header(stamp=self.get_clock().now().to_msg(), frame_id=""), sequence_id=sequence_id,
-            level=level, state=state, reason=reason, node=self.get_fully_qualified_name(),
-            decode_errors=decode_errors, duration_s=max(0.0, time.monotonic() - first_arrival_s), **counts))
+        self.status_publisher.publish(scan_status(
+            self, sequence_id, level, state, reason, decode_errors=self.decode_errors.since_last_report(),
+            duration_s=max(0.0, time.monotonic() - first_arrival_s), **counts))
 
 
 def main(argv=None) -> int:
     """``python -m dptpu.nodes.phase [--ros-args ...]``: run the node until Ctrl-C or SIGTERM."""
     return run_node("phase", PhaseNode, argv)
 
-
-if __name__ == "__main__":
-    sys.exit(main())

@@ -41,23 +41,17 @@ from functools import cached_property
 
 import numpy as np
 
+from dptpu.fpp.frequencies import same_frequency
+from dptpu.fpp.scan_phase import ImageSlot
+
 __all__ = [
     "AssembledScan",
     "DroppedScan",
     "FrameInfo",
-    "FrameSlot",
     "RejectedFrame",
     "ScanLayout",
     "SequenceAssembler",
 ]
-
-_FREQUENCY_RELATIVE_TOLERANCE = 1e-6
-
-
-def same_frequency(a: float, b: float) -> bool:
-    """Whether two frequencies (periods across the projector extent) name the same entry."""
-    return math.isclose(a, b, rel_tol=_FREQUENCY_RELATIVE_TOLERANCE, abs_tol=1e-12)
-
 
 @dataclass(frozen=True, eq=False)
 class FrameInfo:
@@ -162,18 +156,6 @@ class ScanLayout:
                    fringe_axis=sequence.fringe_axis, projector_size=sequence.projector_size)
 
 
-@dataclass(frozen=True)
-class FrameSlot:
-    """Where a frame sits in its scan: the entry starting at pattern ``entry_start`` (``steps`` frames), phase step
-    ``step``, the entry's ``phase_offset`` and the scan's ``shift_sign`` (what Eq. (2) weighs the frame by)."""
-
-    entry_start: int
-    steps: int
-    step: int
-    phase_offset: float
-    shift_sign: int
-
-
 @dataclass(frozen=True, eq=False)
 class AssembledScan:
     """Every frame of one scan, per entry.
@@ -206,11 +188,15 @@ class AssembledScan:
     def frame_count(self) -> int:
         return sum(len(entry) for entry in self.images)
 
-    def slot(self, pattern_index: int) -> FrameSlot:
-        """:class:`FrameSlot` of pattern ``pattern_index`` by the scan's layout."""
+    def slot(self, pattern_index: int) -> ImageSlot:
+        """:class:`ImageSlot` of pattern ``pattern_index`` by the scan's layout."""
         entry, step = self.layout.locate(int(pattern_index))
-        return FrameSlot(entry_start=sum(self.layout.steps[:entry]), steps=self.layout.steps[entry], step=step,
+        return ImageSlot(entry_start=sum(self.layout.steps[:entry]), steps=self.layout.steps[entry], step=step,
                          phase_offset=self.layout.phase_offsets[entry], shift_sign=self.layout.shift_sign)
+
+    def slots(self) -> list[ImageSlot]:
+        """:class:`ImageSlot` of every pattern, in pattern order: the scan's final layout."""
+        return [self.slot(index) for index in range(self.frame_count)]
 
 
 @dataclass(frozen=True)
@@ -350,8 +336,8 @@ class SequenceAssembler:
         first = scan.first_arrival_s if scan else now_s
         return self._finish_dropped(int(sequence_id), reason, expected, received, first, now_s)
 
-    def slot(self, sequence_id: int, pattern_index: int) -> FrameSlot | None:
-        """Where frame ``pattern_index`` of pending scan ``sequence_id`` sits (:class:`FrameSlot`), by the scan's
+    def slot(self, sequence_id: int, pattern_index: int) -> ImageSlot | None:
+        """Where frame ``pattern_index`` of pending scan ``sequence_id`` sits (:class:`ImageSlot`), by the scan's
         layout or, for a scan laid out by its triggers, by the frame's own trigger; None when the scan is not
         pending or does not hold that frame (refused, failed, or completed: see :meth:`AssembledScan.slot`)."""
         scan = self._pending.get(int(sequence_id))
@@ -360,9 +346,9 @@ class SequenceAssembler:
             return None
         if scan.layout is not None:
             entry, step = scan.layout.locate(int(pattern_index))
-            return FrameSlot(entry_start=int(pattern_index) - step, steps=scan.layout.steps[entry], step=step,
+            return ImageSlot(entry_start=int(pattern_index) - step, steps=scan.layout.steps[entry], step=step,
                              phase_offset=scan.layout.phase_offsets[entry], shift_sign=scan.layout.shift_sign)
-        return FrameSlot(entry_start=int(frame.pattern_index) - int(frame.step), steps=int(frame.steps),
+        return ImageSlot(entry_start=int(frame.pattern_index) - int(frame.step), steps=int(frame.steps),
                          step=int(frame.step), phase_offset=0.0, shift_sign=self._geometry["shift_sign"])
 
     # -- internals --------------------------------------------------------------------------------------

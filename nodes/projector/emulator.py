@@ -13,7 +13,7 @@ Three ways to use it:
   the lines to send. The projector node uses it on a ``loop://`` port (see ``dptpu.nodes.projector``).
 - :class:`PtyTriggerBox`: the state machine served on a pseudo-terminal (``os.openpty``) by a thread;
   ``box.port`` is the path to open with pyserial (a symlink when ``link=`` is given).
-- ``python -m dptpu.nodes.projector_emulator --link /tmp/ttyBOX [--abort-after N] [--hang-after N]
+- ``python -m dptpu.nodes.projector.emulator --link /tmp/ttyBOX [--abort-after N] [--hang-after N]
   [--garbage-every K] [--silent]``: the same as its own process. It prints JSON lines on stdout
   (``{"event": "ready", "port": ...}``, one ``{"event": "command", ...}`` per host line) and runs
   until SIGINT or SIGTERM. Killing it makes the port disappear; starting it again with the same
@@ -33,7 +33,7 @@ import time
 import tty
 from pathlib import Path
 
-from .projector_protocol import (
+from .protocol import (
     ProtocolError,
     Reply,
     SequenceSpec,
@@ -252,7 +252,7 @@ class PtyTriggerBox:
 
 def main(argv: list[str] | None = None) -> int:
     """Run the emulator as its own process (see the module docstring); returns the exit code."""
-    parser = argparse.ArgumentParser(prog="python -m dptpu.nodes.projector_emulator",
+    parser = argparse.ArgumentParser(prog="python -m dptpu.nodes.projector.emulator",
                                      description="EMULATOR of the dptpu-trigger/1 trigger box on a pseudo-terminal")
     parser.add_argument("--link", help="symlink to create for the pty (a stable port path)")
     parser.add_argument("--abort-after", type=int, help="send ABORT ... DLP_FAULT after this many patterns")

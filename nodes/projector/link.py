@@ -8,7 +8,7 @@ protocol) is logged in one line that says what to check; the port is closed and 
 exponential backoff (``initial_s``, doubling, at most ``max_s``). The thread never ends on an error.
 
 On ``loop://`` there is no box: pyserial echoes every byte written. The link then runs the trigger-box
-EMULATOR (``dptpu.nodes.projector_emulator``) on the echoed commands and writes its answers into the loop,
+EMULATOR (``dptpu.nodes.projector.emulator``) on the echoed commands and writes its answers into the loop,
 so they come back through pyserial and the parser exactly as a real box's lines would. Acknowledgements
 are paced by the loaded exposure. This is how a sim rig runs the projector node without hardware.
 """
@@ -21,8 +21,10 @@ import time
 
 import serial
 
-from .projector_emulator import TriggerBoxEmulator
-from .projector_protocol import (
+from dptpu.nodes.plumbing import backoff_delay_s
+
+from .emulator import TriggerBoxEmulator
+from .protocol import (
     Command,
     ProtocolError,
     Reply,
@@ -31,18 +33,13 @@ from .projector_protocol import (
     parse_reply,
 )
 
-__all__ = ["LinkError", "ProjectorLink", "backoff_delay_s"]
+__all__ = ["LinkError", "ProjectorLink"]
 
 _READ_SLICE_S = 0.02
 
 
 class LinkError(Exception):
     """The port or the box failed; the message says what to check."""
-
-
-def backoff_delay_s(attempt: int, initial_s: float, max_s: float) -> float:
-    """Delay before reconnection attempt ``attempt`` (0-based): ``min(initial_s * 2**attempt, max_s)``."""
-    return min(initial_s * 2.0 ** min(attempt, 30), max_s)
 
 
 class ProjectorLink:
@@ -330,8 +327,8 @@ class ProjectorLink:
 
     def _pump_emulator(self, now: float) -> None:
         """loop:// only: the emulated box's lines that are due. They go straight into the line buffer when it holds
-        no partial line (pyserial's loop:// queues every byte on its own, ~10 us a byte: 24 acknowledgements of a
-        scan cost ~5 ms of CPU that way), else through the port as a real box's would."""
+        no partial line (pyserial's loop:// queues every byte on its own, a cost per byte that adds up over a
+        scan's acknowledgements: docs/benchmarks.md), else through the port as a real box's would."""
         for line in self._emulator.due(now):
             if not self._buffer or self._buffer.endswith(b"\n"):
                 self._buffer += line

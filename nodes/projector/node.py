@@ -29,7 +29,7 @@ name                     default            meaning
 =======================  =================  ================================================================
 ``port``                 ``/dev/ttyACM0``   device path, pty/symlink path, or pyserial URL; ``loop://`` =
                                             no box: the node answers its own echoed commands with the
-                                            trigger-box EMULATOR (sim rigs; see ``projector_link``)
+                                            trigger-box EMULATOR (sim rigs; see ``link``)
 ``baudrate``             115200             serial speed
 ``sequence``             ``"96x12,1x12"``   ``frequency x steps`` entries in projection order
 ``fringe_axis``          ``"x"``            ``x`` (vertical stripes, extent = width) or ``y``
@@ -55,18 +55,17 @@ when the DLP's trigger output marks the pattern on screen; at 115200 baud the li
 
 from __future__ import annotations
 
-import sys
 import threading
 import time
 
 from dptpu.graph.interfaces import Trigger as TriggerService
 from dptpu.graph.node import Node
-from dptpu.graph.qos import DurabilityPolicy, QoSProfile
 from dptpu.messages import Header, PatternEntry, PatternSequence, ScanStatus, Trigger
+from dptpu.nodes.node_main import run_node
+from dptpu.nodes.plumbing import LATCHED_QOS, scan_status
 
-from .projector_link import ProjectorLink
-from .projector_protocol import SequenceSpec, parse_sequence_spec
-from .node_main import run_node
+from .link import ProjectorLink
+from .protocol import SequenceSpec, parse_sequence_spec
 
 __all__ = ["ProjectorNode", "main"]
 
@@ -100,7 +99,7 @@ class ProjectorNode(Node):
 
         self.trigger_pub = self.create_publisher(Trigger, "/projector/trigger", 100)
         self.sequence_pub = self.create_publisher(
-            PatternSequence, "/projector/pattern_sequence", QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL))
+            PatternSequence, "/projector/pattern_sequence", LATCHED_QOS)
         self.status_pub = self.create_publisher(ScanStatus, "/scanner/status", 20)
         self.start_service = self.create_service(TriggerService, "~/start_scan", self.on_start_scan)
         # checked often enough that a scan starts within 10 ms (or a tenth of the period) of when it is due
@@ -159,12 +158,10 @@ class ProjectorNode(Node):
             started = self._scan_started.pop(sequence_id, time.monotonic())
         if reason:
             self.get_logger().error(f"scan {sequence_id} failed: {reason}")
-        self.status_pub.publish(ScanStatus(
-            header=Header(stamp=self.get_clock().now().to_msg()), sequence_id=sequence_id,
-            level=ScanStatus.ERROR if reason else ScanStatus.OK, state="failed" if reason else "done",
-            reason=f"projector: {reason}" if reason else "", node=self.get_fully_qualified_name(),
-            frames_expected=self.spec.pattern_count, frames_received=displayed,
-            duration_s=time.monotonic() - started))
+        self.status_pub.publish(scan_status(
+            self, sequence_id, ScanStatus.ERROR if reason else ScanStatus.OK, "failed" if reason else "done",
+            f"projector: {reason}" if reason else "", frames_expected=self.spec.pattern_count,
+            frames_received=displayed, duration_s=time.monotonic() - started))
 
     # --- helpers -----------------------------------------------------------------------------------
 
@@ -196,6 +193,3 @@ def main(argv=None) -> int:
     """``python -m dptpu.nodes.projector [--ros-args ...]``; returns the exit code (2 for bad parameters)."""
     return run_node("projector", ProjectorNode, argv)
 
-
-if __name__ == "__main__":
-    sys.exit(main())

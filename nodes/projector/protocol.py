@@ -17,7 +17,7 @@ trigger output says it is on screen. The full description, with a transcript, is
     any refused command                           <- ERR <CODE> <text>
 
 Nothing here does I/O: :func:`encode_command` and :func:`parse_reply` are used by the projector node,
-:func:`parse_command` and :func:`encode_reply` by the emulator (``dptpu.nodes.projector_emulator``).
+:func:`parse_command` and :func:`encode_reply` by the emulator (``dptpu.nodes.projector.emulator``).
 """
 
 from __future__ import annotations
@@ -71,10 +71,12 @@ class SequenceSpec:
         size = tuple(self.projector_size)
         if len(size) != 2 or not all(isinstance(v, int) and not isinstance(v, bool) and 0 < v < 65536
                                      for v in size):
-            raise ValueError(f"projector_size must be (width, height), integers in [1, 65535]; got {self.projector_size!r}")
+            raise ValueError(f"projector_size must be (width, height), integers in [1, 65535]; got "
+                             f"{self.projector_size!r}")
         if isinstance(self.exposure_us, bool) or not isinstance(self.exposure_us, int) \
                 or not 100 <= self.exposure_us <= 10_000_000:
-            raise ValueError(f"exposure_us must be an integer in [100, 10000000] microseconds; got {self.exposure_us!r}")
+            raise ValueError(f"exposure_us must be an integer in [100, 10000000] microseconds; got "
+                             f"{self.exposure_us!r}")
         if not self.entries:
             raise ValueError("a pattern sequence needs at least one entry (frequency x steps)")
         for frequency, steps in self.entries:

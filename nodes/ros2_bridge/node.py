@@ -45,16 +45,21 @@ Counters: ``bridged`` (per topic), ``malformed``, ``rejected`` (a message of ano
 from __future__ import annotations
 
 import os
-import sys
+
+from cyclonedds.domain import Domain, DomainParticipant
+from cyclonedds.pub import DataWriter
+from cyclonedds.sub import DataReader
+from cyclonedds.topic import Topic
 
 from dptpu.graph.interfaces import Trigger as TriggerService
 from dptpu.graph.node import Node
-from dptpu.graph.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+from dptpu.graph.qos import QoSProfile, ReliabilityPolicy
 from dptpu.messages import CameraInfo, DecodeError, Image, PointCloud2, decode
+from dptpu.nodes.node_main import run_node
+from dptpu.nodes.plumbing import LATCHED_QOS
 
 from .ros2_idl import Trigger_Request_, Trigger_Response_, dds_type_of, ros_topic_name, to_dds
 from .ros2_qos import cyclone_config_xml, ros2_qos
-from .node_main import run_node
 
 __all__ = ["Ros2BridgeNode", "DEFAULT_TOPICS", "DEFAULT_TYPES", "main"]
 
@@ -62,7 +67,6 @@ DEFAULT_TOPICS = ["/scanner/points", "/scanner/depth", "/camera/camera_info"]
 #: Types of the default topics: their DDS writers exist from the start, so ROS 2 sees them before the first scan.
 DEFAULT_TYPES = {"/scanner/points": PointCloud2, "/scanner/depth": Image, "/camera/camera_info": CameraInfo}
 _GRAPH_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.BEST_EFFORT)  # connects to any publisher
-_GRAPH_LATCHED_QOS = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
 _REQUEST_POLL_S = 0.02
 
 
@@ -98,8 +102,6 @@ class Ros2BridgeNode(Node):
             ros_topic_name(topic)  # ValueError naming a bad name
         self.domain_id = _domain_id(domain_id)
 
-        from cyclonedds.domain import Domain, DomainParticipant  # the C library loads here, not on import
-
         config = cyclone_config_xml(interface, peers)
         self._dds_domain = Domain(self.domain_id, config) if config else None
         self.participant = DomainParticipant(self.domain_id)
@@ -115,7 +117,7 @@ class Ros2BridgeNode(Node):
 
         self._subscriptions_in = [
             self.create_subscription(None, topic, self._forwarder(topic),
-                                     _GRAPH_LATCHED_QOS if topic in latched else _GRAPH_QOS, raw=True)
+                                     LATCHED_QOS if topic in latched else _GRAPH_QOS, raw=True)
             for topic in topics]
 
         self.start_client = None
@@ -128,9 +130,6 @@ class Ros2BridgeNode(Node):
 
     def _writer_for(self, topic: str, msg_type: type):
         """The DDS writer of ``topic`` for ``msg_type`` (created on first use); None if the topic has another."""
-        from cyclonedds.pub import DataWriter
-        from cyclonedds.topic import Topic
-
         if topic in self._writers:
             known_type, writer = self._writers[topic]
             return writer if known_type is msg_type else None
@@ -170,10 +169,6 @@ class Ros2BridgeNode(Node):
     # -- DDS capture request -> graph ------------------------------------------------------------------------
 
     def _capture_setup(self, service: str) -> None:
-        from cyclonedds.pub import DataWriter
-        from cyclonedds.sub import DataReader
-        from cyclonedds.topic import Topic
-
         qos = ros2_qos("services_default")
         request_topic = Topic(self.participant, ros_topic_name(service + "Request", prefix="rq"), Trigger_Request_,
                               qos=qos)
@@ -211,6 +206,3 @@ def main(argv=None) -> int:
     """``python -m dptpu.nodes.ros2_bridge --ros-args -p domain_id:=N``: run until Ctrl-C or SIGTERM."""
     return run_node("ros2_bridge", Ros2BridgeNode, argv)
 
-
-if __name__ == "__main__":
-    sys.exit(main())

@@ -24,6 +24,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from cyclonedds.idl import IdlStruct
+from cyclonedds.idl._support import Endianness
 from cyclonedds.idl.types import array, float64, int32, int64, sequence, uint8, uint32, uint64
 
 from dptpu.messages import CameraInfo, Image, PointCloud2
@@ -301,12 +302,7 @@ class Trigger_Response_(IdlStruct, typename="std_srvs::srv::dds_::Trigger_Respon
     message: str = ""
 
 
-def _little():
-    from cyclonedds.idl._support import Endianness
-    return Endianness.Little
-
-
-_LITTLE = _little()
+_LITTLE = Endianness.Little
 
 
 def _octet_buffer(data):

@@ -7,11 +7,10 @@ reported it failed (``FAILED``, with the node and the reason), or when nothing m
 (``LOST``). A cloud carries its scan's stamp, not its ``sequence_id``: with ground truth the scan's AbsolutePhase
 (same stamp) names it, without it the cloud node's ``done`` ScanStatus does (its ``header.stamp`` minus its
 ``duration_s`` is the scan's stamp, to the nanosecond; docs/nodes.md), so a monitor without ground truth takes
-no full-size map but the clouds. Figures:
-:mod:`dptpu.nodes.scan_metrics`. With ``scans:=N`` it prints a summary after N scans and exits with code 0; in a
-launch file as ``required: true`` that stops the whole graph cleanly (docs/launch.md). Run it as
-``python -m dptpu.nodes.scan_monitor --ros-args -p scans:=10`` or from ``launch/sim_rig.yaml``. Design:
-``docs/scanner.md``.
+no full-size map but the clouds. Figures: :mod:`dptpu.nodes.scan_monitor.scan_metrics`. With ``scans:=N`` it
+prints a summary after N scans and exits with code 0; in a launch file as ``required: true`` that stops the whole
+graph cleanly (docs/launch.md). Run it as ``python -m dptpu.nodes.scan_monitor --ros-args -p scans:=10`` or from
+``launch/sim_rig.yaml``. Design: ``docs/scanner.md``.
 
 A line looks like::
 
@@ -53,14 +52,13 @@ name                 default  meaning
 ``start_service``    ``/projector/start_scan``  the projector's std_srvs/Trigger service
 ``trigger_latency``  true     take the Triggers (every pattern's) for ``latency_from_first_trigger_ms``; false:
                               clouds and statuses only, as a robot subscribes (``dptpu bench pipeline``'s
-                              throughput run: 24 messages a 2 x 12-step scan less, ~3 ms of CPU)
+                              throughput run: 24 messages a 2 x 12-step scan less; docs/benchmarks.md)
 ==================== ======== ==================================================================================
 """
 from __future__ import annotations
 
 import json
 import math
-import sys
 import time
 from array import array
 from dataclasses import dataclass, field
@@ -69,12 +67,13 @@ from pathlib import Path
 import numpy as np
 
 import dptpu.graph as rclpy
+from dptpu.fpp.point_cloud_file import write_point_cloud
 from dptpu.graph.interfaces import Trigger as TriggerService
 from dptpu.graph.node import Node
 from dptpu.graph.qos import QoSProfile
 from dptpu.messages import AbsolutePhase, Image, PointCloud2, ScanStatus, Trigger
+from dptpu.nodes.node_main import run_node
 
-from .node_main import run_node
 from .scan_metrics import scan_metrics
 
 __all__ = ["ScanMonitorNode", "main"]
@@ -446,13 +445,12 @@ class ScanMonitorNode(Node):
             self.get_logger().warning(f"cannot write the summary {path}: {exc}")
 
     def _write_ply(self, scan: _Scan) -> None:
-        from .cloud import write_ply
-
         path = Path(self.ply_dir) / f"scan_{scan.sequence_id:08d}.ply"
         try:
             path.parent.mkdir(parents=True, exist_ok=True)
-            count = write_ply(path, scan.cloud.to_array(["x", "y", "z"]), scan.cloud.to_array(["intensity"])[..., 0])
-        except (OSError, ImportError, RuntimeError) as exc:
+            count = write_point_cloud(path, scan.cloud.to_array(["x", "y", "z"]), unit="m",
+                                      intensity=scan.cloud.to_array(["intensity"])[..., 0])
+        except (OSError, ImportError, RuntimeError, ValueError) as exc:
             self.get_logger().warning(f"PLY {path} failed: {exc}")
             return
         self.ply_written += 1
@@ -475,6 +473,3 @@ def main(argv=None) -> int:
 
     return run_node("scan_monitor", ScanMonitorNode, argv, spin=spin, on_exit=on_exit)
 
-
-if __name__ == "__main__":
-    sys.exit(main())

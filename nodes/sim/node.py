@@ -3,7 +3,7 @@
 On each :class:`~dptpu.messages.Trigger` the node publishes the :class:`~dptpu.messages.FringeFrame` of that
 pattern (the frame of the trigger's frequency and step) of the current scene, taken from the shipped Blender
 renders of the twin (default), from live raycast renders (:mod:`dptpu.sim.raycast`), or from capture folders
-(:mod:`dptpu.nodes.sim_source`). Scenes cycle scan by scan: scan ``sequence_id`` shows scene
+(:mod:`dptpu.nodes.sim.source`). Scenes cycle scan by scan: scan ``sequence_id`` shows scene
 ``(sequence_id - 1) mod len(scenes)``. With each scan's first Trigger the node publishes that scene's ground
 truth for the scan monitor. Run it as ``python -m dptpu.nodes.sim --ros-args -p source:=raycast -p size:=160x120``
 or from a launch file (``launch/sim_rig.yaml``). Design: ``docs/scanner.md``.
@@ -57,14 +57,13 @@ name                default                      meaning
 """
 from __future__ import annotations
 
-import sys
 import time
 from collections import OrderedDict, deque
 
 import numpy as np
 
+from dptpu.fpp.frequencies import same_frequency
 from dptpu.graph.node import Node
-from dptpu.graph.qos import DurabilityPolicy, QoSProfile
 from dptpu.messages import (
     AbsolutePhase,
     CameraInfo,
@@ -75,16 +74,14 @@ from dptpu.messages import (
     ScanStatus,
     Trigger,
 )
+from dptpu.nodes.node_main import run_node
+from dptpu.nodes.plumbing import DEFAULT_FRAME_ID, LATCHED_QOS, STATUS_QOS, scan_status
+from dptpu.sim.rig import load_twin_rig
 
-from .node_main import run_node
-from .sequence_assembler import same_frequency
-from .sim_source import DEFAULT_SCENES, SimScene, SimSource, load_source
+from .source import DEFAULT_SCENES, SimScene, SimSource, load_source
 
 __all__ = ["SimNode", "main", "parse_drop_frames"]
 
-DEFAULT_FRAME_ID = "scanner_optical_frame"
-LATCHED_QOS = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
-STATUS_QOS = QoSProfile(depth=50)
 _TWO_PI = 2.0 * np.pi
 _SCANS_REMEMBERED = 64
 
@@ -146,8 +143,8 @@ class SimNode(Node):
                              f"{self.frame_rate_hz}")
         if bit_depth not in (8, 16):
             raise ValueError(f"parameter bit_depth must be 8 or 16; got {bit_depth}")
-        # the camera is announced as soon as it is known, before the raycast renders (seconds at 640x480): the cloud
-        # node builds its triangulation tables meanwhile, not while the first scans arrive (docs/scanner.md)
+        # the camera is announced as soon as it is known, before the raycast renders the scenes: the cloud node
+        # builds its triangulation tables meanwhile, not while the first scans arrive (docs/scanner.md)
         self.info_pub = self.create_publisher(CameraInfo, "/camera/camera_info", LATCHED_QOS)
         self._info_published = False
         self.source: SimSource = load_source(source, rig=rig, size=size, scenes=scenes, sequence=sequence,
@@ -267,15 +264,11 @@ class SimNode(Node):
         if self._scans_seen.get(trigger.sequence_id):
             return
         self._scans_seen[trigger.sequence_id] = True
-        self.status_pub.publish(ScanStatus(
-            header=Header(stamp=self.get_clock().now().to_msg()), sequence_id=trigger.sequence_id,
-            level=ScanStatus.ERROR, state="failed", reason=reason, node=self.get_fully_qualified_name(),
-            frames_expected=trigger.pattern_count, frames_dropped=1))
+        self.status_pub.publish(scan_status(self, trigger.sequence_id, ScanStatus.ERROR, "failed", reason,
+                                            frames_expected=trigger.pattern_count, frames_dropped=1))
 
     def _check_rig(self, rig, size) -> None:
         """Warn when replayed captures were made with another rig than ``rig`` (which the cloud node is given)."""
-        from dptpu.sim.rig import load_twin_rig
-
         try:
             expected = load_twin_rig(rig, size=self.source.size)
         except (ValueError, FileNotFoundError) as exc:
@@ -308,6 +301,3 @@ def main(argv=None) -> int:
     """``python -m dptpu.nodes.sim [--ros-args ...]``: run the node until Ctrl-C or SIGTERM (2: bad parameters)."""
     return run_node("sim", SimNode, argv)
 
-
-if __name__ == "__main__":
-    sys.exit(main())

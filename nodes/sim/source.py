@@ -11,7 +11,7 @@ Sources (the sim node's ``source`` parameter):
   (or when there are none) the scenes rendered live (``raycast``) instead, and :func:`load_source` says why in
   its note;
 - ``raycast``: the scenes named by ``scenes`` rendered with :mod:`dptpu.sim.raycast` and
-  :mod:`dptpu.sim.image_formation` at start-up (a few seconds per scene at 640x480);
+  :mod:`dptpu.sim.image_formation` at start-up (docs/benchmarks.md: how long per scene);
 - a folder: one capture folder (it holds ``capture.yaml``) or a folder of capture folders (each a scene).
 
 Convention: the ground truth is the projector coordinate along the fringe axis (0-based projector pixels) of
@@ -34,8 +34,11 @@ from dptpu.fpp.capture import (
     load_sequence_images,
     read_capture,
 )
-
-from .sequence_assembler import same_frequency
+from dptpu.fpp.frequencies import same_frequency
+from dptpu.sim.image_formation import SequenceSpec, render_frames
+from dptpu.sim.raycast import trace
+from dptpu.sim.rig import load_twin_rig, parse_size
+from dptpu.sim.scenes import load_scene, random_scene
 
 __all__ = [
     "DEFAULT_SCENES",
@@ -185,10 +188,6 @@ def raycast_scenes(rig: Rig, scene_names, sequences, *, fringe_axis: str = "x", 
     log : callable, optional
         Called with one progress line per scene.
     """
-    from dptpu.sim.image_formation import SequenceSpec, render_frames
-    from dptpu.sim.raycast import trace
-    from dptpu.sim.scenes import load_scene, random_scene
-
     specs = [SequenceSpec(f, n, axis=fringe_axis, shift_sign=shift_sign) for f, n in sequences]
     axis = 0 if fringe_axis == "x" else 1
     scenes = []
@@ -265,8 +264,6 @@ def capture_scenes(folder) -> tuple[list[SimScene], Rig, str, int]:
 
 def _shipped_lacks(scenes, rig: Rig, size, sequence) -> str:
     """What the shipped renders lack of the asked camera size and sequences ("" when they hold both)."""
-    from dptpu.sim.rig import parse_size
-
     lacking = []
     width, height = parse_size(size)
     if tuple(rig.camera.size) != (width, height):
@@ -292,11 +289,9 @@ def load_source(source: str, *, rig, size, scenes: str = DEFAULT_SCENES, sequenc
     scenes, sequence : str
         Raycast: :func:`parse_scene_list`, :func:`parse_sequence_list`.
     on_rig : callable, optional
-        Raycast: ``on_rig(rig)`` is called with the twin's rig before the scenes are rendered (seconds at
-        640x480), so a node can announce the camera while it renders.
+        Raycast: ``on_rig(rig)`` is called with the twin's rig before the scenes are rendered, so a node can
+        announce the camera while it renders.
     """
-    from dptpu.sim.rig import load_twin_rig
-
     note = ""
     if source not in ("shipped", "raycast"):
         found, twin_rig, axis, sign = capture_scenes(source)

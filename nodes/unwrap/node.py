@@ -21,13 +21,15 @@ Parameters
 name                default   meaning
 =================== ========= ===================================================================================
 ``method``          "mf"      ``mf`` (Eq. (5) in float32, needs a frequency <= 1), ``mw`` (Eqs. (6)-(7), needs
-                              ``0 < f_h - f_l <= 1``), ``nt`` (Eqs. (8)-(9)) or ``heterodyne`` (beat tree of all)
+                              ``0 < f_h - f_l <= 1``), ``nt`` (Eqs. (8)-(9)) or ``heterodyne`` (beat tree of all;
+                              takes neither ``high_frequency`` nor ``low_frequency``)
 ``model``           "none"    a DP-TPU ``.onnx`` model refining the classical fringe order (mf/mw/nt, on the prior
                               of :func:`dptpu.models.refine.network_prior`), ``shipped`` (the packaged model)
                               or ``none``
 ``consensus``       false     with ``model``: post-process the network's order with the neighbour consensus of
                               :mod:`dptpu.models.consensus` (what ``dptpu unwrap --model`` and the accuracy
-                              figures of docs/model-eval.md use; 54-259 ms more a 640x480 scan, so off by default)
+                              figures of docs/model-eval.md use; it adds to every scan's latency, see
+                              docs/benchmarks.md, so off by default)
 ``high_frequency``  0.0       frequency to unwrap (periods across the projector); 0 = the highest of the scan
 ``low_frequency``   0.0       the auxiliary frequency of mf/mw/nt; 0 = chosen as ``dptpu unwrap`` does
 ``min_reliability`` 0.0       pixels whose rounding margin (``AbsolutePhase.reliability``) is lower are invalid
@@ -39,85 +41,21 @@ projector (``0 <= Psi < 2*pi*f``, as :func:`dptpu.fpp.reconstruct.unwrap_capture
 """
 from __future__ import annotations
 
-import sys
 import time
 
 import numpy as np
 
 from dptpu.fpp import tpu
+from dptpu.fpp.frequencies import select_frequencies
+from dptpu.fpp.methods import PHASE_SEQUENCE_METHODS
 from dptpu.graph.node import Node
-from dptpu.graph.qos import QoSProfile
-from dptpu.messages import AbsolutePhase, Header, Image, PhaseMaps, ScanStatus
+from dptpu.messages import AbsolutePhase, Image, PhaseMaps, ScanStatus
+from dptpu.nodes.node_main import run_node
+from dptpu.nodes.plumbing import STATUS_QOS, DecodeErrorCount, scan_status
 
-from .node_main import run_node
-from .sequence_assembler import same_frequency
+__all__ = ["UnwrapNode", "load_model", "main", "refined"]
 
-__all__ = ["METHODS", "UnwrapNode", "load_model", "main", "refined", "select_frequencies"]
-
-METHODS = ("mf", "mw", "nt", "heterodyne")
-STATUS_QOS = QoSProfile(depth=50)
 _TWO_PI = 2.0 * np.pi
-
-
-def select_frequencies(method: str, frequencies, *, high: float = 0.0, low: float = 0.0) -> list[int]:
-    """Indices into ``frequencies`` of the maps a method uses, the unwrapped (high) one first.
-
-    Parameters
-    ----------
-    method : {"mf", "mw", "nt", "heterodyne"}
-    frequencies : sequence of float
-        Frequencies of a scan's phase maps (periods across the projector extent).
-    high, low : float
-        Requested frequencies, 0 = default: high = the highest; low = for ``mf`` the lowest (must be
-        <= 1), for ``mw`` the one with ``0 < f_h - f_l <= 1`` farthest from ``f_h``, for ``nt`` the only
-        other one. ``heterodyne`` uses every map, highest first, and takes no ``low``.
-
-    Raises
-    ------
-    ValueError
-        A requested frequency the scan lacks ("unknown frequency"), duplicates, or a scan that does not
-        have what the method needs; the message lists the scan's frequencies.
-    """
-    freqs = [float(f) for f in frequencies]
-    listed = ", ".join(f"{f:g}" for f in freqs)
-
-    def find(value, role):
-        matches = [i for i, f in enumerate(freqs) if same_frequency(f, value)]
-        if not matches:
-            raise ValueError(f"unknown frequency {value:g} ({role}_frequency); the scan has frequencies {listed}")
-        return matches[0]
-
-    if len(freqs) < 2:
-        raise ValueError(f"{method} needs phase maps of 2 or more frequencies; the scan has {listed or 'none'}")
-    if any(same_frequency(a, b) for i, a in enumerate(freqs) for b in freqs[i + 1:]):
-        raise ValueError(f"the scan's frequencies must be distinct; got {listed}")
-    if method == "heterodyne":
-        if low:
-            raise ValueError("heterodyne unwraps with every frequency of the scan; low_frequency does not apply")
-        order = sorted(range(len(freqs)), key=lambda i: -freqs[i])
-        if high:
-            order.remove(h := find(high, "high"))
-            order.insert(0, h)
-        return order
-    h = find(high, "high") if high else max(range(len(freqs)), key=lambda i: freqs[i])
-    if low:
-        return [h, find(low, "low")]
-    others = [i for i in range(len(freqs)) if i != h]
-    if method == "mf":
-        lowest = min(others, key=lambda i: freqs[i])
-        if freqs[lowest] > 1.0 + 1e-9:
-            raise ValueError(f"mf needs a frequency <= 1 (one fringe across the projector, Eq. (5)); the scan has "
-                             f"{listed}: use heterodyne or nt")
-        return [h, lowest]
-    if method == "mw":
-        candidates = [i for i in others if 0 < freqs[h] - freqs[i] <= 1.0 + 1e-9]
-        if not candidates:
-            raise ValueError(f"mw needs a frequency f_l with 0 < f_h - f_l <= 1 for f_h = {freqs[h]:g}; the scan has "
-                             f"{listed}")
-        return [h, max(candidates, key=lambda i: freqs[h] - freqs[i])]
-    if len(others) != 1:
-        raise ValueError(f"nt takes the one other frequency by default, but the scan has {listed}: set low_frequency")
-    return [h, others[0]]
 
 
 class UnwrapNode(Node):
@@ -134,8 +72,9 @@ class UnwrapNode(Node):
         self.low_frequency = self.declare_parameter("low_frequency", 0.0).value
         self.min_reliability = self.declare_parameter("min_reliability", 0.0).value
         self.consensus = self.declare_parameter("consensus", False).value
-        if self.method not in METHODS:
-            raise ValueError(f"parameter method must be one of {', '.join(METHODS)}; got {self.method!r}")
+        if self.method not in PHASE_SEQUENCE_METHODS:
+            raise ValueError(f"parameter method must be one of {', '.join(PHASE_SEQUENCE_METHODS)}; got "
+                             f"{self.method!r}")
         if self.high_frequency < 0 or self.low_frequency < 0:
             raise ValueError("parameters high_frequency and low_frequency must be >= 0 (0 = default); got "
                              f"{self.high_frequency}, {self.low_frequency}")
@@ -155,13 +94,13 @@ class UnwrapNode(Node):
         self.scans_published = 0
         self.scans_rejected = 0
         self.pixels_nan = 0
-        self._decode_errors_reported = 0
 
         self.absolute_publisher = self.create_publisher(AbsolutePhase, "/scanner/absolute_phase", 10)
         self.intensity_publisher = self.create_publisher(Image, "/scanner/intensity", 10)
         self.status_publisher = self.create_publisher(ScanStatus, "/scanner/status", STATUS_QOS)
 
         self.phase_subscription = self.create_subscription(PhaseMaps, "/scanner/phase", self.on_phase_maps, 10)
+        self.decode_errors = DecodeErrorCount(self.phase_subscription)
 
     # -- callbacks ------------------------------------------------------------------------------------------
 
@@ -214,7 +153,8 @@ class UnwrapNode(Node):
 
     def _unwrap(self, msg: PhaseMaps):
         """``(Unwrapped, index of the high frequency, NaN pixels marked valid)``; ValueError for unusable maps."""
-        indices = select_frequencies(self.method, msg.frequencies, high=self.high_frequency, low=self.low_frequency)
+        indices = select_frequencies(self.method, msg.frequencies, high=self.high_frequency or None,
+                                     low=self.low_frequency or None, options=("high_frequency", "low_frequency"))
         phases = [msg.phases[i] for i in indices]  # (H, W) float32 each
         frequencies = [float(msg.frequencies[i]) for i in indices]
         valid = _finite(msg.valid, phases)
@@ -236,12 +176,9 @@ class UnwrapNode(Node):
         return result, indices[0], nan_pixels
 
     def _status(self, msg, level, state, reason, started_s, **counts) -> None:
-        malformed = self.phase_subscription.malformed_count
-        decode_errors, self._decode_errors_reported = malformed - self._decode_errors_reported, malformed
-        self.status_publisher.publish(ScanStatus(
-            header=Header(stamp=self.get_clock().now().to_msg(), frame_id=""), sequence_id=msg.sequence_id,
-            level=level, state=state, reason=reason, node=self.get_fully_qualified_name(),
-            decode_errors=decode_errors, duration_s=time.monotonic() - started_s, **counts))
+        self.status_publisher.publish(scan_status(
+            self, msg.sequence_id, level, state, reason, decode_errors=self.decode_errors.since_last_report(),
+            duration_s=time.monotonic() - started_s, **counts))
 
 
 def _masked_in_place(values: np.ndarray, invalid: np.ndarray, fill, dtype) -> np.ndarray:
@@ -280,7 +217,7 @@ def load_model(path: str):
     if path in ("", "none"):
         return None
     try:
-        from dptpu.models import inference  # onnxruntime only, never torch
+        from dptpu.models import inference  # an optional part of a build (onnxruntime only, never torch)
     except ImportError as exc:
         raise ImportError(f"parameter model={path!r} needs the module dptpu.models.inference (the DP-TPU network "
                           f"run by onnxruntime), which this build lacks ({exc}); set model:=none for classical "
@@ -296,7 +233,7 @@ def load_model(path: str):
 
 def _load_refine_order():
     """:func:`dptpu.models.refine.refine_order`: the NT prior and the consensus (numpy, OpenCV, onnxruntime)."""
-    from dptpu.models.refine import refine_order
+    from dptpu.models.refine import refine_order  # with the model only: dptpu.models is optional in a build
 
     return refine_order
 
@@ -311,6 +248,3 @@ def main(argv=None) -> int:
     """``python -m dptpu.nodes.unwrap [--ros-args ...]``: run the node until Ctrl-C or SIGTERM."""
     return run_node("unwrap", UnwrapNode, argv)
 
-
-if __name__ == "__main__":
-    sys.exit(main())

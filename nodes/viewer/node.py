@@ -1,8 +1,8 @@
 """Viewer node: the live organized point cloud and the status of the last scans, in a browser on localhost.
 
-A stdlib HTTP server (a thread of this process) serves the page of ``viewer_static/`` (``index.html``,
+A stdlib HTTP server (a thread of this process) serves the page of ``static/`` (``index.html``,
 ``viewer.js`` and three.js 0.187.0 bundled at build time: nothing is fetched from the internet) and a WebSocket
-(``/ws``, RFC 6455, :mod:`dptpu.nodes.viewer_ws`). Each cloud goes to every open page as one binary message
+(``/ws``, RFC 6455, :mod:`dptpu.nodes.viewer.websocket`). Each cloud goes to every open page as one binary message
 (:func:`pack_cloud`: its finite points, decimated to at most ``max_points``); each ``ScanStatus`` as one JSON
 text message. The page draws the points with orbit controls, coloured by depth or by intensity, and lists the
 last scans. Design, message format and the browser test: ``docs/viewer.md``.
@@ -34,7 +34,6 @@ from __future__ import annotations
 import json
 import math
 import struct
-import sys
 import threading
 from collections import deque
 from http import HTTPStatus
@@ -46,14 +45,23 @@ import numpy as np
 from dptpu.graph.node import Node
 from dptpu.graph.qos import QoSProfile, ReliabilityPolicy
 from dptpu.messages import PointCloud2, ScanStatus
+from dptpu.nodes.node_main import run_node
 
-from .viewer_ws import OP_BINARY, OP_CLOSE, OP_PING, OP_PONG, OP_TEXT, ProtocolError, accept_key, encode_frame, \
-    read_frame
-from .node_main import run_node
+from .websocket import (
+    OP_BINARY,
+    OP_CLOSE,
+    OP_PING,
+    OP_PONG,
+    OP_TEXT,
+    ProtocolError,
+    accept_key,
+    encode_frame,
+    read_frame,
+)
 
 __all__ = ["ViewerNode", "pack_cloud", "unpack_cloud", "status_record", "CLOUD_MAGIC", "STATIC_DIR", "main"]
 
-STATIC_DIR = Path(__file__).with_name("viewer_static")
+STATIC_DIR = Path(__file__).with_name("static")
 #: First 4 bytes of a cloud message.
 CLOUD_MAGIC = b"DPC1"
 _CONTENT_TYPES = {".html": "text/html; charset=utf-8", ".js": "text/javascript; charset=utf-8",
@@ -265,8 +273,9 @@ class _Session:
             while True:
                 with self.broadcast.cond:
                     self.broadcast.cond.wait_for(
-                        lambda: not self.open or self.broadcast.closed or self.broadcast.cloud_version != sent_cloud
-                        or self.broadcast.status_count != sent_status, timeout=5.0)
+                        lambda cloud=sent_cloud, status=sent_status: not self.open or self.broadcast.closed
+                        or self.broadcast.cloud_version != cloud or self.broadcast.status_count != status,
+                        timeout=5.0)
                     if not self.open or self.broadcast.closed:
                         break
                     statuses = [text for number, text in self.broadcast.statuses if number > sent_status]
@@ -348,6 +357,3 @@ def main(argv=None) -> int:
     """``python -m dptpu.nodes.viewer --ros-args -p port:=8765``: serve until Ctrl-C or SIGTERM."""
     return run_node("viewer", ViewerNode, argv)
 
-
-if __name__ == "__main__":
-    sys.exit(main())

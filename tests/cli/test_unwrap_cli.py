@@ -109,8 +109,8 @@ def test_bad_capture_exits_2_with_one_line_on_stderr(synthetic_capture, tmp_path
 
 
 @pytest.mark.parametrize("extra, message", [
-    (["--high", "50"], r"no phase sequence has frequency 50 \(--high\)"),
-    (["--method", "heterodyne", "--low", "1"], r"heterodyne unwraps with every phase sequence"),
+    (["--high", "50"], r"unknown frequency 50 \(--high\); the capture has phase sequences of frequency"),
+    (["--method", "heterodyne", "--low", "1"], r"heterodyne unwraps with every frequency .*--low do not apply"),
 ])
 def test_bad_choice_exits_2(synthetic_capture, tmp_path, capsys, extra, message):
     folder, _ = synthetic_capture(MF)

@@ -2,8 +2,17 @@ import numpy as np
 import pytest
 from scipy.io import savemat
 
-from dptpu.fpp.calibration import (DeviceModel, Rig, load_bouguet, load_bouguet_pair, load_opencv_device,
-                                   load_opencv_rig, load_rig, save_opencv_rig, save_rig)
+from dptpu.fpp.calibration import (
+    DeviceModel,
+    Rig,
+    load_bouguet,
+    load_bouguet_pair,
+    load_opencv_device,
+    load_opencv_rig,
+    load_rig,
+    save_opencv_rig,
+    save_rig,
+)
 from tests.fpp.rig_fixtures import synthetic_rig
 
 SPHERE_FILES = ["CamCalibResult_real.mat", "PrjCalibResult_real.mat", "CamCalibResult_sim.mat",

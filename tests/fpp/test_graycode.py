@@ -244,14 +244,14 @@ def test_pixelated_projector_complementary_exact_plain_errs_in_half_pixel_band()
 
 
 def test_unwrap_accepts_phase_maps_and_marks_nan_invalid():
-    from dptpu.fpp.phase import PhaseMaps
+    from dptpu.fpp.phase import WrappedPhase
 
     x_p = scene_projector_x()
     albedo, ambient = scene_photometry()
     captured = references(gray_bits_at(x_p), gray_bits_at(x_p, complementary=True), albedo, ambient)
     psi = wrapped_of(x_p)
     psi[5, 7] = np.nan
-    maps = PhaseMaps(phase=psi, modulation=np.ones_like(psi), background=np.ones_like(psi))
+    maps = WrappedPhase(phase=psi, modulation=np.ones_like(psi), background=np.ones_like(psi))
     result = unwrap_graycode(maps, captured["images"], period=PERIOD, inverse=captured["inverse"])
     assert not result.valid[5, 7] and np.isnan(result.absolute_phase[5, 7])
     assert result.reliability[5, 7] == 0.0 and result.fringe_order[5, 7] == 0

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from dptpu.fpp.patterns import fringe_patterns, frequency_from_period, projector_phase
+from dptpu.fpp.patterns import frequency_from_period, fringe_patterns, projector_phase
 
 
 def test_frequency_from_period_is_extent_over_period():

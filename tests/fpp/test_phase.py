@@ -5,7 +5,7 @@ import pytest
 
 from dptpu.fpp._lsq_phase import angle_0_2pi_float32
 from dptpu.fpp.patterns import fringe_patterns, projector_phase
-from dptpu.fpp.phase import PhaseMaps, check_bit_depth, quality_mask, wrapped_phase
+from dptpu.fpp.phase import WrappedPhase, check_bit_depth, quality_mask, wrapped_phase
 
 
 def wrapped_difference(a, b):
@@ -34,7 +34,7 @@ def test_exact_recovery_on_noiseless_images(steps, shift_sign):
     phase, background, modulation = smooth_scene()
     images = synthetic_stack(phase, background, modulation, steps, shift_sign, phase_offset=0.7)
     maps = wrapped_phase(images, shift_sign=shift_sign, phase_offset=0.7)
-    assert isinstance(maps, PhaseMaps)
+    assert isinstance(maps, WrappedPhase)
     assert maps.phase.shape == maps.modulation.shape == maps.background.shape == (64, 96)
     assert maps.phase.dtype == np.float64
     assert maps.phase.min() >= 0.0 and maps.phase.max() < 2 * np.pi

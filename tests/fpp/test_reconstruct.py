@@ -102,7 +102,7 @@ def test_default_and_chosen_sequences(synthetic_capture):
     chosen = unwrap_capture(capture, method="mf", high=63, low=1)
     assert chosen.frequencies == (63.0, 1.0)
     assert_matches_truth(chosen.fringe_order, chosen.absolute_phase, chosen.valid, 63.0, scene)
-    with pytest.raises(ValueError, match=r"nt takes the one other phase sequence by default.*pass --low"):
+    with pytest.raises(ValueError, match=r"nt takes the one other frequency by default.*choose the low one with --low"):
         unwrap_capture(capture, method="nt")
 
 
@@ -114,20 +114,21 @@ def test_frequency_given_by_period_is_found_within_a_relative_1e3(synthetic_capt
 
 
 @pytest.mark.parametrize("specs, method, options, message", [
-    (METHOD_SPECS["mf"], "mf", {"high": 50}, r"no phase sequence has frequency 50 \(--high\); the capture has "
+    (METHOD_SPECS["mf"], "mf", {"high": 50}, r"unknown frequency 50 \(--high\); the capture has "
                                             r"phase sequences of frequency 64, 1"),
     (METHOD_SPECS["mf"], "mw", {}, r"mw needs a low frequency with 0 < f_h - f_l <= 1 for f_h = 64"),
-    (METHOD_SPECS["mf"], "heterodyne", {"high": 64}, r"heterodyne unwraps with every phase sequence"),
+    (METHOD_SPECS["mf"], "heterodyne", {"high": 64}, r"heterodyne unwraps with every frequency and gives the highest"),
     (METHOD_SPECS["mf"], "graycode", {}, r"graycode needs a sequence of kind 'graycode'"),
-    (METHOD_SPECS["mf"], "mf", {"high": 64, "low": 64}, r"--low 64 selects the same sequence"),
-    (METHOD_SPECS["mf"][:1], "mf", {}, r"mf needs two phase sequences; the capture has only one"),
+    (METHOD_SPECS["mf"], "mf", {"high": 64, "low": 64}, r"--low 64 is the high frequency 64"),
+    (METHOD_SPECS["mf"][:1], "mf", {}, r"mf needs two or more frequencies; the capture has phase sequences of "
+                                       r"frequency 64$"),
     (METHOD_SPECS["mw"], "mf", {}, r"mf needs a low frequency <= 1 .*the capture has phase sequences of "
                                    r"frequency 64, 63: use heterodyne or nt"),
     (METHOD_SPECS["mf"], "spatial", {}, r"unknown unwrapping method 'spatial'"),
     ([{"frequency": 64}, {"frequency": 64}, {"frequency": 1}], "mf", {},
-     r"two phase sequences have the highest frequency 64"),
+     r"frequency 64 appears 2 times; mf needs the frequencies it uses to be distinct"),
     ([{"frequency": 64}, {"frequency": 63}, {"frequency": 63}], "heterodyne", {},
-     r"two phase sequences have frequency 63; heterodyne needs distinct frequencies"),
+     r"frequency 63 appears 2 times; heterodyne needs the frequencies it uses to be distinct"),
     ([{"period": 20}, {"kind": "graycode", "bits": 6, "period": 16}], "graycode", {},
      r"no phase sequence has the period of the Gray code \(period 16"),
 ])

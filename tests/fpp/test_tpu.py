@@ -106,7 +106,10 @@ def test_unwrap_mf_float32_recovers_orders_of_float32_maps(scene, f_h):
 def test_unwrap_mf_float32_matches_float64_away_from_half_integers(scene):
     rng = np.random.default_rng(0)
     f_h = 64
-    noise = lambda: rng.normal(0.0, 0.05, scene.shape)  # rad: q near half-integers
+
+    def noise():
+        return rng.normal(0.0, 0.05, scene.shape)  # rad: q near half-integers
+
     psi_h = np.mod(wrapped(scene, f_h) + noise(), 2 * np.pi).astype(np.float32)
     psi_l = np.mod(wrapped(scene, 1.0) + noise(), 2 * np.pi).astype(np.float32)
     psi_h[psi_h >= 2 * np.pi] = 0.0

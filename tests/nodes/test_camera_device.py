@@ -10,9 +10,15 @@ import numpy as np
 import pytest
 
 from dptpu.messages import Trigger
-from dptpu.nodes.genicam_acquisition import FramePairer
-from dptpu.nodes.genicam_device import CameraSettings, CameraUnavailable, GenICamDevice, buffer_to_array, list_devices
-from dptpu.nodes.genicam_producers import default_cti_paths, shipped_producer, split_cti_paths
+from dptpu.nodes.camera.genicam_acquisition import FramePairer
+from dptpu.nodes.camera.genicam_device import (
+    CameraSettings,
+    CameraUnavailable,
+    GenICamDevice,
+    buffer_to_array,
+    list_devices,
+)
+from dptpu.nodes.camera.genicam_producers import default_cti_paths, shipped_producer, split_cti_paths
 
 VIKY = shipped_producer("viky.cti")
 TLSIMU = shipped_producer("TLSimu.cti")

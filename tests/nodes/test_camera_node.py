@@ -15,7 +15,7 @@ import pytest
 from dptpu.fpp.calibration import DeviceModel, Rig, save_rig
 from dptpu.graph.qos import DurabilityPolicy, QoSProfile
 from dptpu.messages import CameraInfo, FringeFrame, ScanStatus, Trigger
-from dptpu.nodes.genicam_producers import shipped_producer
+from dptpu.nodes.camera.genicam_producers import shipped_producer
 
 NODE = "dptpu.nodes.camera"
 VIKY = shipped_producer("viky.cti")

@@ -15,9 +15,10 @@ from dptpu.messages import (
     ScanStatus,
     Time,
 )
-from dptpu.nodes.cloud import FIELDS, CloudNode
+from dptpu.nodes.cloud import CloudNode
+from dptpu.nodes.cloud.node import FIELDS
 from dptpu.nodes.harness import NodeHarness
-from dptpu.nodes.scan_monitor import _STAMP_MATCH_NS
+from dptpu.nodes.scan_monitor.node import _STAMP_MATCH_NS
 from tests.nodes.test_cloud_scene import plane_scene
 
 STAMP = Time.from_ns(1_700_000_000_000_000_000)

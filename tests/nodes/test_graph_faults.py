@@ -108,7 +108,7 @@ def test_malformed_input_is_counted_and_a_killed_unwrap_is_respawned_with_later_
     assert any(f"'unwrap' (pid {unwrap_pid})" in line and "respawning" in line for line in run.lines), text
     assert all(len(run.pids(name)) == 1 for name in NODES if name != "unwrap")
     assert len(later) >= 3
-    for sequence_id, scene, outcome, line in run.scans():
+    for sequence_id, _scene, outcome, line in run.scans():
         if outcome == "ok":  # scenes change scan by scan: a scan mixed from two sequences would fail this
             assert _accuracy(line) >= ORDER_ACCURACY_BOUND, line
         else:  # only scans in flight when unwrap died may be missing

@@ -1,8 +1,8 @@
 """The main job end to end: ``dptpu launch launch/sim_rig.yaml`` runs the whole graph as separate processes.
 
 projector (emulated trigger box) -> sim (twin frames) -> phase -> unwrap -> cloud -> scan monitor, at 160x120.
-The monitor grades every scan against the twin's ground truth (``dptpu.nodes.scan_metrics``) and ends the launch
-after ``scans:=N`` with exit code 0. Bounds (docs/scanner.md): with 16x12,1x12 and MF every scan has at least
+The monitor grades every scan against the twin's ground truth (``dptpu.nodes.scan_monitor.scan_metrics``) and ends
+the launch after ``scans:=N`` with exit code 0. Bounds (docs/scanner.md): with 16x12,1x12 and MF every scan has at least
 99.5 % of its fringe orders right and a depth RMS below 1.5 mm (measured: 100 % and 0.42-0.84 mm; at f = 16
 a phase noise of 0.02 rad is 0.18 projector pixels, about 0.45 mm of depth at 800 mm).
 """
@@ -71,9 +71,10 @@ def test_dptpu_scans_through_the_whole_graph_meet_the_bounds(node_env, tmp_path)
     (2026-11-23, 160x120, twin_rig): the shipped architecture-2 model trained on the nominal + wide rigs
     (models/README.md) 97.67 / 99.01 / 97.17 / 99.66 % on random-1 / sphere / random-2 / board; the one trained
     on the nominal rig alone 97.57 / 98.33 / 97.29 / 95.26 %, depth RMS 0.10-0.21 mm; the previous (architecture 1)
-    model 99.49 / 97.95 / 99.38 / 97.25 %; classical MF 99.68 / 98.93 / 99.17 / 100 % in the same graph. On these 160x120 12-step frames (finer fringes per pixel than its 320x240 3-step training data) the
-    shipped model does not beat classical MF; the bound guards the wiring and against a broken model (an
-    untrained one would return the classical order), not the paper's claim, which issue [4/7] still owes.
+    model 99.49 / 97.95 / 99.38 / 97.25 %; classical MF 99.68 / 98.93 / 99.17 / 100 % in the same graph. On these
+    160x120 12-step frames (finer fringes per pixel than its 320x240 3-step training data) the shipped model does
+    not beat classical MF; the bound guards the wiring and against a broken model (an untrained one would return
+    the classical order), not the paper's claim, which issue [4/7] still owes.
     """
     import pytest
 

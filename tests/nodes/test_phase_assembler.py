@@ -1,10 +1,10 @@
-"""Scan assembly by sequence_id (nodes/sequence_assembler.py): pure logic, a hand-driven clock."""
+"""Scan assembly by sequence_id (nodes/phase/sequence_assembler.py): pure logic, a hand-driven clock."""
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from dptpu.nodes.sequence_assembler import (
+from dptpu.nodes.phase.sequence_assembler import (
     AssembledScan,
     DroppedScan,
     FrameInfo,

@@ -1,14 +1,14 @@
-"""The phase node's per-frame path: each entry's Eq. (2) sums computed as soon as its frames are in
-(nodes/phase.py ScanSums, fpp/phase.py sequence_sums / maps_from_sums) give the maps of the stacked
-frames, and the cloud's in-place triangulation (Triangulator.camera_points(out=...)) the points of the plain call."""
+"""The phase node's per-frame path: the assembler's slots fed to fpp's IncrementalScanPhase frame by frame (as
+nodes/phase/node.py does) give the maps of the assembled scan's stacked frames; and the cloud's in-place
+triangulation (Triangulator.camera_points(out=...)) the points of the plain call. The sums themselves:
+tests/fpp/test_scan_phase.py."""
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from dptpu.fpp import phase as fpp_phase
-from dptpu.nodes.phase import ScanSums, scan_phase_maps
-from dptpu.nodes.sequence_assembler import AssembledScan, FrameInfo, ScanLayout, SequenceAssembler
+from dptpu.fpp.scan_phase import IncrementalScanPhase, scan_phase_maps
+from dptpu.nodes.phase.sequence_assembler import AssembledScan, FrameInfo, ScanLayout, SequenceAssembler
 
 SHAPE = (30, 40)
 
@@ -27,11 +27,11 @@ def fringe_images(frequency, steps, *, dtype, shift_sign=-1, phase_offset=0.0, s
 
 def assemble(entries, layout=None, *, shift_sign=-1):
     """Feed one scan's frames (entries: list of (frequency, images)) through an assembler, accumulating as the
-    phase node does; returns the AssembledScan and the ScanSums."""
+    phase node does; returns the AssembledScan and the IncrementalScanPhase."""
     assembler = SequenceAssembler(timeout_s=1.0, shift_sign=shift_sign)
     assembler.set_layout(layout)
     count = sum(len(images) for _, images in entries)
-    sums, events, index = ScanSums(), [], 0
+    sums, events, index = IncrementalScanPhase(), [], 0
     for frequency, images in entries:
         for step, image in enumerate(images):
             frame = FrameInfo(sequence_id=7, pattern_index=index, pattern_count=count, frequency=frequency,
@@ -54,8 +54,9 @@ def test_accumulated_sums_give_the_maps_of_the_stacked_frames(dtype):
     low, _ = fringe_images(1.0, 4, dtype=dtype, seed=2)
     scan, sums = assemble([(16.0, high), (1.0, low)])
     level = 250.0 if dtype == np.uint8 else None
-    accumulated = sums.maps(scan, min_modulation=20.0, saturation_level=level)
-    stacked = scan_phase_maps(scan, min_modulation=20.0, saturation_level=level)
+    accumulated = sums.maps(scan.slots(), min_modulation=20.0, saturation_level=level)
+    stacked = scan_phase_maps(scan.stacks, scan.layout.phase_offsets, shift_sign=scan.layout.shift_sign,
+                              min_modulation=20.0, saturation_level=level)
     for ours, theirs in zip(accumulated[:2], stacked[:2]):
         assert ours.dtype == np.float32 and ours.shape == (2, *SHAPE)
         np.testing.assert_allclose(ours, theirs, atol=2e-5)  # the same sums, up to float32 summation order
@@ -70,29 +71,10 @@ def test_phase_offsets_and_shift_sign_of_the_layout_are_applied_frame_by_frame()
     low, _ = fringe_images(1.0, 3, dtype=np.uint8, shift_sign=1, seed=4)
     layout = ScanLayout(frequencies=(4.0, 1.0), steps=(5, 3), phase_offsets=(0.7, 0.0), shift_sign=1)
     scan, sums = assemble([(4.0, images), (1.0, low)], layout, shift_sign=1)
-    phases, modulation, valid = sums.maps(scan, min_modulation=10.0, saturation_level=None)
+    phases, modulation, valid = sums.maps(scan.slots(), min_modulation=10.0, saturation_level=None)
     error = np.angle(np.exp(1j * (phases[0] - phi)))[5:, 5:]
     assert np.abs(error).max() < 0.1  # noise sqrt(2/5) * 1 % / 35 % = 0.018 rad rms; a lost offset would be 0.7
     assert 80 < float(np.median(modulation[0])) < 100  # B = 0.35 * 255 = 89 DN
-
-
-def test_frames_added_at_another_place_than_the_final_layout_fall_back_to_the_stacked_frames():
-    images, _ = fringe_images(8.0, 4, dtype=np.uint8)
-    low, _ = fringe_images(1.0, 3, dtype=np.uint8)
-    scan, sums = assemble([(8.0, images), (1.0, low)])
-    moved = sums.slots[1]
-    sums.slots[1] = type(moved)(entry_start=0, steps=4, step=2, phase_offset=0.0, shift_sign=-1)
-    assert sums.maps(scan, min_modulation=5.0, saturation_level=None) is None
-
-
-def test_sequence_sums_and_maps_from_sums_are_wrapped_phase():
-    images, _ = fringe_images(6.0, 7, dtype=np.uint16, shift_sign=1, phase_offset=-0.4)
-    maps = fpp_phase.maps_from_sums(fpp_phase.sequence_sums(images, shift_sign=1, phase_offset=-0.4))
-    reference = fpp_phase.wrapped_phase(images, shift_sign=1, phase_offset=-0.4, dtype=np.float32)
-    for name in ("phase", "modulation", "background"):  # the same sums; OpenCV's kernels may round 1 ulp apart
-        np.testing.assert_allclose(getattr(maps, name), getattr(reference, name), rtol=1e-6, atol=1e-6)
-    with pytest.raises(ValueError, match="8- or 16-bit integers"):
-        fpp_phase.sequence_sums(images.astype(np.float32))
 
 
 def test_camera_points_written_into_a_cloud_buffer_equal_the_plain_call():

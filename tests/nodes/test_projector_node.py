@@ -1,6 +1,6 @@
 """The projector node as a real process, over real ZeroMQ to a probe node in the test process.
 
-The trigger box is the EMULATOR (``dptpu.nodes.projector_emulator``) on a real pseudo-terminal, run as
+The trigger box is the EMULATOR (``dptpu.nodes.projector.emulator``) on a real pseudo-terminal, run as
 its own process and reached through a symlink, so that killing it unplugs the port and restarting it
 plugs it back at the same path; or the node's own ``loop://`` mode.
 """
@@ -17,7 +17,7 @@ from dptpu.graph.qos import DurabilityPolicy, QoSProfile
 from dptpu.messages import PatternSequence, ScanStatus, Trigger
 
 NODE = "dptpu.nodes.projector"
-EMULATOR = "dptpu.nodes.projector_emulator"
+EMULATOR = "dptpu.nodes.projector.emulator"
 FAST = ["-p", "reconnect_initial_s:=0.1", "-p", "reconnect_max_s:=0.4", "-p", "reply_timeout_s:=0.5",
         "-p", "ack_timeout_s:=0.3"]
 

@@ -5,10 +5,19 @@ from __future__ import annotations
 import pytest
 
 from dptpu.messages import PatternEntry, PatternSequence
-from dptpu.nodes.projector_emulator import TriggerBoxEmulator
-from dptpu.nodes.projector_protocol import (
-    MAX_LINE_BYTES, Command, ProtocolError, Reply, SequenceSpec, encode_command, encode_reply, format_sequence_spec,
-    parse_command, parse_reply, parse_sequence_spec,
+from dptpu.nodes.projector.emulator import TriggerBoxEmulator
+from dptpu.nodes.projector.protocol import (
+    MAX_LINE_BYTES,
+    Command,
+    ProtocolError,
+    Reply,
+    SequenceSpec,
+    encode_command,
+    encode_reply,
+    format_sequence_spec,
+    parse_command,
+    parse_reply,
+    parse_sequence_spec,
 )
 
 SPEC = SequenceSpec("x", (912, 1140), 8333, ((96.0, 12), (10.9, 3)))
@@ -90,7 +99,8 @@ def test_emulator_acknowledges_each_pattern_one_exposure_apart():
     while box.next_due() is not None:
         now = box.next_due()
         times += [(now, line) for line in box.due(now)]
-    assert [line for _, line in times] == [b"STARTED 9\n"] + [f"ACK 9 {i}\n".encode() for i in range(6)] + [b"DONE 9 6\n"]
+    acks = [f"ACK 9 {i}\n".encode() for i in range(6)]
+    assert [line for _, line in times] == [b"STARTED 9\n", *acks, b"DONE 9 6\n"]
     ack_times = [t for t, line in times if line.startswith(b"ACK")]
     assert ack_times == pytest.approx([1.0 + 0.002 * i for i in range(6)])  # exposure_us = 2000
 

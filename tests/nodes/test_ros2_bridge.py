@@ -111,7 +111,8 @@ SUBSCRIBER = textwrap.dedent('''
         message: str = ""
 
     def qos(reliable=True, latched=False, depth=10):
-        reliability = Policy.Reliability.Reliable(duration(milliseconds=100)) if reliable else Policy.Reliability.BestEffort
+        reliability = (Policy.Reliability.Reliable(duration(milliseconds=100)) if reliable
+                       else Policy.Reliability.BestEffort)
         return Qos(reliability,
                    Policy.Durability.TransientLocal if latched else Policy.Durability.Volatile,
                    Policy.History.KeepLast(depth), Policy.DataRepresentation(use_cdrv0_representation=True))

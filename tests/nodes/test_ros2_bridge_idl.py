@@ -7,10 +7,16 @@ import pytest
 pytest.importorskip("cyclonedds", reason="cyclonedds (the bridge's DDS binding) is not installed")
 
 from dptpu.messages import CameraInfo, Header, Image, PointCloud2, Time  # noqa: E402
-from dptpu.nodes.ros2_idl import (  # noqa: E402
-    CameraInfo_, Image_, PointCloud2_, Trigger_Request_, _as_library_sample, ros_topic_name, to_dds,
+from dptpu.nodes.ros2_bridge.ros2_idl import (  # noqa: E402
+    CameraInfo_,
+    Image_,
+    PointCloud2_,
+    Trigger_Request_,
+    _as_library_sample,
+    ros_topic_name,
+    to_dds,
 )
-from dptpu.nodes.ros2_qos import cyclone_config_xml, ros2_qos  # noqa: E402
+from dptpu.nodes.ros2_bridge.ros2_qos import cyclone_config_xml, ros2_qos  # noqa: E402
 
 
 def _library_bytes(sample) -> bytes:

@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from tests.launch_files.running import SIM_RIG, LaunchRun, TWIN_RIG_ARG
+from tests.launch_files.running import SIM_RIG, TWIN_RIG_ARG, LaunchRun
 from tests.nodes.test_ros2_bridge import assert_same_cloud, dds_env, start_bridge, start_subscriber, stop
 
 pytest.importorskip("cyclonedds", reason="cyclonedds (the bridge's DDS binding) is not installed")
@@ -32,7 +32,8 @@ def test_ros2_subscriber_receives_the_sim_rig_clouds_exactly(node_env, probe, tm
         events = [run_event(listener, run) for _ in range(CLOUDS)]
         for event in events:
             stamp = tuple(event["stamp"])
-            cloud = graph_clouds.wait_for(lambda c: (c.header.stamp.sec, c.header.stamp.nanosec) == stamp, 10)
+            cloud = graph_clouds.wait_for(
+                lambda c, stamp=stamp: (c.header.stamp.sec, c.header.stamp.nanosec) == stamp, 10)
             assert (cloud.width, cloud.height) == (160, 120)
             assert int(np.isfinite(cloud.to_array(["z"])).sum()) > 500  # the scene is in view
             assert_same_cloud(event, cloud)

@@ -7,8 +7,10 @@ import pytest
 from dptpu.fpp.phase import wrapped_phase
 from dptpu.messages import AbsolutePhase, CameraInfo, FringeFrame, Header, Image, ScanStatus, Time, Trigger
 from dptpu.nodes.harness import NodeHarness
-from dptpu.nodes.sim import LATCHED_QOS, SimNode, parse_drop_frames
-from dptpu.nodes.sim_source import SimScene, capture_scenes, load_source
+from dptpu.nodes.plumbing import LATCHED_QOS
+from dptpu.nodes.sim import SimNode
+from dptpu.nodes.sim.node import parse_drop_frames
+from dptpu.nodes.sim.source import SimScene, capture_scenes, load_source
 
 SEQUENCE = "16x4,1x4"
 PARAMS = dict(source="raycast", size="64x48", scenes="plane,sphere", sequence=SEQUENCE)
@@ -122,7 +124,7 @@ def test_bad_parameters_raise_value_errors_naming_them(tmp_path):
 
 
 def test_shipped_renders_are_used_only_when_they_hold_the_asked_size_and_sequences(tmp_path, monkeypatch):
-    from dptpu.nodes import sim_source
+    from dptpu.nodes.sim import source as sim_source
     from dptpu.sim.image_formation import SequenceSpec
     from dptpu.sim.render import render_capture
     from dptpu.sim.rig import load_twin_rig

@@ -4,7 +4,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from dptpu.nodes.scan_metrics import scan_metrics
+from dptpu.nodes.scan_monitor.scan_metrics import scan_metrics
 
 
 def test_metrics_count_wrong_fringes_and_depth_errors_exactly():

@@ -2,9 +2,9 @@
 
 The test runs ``DPTPU_SOAK_SCANS`` scans (default the full 1,000: about 80 s on the shared 2-core build machine,
 under the brief's 3 minutes; set e.g. ``DPTPU_SOAK_SCANS=200`` for a quicker run; figures in docs/scanner.md) at
-160x120 with two scans in flight. Every node's ``VmRSS`` is sampled twice a second; the bound is the brief's: after the warm-up (the
-first fifth of the scans) no process grows by more than 10 % (median of the first three samples after the
-warm-up against the median of the last three).
+160x120 with two scans in flight. Every node's ``VmRSS`` is sampled twice a second; the bound is the brief's: after
+the warm-up (the first fifth of the scans) no process grows by more than 10 % (median of the first three samples
+after the warm-up against the median of the last three).
 """
 from __future__ import annotations
 

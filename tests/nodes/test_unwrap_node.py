@@ -10,7 +10,8 @@ import pytest
 from dptpu.fpp.tpu import unwrap_mf
 from dptpu.messages import AbsolutePhase, Header, Image, PhaseMaps, ScanStatus, Time
 from dptpu.nodes.harness import NodeHarness
-from dptpu.nodes.unwrap import UnwrapNode, load_model, select_frequencies
+from dptpu.nodes.unwrap import UnwrapNode
+from dptpu.nodes.unwrap.node import load_model
 from tests.nodes.test_cloud_scene import plane_scene
 
 NOISE_RAD = 0.005  # the phase node's measured RMS phase noise on this scene (test_phase_node.py)
@@ -115,18 +116,14 @@ def test_the_unwrapped_frequencys_modulation_goes_out_as_the_clouds_intensity_im
     assert image.encoding == "32FC1" and np.array_equal(image.to_array(), maps.modulation[2])
 
 
-def test_frequency_selection_follows_dptpu_unwrap():
-    assert select_frequencies("mf", [1.0, 16.0, 15.0]) == [1, 0]
-    assert select_frequencies("mw", [16.0, 1.0, 15.0]) == [0, 2]
-    assert select_frequencies("nt", [16.0, 15.0]) == [0, 1]
-    assert select_frequencies("heterodyne", [13.0, 16.0, 15.0]) == [1, 2, 0]
-    assert select_frequencies("mf", [16.0, 1.0, 8.0], high=8.0) == [2, 1]
-    with pytest.raises(ValueError, match="mf needs a frequency <= 1 .* the scan has 16, 15: use heterodyne or nt"):
-        select_frequencies("mf", [16.0, 15.0])
-    with pytest.raises(ValueError, match="nt takes the one other frequency by default, but the scan has 16, 15, 1"):
-        select_frequencies("nt", [16.0, 15.0, 1.0])
-    with pytest.raises(ValueError, match="frequencies must be distinct"):
-        select_frequencies("mw", [16.0, 16.0])
+def test_a_heterodyne_scan_refuses_a_chosen_high_frequency(harness, scene):
+    # heterodyne gives the highest frequency's phase: a chosen high one would be mislabelled
+    node, source, absolute, status = start(harness, method="heterodyne", high_frequency=15.0)
+    source.publish(phase_maps(scene, (16.0, 15.0, 13.0), sequence_id=1))
+    (failed,) = harness.wait(status, 1)
+    assert failed.reason.startswith("cannot unwrap scan 1 (heterodyne): heterodyne unwraps with every frequency and "
+                                    "gives the highest; high_frequency and low_frequency do not apply to it")
+    assert node.scans_rejected == 1
 
 
 def test_bad_method_is_refused_with_the_choices(harness):

@@ -22,7 +22,7 @@ import cv2
 import numpy as np
 import pytest
 
-from tests.launch_files.running import SIM_RIG, LaunchRun, TWIN_RIG_ARG
+from tests.launch_files.running import SIM_RIG, TWIN_RIG_ARG, LaunchRun
 
 CHROMIUM = "/usr/bin/chromium"
 BACKGROUND_BGR = np.array([24, 20, 16])  # #101418, the page's background
@@ -162,11 +162,11 @@ def test_browser_shows_the_sim_rig_cloud_and_the_scan_status(spawn_node, node_en
         browser.call("Page.enable")
         browser.call("Emulation.setDeviceMetricsOverride", width=WIDTH, height=HEIGHT, deviceScaleFactor=1,
                      mobile=False)
-        ready = _wait_state(browser, lambda s: s["clouds"] == 0 and s["live"], 60, None, "the page connected")
+        _wait_state(browser, lambda s: s["clouds"] == 0 and s["live"], 60, None, "the page connected")
         blank = browser.screenshot()
         assert _scene_pixels(blank).sum() < 0.001 * blank.shape[0] * blank.shape[1]  # nothing yet
-        run = LaunchRun(SIM_RIG, "scans:=0", TWIN_RIG_ARG, "size:=160x120", "sequence:=16x4,1x4", "method:=mf", "ply_dir:=",
-                        "frame_rate:=20.0", "scenes:=random:1", env=node_env, cwd=tmp_path)
+        run = LaunchRun(SIM_RIG, "scans:=0", TWIN_RIG_ARG, "size:=160x120", "sequence:=16x4,1x4", "method:=mf",
+                        "ply_dir:=", "frame_rate:=20.0", "scenes:=random:1", env=node_env, cwd=tmp_path)
 
         first = _wait_state(browser, lambda s: s["clouds"] >= 1, 90, run, "the first cloud")
         assert first["cloud"].startswith("cloud ") and "points of 160x120" in first["cloud"], first

@@ -17,8 +17,9 @@ import pytest
 
 from dptpu.messages import Header, PointCloud2, ScanStatus, Time
 from dptpu.nodes.harness import NodeHarness
-from dptpu.nodes.viewer import STATIC_DIR, ViewerNode, pack_cloud, unpack_cloud
-from dptpu.nodes.viewer_ws import OP_PING, OP_TEXT, ProtocolError, accept_key, encode_frame, read_frame
+from dptpu.nodes.viewer import ViewerNode
+from dptpu.nodes.viewer.node import STATIC_DIR, pack_cloud, unpack_cloud
+from dptpu.nodes.viewer.websocket import OP_PING, OP_TEXT, ProtocolError, accept_key, encode_frame, read_frame
 
 
 def test_accept_key_is_rfc_6455_example():

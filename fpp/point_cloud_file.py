@@ -1,0 +1,65 @@
+"""Point clouds written to a file (PLY; open3d picks the format from the suffix): the one writer of the package.
+
+``dptpu triangulate`` writes the rig's units (mm for the shipped rigs), the cloud node's and the scan monitor's
+snapshots metres: the caller states the unit of the points it passes (``unit``), which the file keeps, since PLY
+has no unit field.
+"""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from .rig_model import METRES_PER_UNIT
+
+__all__ = ["write_point_cloud"]
+
+
+def write_point_cloud(path, points: np.ndarray, *, unit: str, intensity: np.ndarray | None = None) -> int:
+    """Write the finite points of ``points`` to ``path`` through open3d (binary PLY for ``.ply``); returns their count.
+
+    Parameters
+    ----------
+    path : str or Path
+        The file; its suffix picks the format (``.ply``, ``.pcd``, ``.xyz``, ...).
+    points : ndarray (..., 3)
+        x, y, z in ``unit``, any leading shape (an organized (H, W, 3) cloud or (M, 3)); points with a NaN or inf
+        coordinate are left out.
+    unit : {"m", "cm", "mm", "um"}
+        The unit of ``points`` (one of :data:`dptpu.fpp.rig_model.METRES_PER_UNIT`), written as they are (no
+        conversion).
+    intensity : ndarray (...), optional
+        Per point (the leading shape of ``points``): written as grey colours, scaled to its 99th percentile over
+        the points kept. None: no colours.
+
+    Returns
+    -------
+    int
+        The number of points written.
+
+    Raises
+    ------
+    ValueError
+        An unknown unit, shapes that do not fit, or a file open3d could not write (an unknown
+        suffix, a folder that does not exist).
+    """
+    if unit not in METRES_PER_UNIT:
+        raise ValueError(f"unit must be one of {', '.join(METRES_PER_UNIT)}; got {unit!r}")
+    points = np.asarray(points)
+    if points.ndim < 2 or points.shape[-1] != 3:
+        raise ValueError(f"points must have shape (..., 3); got {points.shape}")
+    if intensity is not None and np.shape(intensity) != points.shape[:-1]:
+        raise ValueError(f"intensity must have the shape {points.shape[:-1]} of the points; got {np.shape(intensity)}")
+    import open3d as o3d  # a heavy import, needed only when a cloud is written
+
+    finite = np.isfinite(points).all(axis=-1)  # (...)
+    cloud = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(np.ascontiguousarray(points[finite],
+                                                                                    dtype=np.float64)))
+    if intensity is not None:
+        grey = np.nan_to_num(np.asarray(intensity)[finite].astype(np.float64))
+        scale = np.percentile(grey, 99) if grey.size else 1.0
+        grey = np.clip(grey / (scale if scale > 0 else 1.0), 0.0, 1.0)
+        cloud.colors = o3d.utility.Vector3dVector(np.repeat(grey[:, None], 3, axis=1))
+    if not o3d.io.write_point_cloud(str(Path(path)), cloud, write_ascii=False):
+        raise ValueError(f"{path}: open3d could not write the point cloud (is the suffix .ply/.pcd/.xyz?)")
+    return int(np.count_nonzero(finite))

@@ -1,0 +1,10 @@
+"""Camera node: a GenICam camera triggered per pattern, each frame published with the Trigger it answers.
+
+Modules: ``node`` (the node), ``genicam_acquisition`` (the acquisition thread), ``genicam_device`` (one camera
+through harvesters), ``genicam_producers`` (finding GenTL producer ``.cti`` files).
+
+Run: ``python -m dptpu.nodes.camera``, or ``module: dptpu.nodes.camera`` in a launch file.
+"""
+from .node import CameraNode, main
+
+__all__ = ["CameraNode", "main"]

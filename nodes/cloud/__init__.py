@@ -1,0 +1,7 @@
+"""Cloud node: absolute phase -> organized point cloud and depth image.
+
+Run: ``python -m dptpu.nodes.cloud``, or ``module: dptpu.nodes.cloud`` in a launch file.
+"""
+from .node import CloudNode, main
+
+__all__ = ["CloudNode", "main"]

@@ -1,0 +1,10 @@
+"""ROS 2 bridge: the scanner's topics and start service on a ROS 2 (Cyclone DDS) domain.
+
+Modules: ``node`` (the node), ``ros2_idl`` (ROS 2's DDS types and conversions), ``ros2_qos`` (ROS 2's QoS
+profiles, the Cyclone configuration).
+
+Run: ``python -m dptpu.nodes.ros2_bridge``, or ``module: dptpu.nodes.ros2_bridge`` in a launch file.
+"""
+from .node import Ros2BridgeNode, main
+
+__all__ = ["Ros2BridgeNode", "main"]

@@ -1,0 +1,9 @@
+"""Scan monitor: follows each scan through the graph, grades it against the twin's ground truth, writes PLYs.
+
+Modules: ``node`` (the node), ``scan_metrics`` (the figures of one scan).
+
+Run: ``python -m dptpu.nodes.scan_monitor``, or ``module: dptpu.nodes.scan_monitor`` in a launch file.
+"""
+from .node import ScanMonitorNode, main
+
+__all__ = ["ScanMonitorNode", "main"]
