@@ -62,7 +62,7 @@ def _parse_tail(args) -> argparse.Namespace:
 
 def _launch_file(args) -> str:
     """The launch file the command line names (``dptpu launch dptpu sim_rig.yaml`` is ``ros2 launch``'s form)."""
-    from dptpu.tools.launch.installed import PACKAGE_NAME, resolve_launch_file
+    from dptpu.tools.launch.installed import PACKAGE_NAME, resolve_launch_file  # deferred: CLI start-up
 
     if args.file == PACKAGE_NAME and not os.path.exists(args.file) and args.launch_arguments \
             and ":=" not in args.launch_arguments[0]:
@@ -71,7 +71,7 @@ def _launch_file(args) -> str:
 
 
 def _print_arguments(path: str) -> int:
-    from dptpu.tools.launch import declared_arguments
+    from dptpu.tools.launch import declared_arguments  # deferred: CLI start-up
 
     arguments = declared_arguments(path)
     if not arguments:
@@ -106,7 +106,7 @@ def _print_plan(plan) -> int:
 
 
 def run_launch(args) -> int:
-    from dptpu.tools.launch import Supervisor, load_launch_file, parse_launch_arguments
+    from dptpu.tools.launch import Supervisor, load_launch_file, parse_launch_arguments  # deferred: CLI start-up (the launch tools import YAML and the supervisor)
 
     args = _parse_tail(args)
     path = _launch_file(args)
