@@ -106,7 +106,7 @@ def _print_plan(plan) -> int:
 
 
 def run_launch(args) -> int:
-    from dptpu.tools.launch import Supervisor, load_launch_file, parse_launch_arguments  # deferred: CLI start-up (the launch tools import YAML and the supervisor)
+    from dptpu.tools.launch import Supervisor, load_launch_file, parse_launch_arguments  # deferred: CLI start-up
 
     args = _parse_tail(args)
     path = _launch_file(args)
