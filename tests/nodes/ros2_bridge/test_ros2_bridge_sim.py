@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from tests.launch_files.running import SIM_RIG, TWIN_RIG_ARG, LaunchRun
-from tests.nodes.test_ros2_bridge import assert_same_cloud, dds_env, start_bridge, start_subscriber, stop
+from tests.nodes.ros2_bridge.test_ros2_bridge import assert_same_cloud, dds_env, start_bridge, start_subscriber, stop
 
 pytest.importorskip("cyclonedds", reason="cyclonedds (the bridge's DDS binding) is not installed")
 
