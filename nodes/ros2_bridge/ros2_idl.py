@@ -14,8 +14,8 @@ response members, and the reply repeats the request's header.
 Bulk ``data`` members are declared ``sequence<uint8>`` (so the type information is ROS's), but the two types
 that carry them (``PointCloud2_``, ``Image_``) serialize through :class:`CdrWriter` and deserialize through
 :class:`CdrReader` (buffers copied whole, no per-byte Python objects: Cyclone's own code makes one int per
-byte; docs/benchmarks.md, "bridge"); ``tests/nodes/ros2_bridge/test_ros2_bridge_idl.py`` checks both against Cyclone's own
-serializer.
+byte; docs/benchmarks.md, "bridge"); ``tests/nodes/ros2_bridge/test_ros2_bridge_idl.py`` checks both against
+Cyclone's own serializer.
 """
 # no `from __future__ import annotations`: Cyclone DDS resolves these classes' annotations at run time
 
