@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Set up the project's virtual environment (idempotent) and run one job.
 #   bash scripts/dev.sh run    set up, then run the main job (the sim-mode scanner graph)
-#   bash scripts/dev.sh test   set up with test extras, then run the test suite
+#   bash scripts/dev.sh test   set up with test extras, then lint (ruff), type-check (mypy) and run the test suite
 # Needs Python 3.11 and, for open3d, the system library libusb-1.0-0 (installed here when run as root).
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -45,6 +45,11 @@ case "$job" in
         || echo "could not install chromium: the browser viewer test will skip" >&2
     fi
     shift || true
+    # lint and types first (configured in pyproject.toml): a finding stops the run before the tests
+    echo "ruff check (lint, 120 columns)"
+    .venv/bin/ruff check .
+    echo "mypy (types of every code folder, read through the installed package)"
+    .venv/bin/mypy
     exec .venv/bin/python -m pytest -q "$@"
     ;;
   *)
