@@ -2,18 +2,25 @@
 
 from __future__ import annotations
 
+from typing import Any
+
 import msgpack
+import numpy as np
 
 from .field_spec import ARRAY, MESSAGE, SCALAR, SEQUENCE
 from .registry import is_registered
 from .schema import Message
 from .wire_format import SCALAR_CHECKS, WIRE_VERSION
 
-__all__ = ["CodecPlan", "plan_for", "PLANS", "SCALAR_FIELD", "ARRAY_FIELD", "MESSAGE_FIELD", "MESSAGE_LIST_FIELD",
-           "SEQUENCE_FIELD"]
+__all__ = ["CodecPlan", "FastEntry", "plan_for", "PLANS", "SCALAR_FIELD", "ARRAY_FIELD", "MESSAGE_FIELD",
+           "MESSAGE_LIST_FIELD", "SEQUENCE_FIELD"]
 
 # Kinds of the fields in a plan's ``fast`` entries.
 SCALAR_FIELD, ARRAY_FIELD, MESSAGE_FIELD, MESSAGE_LIST_FIELD, SEQUENCE_FIELD = range(5)
+
+#: One field of a fast plan: ``(name, kind, python_type, low, high, dtype, ndim, extra)`` (see :class:`CodecPlan`);
+#: ``extra`` is a str, a CodecPlan or a FieldSpec depending on ``kind``, hence Any (the fast paths read it unchecked).
+FastEntry = tuple[str, int, "type[Any] | None", "int | None", "int | None", "np.dtype | None", int, Any]
 
 
 class CodecPlan:
@@ -42,7 +49,7 @@ class CodecPlan:
 
     __slots__ = ("cls", "prefix", "fast", "field_names", "checks")
 
-    def __init__(self, cls: type):
+    def __init__(self, cls: type[Message]):
         header_start = {"wire": WIRE_VERSION, "type": cls.TYPE_NAME, "version": cls.SCHEMA_VERSION}
         packed = msgpack.packb(header_start, use_bin_type=True)
         # a 3-entry fixmap (0x83) becomes the 5-entry header (0x85); then the key "fields"
@@ -50,23 +57,24 @@ class CodecPlan:
         self.cls = cls
         self.field_names = cls.FIELD_NAMES
         self.checks = getattr(cls, "check_consistency", None) is not Message.check_consistency
-        self.fast = None
+        self.fast: tuple[FastEntry, ...] | None = None
 
     def build_fast(self) -> None:
         """Fill :attr:`fast` (after the plan is in ``PLANS``, so a class that nests itself finds it, still
         without a fast plan, and takes the general path)."""
-        entries = []
+        entries: list[FastEntry] = []
         for spec in self.cls.FIELDS:
             kind = spec.kind
             if kind == SCALAR:
-                python_type, low, high = SCALAR_CHECKS[spec.primitive]
+                python_type, low, high = SCALAR_CHECKS[spec.primitive_name]
                 entries.append((spec.name, SCALAR_FIELD, python_type, low, high, None, 0, None))
             elif kind == ARRAY:
-                entries.append((spec.name, ARRAY_FIELD, None, None, None, spec.dtype, len(spec.axes), spec.dtype.str))
+                dtype = spec.element_dtype
+                entries.append((spec.name, ARRAY_FIELD, None, None, None, dtype, len(spec.axes), dtype.str))
             elif kind == SEQUENCE:
                 entries.append((spec.name, SEQUENCE_FIELD, None, None, None, None, 0, spec))
             else:
-                nested = plan_for(spec.message_type)
+                nested = plan_for(spec.nested_type)
                 if nested is None or nested.fast is None:
                     return
                 entries.append((spec.name, MESSAGE_FIELD if kind == MESSAGE else MESSAGE_LIST_FIELD,
@@ -74,7 +82,7 @@ class CodecPlan:
         self.fast = tuple(entries)
 
 
-PLANS: dict = {}  # message class -> CodecPlan (registration is permanent, so is a plan)
+PLANS: dict[type, CodecPlan] = {}  # message class -> CodecPlan (registration is permanent, so is a plan)
 
 
 def plan_for(cls: type) -> CodecPlan | None:

@@ -73,7 +73,8 @@ def decode_checked(frames, *, expected_type=None, limits: DecodeLimits = DEFAULT
 
 def _decode_general(frames, expected, limits: DecodeLimits):
     """The general path: checks everything one by one and names the first problem."""
-    topic = cls = None
+    topic: str | None = None
+    cls: type[Message] | None = None
     try:
         views = frame_views(frames, limits)
         topic = decode_topic(views[0], limits)
@@ -82,7 +83,7 @@ def _decode_general(frames, expected, limits: DecodeLimits):
         arrays = [array_view(index, descriptor, view, limits)
                   for index, (descriptor, view) in enumerate(zip(header["arrays"], views[2:]))]
         plan = PLANS.get(cls) or plan_for(cls)
-        msg = decode_fast(plan, header["fields"], arrays) if plan.fast is not None else None
+        msg = decode_fast(plan, header["fields"], arrays) if plan is not None and plan.fast is not None else None
         if msg is None:  # nested fields, or anything the fast path does not accept: check each one
             used = [False] * len(arrays)
             msg = decode_fields(cls, header["fields"], arrays, used, cls.__name__)

@@ -103,7 +103,8 @@ def _frames(topic_bytes: bytes, plan: CodecPlan, encoded_fields: dict, descripto
     packer = getattr(_packers, "packer", None)
     if packer is None:
         packer = _packers.packer = msgpack.Packer(use_bin_type=True)
-    frames = [topic_bytes, b"".join((plan.prefix, packer.pack(encoded_fields), _ARRAYS_KEY, packer.pack(descriptors)))]
+    header = b"".join((plan.prefix, packer.pack(encoded_fields), _ARRAYS_KEY, packer.pack(descriptors)))
+    frames: list[bytes | memoryview] = [topic_bytes, header]
     for array in arrays:
         frames.append(memoryview(array.reshape(-1).view(np.uint8)))
     return frames
@@ -113,8 +114,11 @@ def _encode_fast(msg: Message, plan: CodecPlan, arrays: list, dtype_strs: list) 
     """The header fields of ``msg``, collecting its arrays (and their wire dtype strings) depth first in field
     order, as the general path does; None as soon as a field is not exactly of its declared kind (then the
     general path checks and raises, or converts, e.g. a numpy integer or a big-endian array)."""
+    fast = plan.fast
+    if fast is None:  # a class nesting one without a fast plan: the general path
+        return None
     out = {}
-    for name, kind, python_type, low, high, dtype, ndim, extra in plan.fast:
+    for name, kind, python_type, low, high, dtype, ndim, extra in fast:
         value = getattr(msg, name)
         if kind == SCALAR_FIELD:
             if type(value) is not python_type or (low is not None and not low <= value <= high):

@@ -126,8 +126,11 @@ def _fast_fields(plan: CodecPlan, raw: dict, arrays: list, reference_index, used
     ``reference_index(value)`` is the array frame an array field's header value refers to, or None when
     the value is no array reference (the two decoders unpack extension values differently); ``used[0]``
     is the bit mask of the array frames referenced so far (the caller checks that all were)."""
+    fast = plan.fast
+    if fast is None:  # a class nesting one without a fast plan: the general path
+        return None
     values = {}
-    for name, kind, python_type, low, high, dtype, ndim, extra in plan.fast:
+    for name, kind, python_type, low, high, dtype, ndim, extra in fast:
         value = raw[name]
         if kind == SCALAR_FIELD:
             if type(value) is not python_type or (low is not None and not low <= value <= high):

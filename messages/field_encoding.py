@@ -6,29 +6,34 @@ and the encoder falls back to it whenever its fast path does not accept a messag
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING, Any
+
 import msgpack
 import numpy as np
 
 from .field_spec import ARRAY, INTEGER_RANGES, MESSAGE, MESSAGE_LIST, SCALAR, FieldSpec
 from .wire_format import ARRAY_INDEX, ARRAY_REF_EXT_CODE, SCALAR_CHECKS, EncodeError, short_repr
 
+if TYPE_CHECKING:  # schema imports this module (Message.validate): the base class is named for the type checker only
+    from .schema import Message
+
 __all__ = ["encode_fields", "encode_sequence"]
 
 
-def encode_fields(msg, path: str, arrays: list) -> dict:
+def encode_fields(msg: Message, path: str, arrays: list[np.ndarray]) -> dict[str, Any]:
     """The header field map of ``msg`` (a message), appending its bulk arrays to ``arrays`` depth first in field
     order; raise :class:`EncodeError` naming the first wrong field, ``path`` being where ``msg`` sits
     (``Image``, ``PointCloud2.fields[0]``)."""
-    out = {}
+    out: dict[str, Any] = {}
     for spec in type(msg).FIELDS:
         value = getattr(msg, spec.name)
         kind = spec.kind
         if kind == SCALAR:
-            python_type, low, high = SCALAR_CHECKS[spec.primitive]
+            python_type, low, high = SCALAR_CHECKS[spec.primitive_name]
             if type(value) is python_type and (low is None or low <= value <= high):
                 out[spec.name] = value  # fast path: a builtin of the right type and range
             else:
-                out[spec.name] = _encode_scalar(spec.primitive, value, f"{path}.{spec.name}")
+                out[spec.name] = _encode_scalar(spec.primitive_name, value, f"{path}.{spec.name}")
             continue
         if kind == ARRAY:
             out[spec.name] = msgpack.ExtType(ARRAY_REF_EXT_CODE, ARRAY_INDEX.pack(len(arrays)))
@@ -40,7 +45,7 @@ def encode_fields(msg, path: str, arrays: list) -> dict:
             out[spec.name] = encode_fields(value, where, arrays)
         elif kind == MESSAGE_LIST:
             if not isinstance(value, (list, tuple)):
-                raise EncodeError(f"{where} must be a list of {spec.message_type.__name__}; got {type(value).__name__}")
+                raise EncodeError(f"{where} must be a list of {spec.nested_type.__name__}; got {type(value).__name__}")
             items = []
             for index, item in enumerate(value):
                 _check_nested_type(spec, item, f"{where}[{index}]")
@@ -55,12 +60,12 @@ def encode_fields(msg, path: str, arrays: list) -> dict:
     return out
 
 
-def _check_nested_type(spec: FieldSpec, value, where: str) -> None:
+def _check_nested_type(spec: FieldSpec, value: object, where: str) -> None:
     if type(value) is not spec.message_type:
-        raise EncodeError(f"{where} must be a {spec.message_type.__name__}; got {type(value).__name__}")
+        raise EncodeError(f"{where} must be a {spec.nested_type.__name__}; got {type(value).__name__}")
 
 
-def _encode_scalar(primitive: str, value, where: str):
+def _encode_scalar(primitive: str, value: object, where: str) -> str | bool | float | int:
     if primitive == "string":
         if isinstance(value, str):
             return str(value)
@@ -84,7 +89,7 @@ def _encode_scalar(primitive: str, value, where: str):
     raise EncodeError(f"{where} must be {primitive}; got {type(value).__name__} {short_repr(value)}")
 
 
-def encode_sequence(spec: FieldSpec, value, where: str) -> list:
+def encode_sequence(spec: FieldSpec, value: object, where: str) -> list[Any]:
     try:
         values = np.asarray(value)
     except (ValueError, TypeError) as error:
@@ -94,7 +99,7 @@ def encode_sequence(spec: FieldSpec, value, where: str) -> list:
     if values.ndim != 1 or (spec.length is not None and values.shape[0] != spec.length):
         raise EncodeError(f"{where} must have shape ({expected},); got {values.shape}")
     kind = values.dtype.kind
-    target = spec.dtype
+    target = spec.element_dtype
     if target.kind == "f":
         ok = kind in "fiu"
     elif target.kind == "b":
@@ -102,15 +107,15 @@ def encode_sequence(spec: FieldSpec, value, where: str) -> list:
     else:
         ok = kind in "iu"
         if ok and values.size:
-            low, high = INTEGER_RANGES[spec.primitive]
+            low, high = INTEGER_RANGES[spec.primitive_name]
             ok = low <= int(values.min()) and int(values.max()) <= high
     if not ok:
         raise EncodeError(f"{where} must hold {spec.primitive} values; got dtype {values.dtype} {short_repr(value)}")
     return values.astype(target, copy=False).tolist()
 
 
-def _encode_array(spec: FieldSpec, value, path: str) -> np.ndarray:
-    target = spec.dtype
+def _encode_array(spec: FieldSpec, value: object, path: str) -> np.ndarray:
+    target = spec.element_dtype
     if type(value) is np.ndarray and value.dtype == target and value.ndim == len(spec.axes):
         # fast path: the right dtype (hence little-endian or single-byte) and number of dimensions
         return value if value.flags.c_contiguous else np.ascontiguousarray(value)  # one copy into C order

@@ -9,8 +9,12 @@ from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any, Literal, TypeVar, overload
 
 import numpy as np
+
+if TYPE_CHECKING:  # schema imports this module: the base class is named for the type checker only
+    from .schema import Message
 
 __all__ = [
     "FieldSpec",
@@ -68,6 +72,9 @@ ARRAY_DTYPES = {
 _SCALAR_DEFAULTS = {"bool": False, "float64": 0.0, "string": "", **{name: 0 for name in INTEGER_RANGES}}
 SPEC_KEY = "dptpu.messages.spec"
 
+_IntegerPrimitive = Literal["int8", "uint8", "int16", "uint16", "int32", "uint32", "int64", "uint64"]
+_MessageT = TypeVar("_MessageT", bound="Message")
+
 
 @dataclass(frozen=True)
 class FieldSpec:
@@ -93,34 +100,71 @@ class FieldSpec:
     kind: str
     primitive: str | None = None
     length: int | None = None
-    message_type: type | None = None
+    message_type: type[Message] | None = None
     axes: tuple[str, ...] = ()
 
     @property
     def dtype(self) -> np.dtype | None:
         """Numpy dtype of an array's or a sequence's elements (little-endian), else None."""
         if self.kind in (ARRAY, SEQUENCE):
-            return ARRAY_DTYPES[self.primitive]
+            return ARRAY_DTYPES[self.primitive_name]
         return None
+
+    @property
+    def primitive_name(self) -> str:
+        """The primitive of a scalar, sequence or array field; ValueError for a nested message field."""
+        if self.primitive is None:
+            raise ValueError(f"field {self.name!r} ({self.kind}) has no primitive")
+        return self.primitive
+
+    @property
+    def element_dtype(self) -> np.dtype:
+        """Numpy dtype of a sequence's or an array's elements; ValueError for another kind of field."""
+        dtype = self.dtype
+        if dtype is None:
+            raise ValueError(f"field {self.name!r} ({self.kind}) has no element dtype")
+        return dtype
+
+    @property
+    def nested_type(self) -> type[Message]:
+        """Class of a nested message or of a message list's elements; ValueError for another kind of field."""
+        if self.message_type is None:
+            raise ValueError(f"field {self.name!r} ({self.kind}) nests no message")
+        return self.message_type
 
     @property
     def ros_type(self) -> str:
         """The field's type in ROS 2 ``.msg`` syntax, e.g. ``uint32``, ``float64[9]``, ``std_msgs/Header``."""
         if self.kind == SCALAR:
-            return self.primitive
+            return self.primitive_name
         if self.kind == SEQUENCE:
             return f"{self.primitive}[{'' if self.length is None else self.length}]"
         if self.kind == ARRAY:
             return f"{self.primitive}[]"
-        short = short_type_name(self.message_type.TYPE_NAME)
+        short = short_type_name(self.nested_type.TYPE_NAME)
         return short if self.kind == MESSAGE else f"{short}[]"
 
 
-def _spec_field(spec: FieldSpec, **field_options):
+# The specifiers below return a dataclasses.Field that the message decorator turns into the field's default;
+# like dataclasses.field, each is typed as returning the field's value, so that ``count: int = scalar("uint32")``
+# is checked against its annotation and every field counts as having a default.
+
+
+def _spec_field(spec: FieldSpec, **field_options: Any) -> Any:
     return dataclasses.field(metadata={SPEC_KEY: spec}, **field_options)
 
 
-def scalar(primitive: str, default=None):
+@overload
+def scalar(primitive: Literal["bool"], default: bool | None = None) -> bool: ...
+@overload
+def scalar(primitive: _IntegerPrimitive, default: int | None = None) -> int: ...
+@overload
+def scalar(primitive: Literal["float64"], default: float | None = None) -> float: ...
+@overload
+def scalar(primitive: Literal["string"], default: str | None = None) -> str: ...
+@overload
+def scalar(primitive: str, default: object = None) -> Any: ...
+def scalar(primitive: str, default: object = None) -> Any:
     """A scalar field: ``bool``, an integer type (``uint8`` ... ``int64``), ``float64`` or ``string``.
 
     ``default`` defaults to ``False``, ``0``, ``0.0`` or ``""`` as in ROS 2.
@@ -131,7 +175,7 @@ def scalar(primitive: str, default=None):
     return _spec_field(FieldSpec("", SCALAR, primitive=primitive), default=value)
 
 
-def sequence(primitive: str, length: int | None = None):
+def sequence(primitive: str, length: int | None = None) -> np.ndarray:
     """A short numeric sequence carried inline in the header, e.g. ``sequence("float64", 9)`` for a 3x3 K.
 
     The Python value is a 1-D ndarray of ``primitive``'s dtype (zeros of ``length``, or empty, by
@@ -147,17 +191,17 @@ def sequence(primitive: str, length: int | None = None):
                        default_factory=lambda: np.zeros(size, dtype))
 
 
-def nested(message_type: type):
+def nested(message_type: type[_MessageT]) -> _MessageT:
     """A nested message field (default: ``message_type()``)."""
     return _spec_field(FieldSpec("", MESSAGE, message_type=message_type), default_factory=message_type)
 
 
-def nested_list(message_type: type):
+def nested_list(message_type: type[_MessageT]) -> list[_MessageT]:
     """A variable-length list of nested messages (default: empty list)."""
     return _spec_field(FieldSpec("", MESSAGE_LIST, message_type=message_type), default_factory=list)
 
 
-def array(primitive: str, axes: tuple[str, ...]):
+def array(primitive: str, axes: tuple[str, ...]) -> np.ndarray:
     """A bulk array sent as its own raw frame (zero-copy), e.g. ``array("float32", ("H", "W"))``.
 
     The default is an empty array of that dtype with ``len(axes)`` dimensions.

@@ -48,8 +48,10 @@ def frame_views(frames, limits: DecodeLimits) -> list[memoryview]:
         if type(frame) is bytes:
             view = memoryview(frame)
         else:
-            view = getattr(frame, "buffer", None)  # a zmq.Frame: its memoryview, format "B"
-            if type(view) is not memoryview or view.format != "B" or view.ndim != 1:
+            buffer = getattr(frame, "buffer", None)  # a zmq.Frame: its memoryview, format "B"
+            if type(buffer) is memoryview and buffer.format == "B" and buffer.ndim == 1:
+                view = buffer
+            else:
                 view = _byte_view(frame, index)
         total += view.nbytes
         if total > limits.max_total_bytes:

@@ -6,14 +6,18 @@ A point is ``point_step`` bytes; field ``i`` holds ``count`` elements of ``datat
 
 from __future__ import annotations
 
-from typing import NamedTuple
+from collections.abc import Iterable
+from dataclasses import dataclass
+from typing import Protocol
 
 import numpy as np
+from numpy.typing import DTypeLike
 
-__all__ = ["FieldLayout", "POINT_FIELD_DTYPES", "datatype_of", "structured_dtype", "field_layouts"]
+__all__ = ["FieldLayout", "PointFieldLike", "POINT_FIELD_DTYPES", "datatype_of", "structured_dtype",
+           "point_field_names", "field_layouts"]
 
 #: PointField datatype constant -> element dtype (little-endian; ``>`` when the cloud is big-endian).
-POINT_FIELD_DTYPES = {
+POINT_FIELD_DTYPES: dict[int, np.dtype] = {
     1: np.dtype("i1"),  # INT8
     2: np.dtype("u1"),  # UINT8
     3: np.dtype("<i2"),  # INT16
@@ -26,7 +30,21 @@ POINT_FIELD_DTYPES = {
 _DATATYPE_OF_KIND_SIZE = {(dtype.kind, dtype.itemsize): code for code, dtype in POINT_FIELD_DTYPES.items()}
 
 
-class FieldLayout(NamedTuple):
+class PointFieldLike(Protocol):
+    """What :func:`structured_dtype` reads of a field: a PointField message or a :class:`FieldLayout`."""
+
+    @property
+    def name(self) -> str: ...
+    @property
+    def offset(self) -> int: ...
+    @property
+    def datatype(self) -> int: ...
+    @property
+    def count(self) -> int: ...
+
+
+@dataclass(frozen=True)
+class FieldLayout:
     """One PointField as plain values: ``name``, byte ``offset`` in the point, ``datatype`` code, ``count``."""
 
     name: str
@@ -35,17 +53,17 @@ class FieldLayout(NamedTuple):
     count: int
 
 
-def datatype_of(dtype) -> int:
+def datatype_of(dtype: DTypeLike) -> int:
     """PointField datatype code (1..8) of a numpy element dtype; ValueError if there is none."""
-    dtype = np.dtype(dtype)
-    code = _DATATYPE_OF_KIND_SIZE.get((dtype.kind, dtype.itemsize))
+    element = np.dtype(dtype)
+    code = _DATATYPE_OF_KIND_SIZE.get((element.kind, element.itemsize))
     if code is None:
-        raise ValueError(f"no PointField datatype for dtype {dtype}; expected int8, uint8, int16, uint16, "
+        raise ValueError(f"no PointField datatype for dtype {element}; expected int8, uint8, int16, uint16, "
                          "int32, uint32, float32 or float64")
     return code
 
 
-def structured_dtype(fields, point_step: int, is_bigendian: bool) -> np.dtype:
+def structured_dtype(fields: Iterable[PointFieldLike], point_step: int, is_bigendian: bool) -> np.dtype:
     """The structured dtype of one point (itemsize ``point_step``) described by ``fields``.
 
     Parameters
@@ -67,7 +85,9 @@ def structured_dtype(fields, point_step: int, is_bigendian: bool) -> np.dtype:
     ValueError
         Empty or duplicate names, unknown datatype, ``count < 1``, or a field beyond ``point_step``.
     """
-    names, formats, offsets = [], [], []
+    names: list[str] = []
+    formats: list[np.dtype] = []
+    offsets: list[int] = []
     for index, field in enumerate(fields):
         name, offset, datatype, count = field.name, field.offset, field.datatype, field.count
         if not name:
@@ -91,6 +111,13 @@ def structured_dtype(fields, point_step: int, is_bigendian: bool) -> np.dtype:
     return np.dtype({"names": names, "formats": formats, "offsets": offsets, "itemsize": point_step})
 
 
+def point_field_names(dtype: np.dtype) -> tuple[str, ...]:
+    """The field names of a structured point dtype, in order; ValueError if it is not structured."""
+    if dtype.names is None:
+        raise _not_structured(dtype)
+    return dtype.names
+
+
 def field_layouts(dtype: np.dtype) -> tuple[list[FieldLayout], bool]:
     """PointFields of a structured point dtype, and whether its multi-byte fields are big-endian.
 
@@ -100,11 +127,13 @@ def field_layouts(dtype: np.dtype) -> tuple[list[FieldLayout], bool]:
         Not a structured dtype, a field type with no PointField datatype, a sub-array that is not 1-D,
         or fields of mixed byte order.
     """
-    if dtype.names is None:
-        raise ValueError(f"points must have a structured dtype with named fields; got {dtype}")
-    layouts, orders = [], set()
-    for name in dtype.names:
-        field_dtype, offset = dtype.fields[name][:2]
+    if dtype.names is None or dtype.fields is None:
+        raise _not_structured(dtype)
+    names, fields = dtype.names, dtype.fields
+    layouts: list[FieldLayout] = []
+    orders: set[bool] = set()
+    for name in names:
+        field_dtype, offset = fields[name][:2]
         count = 1
         if field_dtype.subdtype is not None:
             field_dtype, shape = field_dtype.subdtype
@@ -117,6 +146,10 @@ def field_layouts(dtype: np.dtype) -> tuple[list[FieldLayout], bool]:
     if len(orders) > 1:
         raise ValueError("point fields mix little- and big-endian byte orders; convert them to one order")
     return layouts, orders == {True}
+
+
+def _not_structured(dtype: np.dtype) -> ValueError:
+    return ValueError(f"points must have a structured dtype with named fields; got {dtype}")
 
 
 def _is_big_endian(dtype: np.dtype) -> bool:

@@ -10,16 +10,20 @@ imported.
 from __future__ import annotations
 
 import re
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:  # schema imports this module (message() registers): Message is named for the type checker only
+    from .schema import Message
 
 __all__ = ["register", "lookup", "registered_types", "is_registered"]
 
 # ``package/msg/Type``: lower-case package, upper-camel type, as ROS 2 requires.
 _TYPE_NAME = re.compile(r"^[a-z][a-z0-9_]*/msg/[A-Z][A-Za-z0-9]*$")
 
-_TYPES: dict[str, type] = {}
+_TYPES: dict[str, type[Message]] = {}
 
 
-def register(type_name: str, cls: type) -> None:
+def register(type_name: str, cls: type[Message]) -> None:
     """Register ``cls`` under ``type_name``.
 
     Parameters
@@ -44,7 +48,7 @@ def register(type_name: str, cls: type) -> None:
     _TYPES[type_name] = cls
 
 
-def lookup(type_name: str) -> type:
+def lookup(type_name: str) -> type[Message]:
     """The class registered under ``type_name``.
 
     Raises
@@ -58,11 +62,11 @@ def lookup(type_name: str) -> type:
         raise KeyError(f"unknown message type {type_name!r}; known types: {', '.join(sorted(_TYPES))}") from None
 
 
-def is_registered(type_name) -> bool:
+def is_registered(type_name: object) -> bool:
     """True when ``type_name`` is a registered message type name."""
     return isinstance(type_name, str) and type_name in _TYPES
 
 
-def registered_types() -> dict[str, type]:
+def registered_types() -> dict[str, type[Message]]:
     """A copy of the registry, ``{type_name: class}``, sorted by name."""
     return {name: _TYPES[name] for name in sorted(_TYPES)}

@@ -31,8 +31,9 @@ Example::
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import ClassVar, dataclass_transform
+from typing import Any, ClassVar, TypeVar, dataclass_transform
 
 import numpy as np
 
@@ -78,6 +79,8 @@ __all__ = [
     "ARRAY_DTYPES",
 ]
 
+_MessageClass = TypeVar("_MessageClass", bound="type[Message]")
+
 
 class Message:
     """Base class of every message type.
@@ -90,6 +93,7 @@ class Message:
     SCHEMA_VERSION: ClassVar[int]
     FIELDS: ClassVar[tuple[FieldSpec, ...]]
     FIELD_NAMES: ClassVar[frozenset[str]]
+    __dataclass_fields__: ClassVar[dict[str, dataclasses.Field[Any]]]  # set on each subclass by message()
 
     def check_consistency(self) -> None:
         """Check relations between fields (e.g. ``len(data) == step * height``); raise ValueError.
@@ -116,20 +120,22 @@ class Message:
         except EncodeError as error:
             raise EncodeError(f"cannot encode {cls.TYPE_NAME}: {error}") from None
 
-    def __eq__(self, other) -> bool:
+    def __eq__(self, other: object) -> bool:
         if type(other) is not type(self):
             return NotImplemented
         return all(_values_equal(spec, getattr(self, spec.name), getattr(other, spec.name))
                    for spec in self.FIELDS)
 
-    __hash__ = None  # mutable, like rclpy messages
+    # Mutable, like rclpy messages. typeshed declares object.__hash__ a method, so "unhashable" (None, as Python
+    # spells it) is not expressible as an override of it.
+    __hash__ = None  # type: ignore[assignment]
 
     def __repr__(self) -> str:
         parts = ", ".join(f"{spec.name}={_summary(getattr(self, spec.name))}" for spec in self.FIELDS)
         return f"{type(self).__name__}({parts})"
 
 
-def _values_equal(spec: FieldSpec, a, b) -> bool:
+def _values_equal(spec: FieldSpec, a: Any, b: Any) -> bool:
     if spec.kind in (ARRAY, SEQUENCE):
         if spec.kind == SEQUENCE:
             a, b = np.asarray(a, spec.dtype), np.asarray(b, spec.dtype)
@@ -141,14 +147,17 @@ def _values_equal(spec: FieldSpec, a, b) -> bool:
     return bool(a == b)
 
 
-def _summary(value) -> str:
+def _summary(value: object) -> str:
     if isinstance(value, np.ndarray) and value.size > 12:
         return f"<ndarray {value.shape} {value.dtype}>"
     return repr(value)
 
 
-@dataclass_transform(field_specifiers=(scalar, sequence, nested, nested_list, array))
-def message(type_name: str, *, version: int = 1):
+# No field_specifiers: a type checker takes a specifier call for a field without a default unless the call spells
+# default= or default_factory=, while every specifier here supplies one; the specifiers are typed as returning the
+# field's value (like dataclasses.field), so each field reads as a field with a default of its annotated type.
+@dataclass_transform(eq_default=False)
+def message(type_name: str, *, version: int = 1) -> Callable[[_MessageClass], _MessageClass]:
     """Class decorator: make ``cls`` a message dataclass named ``type_name`` and register it.
 
     Parameters
@@ -163,11 +172,11 @@ def message(type_name: str, *, version: int = 1):
     if not isinstance(version, int) or isinstance(version, bool) or version < 1:
         raise ValueError(f"schema version must be an int >= 1; got {version!r}")
 
-    def wrap(cls):
+    def wrap(cls: _MessageClass) -> _MessageClass:
         if not issubclass(cls, Message):
             raise TypeError(f"{cls.__qualname__} must subclass Message")
-        cls = dataclass(eq=False, repr=False)(cls)
-        specs = []
+        dataclass(eq=False, repr=False)(cls)  # in place: without slots the same class comes back
+        specs: list[FieldSpec] = []
         for field in dataclasses.fields(cls):
             spec = field.metadata.get(SPEC_KEY)
             if spec is None:
@@ -184,7 +193,7 @@ def message(type_name: str, *, version: int = 1):
     return wrap
 
 
-def message_definition(message_type: type) -> str:
+def message_definition(message_type: type[Message]) -> str:
     """ROS 2 ``.msg`` text of a message type followed by the types it nests (the ``ros2msg`` form).
 
     For the ROS types this reproduces the ROS 2 definitions' fields (constants and comments aside),
@@ -204,13 +213,13 @@ def message_definition(message_type: type) -> str:
     """
     if not (isinstance(message_type, type) and issubclass(message_type, Message) and hasattr(message_type, "FIELDS")):
         raise ValueError(f"message_type must be a message class; got {message_type!r}")
-    order: list[type] = []
+    order: list[type[Message]] = []
 
-    def visit(cls):
+    def visit(cls: type[Message]) -> None:
         for spec in cls.FIELDS:
-            if spec.kind in (MESSAGE, MESSAGE_LIST) and spec.message_type not in order:
-                order.append(spec.message_type)
-                visit(spec.message_type)
+            if spec.kind in (MESSAGE, MESSAGE_LIST) and spec.nested_type not in order:
+                order.append(spec.nested_type)
+                visit(spec.nested_type)
 
     visit(message_type)
     blocks = [_definition_body(message_type)]
@@ -219,7 +228,7 @@ def message_definition(message_type: type) -> str:
     return "\n".join(blocks)
 
 
-def _definition_body(cls: type) -> str:
+def _definition_body(cls: type[Message]) -> str:
     lines = []
     for spec in cls.FIELDS:
         line = f"{spec.ros_type} {spec.name}"

@@ -12,7 +12,7 @@ import numpy as np
 
 from .image_encodings import default_encoding, pixel_layout
 from .point_cloud_layout import datatype_of as _datatype_of
-from .point_cloud_layout import field_layouts, structured_dtype
+from .point_cloud_layout import field_layouts, point_field_names, structured_dtype
 from .schema import Message, array, message, nested, nested_list, scalar, sequence
 from .std import Header
 
@@ -335,8 +335,8 @@ class PointCloud2(Message):
         grid = points.reshape(1, -1) if points.ndim == 1 else points  # (H, W)
         grid = np.ascontiguousarray(grid)
         if is_dense is None:
-            is_dense = not any(np.isnan(grid[name]).any() for name in points.dtype.names
-                               if grid.dtype[name].base.kind == "f")
+            is_dense = not any(np.isnan(grid[layout.name]).any() for layout in layouts
+                               if grid.dtype[layout.name].base.kind == "f")
         height, width = grid.shape
         point_step = points.dtype.itemsize
         return cls(header=Header() if header is None else header, height=height, width=width,
@@ -425,11 +425,12 @@ class PointCloud2(Message):
             otherwise.
         """
         points = self.to_structured()  # (H, W)
-        names = list(points.dtype.names) if field_names is None else _field_name_list(field_names)
-        missing = [name for name in names if name not in points.dtype.names]
+        present = point_field_names(points.dtype)
+        names = list(present) if field_names is None else _field_name_list(field_names)
+        missing = [name for name in names if name not in present]
         if missing:
             raise ValueError(f"PointCloud2 has no field(s) {', '.join(map(repr, missing))}; it has "
-                             f"{', '.join(map(repr, points.dtype.names))}")
+                             f"{', '.join(map(repr, present))}")
         field_dtypes = [points.dtype[name] for name in names]
         for name, field_dtype in zip(names, field_dtypes):
             if field_dtype.subdtype is not None:

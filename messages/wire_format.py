@@ -16,6 +16,7 @@ Frame layout (``docs/messages.md`` has the full specification)::
 from __future__ import annotations
 
 import struct
+from typing import Any
 
 import numpy as np
 
@@ -38,8 +39,9 @@ HEADER_KEYS = ("wire", "type", "version", "fields", "arrays")
 HEADER_KEY_SET = frozenset(HEADER_KEYS)
 
 #: primitive -> (exact Python type on the wire, inclusive integer range or None).
-SCALAR_CHECKS = {"string": (str, None, None), "float64": (float, None, None), "bool": (bool, None, None),
-                 **{name: (int, low, high) for name, (low, high) in INTEGER_RANGES.items()}}
+SCALAR_CHECKS: dict[str, tuple[type[Any], int | None, int | None]] = {
+    "string": (str, None, None), "float64": (float, None, None), "bool": (bool, None, None),
+    **{name: (int, low, high) for name, (low, high) in INTEGER_RANGES.items()}}
 
 #: An array reference's payload: the array's index, big-endian uint32.
 ARRAY_INDEX = struct.Struct(">I")
