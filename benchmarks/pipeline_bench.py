@@ -9,8 +9,9 @@ the emulated box) and ground truth off (the monitor only times), twice:
    overrun and no scan is dropped). Two in flight leave the graph idle between a report and the next start (the
    service call, the projection, the first frames) and cap the rate near ``2 / latency`` by construction; four
    keep every stage busy, so the graph, not the bench, is the bottleneck. The monitor takes what a robot takes,
-   the clouds (and the scan statuses), not every pattern's Trigger (``monitor_triggers:=false``). The phase node's frame queue (100
-   frames) holds four 24-frame scans: more in flight would drop frames, so the bench stays at four.
+   the clouds (and the scan statuses), not every pattern's Trigger (``monitor_triggers:=false``). The phase
+   node's frame queue (100 frames) holds four 24-frame scans: more in flight would drop frames, so the bench
+   stays at four.
    ``scans_per_s = (n - 1) / (t_n - t_1)`` over the arrival times of the ``--scans`` timed clouds at the monitor
    (after ``--warmup`` scans).
 2. **Latency** at a pace the graph sustains: the projector starts its own scans every ``1 / (f * scans_per_s)``
@@ -18,8 +19,9 @@ the emulated box) and ground truth off (the monitor only times), twice:
    rate taken from a few scans can be wild), as a camera-paced rig that projects continuously does, and the
    monitor starts none. 0.5 leaves room for the other jobs of a shared machine: at 0.8 under a load average of
    11 on 2 cores the graph fell behind now and then, frames overflowed the phase node's queue and scans failed
-   as incomplete (which is what a camera-paced rig does when overrun, and what the run reports). ``latency_ms_p50`` / ``latency_ms_p99`` over the timed scans: from the scan's last
-   Trigger (the stamp its frames and cloud carry) to its cloud's arrival at the monitor. (The throughput run's
+   as incomplete (which is what a camera-paced rig does when overrun, and what the run reports).
+   ``latency_ms_p50`` / ``latency_ms_p99`` over the timed scans: from the scan's last Trigger (the stamp its
+   frames and cloud carry) to its cloud's arrival at the monitor. (The throughput run's
    latencies, which include the queueing of four scans in flight, are ``throughput.latency_ms_p50`` / ``p99``.)
    ``--latency-load 0`` skips this run and reports the throughput run's latencies.
 
