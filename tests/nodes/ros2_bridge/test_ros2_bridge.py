@@ -15,16 +15,13 @@ import time
 import numpy as np
 import pytest
 
+from dptpu.graph.interfaces import Trigger as TriggerService
+from dptpu.graph.qos import DurabilityPolicy, QoSProfile
+from dptpu.messages import CameraInfo, Header, PointCloud2, Time
+from dptpu.nodes.harness import NodeHarness
+from dptpu.nodes.ros2_bridge import Ros2BridgeNode
 from tests.graph.conftest import NodeProcess
 from tests.nodes.conftest import REPO_ROOT
-
-pytest.importorskip("cyclonedds", reason="cyclonedds (the bridge's DDS binding) is not installed")
-
-from dptpu.graph.interfaces import Trigger as TriggerService  # noqa: E402
-from dptpu.graph.qos import DurabilityPolicy, QoSProfile  # noqa: E402
-from dptpu.messages import CameraInfo, Header, PointCloud2, Time  # noqa: E402
-from dptpu.nodes.harness import NodeHarness  # noqa: E402
-from dptpu.nodes.ros2_bridge import Ros2BridgeNode  # noqa: E402
 
 #: A DDS domain of this test run (0..232), away from a real ROS 2 graph's usual 0.
 DDS_DOMAIN = 100 + os.getpid() % 100

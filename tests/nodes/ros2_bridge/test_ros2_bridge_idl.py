@@ -4,10 +4,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-pytest.importorskip("cyclonedds", reason="cyclonedds (the bridge's DDS binding) is not installed")
-
-from dptpu.messages import CameraInfo, Header, Image, PointCloud2, Time  # noqa: E402
-from dptpu.nodes.ros2_bridge.ros2_idl import (  # noqa: E402
+from dptpu.messages import CameraInfo, Header, Image, PointCloud2, Time
+from dptpu.nodes.ros2_bridge.ros2_idl import (
     CameraInfo_,
     Image_,
     PointCloud2_,
@@ -16,7 +14,7 @@ from dptpu.nodes.ros2_bridge.ros2_idl import (  # noqa: E402
     ros_topic_name,
     to_dds,
 )
-from dptpu.nodes.ros2_bridge.ros2_qos import cyclone_config_xml, ros2_qos  # noqa: E402
+from dptpu.nodes.ros2_bridge.ros2_qos import cyclone_config_xml, ros2_qos
 
 
 def _library_bytes(sample) -> bytes:
