@@ -9,20 +9,7 @@ import pytest
 
 from dptpu.fpp.scan_phase import IncrementalScanPhase, scan_phase_maps
 from dptpu.nodes.phase.sequence_assembler import AssembledScan, FrameInfo, ScanLayout, SequenceAssembler
-
-SHAPE = (30, 40)
-
-
-def fringe_images(frequency, steps, *, dtype, shift_sign=-1, phase_offset=0.0, seed=0):
-    """(steps, H, W) images ``A + B cos(phi + phase_offset + shift_sign 2 pi n / N) + noise`` of a ramp phase."""
-    rng = np.random.default_rng(seed)
-    phi = 2 * np.pi * frequency * np.linspace(0, 1, SHAPE[1])[None, :] + np.zeros(SHAPE)
-    scale = 255 if dtype == np.uint8 else 4095
-    n = np.arange(steps)[:, None, None]
-    images = scale * (0.5 + 0.35 * np.cos(phi + phase_offset + shift_sign * 2 * np.pi * n / steps))
-    images = images + rng.normal(0, 0.01 * scale, images.shape)
-    images[:, :3, :3] = scale  # a saturated corner
-    return np.clip(np.rint(images), 0, scale).astype(dtype), np.mod(phi, 2 * np.pi)
+from tests.fpp.test_scan_phase import SHAPE, fringe_images
 
 
 def assemble(entries, layout=None, *, shift_sign=-1):
