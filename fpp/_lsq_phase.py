@@ -64,7 +64,8 @@ def angle_0_2pi_float32(sine: np.ndarray, cosine: np.ndarray, magnitude: np.ndar
     ``theta0 + d`` is exact to float32 (max error vs float64 about 5e-7 rad with OpenCV's sine and cosine).
     """
     theta = cv2.phase(cosine, sine)  # (H, W) float32 in [0, 2*pi], ~1e-4 rad
-    cos0, sin0 = cv2.polarToCart(None, theta)
+    # magnitude None = an empty Mat, which OpenCV documents as all ones; its stub omits None
+    cos0, sin0 = cv2.polarToCart(None, theta)  # type: ignore[call-overload]
     residual = np.multiply(sine, cos0)
     residual -= np.multiply(cosine, sin0, out=sin0)
     np.divide(residual, magnitude, out=residual, where=magnitude > 0)  # residual is 0 where magnitude is

@@ -47,7 +47,7 @@ def _monomial_fit(nodes: np.ndarray, values: np.ndarray) -> np.ndarray:
     return (np.linalg.inv(vandermonde) @ flat).reshape(values.shape)
 
 
-def horner(coefficients: np.ndarray, u: np.ndarray) -> np.ndarray:
+def horner(coefficients: np.ndarray, u: np.ndarray | np.floating) -> np.ndarray:
     """``sum_k coefficients[k] * u**k`` for coefficients (n+1, ...) and ``u`` (...), in place on one buffer."""
     value = np.multiply(coefficients[-1], u)
     for coefficient in coefficients[-2:0:-1]:

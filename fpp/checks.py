@@ -1,9 +1,24 @@
 """Input checks shared by the fpp modules: one message for one mistake, wherever it is made."""
 from __future__ import annotations
 
+import math
 import numbers
+from typing import TypeGuard
 
 import numpy as np
+
+
+def is_finite_real(value: object) -> TypeGuard[float]:
+    """True for a finite real number (Python or NumPy, not a bool); False for NaN, inf and anything else.
+
+    A real number too large for a float (a huge ``int``) counts as not finite.
+    """
+    if isinstance(value, bool) or not isinstance(value, numbers.Real):
+        return False
+    try:
+        return math.isfinite(value)
+    except OverflowError:
+        return False
 
 
 def check_image_stack(images, name: str = "images", *, min_frames: int = 3, max_frames: int | None = None,

@@ -250,7 +250,7 @@ def open_dataset(path) -> Dataset:
     """
     root = Path(path)
     meta = read_dataset_yaml(root)
-    indexed = {}
+    indexed: dict[int, Path] = {}
     for file in sorted((root / "samples").glob("*.npz")) if (root / "samples").is_dir() else []:
         match = _NAME.match(file.name)
         if not match:

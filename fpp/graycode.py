@@ -44,7 +44,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from dptpu.fpp.checks import check_image_stack, check_projector_size
+from dptpu.fpp.checks import check_image_stack, check_projector_size, is_finite_real
 from dptpu.fpp.phase import WrappedPhase
 from dptpu.fpp.tpu import Unwrapped
 
@@ -430,12 +430,7 @@ def _min_contrast(min_contrast, stack, inverse, white) -> float:
             if extra is not None:
                 brightest = max(brightest, float(np.max(extra)))
         return _DEFAULT_MIN_CONTRAST_FRACTION * brightest
-    if (
-        isinstance(min_contrast, bool)
-        or not isinstance(min_contrast, numbers.Real)
-        or not np.isfinite(min_contrast)
-        or min_contrast < 0
-    ):
+    if not is_finite_real(min_contrast) or min_contrast < 0:
         raise ValueError(f"min_contrast must be a finite number >= 0; got {min_contrast!r}")
     return float(min_contrast)
 
@@ -467,13 +462,13 @@ def _wrapped(wrapped) -> np.ndarray:
 
 
 def _bits(bits) -> int:
-    if isinstance(bits, bool) or not isinstance(bits, numbers.Integral) or not 1 <= bits <= 30:
+    if isinstance(bits, bool) or not isinstance(bits, numbers.Integral) or not 1 <= int(bits) <= 30:
         raise ValueError(f"bits must be an integer in 1..30; got {bits!r}")
     return int(bits)
 
 
 def _positive_float(value, name) -> float:
-    if isinstance(value, bool) or not isinstance(value, numbers.Real) or not np.isfinite(value):
+    if not is_finite_real(value):
         raise ValueError(f"{name} must be a finite real number; got {value!r}")
     if value <= 0:
         raise ValueError(f"{name} must be > 0; got {value}")

@@ -29,7 +29,7 @@ import cv2
 import numpy as np
 
 from ._lsq_phase import angle_0_2pi_float32, angle_0_2pi_float64, phase_sums
-from .checks import check_image_stack
+from .checks import check_image_stack, is_finite_real
 
 __all__ = ["WrappedPhase", "wrapped_phase", "quality_mask", "check_bit_depth", "sequence_sums", "maps_from_sums"]
 
@@ -101,11 +101,7 @@ def wrapped_phase(images, *, shift_sign=-1, phase_offset=0.0, bit_depth=None, dt
     images = check_image_stack(images)
     if shift_sign not in (-1, 1):
         raise ValueError(f"shift_sign must be -1 or +1; got {shift_sign!r}")
-    if (
-        isinstance(phase_offset, bool)
-        or not isinstance(phase_offset, numbers.Real)
-        or not np.isfinite(phase_offset)
-    ):
+    if not is_finite_real(phase_offset):
         raise ValueError(
             f"phase_offset must be a finite real number (radians); got {phase_offset!r}"
         )
@@ -185,12 +181,7 @@ def quality_mask(images, modulation, *, min_modulation, saturation_level=None) -
             f"modulation must have shape (H, W) = {images.shape[1:]} like the images; "
             f"got {modulation.shape}"
         )
-    if (
-        isinstance(min_modulation, bool)
-        or not isinstance(min_modulation, numbers.Real)
-        or not np.isfinite(min_modulation)
-        or min_modulation < 0
-    ):
+    if not is_finite_real(min_modulation) or min_modulation < 0:
         raise ValueError(f"min_modulation must be a finite number >= 0; got {min_modulation!r}")
     if saturation_level is None and np.issubdtype(images.dtype, np.integer):
         saturation_level = np.iinfo(images.dtype).max
@@ -220,9 +211,10 @@ def check_bit_depth(images, bit_depth) -> None:
         exceed ``2**bit_depth - 1`` (e.g. "image values reach 4095 but bit_depth is 8").
     """
     if isinstance(bit_depth, bool) or not isinstance(bit_depth, numbers.Integral) or not (
-        1 <= bit_depth <= 16
+        1 <= int(bit_depth) <= 16
     ):
         raise ValueError(f"bit_depth must be an integer in 1..16; got {bit_depth!r}")
+    bit_depth = int(bit_depth)
     images = np.asarray(images)
     dtype = images.dtype
     if not (np.issubdtype(dtype, np.integer) or np.issubdtype(dtype, np.floating)):

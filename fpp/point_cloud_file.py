@@ -60,6 +60,6 @@ def write_point_cloud(path, points: np.ndarray, *, unit: str, intensity: np.ndar
         scale = np.percentile(grey, 99) if grey.size else 1.0
         grey = np.clip(grey / (scale if scale > 0 else 1.0), 0.0, 1.0)
         cloud.colors = o3d.utility.Vector3dVector(np.repeat(grey[:, None], 3, axis=1))
-    if not o3d.io.write_point_cloud(str(Path(path)), cloud, write_ascii=False):
+    if not o3d.io.write_point_cloud(Path(path), cloud, write_ascii=False):
         raise ValueError(f"{path}: open3d could not write the point cloud (is the suffix .ply/.pcd/.xyz?)")
     return int(np.count_nonzero(finite))

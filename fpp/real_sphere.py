@@ -18,6 +18,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from scipy.io import loadmat
@@ -132,7 +133,7 @@ def own_reconstruction(rig: Rig, phase: np.ndarray) -> tuple[SphereResult, Spher
             SphereResult(fit_kept.rms * 1e3, fit_kept.radius, len(kept)))
 
 
-def evaluate(data_dir) -> dict:
+def evaluate(data_dir) -> dict[str, dict[str, Any]]:
     """All figures of ``dptpu eval sphere``: the paper's method and ours for the four combinations."""
     data_dir = Path(data_dir)
     if not data_dir.is_dir():
@@ -140,7 +141,7 @@ def evaluate(data_dir) -> dict:
     rigs = {name: load_rig(data_dir, name) for name in ("real", "twin")}
     refined_rigs = {name: load_rig(data_dir, name, relative_pose="all-views") for name in ("real", "twin")}
     phases = {name: load_phase(data_dir, name) for name in ("real", "twin")}
-    report = {"paper": {}, "ours": {}, "paper_figures_um": {}}
+    report: dict[str, dict[str, Any]] = {"paper": {}, "ours": {}, "paper_figures_um": {}}
     for calibration, phase in COMBINATIONS:
         key = combination_key(calibration, phase)
         report["paper"][key] = round(paper_reconstruction(rigs[calibration], phases[phase]).rms_um, 3)

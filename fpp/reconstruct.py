@@ -196,7 +196,9 @@ def unwrap_capture(
         unwrapped = tpu.unwrap_nt(psi[0], psi[1], f_h, frequencies[1], capture.fringe_extent_px, valid=quality)
     elif method == "heterodyne":
         unwrapped = tpu.unwrap_heterodyne(psi, frequencies, valid=quality)
-    else:
+    else:  # "graycode"
+        if code is None:  # _select_graycode returns the Gray-code sequence or raises
+            raise RuntimeError("graycode unwrapping reached without a Gray-code sequence")
         unwrapped = _unwrap_graycode(capture, code, maps[0])
 
     absolute_phase = np.asarray(unwrapped.absolute_phase, dtype=np.float64)  # (H, W)
@@ -213,7 +215,7 @@ def unwrap_capture(
         method=method,
         frequencies=tuple(float(f) for f in frequencies),
         fringe_axis=capture.fringe_axis,
-        projector_size=tuple(capture.projector_size),
+        projector_size=(capture.projector_size[0], capture.projector_size[1]),
         wrapped_phases=tuple(psi),
         quality=quality,
     )

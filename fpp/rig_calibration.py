@@ -568,7 +568,8 @@ def calibrate_from_folders(paths, board: Board, *, window_px: int = 6) -> RigCal
     if len(folders) < 3:
         raise ValueError(f"calibration needs at least 3 board poses; got {len(folders)} "
                          f"({', '.join(map(str, folders)) or 'none'})")
-    observations, object_points = [], []
+    observations: list[PoseObservation] = []
+    object_points = []
     for folder in folders:
         observation = observe_pose(folder, board, window_px=window_px)
         first = observations[0] if observations else observation

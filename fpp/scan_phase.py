@@ -88,7 +88,7 @@ class IncrementalScanPhase:
     against the scan's final layout.
     """
 
-    def __init__(self):
+    def __init__(self) -> None:
         self.sums: dict[int, np.ndarray] = {}
         self.slots: dict[int, ImageSlot] = {}  # image index -> where it was added
         self.brightest: np.ndarray | None = None  # (H, W) max over the images, for the saturation mask

@@ -387,11 +387,12 @@ def unwrap_heterodyne(phases, frequencies, *, valid=None) -> Unwrapped:
         levels_psi.append(psi_next)
     absolute = levels_psi[-1][0]  # (H, W); absolute because final <= 1
     reliability = np.ones(mask.shape)
-    result = None
-    for L in range(len(levels_f) - 2, -1, -1):
-        result = _unwrap_on_mask(levels_psi[L][0], absolute, levels_f[L][0], levels_f[L + 1][0], mask)
-        reliability = np.minimum(reliability, result.reliability)
-        absolute = np.where(mask, result.absolute_phase, 0.0)
+    for L in range(len(levels_f) - 2, 0, -1):  # down the upper levels: each refines the absolute phase
+        step = _unwrap_on_mask(levels_psi[L][0], absolute, levels_f[L][0], levels_f[L + 1][0], mask)
+        reliability = np.minimum(reliability, step.reliability)
+        absolute = np.where(mask, step.absolute_phase, 0.0)
+    result = _unwrap_on_mask(levels_psi[0][0], absolute, levels_f[0][0], levels_f[1][0], mask)  # level 0: f_1
+    reliability = np.minimum(reliability, result.reliability)
     return Unwrapped(
         fringe_order=result.fringe_order,
         absolute_phase=result.absolute_phase,

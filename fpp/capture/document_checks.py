@@ -4,9 +4,9 @@
 from __future__ import annotations
 
 import numbers
+from typing import NoReturn
 
-import numpy as np
-
+from ..checks import is_finite_real
 from .model import format_number
 
 __all__ = ["DocumentChecker"]
@@ -18,7 +18,7 @@ class DocumentChecker:
     def __init__(self, source: str):
         self.source = source
 
-    def fail(self, message: str):
+    def fail(self, message: str) -> NoReturn:
         raise ValueError(f"{self.source}: {message}")
 
     def require(self, mapping: dict, key: str, dotted: str | None = None):
@@ -32,7 +32,7 @@ class DocumentChecker:
         return value
 
     def number(self, value, key: str) -> float:
-        if isinstance(value, bool) or not isinstance(value, numbers.Real) or not np.isfinite(value):
+        if not is_finite_real(value):
             self.fail(f"{key} must be a finite number; got {value!r}")
         return float(value)
 

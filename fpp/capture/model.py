@@ -98,6 +98,8 @@ class PhaseSequence:
         """
         if self.frequency is not None:
             return float(self.frequency)
+        if self.period is None:
+            raise ValueError("phase sequence declares neither frequency nor period")
         return float(extent_px) / float(self.period)
 
     @property

@@ -185,12 +185,12 @@ def _parse_graycode_sequence(spec: DocumentChecker, raw: dict, index: int, root:
     images = spec.file_list(spec.require(raw, "images", f"{where}.images"), f"{where}.images")
     if len(images) != bits:
         spec.fail(f"{label}: {len(images)} images listed but bits is {bits}")
-    inverse = None
+    inverse: tuple[Path, ...] | None = None
     if raw.get("inverse") is not None:
-        inverse = spec.file_list(raw["inverse"], f"{where}.inverse")
-        if len(inverse) != bits:
-            spec.fail(f"{label}: {len(inverse)} inverse images listed but bits is {bits}")
-        inverse = tuple(resolve_path(root, name) for name in inverse)
+        inverse_names = spec.file_list(raw["inverse"], f"{where}.inverse")
+        if len(inverse_names) != bits:
+            spec.fail(f"{label}: {len(inverse_names)} inverse images listed but bits is {bits}")
+        inverse = tuple(resolve_path(root, name) for name in inverse_names)
     complementary = complementary_inverse = None
     if raw.get("complementary") is not None:
         complementary = resolve_path(root, spec.file_name(raw["complementary"], f"{where}.complementary"))
@@ -222,7 +222,7 @@ def _display(root: Path, path: Path) -> str:
 
 
 def _listed_files(capture: Capture) -> list[Path]:
-    files = []
+    files: list[Path] = []
     for sequence in capture.sequences:
         files.extend(sequence.images)
         if isinstance(sequence, GraycodeSequence):

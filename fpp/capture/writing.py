@@ -210,7 +210,8 @@ def _plain(value):
 
 
 def _common_frame_format(stacks) -> tuple[np.dtype, tuple[int, int]]:
-    dtype = shape = None
+    dtype: np.dtype | None = None
+    shape: tuple[int, int] | None = None
     for name, stack in stacks:
         stack = np.asarray(stack)
         if stack.ndim != 3 or stack.shape[0] < 1:
@@ -218,21 +219,23 @@ def _common_frame_format(stacks) -> tuple[np.dtype, tuple[int, int]]:
         if stack.dtype not in (np.uint8, np.uint16):
             raise ValueError(f"{name} frames must be uint8 or uint16 (the capture's bit depth); got {stack.dtype}")
         if dtype is None:
-            dtype, shape = stack.dtype, stack.shape[1:]
+            dtype, shape = stack.dtype, (stack.shape[1], stack.shape[2])
         elif stack.dtype != dtype or stack.shape[1:] != shape:
             raise ValueError(f"all frames of a capture must share one dtype and size; got {name} "
                              f"{stack.dtype} {stack.shape[1:]} after {dtype} {shape}")
+    if dtype is None or shape is None:
+        raise ValueError("a capture needs at least one stack of frames")
     return dtype, shape
 
 
 def _write_frames(folder: Path, index: int, frames: PhaseFrames | GraycodeFrames) -> dict:
     if isinstance(frames, PhaseFrames):
-        if (frames.frequency is None) == (frames.period is None):
-            raise ValueError(f"sequences[{index}]: give exactly one of frequency and period")
-        if frames.frequency is not None:
+        if frames.frequency is not None and frames.period is None:
             key, value, tag = "frequency", float(frames.frequency), f"f{format_number(frames.frequency)}"
-        else:
+        elif frames.period is not None and frames.frequency is None:
             key, value, tag = "period", float(frames.period), f"p{format_number(frames.period)}"
+        else:
+            raise ValueError(f"sequences[{index}]: give exactly one of frequency and period")
         images = np.asarray(frames.images)
         entry: dict[str, Any] = {key: value, "steps": int(images.shape[0])}
         entry["images"] = [_write_png(folder, f"seq{index}_{tag}_s{n:02d}.png", image)
@@ -275,5 +278,6 @@ def _write_ground_truth(folder: Path, ground_truth: Mapping[str, np.ndarray], sh
                              f"got {arrays[key].shape}")
     arrays["projector_x"] = arrays["projector_x"].astype(np.float32)
     arrays["valid"] = arrays["valid"].astype(bool)
-    np.savez_compressed(folder / name, **arrays)
+    # allow_pickle: numpy's default, named so the type checker sees that no key of `arrays` can stand for it
+    np.savez_compressed(folder / name, allow_pickle=True, **arrays)
     return name
