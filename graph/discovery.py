@@ -30,6 +30,7 @@ import tempfile
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 from .qos import QoSProfile
 from .transport import remove_ipc_file
@@ -422,7 +423,9 @@ def _endpoint_info(node: str, item: dict) -> EndpointInfo | None:
 
 def snapshot_from_entries(entries, domain_id=None) -> GraphSnapshot:
     """Build a :class:`GraphSnapshot` from announcement dicts."""
-    nodes, topics, services = [], {}, {}
+    nodes: list[NodeInfo] = []
+    topics: dict[str, dict[str, Any]] = {}  # name -> {"types": set, "publishers": [...], "subscriptions": [...]}
+    services: dict[str, dict[str, Any]] = {}  # name -> {"types": set, "servers": [fqn, ...], "clients": [...]}
     for entry in sorted(entries, key=lambda e: (str(e.get("fqn")), str(e.get("gid")))):
         fqn = str(entry.get("fqn", ""))
         pubs = tuple(e for e in (_endpoint_info(fqn, p) for p in entry.get("publishers", [])) if e)
@@ -433,14 +436,14 @@ def snapshot_from_entries(entries, domain_id=None) -> GraphSnapshot:
                               fully_qualified_name=fqn, pid=int(entry.get("pid", 0) or 0),
                               host=str(entry.get("host", "")), start_time=float(entry.get("start_time", 0.0) or 0.0),
                               publishers=pubs, subscriptions=subs, services=srvs, clients=clis))
-        for kind, items in (("publishers", pubs), ("subscriptions", subs)):
-            for item in items:
+        for kind, endpoints in (("publishers", pubs), ("subscriptions", subs)):
+            for item in endpoints:
                 topics.setdefault(item.topic, {"types": set(), "publishers": [], "subscriptions": []})
                 if item.type != "*":  # a raw subscription to any type
                     topics[item.topic]["types"].add(item.type)
                 topics[item.topic][kind].append(item)
-        for kind, items in (("servers", srvs), ("clients", clis)):
-            for name, type_name in items:
+        for kind, names in (("servers", srvs), ("clients", clis)):
+            for name, type_name in names:
                 services.setdefault(name, {"types": set(), "servers": [], "clients": []})
                 services[name]["types"].add(type_name)
                 services[name][kind].append(fqn)

@@ -21,7 +21,6 @@ from __future__ import annotations
 
 import re
 
-from ..messages.registry import is_registered, lookup
 from ..messages.schema import Message, message, scalar
 
 __all__ = ["service_type", "lookup_service", "registered_services", "is_service_type", "String", "Empty",
@@ -67,9 +66,10 @@ def service_type(type_name: str):
     return wrap
 
 
-def is_service_type(obj) -> bool:
+def is_service_type(obj: object) -> bool:
     """True for a class made with :func:`service_type`."""
-    return isinstance(obj, type) and _SERVICES.get(getattr(obj, "TYPE_NAME", None)) is obj
+    type_name = getattr(obj, "TYPE_NAME", None)
+    return isinstance(obj, type) and isinstance(type_name, str) and _SERVICES.get(type_name) is obj
 
 
 def lookup_service(type_name: str) -> type:
@@ -86,17 +86,14 @@ def registered_services() -> dict[str, type]:
 
 
 # --------------------------------------------------------------------------------------------------
-# std_msgs/msg/String (reused if dptpu.messages defines it one day)
+# std_msgs/msg/String
 # --------------------------------------------------------------------------------------------------
 
-if is_registered("std_msgs/msg/String"):
-    String = lookup("std_msgs/msg/String")
-else:
-    @message("std_msgs/msg/String", version=1)
-    class String(Message):
-        """A text message, ROS 2 ``std_msgs/msg/String`` (field ``data``)."""
+@message("std_msgs/msg/String", version=1)
+class String(Message):
+    """A text message, ROS 2 ``std_msgs/msg/String`` (field ``data``)."""
 
-        data: str = scalar("string")
+    data: str = scalar("string")
 
 
 # --------------------------------------------------------------------------------------------------

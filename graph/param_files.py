@@ -97,7 +97,8 @@ def parse_params_yaml(data, origin: str = "<yaml>") -> ParameterSource:
     if not isinstance(data, dict):
         raise ROSArgumentsError(f"{origin}: a parameters file must be a mapping of node names to "
                                 f"{{{PARAMS_KEY}: ...}}; got {type(data).__name__}")
-    wildcard, exact = [], []
+    wildcard: list[tuple[str, dict]] = []
+    exact: list[tuple[str, dict]] = []
 
     def walk(mapping: dict, tokens: list[str]) -> None:
         for key, value in mapping.items():

@@ -17,6 +17,7 @@ Semantics follow rclpy (Humble and later):
 from __future__ import annotations
 
 import array
+import builtins
 import math
 import re
 import threading
@@ -190,7 +191,8 @@ class Parameter:
             return NotImplemented
         return (self._name, self._type, self._value) == (other._name, other._type, other._value)
 
-    __hash__ = None
+    # mutable; typeshed declares object.__hash__ a method, so "unhashable" (None) is not expressible as its override
+    __hash__ = None  # type: ignore[assignment]
 
     def __repr__(self):
         return f"Parameter({self._name!r}, {self._type.name}, {self._value!r})"
@@ -302,11 +304,11 @@ def _range_problem(descriptor: ParameterDescriptor, parameter: Parameter) -> str
             if abs(steps - round(steps)) * r.step > tolerance:
                 return f"value {value} is not on a step of {r.step} from {r.from_value}"
     if parameter.type_ == T.INTEGER and descriptor.integer_range:
-        r = descriptor.integer_range[0]
-        if not (r.from_value <= value <= r.to_value):
-            return f"value {value} is outside the range [{r.from_value}, {r.to_value}]"
-        if r.step > 1 and value != r.to_value and (value - r.from_value) % r.step:
-            return f"value {value} is not on a step of {r.step} from {r.from_value}"
+        bounds = descriptor.integer_range[0]
+        if not (bounds.from_value <= value <= bounds.to_value):
+            return f"value {value} is outside the range [{bounds.from_value}, {bounds.to_value}]"
+        if bounds.step > 1 and value != bounds.to_value and (value - bounds.from_value) % bounds.step:
+            return f"value {value} is not on a step of {bounds.step} from {bounds.from_value}"
     return None
 
 
@@ -519,7 +521,7 @@ class NodeParameters:
             if parameter.name not in self._values and not self._allow_undeclared:
                 raise ParameterNotDeclaredException(parameter.name)
 
-    def set(self, parameters) -> list[SetParametersResult]:
+    def set(self, parameters) -> builtins.list[SetParametersResult]:  # builtins: the method list() shadows it
         """Set each parameter on its own; one result per parameter."""
         parameters = list(parameters)
         with self._lock:

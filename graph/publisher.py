@@ -86,7 +86,9 @@ class Publisher:
         self._subscriber_count = 0
         resolved = qos_profile.resolved()
         self._transient = resolved.durability == DurabilityPolicy.TRANSIENT_LOCAL
-        self._history = deque(maxlen=queue_limit(resolved)) if self._transient else None
+        # (sequence number, stamp in ns, encoded frames) of the last messages, replayed to late joiners
+        self._history: deque[tuple[int, int, list]] | None = (
+            deque(maxlen=queue_limit(resolved)) if self._transient else None)
         sock = runtime.zmq_context.socket(zmq.XPUB)
         try:
             sock.setsockopt(zmq.SNDHWM, pipe_high_water_mark(resolved))

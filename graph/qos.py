@@ -175,7 +175,8 @@ class QoSProfile:
             return NotImplemented
         return self.to_dict() == other.to_dict()
 
-    __hash__ = None  # mutable
+    # mutable; typeshed declares object.__hash__ a method, so "unhashable" (None) is not expressible as its override
+    __hash__ = None  # type: ignore[assignment]
 
     def copy(self) -> QoSProfile:
         return QoSProfile(history=self._history, depth=self._depth, reliability=self._reliability,

@@ -11,6 +11,10 @@ list of :class:`~dptpu.graph.interfaces.String` here (``names: list[String]``); 
 
 from __future__ import annotations
 
+from collections.abc import Iterable
+
+import numpy as np
+
 from ..messages.schema import Message, message, nested, nested_list, scalar, sequence
 from .interfaces import String, service_type
 
@@ -21,12 +25,12 @@ __all__ = [
 ]
 
 
-def strings(values) -> list:
+def strings(values: Iterable[object]) -> list[String]:
     """``["a", "b"]`` -> ``[String(data="a"), String(data="b")]`` (the wire form of ``string[]``)."""
     return [String(data=str(v)) for v in values]
 
 
-def texts(values) -> list[str]:
+def texts(values: Iterable[String]) -> list[str]:
     """Inverse of :func:`strings`."""
     return [v.data for v in values]
 
@@ -56,11 +60,11 @@ class ParameterValue(Message):
     integer_value: int = scalar("int64")
     double_value: float = scalar("float64")
     string_value: str = scalar("string")
-    byte_array_value: object = sequence("uint8")
-    bool_array_value: object = sequence("bool")
-    integer_array_value: object = sequence("int64")
-    double_array_value: object = sequence("float64")
-    string_array_value: list = nested_list(String)
+    byte_array_value: np.ndarray = sequence("uint8")
+    bool_array_value: np.ndarray = sequence("bool")
+    integer_array_value: np.ndarray = sequence("int64")
+    double_array_value: np.ndarray = sequence("float64")
+    string_array_value: list[String] = nested_list(String)
 
 
 @message("rcl_interfaces/msg/Parameter", version=1)
@@ -114,8 +118,8 @@ class ParameterDescriptor(Message):
     additional_constraints: str = scalar("string")
     read_only: bool = scalar("bool")
     dynamic_typing: bool = scalar("bool")
-    floating_point_range: list = nested_list(FloatingPointRange)
-    integer_range: list = nested_list(IntegerRange)
+    floating_point_range: list[FloatingPointRange] = nested_list(FloatingPointRange)
+    integer_range: list[IntegerRange] = nested_list(IntegerRange)
 
 
 @message("rcl_interfaces/msg/SetParametersResult", version=1)
@@ -130,41 +134,41 @@ class SetParametersResult(Message):
 class ListParametersResult(Message):
     """Parameter names and the distinct dotted prefixes among them."""
 
-    names: list = nested_list(String)
-    prefixes: list = nested_list(String)
+    names: list[String] = nested_list(String)
+    prefixes: list[String] = nested_list(String)
 
 
 @service_type("rcl_interfaces/srv/GetParameters")
 class GetParameters:
     class Request(Message):
-        names: list = nested_list(String)
+        names: list[String] = nested_list(String)
 
     class Response(Message):
-        values: list = nested_list(ParameterValue)
+        values: list[ParameterValue] = nested_list(ParameterValue)
 
 
 @service_type("rcl_interfaces/srv/GetParameterTypes")
 class GetParameterTypes:
     class Request(Message):
-        names: list = nested_list(String)
+        names: list[String] = nested_list(String)
 
     class Response(Message):
-        types: object = sequence("uint8")
+        types: np.ndarray = sequence("uint8")
 
 
 @service_type("rcl_interfaces/srv/SetParameters")
 class SetParameters:
     class Request(Message):
-        parameters: list = nested_list(Parameter)
+        parameters: list[Parameter] = nested_list(Parameter)
 
     class Response(Message):
-        results: list = nested_list(SetParametersResult)
+        results: list[SetParametersResult] = nested_list(SetParametersResult)
 
 
 @service_type("rcl_interfaces/srv/SetParametersAtomically")
 class SetParametersAtomically:
     class Request(Message):
-        parameters: list = nested_list(Parameter)
+        parameters: list[Parameter] = nested_list(Parameter)
 
     class Response(Message):
         result: SetParametersResult = nested(SetParametersResult)
@@ -175,7 +179,7 @@ class ListParameters:
     DEPTH_RECURSIVE = 0
 
     class Request(Message):
-        prefixes: list = nested_list(String)
+        prefixes: list[String] = nested_list(String)
         depth: int = scalar("uint64")
 
     class Response(Message):
@@ -185,7 +189,7 @@ class ListParameters:
 @service_type("rcl_interfaces/srv/DescribeParameters")
 class DescribeParameters:
     class Request(Message):
-        names: list = nested_list(String)
+        names: list[String] = nested_list(String)
 
     class Response(Message):
-        descriptors: list = nested_list(ParameterDescriptor)
+        descriptors: list[ParameterDescriptor] = nested_list(ParameterDescriptor)

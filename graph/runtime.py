@@ -28,6 +28,7 @@ import queue
 import tempfile
 import threading
 import time
+from typing import TYPE_CHECKING
 
 import zmq
 
@@ -50,6 +51,9 @@ from .logging import get_logger
 from .peers import PeerExchange, peers_from_environment
 from .services import ServiceHost
 from .transport import MAX_IPC_PATH_BYTES, TransportConfig, connect, remove_ipc_file
+
+if TYPE_CHECKING:  # node imports the runtime (through context): Node is named for the type checker only
+    from .node import Node
 
 __all__ = ["GraphRuntime", "EVENTS_INTERVAL_S", "STATS_INTERVAL_S"]
 
@@ -85,14 +89,14 @@ class GraphRuntime:
             self._authenticator.configure_curve(domain="*", location=str(self.transport.curve.authorized_keys_dir))
         self._scanner = DirectoryScanner(self.directory, host=self.host, boot_id=self.boot_id)
         self._lock = threading.RLock()
-        self._nodes: dict[str, object] = {}
+        self._nodes: dict[str, Node] = {}
         self._files: dict[str, str] = {}
         self._written_stats: dict[str, object] = {}
         self._dirty: set[str] = set()
         self._publishers: set = set()
         self._subscriptions: set = set()
         self._clients: set = set()
-        self._hosts: dict[str, object] = {}
+        self._hosts: dict[str, ServiceHost] = {}
         self._pending_clients: set = set()
         self._handlers: dict = {}       # socket -> handler, for the sockets the I/O thread polls now
         self._lent: dict = {}           # socket -> SocketLease, for the SUB sockets lent to an executor
@@ -288,7 +292,7 @@ class GraphRuntime:
             self.sleeping_until = float("inf")
             woken = False
             if ready:
-                notify = set()
+                notify: set[Node] = set()  # nodes with new messages, whose executors to wake
                 for sock, _ in ready:
                     if sock == self._wake_r:
                         woken = True

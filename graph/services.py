@@ -244,7 +244,6 @@ class Client:
             self._pending[request_id] = future
             frames.append(pack_envelope(FLAG_REQUEST, request_id, time.time_ns(), self.gid))
             self._outbox.append(frames)
-        future._request_id = request_id
         self._node.context._runtime().flush_client(self)
         return future
 
@@ -266,7 +265,9 @@ class Client:
 
     def remove_pending_request(self, future: Future) -> None:
         with self._lock:
-            self._pending.pop(getattr(future, "_request_id", None), None)
+            for request_id, pending in list(self._pending.items()):  # as rclpy: a few pending requests at most
+                if pending is future:
+                    del self._pending[request_id]
 
     def service_is_ready(self) -> bool:
         """True when discovery has connected this client to at least one server."""

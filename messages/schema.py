@@ -82,6 +82,12 @@ __all__ = [
 _MessageClass = TypeVar("_MessageClass", bound="type[Message]")
 
 
+# For a type checker every subclass is a dataclass (PEP 681, the base-class form), as each becomes one at run time
+# through message(), applied by hand or by dptpu.graph.interfaces.service_type to a service's Request and Response.
+# No field_specifiers: a type checker takes a specifier call for a field without a default unless the call spells
+# default= or default_factory=, while every specifier here supplies one; the specifiers are typed as returning the
+# field's value (like dataclasses.field), so each field reads as a field with a default of its annotated type.
+@dataclass_transform(eq_default=False)
 class Message:
     """Base class of every message type.
 
@@ -153,10 +159,6 @@ def _summary(value: object) -> str:
     return repr(value)
 
 
-# No field_specifiers: a type checker takes a specifier call for a field without a default unless the call spells
-# default= or default_factory=, while every specifier here supplies one; the specifiers are typed as returning the
-# field's value (like dataclasses.field), so each field reads as a field with a default of its annotated type.
-@dataclass_transform(eq_default=False)
 def message(type_name: str, *, version: int = 1) -> Callable[[_MessageClass], _MessageClass]:
     """Class decorator: make ``cls`` a message dataclass named ``type_name`` and register it.
 

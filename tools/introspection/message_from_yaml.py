@@ -72,13 +72,13 @@ def message_from_data(message_type: type, data, path: str | None = None) -> Mess
         spec = specs[name]
         where = f"{path}.{name}"
         if spec.kind == SCALAR:
-            values[name] = _scalar(spec.primitive, value, where)
+            values[name] = _scalar(spec.primitive_name, value, where)
         elif spec.kind == MESSAGE:
-            values[name] = message_from_data(spec.message_type, value, where)
+            values[name] = message_from_data(spec.nested_type, value, where)
         elif spec.kind == MESSAGE_LIST:
             if not isinstance(value, list):
                 raise ValueError(f"{where} must be a list of mappings; got {type(value).__name__}")
-            values[name] = [message_from_data(spec.message_type, item, f"{where}[{index}]")
+            values[name] = [message_from_data(spec.nested_type, item, f"{where}[{index}]")
                             for index, item in enumerate(value)]
         elif spec.kind == SEQUENCE:
             values[name] = _numbers(spec, value, where, ndim=1)

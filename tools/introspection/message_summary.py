@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import json
 import math
+from typing import Any
 
 import numpy as np
 import yaml
@@ -124,7 +125,7 @@ def message_to_dict(msg: Message, *, max_sequence_length: int = DEFAULT_MAX_SEQU
         raise ValueError(f"msg must be a dptpu message; got {type(msg).__name__}")
     if isinstance(max_sequence_length, bool) or not isinstance(max_sequence_length, int) or max_sequence_length < 0:
         raise ValueError(f"max_sequence_length must be an int >= 0; got {max_sequence_length!r}")
-    out = {}
+    out: dict[str, Any] = {}
     for spec in type(msg).FIELDS:
         value = getattr(msg, spec.name)
         if spec.kind == ARRAY:

@@ -86,17 +86,18 @@ def _nest(values: dict) -> dict:
     tree: dict = {}
     for name in sorted(values):
         node = tree
+        dotted = False
         *parents, leaf = name.split(".")
         for part in parents:
             child = node.setdefault(part, {})
             if not isinstance(child, dict):  # both "a" and "a.b" are parameters: keep the dotted name
-                node = None
+                dotted = True
                 break
             node = child
         value = values[name]
         if isinstance(value, bytes):
             value = list(value)
-        if node is None:
+        if dotted:
             tree[name] = value
         else:
             node[leaf] = value

@@ -128,10 +128,10 @@ def declared_arguments(path: str | os.PathLike) -> tuple[LaunchArgument, ...]:
     loader = LaunchLoader(environ=os.environ, python=sys.executable, cwd=os.getcwd())
     display = loader.display(os.path.abspath(os.fspath(path)))
     entries = loader.read_entries(os.path.abspath(os.fspath(path)), display)
-    if loader.problems:
+    if loader.problems or entries is None:  # None comes with a recorded problem
         raise LaunchFileError(loader.problems)
     found = []
-    for index, entry in enumerate(entries or ()):
+    for index, entry in enumerate(entries):
         if isinstance(entry, MarkedDict) and list(entry) == ["arg"] and isinstance(entry["arg"], MarkedDict):
             spec = entry["arg"]
             scope = FileScope(path=os.path.abspath(os.fspath(path)), display=display, given={}, given_from="")

@@ -11,6 +11,7 @@ import os
 import re
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
+from types import MappingProxyType
 
 from .launch_plan import LaunchArgument
 from .marked_yaml import MarkedDict, MarkedList
@@ -82,6 +83,8 @@ class ValueReader:
         if required is None:
             required, optional = ENTITY_KEYS[kind]
             allowed = (*required, *optional)
+        elif allowed is None:
+            raise ValueError("check_keys: allowed must be given with required")
         for key in body:
             if key not in allowed:
                 hint = suggest(str(key), allowed)
@@ -100,8 +103,8 @@ class ValueReader:
         except SubstitutionError as exc:
             raise EntryFailure(line, f"{where}: {exc}") from None
 
-    def text(self, scope: FileScope, body: MarkedDict, key: str, kind: str, *, variables: Mapping[str, str] = (),
-             substitute_values: bool = True) -> str:
+    def text(self, scope: FileScope, body: MarkedDict, key: str, kind: str, *,
+             variables: Mapping[str, str] = MappingProxyType({}), substitute_values: bool = True) -> str:
         """The value of ``key`` as text: strings substituted; numbers and booleans written as YAML would."""
         value, line = body[key], body.value_line(key)
         if isinstance(value, bool):

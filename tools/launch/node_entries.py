@@ -20,7 +20,7 @@ import yaml
 from .command_line import PARAMETER_SCALAR_TYPES, InlineParameter, ParameterFile
 from .launch_plan import DEFAULT_RESPAWN_MAX_DELAY_S, OUTPUT_MODES, NodeLaunch
 from .launch_values import EntryFailure, FileScope, ValueReader, suggest, type_name
-from .marked_yaml import MarkedDict
+from .marked_yaml import MarkedDict, MarkedList
 from .python_modules import module_problem
 from .substitutions import has_substitution
 
@@ -57,6 +57,7 @@ class NodeReader:
     def node(self, scope: FileScope, body: MarkedDict, namespace: str, variables: dict[str, str]) -> None:
         self.node_program_keys(body)
         kind = "node"
+        program: tuple[str, ...]
         if "module" in body:
             module = self.values.text(scope, body, "module", kind, variables=variables).strip()
             problem = module_problem(module, self.module_search_path)
@@ -128,7 +129,7 @@ class NodeReader:
                 return tuple(shlex.split(text))
             except ValueError as exc:
                 raise EntryFailure(line, f"node: args {text!r} cannot be split into words: {exc}") from None
-        if isinstance(value, list):
+        if isinstance(value, MarkedList):
             words = []
             for index, item in enumerate(value):
                 if isinstance(item, list | dict) or item is None:
@@ -169,7 +170,7 @@ class NodeReader:
 
     def parameter_value(self, scope: FileScope, item: MarkedDict, variables, name: str):
         value, line = item["value"], item.value_line("value")
-        if isinstance(value, list):
+        if isinstance(value, MarkedList):
             values = [self.parameter_scalar(scope, entry, variables, value.item_line(index), name)
                       for index, entry in enumerate(value)]
             kinds = {type(entry) for entry in values}
@@ -257,8 +258,9 @@ class NodeReader:
         original = [draft.node.label for draft in self.drafts]
         labels = list(original)
         for index, draft in enumerate(self.drafts):
-            if original.count(draft.node.label) > 1 and draft.node.name and draft.node.namespace:
-                labels[index] = draft.node.full_name.lstrip("/")
+            full_name = draft.node.full_name  # set when the node has a name
+            if original.count(draft.node.label) > 1 and full_name is not None and draft.node.namespace:
+                labels[index] = full_name.lstrip("/")
         taken: set[str] = set()
         nodes = []
         for label, draft in zip(labels, self.drafts):

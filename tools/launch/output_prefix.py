@@ -7,7 +7,7 @@ Screen sinks get ``[label] line``; log-file sinks get the bare line (the file is
 from __future__ import annotations
 
 import threading
-from typing import BinaryIO, TextIO
+from typing import IO, TextIO
 
 __all__ = ["LineSink", "start_pipe_reader"]
 
@@ -31,7 +31,7 @@ class LineSink:
             pass
 
 
-def _copy_lines(pipe: BinaryIO, label: str, sinks: list[LineSink], lock: threading.Lock) -> None:
+def _copy_lines(pipe: IO[bytes], label: str, sinks: list[LineSink], lock: threading.Lock) -> None:
     try:
         for raw in iter(lambda: pipe.readline(_MAX_LINE_BYTES), b""):  # a huge line arrives in pieces
             line = raw.decode("utf-8", errors="replace").rstrip("\r\n")
@@ -47,7 +47,7 @@ def _copy_lines(pipe: BinaryIO, label: str, sinks: list[LineSink], lock: threadi
             pass
 
 
-def start_pipe_reader(pipe: BinaryIO, label: str, sinks: list[LineSink], lock: threading.Lock) -> threading.Thread:
+def start_pipe_reader(pipe: IO[bytes], label: str, sinks: list[LineSink], lock: threading.Lock) -> threading.Thread:
     """Start a daemon thread copying ``pipe`` to ``sinks`` until end of file; returns the thread.
 
     Parameters

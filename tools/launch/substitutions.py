@@ -113,7 +113,7 @@ def _parse_call(text: str, start: int) -> tuple[_Call, int]:
     if not name:
         raise SubstitutionError(f"a substitution needs a name after '$(' in {text!r}, "
                                 f"one of: {', '.join(SUBSTITUTIONS)}")
-    args = []
+    args: list[tuple] = []  # each a tuple of parts (str or _Call)
     while True:
         while i < len(text) and text[i].isspace():
             i += 1

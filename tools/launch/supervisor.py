@@ -119,7 +119,7 @@ class Supervisor:
         self._managed = [_Managed(node) for node in nodes]
         self._stdout = stdout
         self._stderr = stderr
-        self._log_dir = None if log_dir is None else os.fspath(log_dir)
+        self._log_dir: str | None = None if log_dir is None else os.fspath(log_dir)
         self._env = None if env is None else dict(env)
         self._cwd = None if cwd is None else os.fspath(cwd)
         self._timeouts_s = (sigint_timeout_s, sigterm_timeout_s, sigkill_timeout_s)
@@ -244,8 +244,12 @@ class Supervisor:
         self._group_labels[process.pid] = node.label
         self._say(f"started '{node.label}' (pid {process.pid})")
         if node.output in ("log", "both") and managed.log is None:
+            if self._log_dir is None:  # _prepare_log_dir sets it whenever a node logs to a file
+                raise RuntimeError(f"no log directory for '{node.label}'")
             managed.log = open(os.path.join(self._log_dir, f"{node.label}.log"), "a", encoding="utf-8")  # noqa: SIM115
         screen = node.output in ("screen", "both")
+        if process.stdout is None or process.stderr is None:  # Popen was given stdout=PIPE, stderr=PIPE
+            raise RuntimeError(f"'{node.label}' was started without output pipes")
         streams = ((process.stdout, self._stdout or sys.stdout), (process.stderr, self._stderr or sys.stderr))
         for pipe, stream in streams:
             sinks = ([LineSink(stream, prefixed=True)] if screen else []) + \

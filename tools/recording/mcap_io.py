@@ -30,13 +30,14 @@ from __future__ import annotations
 import os
 import threading
 from collections import Counter
-from collections.abc import Iterable, Iterator
+from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
 from typing import IO, NamedTuple
 
 from mcap.exceptions import McapError
 from mcap.reader import make_reader
+from mcap.records import Schema
 from mcap.well_known import MessageEncoding, SchemaEncoding
 from mcap.writer import CompressionType
 from mcap_ros2.decoder import DecoderFactory
@@ -111,8 +112,8 @@ class ChannelSummary:
 
 @dataclass
 class _Channel:
-    cls: type
-    ros2_schema: object = None  # mcap Schema record of a CDR channel
+    cls: type[Message]
+    ros2_schema: Schema | None = None  # mcap Schema record of a CDR channel
     channel_id: int = -1  # mcap channel id of a dptpu-msgpack channel
     count: int = 0
 
@@ -154,8 +155,8 @@ class McapRecordWriter:
         self._ros2 = Ros2Writer(self._stream, chunk_size=chunk_size_bytes, compression=COMPRESSIONS[compression])
         self._mcap = _underlying_mcap_writer(self._ros2)
         self._channels: dict[str, _Channel] = {}
-        self._ros2_schemas: dict[type, object] = {}
-        self._msgpack_schema_ids: dict[type, int] = {}
+        self._ros2_schemas: dict[type[Message], Schema] = {}
+        self._msgpack_schema_ids: dict[type[Message], int] = {}
         self._lock = threading.Lock()
         self._closed = False
 
@@ -196,6 +197,8 @@ class McapRecordWriter:
                 raise ValueError("cannot write: the MCAP writer is closed")
             channel = self._channel(topic, cls, ros2)
             if ros2:
+                if channel.ros2_schema is None:  # _channel registers it for every CDR channel
+                    raise RuntimeError(f"topic {topic!r} has no ros2msg schema")
                 self._ros2.write_message(topic, channel.ros2_schema, payload, log_time=log_time_ns,
                                          publish_time=publish_time_ns, sequence=channel.count % 2**32)
             else:
@@ -249,7 +252,7 @@ class McapRecordWriter:
 
     # -- channels --------------------------------------------------------------------------------
 
-    def _channel(self, topic: str, cls: type, ros2: bool) -> _Channel:
+    def _channel(self, topic: str, cls: type[Message], ros2: bool) -> _Channel:
         channel = self._channels.get(topic)
         if channel is not None:
             if channel.cls is not cls:
@@ -324,7 +327,7 @@ def read_mcap(path, *, topics: Iterable[str] | None = None, skip_unknown: bool =
     """
     path = _existing_path(path)
     topic_filter = None if topics is None else _topic_list(topics)
-    converters: dict[int, object] = {}
+    converters: dict[int, _Converter | None] = {}  # channel id -> its converter, None for an undecodable one
     ros2_decoders = DecoderFactory()
     with open(path, "rb") as stream:
         reader = _open_reader(path, stream)
@@ -338,10 +341,10 @@ def read_mcap(path, *, topics: Iterable[str] | None = None, skip_unknown: bool =
                 raise McapReadError(f"cannot read {path}: {error} (a recording that was not closed lacks its "
                                     "summary; `mcap recover` repairs it)") from None
             schema, channel, record = item
-            converter = converters.get(channel.id)
+            if channel.id not in converters:
+                converters[channel.id] = _converter(path, schema, channel, ros2_decoders, limits)
+            converter = converters[channel.id]
             if converter is None:
-                converter = converters[channel.id] = _converter(path, schema, channel, ros2_decoders, limits)
-            if converter is _SKIP:
                 if skip_unknown:
                     continue
                 raise McapReadError(f"cannot read {path}: {_undecodable_reason(schema, channel)}; pass "
@@ -417,7 +420,8 @@ def read_metadata(path) -> dict[str, dict[str, str]]:
     return out
 
 
-_SKIP = object()
+#: Turns one record's bytes into a message.
+_Converter = Callable[[bytes], Message]
 
 
 def _existing_path(path) -> Path:
@@ -468,9 +472,11 @@ def _undecodable_reason(schema, channel) -> str:
     return _readable_reason(schema, channel) or f"topic {channel.topic!r} cannot be decoded"
 
 
-def _converter(path: Path, schema, channel, ros2_decoders: DecoderFactory, limits: DecodeLimits):
+def _converter(path: Path, schema, channel, ros2_decoders: DecoderFactory, limits: DecodeLimits
+               ) -> _Converter | None:
+    """How to read the records of ``channel``; None when they cannot be decoded (:func:`_readable_reason`)."""
     if _readable_reason(schema, channel) is not None:
-        return _SKIP
+        return None
     topic = channel.topic
     if schema.encoding == msgpack_records.ENCODING:
         try:
@@ -484,4 +490,6 @@ def _converter(path: Path, schema, channel, ros2_decoders: DecoderFactory, limit
     except (McapError, ValueError, NotImplementedError) as error:
         raise McapReadError(f"cannot read {path}: topic {topic!r}: its ros2msg schema {schema.name} does not "
                             f"parse ({error})") from None
+    if decode_cdr is None:  # mcap_ros2 has no decoder for this encoding (_readable_reason checked it)
+        raise McapReadError(f"cannot read {path}: topic {topic!r}: no decoder for {channel.message_encoding!r}")
     return lambda data: from_ros2(cls, decode_cdr(data))

@@ -39,7 +39,7 @@ def playback_qos(recorded: dict | None) -> QoSProfile:
     RELIABLE always; TRANSIENT_LOCAL with depth 1 when the recording's subscription was
     TRANSIENT_LOCAL, else VOLATILE with depth :data:`PLAYBACK_DEPTH`.
     """
-    transient = bool(recorded) and str(recorded.get("durability", "")).lower() == "transient_local"
+    transient = recorded is not None and str(recorded.get("durability", "")).lower() == "transient_local"
     if transient:
         return QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1, reliability=ReliabilityPolicy.RELIABLE,
                           durability=DurabilityPolicy.TRANSIENT_LOCAL)

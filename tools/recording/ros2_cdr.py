@@ -152,7 +152,7 @@ def _fields_to_dict(msg: Message) -> dict:
     for spec in type(msg).FIELDS:
         value = getattr(msg, spec.name)
         if spec.kind == SCALAR:
-            out[spec.name] = _plain_scalar(spec.primitive, value)
+            out[spec.name] = _plain_scalar(spec.primitive_name, value)
         elif spec.kind == SEQUENCE:
             out[spec.name] = np.asarray(value, spec.dtype).tolist()
         elif spec.kind == ARRAY:
