@@ -30,6 +30,7 @@ import os
 import sys
 import time
 from collections.abc import Callable
+from typing import TypeVar
 
 import dptpu.graph as rclpy
 from dptpu.graph import ExternalShutdownException
@@ -50,6 +51,10 @@ _M_TRIM_THRESHOLD, _M_TOP_PAD, _M_MMAP_THRESHOLD = -1, -2, -3
 _MMAP_THRESHOLD_BYTES = 32 * 1024 * 1024   # glibc's largest (HEAP_MAX_SIZE / 2 on 64-bit): a 640x480x24 stack is 7 MB
 _TRIM_THRESHOLD_BYTES = 512 * 1024 * 1024  # free heap kept before trimming
 _TOP_PAD_BYTES = 16 * 1024 * 1024          # heap grown in 16 MiB steps
+
+
+#: The class of node :func:`run_node` builds, so that its ``spin`` and ``on_exit`` may take that class.
+NodeT = TypeVar("NodeT", bound=Node)
 
 
 def keep_freed_memory() -> bool:
@@ -119,8 +124,8 @@ def spin_profiled(name: str, spin: Callable[[], None]) -> None:
         profiler.dump_stats(os.path.join(folder, f"{name}-{os.getpid()}.prof"))
 
 
-def run_node(name: str, make_node: Callable[[], Node], argv=None, *, spin: Callable[[Node], None] | None = None,
-             on_exit: Callable[[Node], None] | None = None) -> int:
+def run_node(name: str, make_node: Callable[[], NodeT], argv=None, *, spin: Callable[[NodeT], None] | None = None,
+             on_exit: Callable[[NodeT], None] | None = None) -> int:
     """Run one node in this process until Ctrl-C, SIGTERM or shutdown; return the process exit code.
 
     Parameters

@@ -105,17 +105,20 @@ class TriggerBoxEmulator:
         elif busy:
             self._reply(now, Reply("ERR", code="BUSY", text="a scan is running; send STOP first"))
         elif command.kind == "LOAD":
+            if command.sequence is None:  # parse_command gives every LOAD its sequence; a hand-made one may lack it
+                self._reply(now, Reply("ERR", code="BADARG", text="LOAD needs a sequence"))
+                return
             self.sequence = command.sequence
-            self._reply(now, Reply("LOADED", count=self.sequence.pattern_count))
+            self._reply(now, Reply("LOADED", count=command.sequence.pattern_count))
         elif command.kind == "START":
             if self.sequence is None:
                 self._reply(now, Reply("ERR", code="NOSEQ", text="no sequence loaded; send LOAD first"))
                 return
-            self._start(command.scan_id, now)
+            self._start(self.sequence, command.scan_id, now)
 
-    def _start(self, scan_id: int, now: float) -> None:
-        count = self.sequence.pattern_count
-        period_s = self.sequence.exposure_us * 1e-6
+    def _start(self, sequence: SequenceSpec, scan_id: int, now: float) -> None:
+        count = sequence.pattern_count
+        period_s = sequence.exposure_us * 1e-6
         self._reply(now, Reply("STARTED", scan_id=scan_id))
         shown = count
         for limit in (self.abort_after, self.hang_after):

@@ -18,6 +18,7 @@ from __future__ import annotations
 import queue
 import threading
 import time
+from typing import Protocol
 
 import serial
 
@@ -36,6 +37,25 @@ from .protocol import (
 __all__ = ["LinkError", "ProjectorLink"]
 
 _READ_SLICE_S = 0.02
+
+
+class SerialPort(Protocol):
+    """What the link uses of a pyserial port (``serial.serial_for_url``: a real port, or ``loop://``)."""
+
+    timeout: float | None
+
+    @property
+    def in_waiting(self) -> int: ...
+
+    def read(self, size: int = 1) -> bytes: ...
+
+    def write(self, data: bytes) -> int | None: ...
+
+    def flush(self) -> None: ...
+
+    def reset_input_buffer(self) -> None: ...
+
+    def close(self) -> None: ...
 
 
 class LinkError(Exception):
@@ -88,7 +108,7 @@ class ProjectorLink:
         self.garbage_lines = 0        # lines that were not dptpu-trigger/1 replies
         self.connections = 0          # successful handshakes
         self.failures = 0             # connection attempts or sessions that ended in an error
-        self._port = None
+        self._port: SerialPort | None = None
         self._emulator: TriggerBoxEmulator | None = None
         self._buffer = b""
         self._requests: queue.Queue = queue.Queue(maxsize=max_waiting)
@@ -152,14 +172,15 @@ class ProjectorLink:
     def _open(self) -> None:
         self._close()
         try:
-            self._port = serial.serial_for_url(self.port_name, baudrate=self.baudrate, timeout=_READ_SLICE_S,
-                                               write_timeout=1.0)
+            port: SerialPort = serial.serial_for_url(self.port_name, baudrate=self.baudrate, timeout=_READ_SLICE_S,
+                                                     write_timeout=1.0)
         except (serial.SerialException, OSError, ValueError) as exc:
             raise LinkError(f"cannot open the port ({exc}); is the box plugged in, and is the port right?") from None
+        self._port = port
         self._buffer = b""
         self._emulator = TriggerBoxEmulator() if self.loopback else None
         try:
-            self._port.reset_input_buffer()
+            port.reset_input_buffer()
         except (serial.SerialException, OSError):
             pass
 
@@ -170,6 +191,12 @@ class ProjectorLink:
             except (serial.SerialException, OSError):
                 pass
             self._port = None
+
+    def _open_port(self) -> SerialPort:
+        """The port of the session running now (a session runs between :meth:`_open` and :meth:`_close`)."""
+        if self._port is None:
+            raise LinkError("the port is not open")
+        return self._port
 
     def _handshake(self) -> None:
         hello = self._command(Command("HELLO"), "HELLO")
@@ -271,8 +298,9 @@ class ProjectorLink:
 
     def _write(self, command: Command) -> None:
         try:
-            self._port.write(encode_command(command))
-            self._port.flush()
+            port = self._open_port()
+            port.write(encode_command(command))
+            port.flush()
         except (serial.SerialException, OSError) as exc:
             raise LinkError(f"port lost while writing {command.kind} ({exc})") from None
 
@@ -282,7 +310,7 @@ class ProjectorLink:
             line = self._read_line(deadline)
             if line is None:
                 return None
-            if self._emulator is not None and self._feed_echo(line):
+            if self._emulator is not None and self._feed_echo(self._emulator, line):
                 continue
             try:
                 return parse_reply(line)
@@ -291,19 +319,20 @@ class ProjectorLink:
                 self.logger.warning(f"trigger box on {self.port_name}: ignored line ({exc}); "
                                     f"{self.garbage_lines} so far", throttle_duration_sec=1.0)
 
-    def _feed_echo(self, line: bytes) -> bool:
+    def _feed_echo(self, emulator: TriggerBoxEmulator, line: bytes) -> bool:
         """loop:// only: a line we wrote came back; hand it to the emulator. True if it was a command."""
         head = line.split(b" ", 1)[0].strip()
         if head not in (b"HELLO", b"LOAD", b"START", b"STOP") or (head == b"HELLO" and b" " in line.strip()):
             return False
-        self._emulator.receive(line, time.monotonic())
+        emulator.receive(line, time.monotonic())
         return True
 
     def _read_line(self, deadline: float) -> bytes | None:
+        port = self._open_port()
         while b"\n" not in self._buffer:
             now = time.monotonic()
             if self._emulator is not None:
-                self._pump_emulator(now)
+                self._pump_emulator(self._emulator, port, now)
                 if b"\n" in self._buffer:  # the emulated box's line went straight into the buffer
                     break
             if now >= deadline:
@@ -311,9 +340,9 @@ class ProjectorLink:
             if self._emulator is not None:  # wake for the emulator's next line, not only every read slice
                 next_due = self._emulator.next_due()
                 wait_s = _READ_SLICE_S if next_due is None else next_due - now
-                self._port.timeout = min(max(wait_s, 0.0005), _READ_SLICE_S, max(deadline - now, 0.0005))
+                port.timeout = min(max(wait_s, 0.0005), _READ_SLICE_S, max(deadline - now, 0.0005))
             try:
-                chunk = self._port.read(max(1, self._port.in_waiting))
+                chunk = port.read(max(1, port.in_waiting))
             except (serial.SerialException, OSError, TypeError) as exc:
                 raise LinkError(f"port lost ({exc}); was the box unplugged?") from None
             self._buffer += chunk
@@ -325,15 +354,15 @@ class ProjectorLink:
         line, self._buffer = self._buffer.split(b"\n", 1)
         return line
 
-    def _pump_emulator(self, now: float) -> None:
+    def _pump_emulator(self, emulator: TriggerBoxEmulator, port: SerialPort, now: float) -> None:
         """loop:// only: the emulated box's lines that are due. They go straight into the line buffer when it holds
         no partial line (pyserial's loop:// queues every byte on its own, a cost per byte that adds up over a
         scan's acknowledgements: docs/benchmarks.md), else through the port as a real box's would."""
-        for line in self._emulator.due(now):
+        for line in emulator.due(now):
             if not self._buffer or self._buffer.endswith(b"\n"):
                 self._buffer += line
                 continue
             try:
-                self._port.write(line)
+                port.write(line)
             except (serial.SerialException, OSError) as exc:
                 raise LinkError(f"loopback port failed ({exc})") from None

@@ -106,7 +106,7 @@ class ProjectorNode(Node):
         self.auto_timer = self.create_timer(min(0.01, self.period_s / 10) if self.period_s > 0 else 0.01,
                                             self.on_auto_timer) if self.scans else None
 
-        self._lock = threading.Lock()
+        self._scans_lock = threading.Lock()  # the sequence ids and start times (Node's own _lock is the runtime's)
         self._next_sequence_id = 1
         self._scan_started: dict[int, float] = {}   # sequence_id -> monotonic start, for ScanStatus.duration_s
         self._auto_started = 0
@@ -130,7 +130,8 @@ class ProjectorNode(Node):
     def on_auto_timer(self) -> None:
         """Continuous mode: start the next of ``scans`` scans when the box is idle and ``period_s`` has passed."""
         if 0 <= self.scans <= self._auto_started:
-            self.auto_timer.cancel()
+            if self.auto_timer is not None:  # the timer that called; made when scans != 0
+                self.auto_timer.cancel()
             self.get_logger().info(f"started the {self.scans} scan(s) asked for by the scans parameter")
             return
         now_s = time.monotonic()
@@ -154,7 +155,7 @@ class ProjectorNode(Node):
 
     def on_scan_end(self, sequence_id: int, displayed: int, reason: str) -> None:
         """Link thread: scan ``sequence_id`` ended after ``displayed`` patterns (``reason`` empty when complete)."""
-        with self._lock:
+        with self._scans_lock:
             started = self._scan_started.pop(sequence_id, time.monotonic())
         if reason:
             self.get_logger().error(f"scan {sequence_id} failed: {reason}")
@@ -167,7 +168,7 @@ class ProjectorNode(Node):
 
     def start_scan(self) -> tuple[int, str]:
         """Queue the next scan: ``(sequence_id, "")``, or ``(0, reason)`` when it cannot start."""
-        with self._lock:
+        with self._scans_lock:
             sequence_id = self._next_sequence_id
             reason = self.link.request_scan(sequence_id)
             if not reason:

@@ -54,6 +54,7 @@ from cyclonedds.topic import Topic
 from dptpu.graph.interfaces import Trigger as TriggerService
 from dptpu.graph.node import Node
 from dptpu.graph.qos import QoSProfile, ReliabilityPolicy
+from dptpu.graph.services import Client
 from dptpu.messages import CameraInfo, DecodeError, Image, PointCloud2, decode
 from dptpu.nodes.node_main import run_node
 from dptpu.nodes.plumbing import LATCHED_QOS
@@ -183,15 +184,22 @@ class Ros2BridgeNode(Node):
             if not isinstance(request, Trigger_Request_):
                 continue  # an invalid sample (e.g. a disposed instance)
             self.capture_requests += 1
-            if not self.start_client.service_is_ready():
-                self._reply(request, False, f"{self.start_client.srv_name} is not available")
+            client = self._capture_client()
+            if not client.service_is_ready():
+                self._reply(request, False, f"{client.srv_name} is not available")
                 continue
-            future = self.start_client.call_async(TriggerService.Request())
+            future = client.call_async(TriggerService.Request())
             future.add_done_callback(lambda done, req=request: self._on_started(req, done))
+
+    def _capture_client(self) -> Client:
+        """The projector's start service client; only a bridge made with a ``capture_service`` has one."""
+        if self.start_client is None:
+            raise RuntimeError("this bridge forwards no capture requests (it was made without capture_service)")
+        return self.start_client
 
     def _on_started(self, request: Trigger_Request_, future) -> None:
         if future.exception() is not None:
-            self._reply(request, False, f"{self.start_client.srv_name} failed: {future.exception()}")
+            self._reply(request, False, f"{self._capture_client().srv_name} failed: {future.exception()}")
             return
         response = future.result()
         self._reply(request, bool(response.success), response.message)

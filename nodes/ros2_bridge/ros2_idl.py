@@ -20,7 +20,9 @@ Cyclone's own serializer.
 # no `from __future__ import annotations`: Cyclone DDS resolves these classes' annotations at run time
 
 import struct
+from collections.abc import Sequence
 from dataclasses import dataclass, field
+from typing import Annotated
 
 import numpy as np
 from cyclonedds.idl import IdlStruct
@@ -34,6 +36,13 @@ __all__ = [
     "Trigger_Request_", "Trigger_Response_", "CdrWriter", "CdrReader", "to_dds", "dds_type_of", "ros_topic_name",
     "CDR_LE_HEADER",
 ]
+
+# Cyclone's `sequence[T]` and `array[T, n]` build these Annotated types at run time; spelled out, the type checker
+# reads them too (it takes Cyclone's subscripts for plain classes, and `9` for a type).
+Octets = Annotated[Sequence[uint8], sequence(uint8)]
+Float64s = Annotated[Sequence[float64], sequence(float64)]
+Float64x9 = Annotated[Sequence[float64], array(float64, 9)]
+Float64x12 = Annotated[Sequence[float64], array(float64, 12)]
 
 #: Encapsulation header of plain CDR, little-endian (RTPS ``CDR_LE``): what rmw_cyclonedds writes.
 CDR_LE_HEADER = b"\x00\x01\x00\x00"
@@ -180,11 +189,11 @@ class PointCloud2_(IdlStruct, typename="sensor_msgs::msg::dds_::PointCloud2_"):
     header: Header_ = field(default_factory=Header_)
     height: uint32 = 0
     width: uint32 = 0
-    fields: sequence[PointField_] = field(default_factory=list)
+    fields: Annotated[Sequence[PointField_], sequence(PointField_)] = field(default_factory=list)
     is_bigendian: bool = False
     point_step: uint32 = 0
     row_step: uint32 = 0
-    data: sequence[uint8] = field(default_factory=list)
+    data: Octets = field(default_factory=list)
     is_dense: bool = False
 
     def serialize(self, buffer=None, endianness=None, use_version_2=None) -> bytes:
@@ -232,7 +241,7 @@ class Image_(IdlStruct, typename="sensor_msgs::msg::dds_::Image_"):
     encoding: str = ""
     is_bigendian: uint8 = 0
     step: uint32 = 0
-    data: sequence[uint8] = field(default_factory=list)
+    data: Octets = field(default_factory=list)
 
     def serialize(self, buffer=None, endianness=None, use_version_2=None) -> bytes:
         """XCDR1 little-endian through :class:`CdrWriter` (XCDR2 or other requests: Cyclone's serializer)."""
@@ -274,10 +283,10 @@ class CameraInfo_(IdlStruct, typename="sensor_msgs::msg::dds_::CameraInfo_"):
     height: uint32 = 0
     width: uint32 = 0
     distortion_model: str = ""
-    d: sequence[float64] = field(default_factory=list)
-    k: array[float64, 9] = field(default_factory=lambda: [0.0] * 9)
-    r: array[float64, 9] = field(default_factory=lambda: [0.0] * 9)
-    p: array[float64, 12] = field(default_factory=lambda: [0.0] * 12)
+    d: Float64s = field(default_factory=list)
+    k: Float64x9 = field(default_factory=lambda: [0.0] * 9)
+    r: Float64x9 = field(default_factory=lambda: [0.0] * 9)
+    p: Float64x12 = field(default_factory=lambda: [0.0] * 12)
     binning_x: uint32 = 0
     binning_y: uint32 = 0
     roi: RegionOfInterest_ = field(default_factory=RegionOfInterest_)
@@ -365,9 +374,9 @@ def to_dds(msg):
                      f"{type(msg).__name__}")
 
 
-def dds_type_of(msg_type) -> type:
+def dds_type_of(msg_type) -> type[IdlStruct]:
     """The IDL class of one of our message classes (``PointCloud2`` -> ``PointCloud2_``)."""
-    types = {PointCloud2: PointCloud2_, Image: Image_, CameraInfo: CameraInfo_}
+    types: dict[type, type[IdlStruct]] = {PointCloud2: PointCloud2_, Image: Image_, CameraInfo: CameraInfo_}
     if msg_type not in types:
         raise ValueError(f"the ROS 2 bridge carries sensor_msgs PointCloud2, Image and CameraInfo; got "
                          f"{getattr(msg_type, '__name__', msg_type)}")

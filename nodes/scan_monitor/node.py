@@ -63,6 +63,7 @@ import time
 from array import array
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -71,6 +72,8 @@ from dptpu.fpp.point_cloud_file import write_point_cloud
 from dptpu.graph.interfaces import Trigger as TriggerService
 from dptpu.graph.node import Node
 from dptpu.graph.qos import QoSProfile
+from dptpu.graph.subscription import Subscription
+from dptpu.graph.task import Future
 from dptpu.messages import AbsolutePhase, Image, PointCloud2, ScanStatus, Trigger
 from dptpu.nodes.node_main import run_node
 
@@ -126,7 +129,7 @@ class ScanMonitorNode(Node):
         self.reported = 0
         self.counts = {"ok": 0, "failed": 0, "lost": 0}
         self._latencies_ms = array("d")  # every ok scan's latency (8 bytes each)
-        self._pooled = {"compared": 0, "errors": 0, "depth_pixels": 0, "depth_squares": 0.0}
+        self._pooled: dict[str, float] = {"compared": 0, "errors": 0, "depth_pixels": 0, "depth_squares": 0.0}
         self.ply_written = 0
         self.finished = False
         self._pending: dict[int, _Scan] = {}
@@ -138,18 +141,20 @@ class ScanMonitorNode(Node):
 
         self.cloud_sub = self.create_subscription(PointCloud2, "/scanner/points", self.on_cloud, 10)
         self.status_sub = self.create_subscription(ScanStatus, "/scanner/status", self.on_status, QoSProfile(depth=200))
-        self.phase_sub = self.truth_sub = self.truth_depth_sub = None
+        self.phase_sub: Subscription | None = None
+        self.truth_sub: Subscription | None = None
+        self.truth_depth_sub: Subscription | None = None
         if self.use_truth:
             self.phase_sub = self.create_subscription(AbsolutePhase, "/scanner/absolute_phase",
                                                       self.on_absolute_phase, 10)
             self.truth_sub = self.create_subscription(AbsolutePhase, "/sim/ground_truth", self.on_truth, 10)
             self.truth_depth_sub = self.create_subscription(Image, "/sim/ground_truth_depth", self.on_truth_depth, 10)
-        self.trigger_sub = None
+        self.trigger_sub: Subscription | None = None
         self._trigger_topic = self.resolve_topic_name("/projector/trigger")
         self._outputs_ready = False  # the clouds and statuses (and truth) have publishers
         self.start_client = self.create_client(TriggerService, start_service) if self.start_scans else None
         self.scans_started = 0
-        self._start_call = None
+        self._start_call: Future | None = None
         self._triggers_heard = False
         self._heard_checked_s = -math.inf
         self._progress_s = time.monotonic()
@@ -330,12 +335,12 @@ class ScanMonitorNode(Node):
     def _report(self, scan: _Scan) -> None:
         self._pending.pop(scan.sequence_id, None)
         self._done_ids[scan.sequence_id] = time.monotonic()
-        record = {"sequence_id": int(scan.sequence_id), "scene": "", "outcome": ""}
+        record: dict[str, Any] = {"sequence_id": int(scan.sequence_id), "scene": "", "outcome": ""}
         truth = self._truth_of(scan) if self.use_truth else None
         if truth is not None:
             record["scene"] = truth.method.partition(":")[2]
         if scan.cloud is not None:
-            record.update(self._figures(scan, truth))
+            record.update(self._figures(scan, scan.cloud, truth))
             record["outcome"] = "ok"
             record["node_durations_s"] = dict(scan.durations_s)  # each node's own ScanStatus.duration_s
         elif scan.failure:
@@ -350,8 +355,8 @@ class ScanMonitorNode(Node):
         self.records.append(record)
         del self.records[:-_KEPT_RECORDS]
         print(self._line(record), flush=True)
-        if record["outcome"] == "ok" and self.ply_dir and self.ply_written < self.ply_count:
-            self._write_ply(scan)
+        if scan.cloud is not None and self.ply_dir and self.ply_written < self.ply_count:
+            self._write_ply(scan.sequence_id, scan.cloud)
         if self.summary_path and self.reported % 50 == 0:
             self.write_summary()
         if self.scans and self.reported >= self.scans:
@@ -361,9 +366,10 @@ class ScanMonitorNode(Node):
                 self.write_summary()
         self._start_more()
 
-    def _figures(self, scan: _Scan, truth) -> dict:
-        xyz = scan.cloud.to_array(["x", "y", "z"]) if truth is not None else None  # (H, W, 3) metres
-        figures = {"latency_ms": (scan.cloud_arrival_ns - scan.cloud.header.stamp.to_ns()) * 1e-6,
+    def _figures(self, scan: _Scan, cloud: PointCloud2, truth) -> dict[str, Any]:
+        """The figures of ``scan``, whose cloud is ``cloud``."""
+        xyz = cloud.to_array(["x", "y", "z"]) if truth is not None else None  # (H, W, 3) metres
+        figures: dict[str, Any] = {"latency_ms": (scan.cloud_arrival_ns - cloud.header.stamp.to_ns()) * 1e-6,
                    "cloud_arrival_unix_s": scan.cloud_arrival_ns * 1e-9}
         if scan.first_trigger_ns:
             figures["latency_from_first_trigger_ms"] = (scan.cloud_arrival_ns - scan.first_trigger_ns) * 1e-6
@@ -377,11 +383,11 @@ class ScanMonitorNode(Node):
             figures.update(metrics.as_dict())
             figures["method"] = phase.method
         elif xyz is None and scan.cloud_points is not None \
-                and scan.cloud_points[1] == scan.cloud.height * scan.cloud.width:
+                and scan.cloud_points[1] == cloud.height * cloud.width:
             # without ground truth: the finite points the cloud node counted (its done status named this cloud)
             figures["valid_points"], figures["total_pixels"] = scan.cloud_points
         else:
-            depth_m = xyz[..., 2] if xyz is not None else scan.cloud.to_array(["z"])[..., 0]  # (H, W)
+            depth_m = xyz[..., 2] if xyz is not None else cloud.to_array(["z"])[..., 0]  # (H, W)
             figures["valid_points"] = int(np.count_nonzero(np.isfinite(depth_m)))
             figures["total_pixels"] = int(depth_m.size)
         return figures
@@ -409,9 +415,9 @@ class ScanMonitorNode(Node):
             self._pooled["depth_pixels"] += record["depth_pixels"]
             self._pooled["depth_squares"] += record["depth_rms_mm"] ** 2 * record["depth_pixels"]
 
-    def totals(self) -> dict:
+    def totals(self) -> dict[str, float]:
         """Counts and figures over every reported scan (accuracy and RMS pooled over pixels)."""
-        totals = dict(self.counts, scans=self.reported)
+        totals: dict[str, float] = dict(self.counts, scans=self.reported)
         if self._latencies_ms:
             latencies = np.array(self._latencies_ms, dtype=np.float64)
             totals["latency_ms_p50"] = float(np.percentile(latencies, 50))
@@ -444,12 +450,12 @@ class ScanMonitorNode(Node):
         except OSError as exc:
             self.get_logger().warning(f"cannot write the summary {path}: {exc}")
 
-    def _write_ply(self, scan: _Scan) -> None:
-        path = Path(self.ply_dir) / f"scan_{scan.sequence_id:08d}.ply"
+    def _write_ply(self, sequence_id: int, cloud: PointCloud2) -> None:
+        path = Path(self.ply_dir) / f"scan_{sequence_id:08d}.ply"
         try:
             path.parent.mkdir(parents=True, exist_ok=True)
-            count = write_point_cloud(path, scan.cloud.to_array(["x", "y", "z"]), unit="m",
-                                      intensity=scan.cloud.to_array(["intensity"])[..., 0])
+            count = write_point_cloud(path, cloud.to_array(["x", "y", "z"]), unit="m",
+                                      intensity=cloud.to_array(["intensity"])[..., 0])
         except (OSError, ImportError, RuntimeError, ValueError) as exc:
             self.get_logger().warning(f"PLY {path} failed: {exc}")
             return
