@@ -31,13 +31,13 @@ __all__ = ["Context", "get_default_context", "init", "shutdown", "try_shutdown",
 class Context:
     """The scope of nodes that share a command line, a domain and a runtime."""
 
-    def __init__(self):
+    def __init__(self) -> None:
         self._lock = threading.RLock()
         self._ok = False
         self._initialized = False
         self._arguments = RosArguments()
-        self._domain_id = None
-        self._runtime_instance = None
+        self._domain_id: int | None = None
+        self._runtime_instance: GraphRuntime | None = None
         self._nodes: weakref.WeakSet = weakref.WeakSet()
         self._executors: weakref.WeakSet = weakref.WeakSet()
         self._shutdown_callbacks: list = []

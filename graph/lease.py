@@ -102,7 +102,7 @@ class SocketLease:
         The runtime whose I/O thread owns the sockets.
     """
 
-    def __init__(self, executor, runtime):
+    def __init__(self, executor, runtime) -> None:
         self._executor_ref = weakref.ref(executor)
         self.wake_signal = executor._wake
         self.runtime = runtime

@@ -12,6 +12,7 @@ import threading
 import time
 import uuid
 import weakref
+from typing import TYPE_CHECKING
 
 from ..messages.registry import is_registered
 from ..messages.schema import Message
@@ -41,6 +42,9 @@ from .qos import as_qos_profile, qos_profile_services_default
 from .services import Client, Service
 from .subscription import Subscription
 from .timer import Rate, Timer
+
+if TYPE_CHECKING:  # for annotations only
+    from .executors import Executor
 
 __all__ = ["Node"]
 
@@ -94,7 +98,7 @@ class Node:
 
     def __init__(self, node_name, *, context=None, cli_args=None, namespace=None, use_global_arguments=True,
                  enable_rosout=True, start_parameter_services=True, parameter_overrides=None,
-                 allow_undeclared_parameters=False, automatically_declare_parameters_from_overrides=False):
+                 allow_undeclared_parameters=False, automatically_declare_parameters_from_overrides=False) -> None:
         self._context = context if context is not None else get_default_context()
         if not self._context.ok():
             raise NotInitializedException()
@@ -129,7 +133,7 @@ class Node:
         self._work: tuple = ()
         self._default_callback_group = MutuallyExclusiveCallbackGroup()
         self._callback_groups = [self._default_callback_group]
-        self._executor_ref = None
+        self._executor_ref: weakref.ref[Executor] | None = None
         self._destroyed = False
         self._parameters.declare("use_sim_time", False)
         if automatically_declare_parameters_from_overrides:

@@ -55,7 +55,7 @@ def _error_frames(name: str, reason: str, seq: int, gid: bytes) -> list:
 class ServiceHost:
     """The ROUTER socket of one node's services (I/O thread side)."""
 
-    def __init__(self, node):
+    def __init__(self, node) -> None:
         self._node = node
         self.services: dict[str, Service] = {}
         self.endpoints: list[str] = []

@@ -11,6 +11,10 @@ from __future__ import annotations
 
 import threading
 import weakref
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:  # executors imports this module: Executor is named for the type checker only
+    from .executors import Executor
 
 __all__ = ["Future", "Task"]
 
@@ -18,7 +22,7 @@ __all__ = ["Future", "Task"]
 class Future:
     """The eventual result of an asynchronous operation."""
 
-    def __init__(self, *, executor=None):
+    def __init__(self, *, executor=None) -> None:
         self._lock = threading.Lock()
         self._event = threading.Event()
         self._done = False
@@ -27,7 +31,7 @@ class Future:
         self._exception = None
         self._callbacks: list = []
         self._hooks: list = []  # internal, run inline on completion (must be quick)
-        self._executor = None
+        self._executor: weakref.ref[Executor] | None = None
         if executor is not None:
             self._set_executor(executor)
 

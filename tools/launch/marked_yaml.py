@@ -11,6 +11,7 @@ Convention: all line numbers are 1-based, as editors show them (PyYAML marks are
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Any
 
 import yaml
 
@@ -30,7 +31,7 @@ class MarkedDict(dict):
 
     line: int = 0
 
-    def __init__(self, *args, **kwargs):
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
         super().__init__(*args, **kwargs)
         self.key_lines: dict = {}
         self.value_lines: dict = {}
@@ -49,7 +50,7 @@ class MarkedList(list):
 
     line: int = 0
 
-    def __init__(self, *args, **kwargs):
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
         super().__init__(*args, **kwargs)
         self.item_lines: list[int] = []
 
