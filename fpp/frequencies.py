@@ -10,7 +10,7 @@ rational (``10.9``, ``1920/42``).
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Iterable, Sequence
 
 from .methods import PHASE_SEQUENCE_METHODS
 
@@ -74,7 +74,7 @@ def find_frequency(frequencies: Sequence[float], value, *, option: str = "freque
     return matches[0]
 
 
-def select_frequencies(method: str, frequencies: Sequence[float], *, high=None, low=None,
+def select_frequencies(method: str, frequencies: Iterable[float], *, high=None, low=None,
                        options: tuple[str, str] = ("high", "low"), context: str | None = None) -> list[int]:
     """Indices into ``frequencies`` of the phase maps a method uses, the unwrapped (high) one first.
 
@@ -82,7 +82,7 @@ def select_frequencies(method: str, frequencies: Sequence[float], *, high=None, 
     ----------
     method : {"mf", "mw", "nt", "heterodyne"}
         One of :data:`dptpu.fpp.methods.PHASE_SEQUENCE_METHODS`.
-    frequencies : sequence of float
+    frequencies : iterable of float (a list, an ndarray)
         Frequencies of a scan's phase maps (periods across the projector extent), in any order.
     high, low : float, optional
         The frequencies to use (None: the default). ``high`` default: the highest. ``low`` default: for ``mf`` the

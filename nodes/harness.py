@@ -38,6 +38,7 @@ import numpy as np
 from dptpu.graph import Context, Parameter, SingleThreadedExecutor
 from dptpu.graph.node import Node
 from dptpu.graph.qos import QoSProfile
+from dptpu.graph.subscription import Subscription
 from dptpu.messages import FringeFrame, Header, Image, Time, Trigger
 from dptpu.nodes.plumbing import DEFAULT_FRAME_ID
 
@@ -52,7 +53,7 @@ class Collector:
     def __init__(self, topic: str):
         self.topic = topic
         self.messages: list = []
-        self.subscription = None
+        self.subscription: Subscription | None = None  # set by NodeHarness.collect
         self._lock = threading.Lock()
 
     def __call__(self, msg) -> None:
@@ -88,8 +89,8 @@ class NodeHarness:
         self.nodes: list = []
         self._inputs: list = []
         self._collectors: list[Collector] = []
-        self._folder = None
-        self._saved_env = None
+        self._folder: str | None = None
+        self._saved_env: str | None = None
 
     # -- lifecycle --------------------------------------------------------------------------------------
 
@@ -111,7 +112,8 @@ class NodeHarness:
     def close(self) -> None:
         """Shut the context down (destroying every node) and restore the environment."""
         if self.context is not None:
-            self.executor.shutdown(timeout_sec=1.0)
+            if self.executor is not None:
+                self.executor.shutdown(timeout_sec=1.0)
             self.context.try_shutdown()
             self.context = None
         if self.private and self._folder is not None:
@@ -122,6 +124,12 @@ class NodeHarness:
             shutil.rmtree(self._folder, ignore_errors=True)
             self._folder = None
 
+    def _running(self) -> tuple[SingleThreadedExecutor, Node]:
+        """The executor and the probe node, which exist inside the ``with`` block."""
+        if self.executor is None or self.probe is None:
+            raise RuntimeError("the harness is not running: use it as `with NodeHarness() as harness:`")
+        return self.executor, self.probe
+
     # -- wiring -----------------------------------------------------------------------------------------
 
     def start(self, node_class, *, cli_args=None, **parameters):
@@ -129,24 +137,27 @@ class NodeHarness:
 
         Keyword arguments are parameter values (``timeout_s=0.5``; a DOUBLE parameter needs a float).
         """
+        executor, _ = self._running()
         overrides = [Parameter(name, value=value) for name, value in parameters.items()]
         node = node_class(context=self.context, cli_args=cli_args, parameter_overrides=overrides)
         self.nodes.append(node)
-        self.executor.add_node(node)
+        executor.add_node(node)
         return node
 
     def publisher(self, msg_type, topic: str, qos=10, *, connect: bool = True):
         """A probe publisher; :meth:`connect` waits for a subscriber on it unless ``connect=False``."""
-        publisher = self.probe.create_publisher(msg_type, topic, qos)
+        _, probe = self._running()
+        publisher = probe.create_publisher(msg_type, topic, qos)
         if connect:
             self._inputs.append(publisher)
         return publisher
 
     def collect(self, msg_type, topic: str, qos=None) -> Collector:
         """A probe subscription that keeps every message of ``topic`` (default QoS: reliable, depth 1000)."""
+        _, probe = self._running()
         collector = Collector(topic)
-        collector.subscription = self.probe.create_subscription(msg_type, topic, collector,
-                                                                qos if qos is not None else QoSProfile(depth=1000))
+        collector.subscription = probe.create_subscription(msg_type, topic, collector,
+                                                           qos if qos is not None else QoSProfile(depth=1000))
         self._collectors.append(collector)
         return collector
 
@@ -160,7 +171,8 @@ class NodeHarness:
         """
         def missing():
             return ([p.topic_name for p in self._inputs if p.get_subscription_count() < 1]
-                    + [c.topic for c in self._collectors if c.subscription.get_publisher_count() < 1])
+                    + [c.topic for c in self._collectors
+                       if c.subscription is None or c.subscription.get_publisher_count() < 1])
 
         if not self.spin_until(lambda: not missing(), timeout_s):
             raise TimeoutError(f"not connected within {timeout_s} s: {', '.join(missing())}")
@@ -169,12 +181,13 @@ class NodeHarness:
 
     def spin_until(self, predicate, timeout_s: float = 5.0) -> bool:
         """Run callbacks until ``predicate()`` is true (True) or ``timeout_s`` passed (False)."""
+        executor, _ = self._running()
         deadline = time.monotonic() + timeout_s
         while not predicate():
             remaining = deadline - time.monotonic()
             if remaining <= 0:
                 return False
-            self.executor.spin_once(timeout_sec=min(0.02, remaining))
+            executor.spin_once(timeout_sec=min(0.02, remaining))
         return True
 
     def spin_for(self, seconds: float) -> None:

@@ -64,7 +64,7 @@ class CameraSettings:
             raise ValueError("exposure_us and frame_rate_hz must be >= 0 (0 keeps the device's value)")
 
 
-def _harvester(cti_paths) -> object:
+def _harvester(cti_paths) -> Harvester:
     if not cti_paths:
         raise CameraUnavailable("no GenTL producer: set the cti parameter (the genicam wheel's viky.cti was not found)")
     harvester = Harvester()
@@ -216,11 +216,11 @@ def _configure(node_map, settings: CameraSettings) -> list[str]:
                                 f"{', '.join(formats)}")
     _set(node_map, "PixelFormat", settings.pixel_format)
     if settings.exposure_us:
-        name = _first_feature(node_map, ("ExposureTime", "ExposureTimeAbs"))
-        if name is None:
+        exposure_feature = _first_feature(node_map, ("ExposureTime", "ExposureTimeAbs"))
+        if exposure_feature is None:
             notes.append(f"the camera has no ExposureTime feature: exposure_us {settings.exposure_us} ignored")
         else:
-            _set(node_map, name, float(settings.exposure_us))
+            _set(node_map, exposure_feature, float(settings.exposure_us))
     has_trigger = node_map.has_node("TriggerMode")
     if node_map.has_node("TriggerSelector") and "FrameStart" in node_map.TriggerSelector.symbolics:
         _set(node_map, "TriggerSelector", "FrameStart")

@@ -182,15 +182,15 @@ class PhaseNode(Node):
     def _publish_scan(self, scan: AssembledScan) -> None:
         saturation = self.saturation_level if self.saturation_level > 0 else None
         sums = self._sums.pop(scan.sequence_id, None) or IncrementalScanPhase()
-        layout = scan.slots()
+        slots = scan.slots()
         try:
             pattern_index = 0
             for images in scan.images:
                 for image in images:  # the frame that completed the scan (normally the only one not added yet)
                     if pattern_index not in sums.slots:
-                        sums.add(pattern_index, image, layout[pattern_index])
+                        sums.add(pattern_index, image, slots[pattern_index])
                     pattern_index += 1
-            maps = sums.maps(layout, min_modulation=self.min_modulation, saturation_level=saturation)
+            maps = sums.maps(slots, min_modulation=self.min_modulation, saturation_level=saturation)
             if maps is None:
                 maps = scan_phase_maps(scan.stacks, scan.layout.phase_offsets, shift_sign=scan.layout.shift_sign,
                                        min_modulation=self.min_modulation, saturation_level=saturation)

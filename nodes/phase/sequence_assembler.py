@@ -38,6 +38,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 from functools import cached_property
+from typing import TypedDict
 
 import numpy as np
 
@@ -226,7 +227,15 @@ class _Pending:
     pattern_count: int
     shape: tuple
     dtype: np.dtype
-    frames: dict = field(default_factory=dict)  # pattern_index -> FrameInfo
+    frames: dict[int, FrameInfo] = field(default_factory=dict)  # pattern_index -> FrameInfo
+
+
+class _Geometry(TypedDict):
+    """The :class:`ScanLayout` fields of a scan laid out by its triggers."""
+
+    shift_sign: int
+    fringe_axis: str
+    projector_size: tuple[int, ...]
 
 
 class SequenceAssembler:
@@ -255,8 +264,8 @@ class SequenceAssembler:
             raise ValueError(f"fringe_axis must be 'x' or 'y'; got {fringe_axis!r}")
         self.timeout_s = float(timeout_s)
         self.max_pending_scans = max_pending_scans
-        self._geometry = {"shift_sign": shift_sign, "fringe_axis": fringe_axis,
-                          "projector_size": tuple(int(v) for v in projector_size)}
+        self._geometry: _Geometry = {"shift_sign": shift_sign, "fringe_axis": fringe_axis,
+                                     "projector_size": tuple(int(v) for v in projector_size)}
         self._layout: ScanLayout | None = None
         self._pending: dict[int, _Pending] = {}
         self._finished: dict[int, tuple[float, str]] = {}   # sequence_id -> (when, "completed" | "dropped")
@@ -342,7 +351,7 @@ class SequenceAssembler:
         pending or does not hold that frame (refused, failed, or completed: see :meth:`AssembledScan.slot`)."""
         scan = self._pending.get(int(sequence_id))
         frame = scan.frames.get(int(pattern_index)) if scan is not None else None
-        if frame is None:
+        if scan is None or frame is None:
             return None
         if scan.layout is not None:
             entry, step = scan.layout.locate(int(pattern_index))

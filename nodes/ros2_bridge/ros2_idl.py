@@ -55,7 +55,7 @@ class CdrWriter:
     cloud is copied once here.
     """
 
-    def __init__(self):
+    def __init__(self) -> None:
         self._parts: list = [CDR_LE_HEADER]
         self._head = bytearray()   # bytes written since the last bulk part
         self._offset = 0           # body offset (the 4-byte encapsulation header excluded)

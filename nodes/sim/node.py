@@ -64,6 +64,7 @@ import numpy as np
 
 from dptpu.fpp.frequencies import same_frequency
 from dptpu.graph.node import Node
+from dptpu.graph.subscription import Subscription
 from dptpu.messages import (
     AbsolutePhase,
     CameraInfo,
@@ -170,7 +171,7 @@ class SimNode(Node):
         self.status_pub = self.create_publisher(ScanStatus, "/scanner/status", STATUS_QOS)
         self.sequence_sub = self.create_subscription(PatternSequence, "/projector/pattern_sequence",
                                                      self.on_pattern_sequence, LATCHED_QOS)
-        self.trigger_sub = None  # created by on_wait_timer once the frames have subscribers
+        self.trigger_sub: Subscription | None = None  # created by on_wait_timer once the frames have subscribers
         if not self._info_published:  # captures and shipped renders: their rig comes with the frames
             self._publish_camera_info(self.source.rig)
         self.wait_timer = self.create_timer(0.05, self.on_wait_timer)

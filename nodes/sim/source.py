@@ -29,6 +29,7 @@ import numpy as np
 from dptpu.fpp.calibration import Rig, load_rig
 from dptpu.fpp.capture import (
     CAPTURE_FILE,
+    Capture,
     PhaseSequence,
     load_ground_truth,
     load_sequence_images,
@@ -125,7 +126,8 @@ class SimSource:
     @property
     def size(self) -> tuple[int, int]:
         """Camera ``(width, height)``."""
-        return tuple(self.rig.camera.size)
+        width, height = self.rig.camera.size
+        return (width, height)
 
     def describe_sequences(self) -> str:
         return ", ".join(f"{f:g}x{n}" for f, n in self.sequences)
@@ -230,7 +232,9 @@ def capture_scenes(folder) -> tuple[list[SimScene], Rig, str, int]:
     folders = _capture_folders(Path(folder))
     if not folders:
         raise ValueError(f"{folder}: no dptpu-capture/1 folder (a folder with {CAPTURE_FILE}, or a folder of them)")
-    scenes, rig, first = [], None, None
+    scenes: list[SimScene] = []
+    rig: Rig | None = None
+    first: Capture | None = None
     for path in folders:
         capture = read_capture(path)
         if capture.calibration is None or capture.ground_truth is None:
@@ -259,6 +263,8 @@ def capture_scenes(folder) -> tuple[list[SimScene], Rig, str, int]:
         scenes.append(SimScene(name=path.name, frames=frames,
                                projector_coord=_readonly(np.where(truth.valid, coord, np.nan).astype(np.float32)),
                                valid=_readonly(truth.valid), depth_m=_readonly(depth_m)))
+    if first is None or rig is None:  # folders is not empty: the first capture set both
+        raise ValueError(f"{folder}: no capture read")
     return scenes, rig, first.fringe_axis, first.phase_shift_sign
 
 

@@ -42,6 +42,7 @@ projector (``0 <= Psi < 2*pi*f``, as :func:`dptpu.fpp.reconstruct.unwrap_capture
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 
 import numpy as np
 
@@ -90,7 +91,7 @@ class UnwrapNode(Node):
         if self.consensus and self.model is None:
             raise ValueError("parameter consensus post-processes the network's fringe order; set model (a DP-TPU "
                              "model file or shipped) or consensus:=false")
-        self.refine_order = _load_refine_order() if self.model is not None else None
+        self.refine_order: Callable[..., np.ndarray] | None = _load_refine_order() if self.model is not None else None
         self.scans_published = 0
         self.scans_rejected = 0
         self.pixels_nan = 0
@@ -169,7 +170,7 @@ class UnwrapNode(Node):
                 raise ValueError("nt needs the projector extent; the PhaseMaps has projector size 0 (unknown)")
             result = tpu.unwrap(self.method, phases[0], phases[1], frequencies[0], frequencies[1], extent=extent,
                                 valid=valid)
-        if self.model is not None:  # DP-TPU: the network on the method's prior (the paper's Fig. 8b)
+        if self.model is not None and self.refine_order is not None:  # DP-TPU: set together (the paper's Fig. 8b)
             order = self.refine_order(self.model, self.method, phases[0], phases[1], result.fringe_order,
                                       frequencies[0], frequencies[1], result.valid, consensus=self.consensus)
             result = refined(result, phases[0].astype(np.float64), order)
@@ -227,11 +228,11 @@ def load_model(path: str):
         if shipped is None:
             raise ValueError(f"parameter model='shipped': this build has no shipped model ({inference.SHIPPED_MODEL}); "
                              "pass a model file or model:=none")
-        path = shipped
+        return inference.FringeOrderModel.load(shipped, threads=1)
     return inference.FringeOrderModel.load(path, threads=1)
 
 
-def _load_refine_order():
+def _load_refine_order() -> Callable[..., np.ndarray]:
     """:func:`dptpu.models.refine.refine_order`: the NT prior and the consensus (numpy, OpenCV, onnxruntime)."""
     from dptpu.models.refine import refine_order  # with the model only: dptpu.models is optional in a build
 

@@ -36,12 +36,14 @@ import math
 import struct
 import threading
 from collections import deque
+from functools import partial
 from http import HTTPStatus
 from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
 from pathlib import Path
 
 import numpy as np
 
+from dptpu.graph.logging import RcutilsLogger
 from dptpu.graph.node import Node
 from dptpu.graph.qos import QoSProfile, ReliabilityPolicy
 from dptpu.messages import PointCloud2, ScanStatus
@@ -186,6 +188,7 @@ class _Broadcast:
 class _Handler(BaseHTTPRequestHandler):
     """GET ``/`` and the static files; GET ``/ws`` upgrades to the WebSocket feed."""
 
+    server: _ViewerServer
     server_version = "dptpu-viewer"
     protocol_version = "HTTP/1.1"
 
@@ -228,10 +231,23 @@ class _Handler(BaseHTTPRequestHandler):
         _Session(self.server, self.rfile, self.wfile, self.connection).run()
 
 
+class _ViewerServer(ThreadingHTTPServer):
+    """The viewer's HTTP server: one thread per request, and what its handlers share."""
+
+    daemon_threads = True
+
+    def __init__(self, address: tuple[str, int], broadcast: _Broadcast, static_files: dict[str, Path],
+                 node_logger: RcutilsLogger):
+        super().__init__(address, _Handler)
+        self.broadcast = broadcast
+        self.static_files = static_files
+        self.node_logger = node_logger
+
+
 class _Session:
     """One page: this thread sends clouds and statuses; a reader thread answers pings and sees the close."""
 
-    def __init__(self, server, rfile, wfile, connection):
+    def __init__(self, server: _ViewerServer, rfile, wfile, connection):
         self.broadcast: _Broadcast = server.broadcast
         self.logger = server.node_logger
         self.rfile, self.wfile, self.connection = rfile, wfile, connection
@@ -265,6 +281,11 @@ class _Session:
         with self.broadcast.cond:
             self.broadcast.cond.notify_all()
 
+    def _news_since(self, sent_cloud: int, sent_status: int) -> bool:
+        """True when the page closed, the node stops, or a cloud or status came after those sent."""
+        return (not self.open or self.broadcast.closed or self.broadcast.cloud_version != sent_cloud
+                or self.broadcast.status_count != sent_status)
+
     def run(self) -> None:
         threading.Thread(target=self.read_loop, daemon=True, name="viewer-ws-reader").start()
         sent_cloud, sent_status = 0, 0
@@ -272,10 +293,7 @@ class _Session:
             self.send(OP_TEXT, self.broadcast.config.encode("utf-8"))
             while True:
                 with self.broadcast.cond:
-                    self.broadcast.cond.wait_for(
-                        lambda cloud=sent_cloud, status=sent_status: not self.open or self.broadcast.closed
-                        or self.broadcast.cloud_version != cloud or self.broadcast.status_count != status,
-                        timeout=5.0)
+                    self.broadcast.cond.wait_for(partial(self._news_since, sent_cloud, sent_status), timeout=5.0)
                     if not self.open or self.broadcast.closed:
                         break
                     statuses = [text for number, text in self.broadcast.statuses if number > sent_status]
@@ -317,11 +335,7 @@ class ViewerNode(Node):
         self.broadcast = _Broadcast(json.dumps({"type": "config", "color_by": self.color_by,
                                                 "max_points": self.max_points}))
 
-        self.server = ThreadingHTTPServer((host, port), _Handler)
-        self.server.daemon_threads = True
-        self.server.broadcast = self.broadcast
-        self.server.static_files = static_files
-        self.server.node_logger = self.get_logger()
+        self.server = _ViewerServer((host, port), self.broadcast, static_files, self.get_logger())
         self.port = self.server.server_address[1]
         self.url = f"http://{host}:{self.port}/"
         self._server_thread = threading.Thread(target=self.server.serve_forever, kwargs={"poll_interval": 0.2},
