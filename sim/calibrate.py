@@ -19,6 +19,7 @@ The issue's bounds (docs/calibration.md): focal lengths within 0.5 %, baseline w
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from scipy.spatial.transform import Rotation
@@ -80,7 +81,7 @@ def board_poses(rig: Rig, board: Board, count: int, *, seed: int = 0, max_tilt_d
     right, bottom = (board.cols - 1) * s + margin, (board.rows - 1) * s + margin
     outline = np.array([[-margin, -margin, 0], [right, -margin, 0], [-margin, bottom, 0], [right, bottom, 0]])
     width, height = camera.size
-    poses = []
+    poses: list[tuple[np.ndarray, np.ndarray]] = []
     for _ in range(200 * count):
         if len(poses) == count:
             break
@@ -159,7 +160,7 @@ def render_calibration_poses(rig: Rig, out_dir, *, board: Board = DEFAULT_BOARD,
     return folders
 
 
-def compare_with_truth(result: RigCalibration, truth: Rig) -> dict:
+def compare_with_truth(result: RigCalibration, truth: Rig) -> dict[str, Any]:
     """Errors of a calibration against the twin's rig (world frames may differ: compared in the camera frame).
 
     Returns
@@ -170,10 +171,10 @@ def compare_with_truth(result: RigCalibration, truth: Rig) -> dict:
         ``rotation_error_deg`` and ``translation_error_mm`` of the projector pose relative to the camera;
         ``rms_px`` of both devices (single-device Zhang fits) and of the joint fit.
     """
-    report = {}
+    report: dict[str, Any] = {}
     for name in ("camera", "projector"):
         true, estimated = getattr(truth, name), getattr(result.rig, name)
-        entry = {}
+        entry: dict[str, Any] = {}
         for key, (i, j) in (("fx", (0, 0)), ("fy", (1, 1)), ("cx", (0, 2)), ("cy", (1, 2))):
             entry[key] = {"true": float(true.K[i, j]), "estimated": float(estimated.K[i, j])}
         entry["focal_error_percent"] = float(max(abs(entry[k]["estimated"] / entry[k]["true"] - 1) * 100

@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import numbers
 from dataclasses import dataclass
+from typing import Protocol
 
 import numpy as np
 
@@ -36,8 +37,8 @@ from .effects.pattern import defocus_sigma_px, pattern_levels, step_shifts
 from .raycast import SurfaceSamples, trace
 from .rig import working_point
 
-__all__ = ["SequenceSpec", "parse_sequences", "reflectance_factor", "render_frames", "render_frames_float",
-           "quantize", "DEFAULT_OFFSET", "DEFAULT_AMPLITUDE"]
+__all__ = ["SequenceSpec", "parse_sequences", "ShadedSurface", "reflectance_factor", "render_frames",
+           "render_frames_float", "quantize", "DEFAULT_OFFSET", "DEFAULT_AMPLITUDE"]
 
 #: Default projected levels (fraction of full scale), as ``dptpu.fpp.patterns.fringe_patterns``.
 DEFAULT_OFFSET = 0.5
@@ -116,7 +117,28 @@ def parse_sequences(text: str, *, shift_sign: int = -1) -> list[SequenceSpec]:
     return sequences
 
 
-def reflectance_factor(rig: Rig, samples: SurfaceSamples) -> np.ndarray:
+class ShadedSurface(Protocol):
+    """What :func:`reflectance_factor` reads of a surface, per pixel: a :class:`~dptpu.sim.raycast.SurfaceSamples`
+    or any object with these arrays (world ``points`` and unit ``normals`` (H, W, 3), ``lit`` (H, W) bool,
+    material (H, W))."""
+
+    @property
+    def points(self) -> np.ndarray: ...
+    @property
+    def normals(self) -> np.ndarray: ...
+    @property
+    def lit(self) -> np.ndarray: ...
+    @property
+    def albedo(self) -> np.ndarray: ...
+    @property
+    def roughness(self) -> np.ndarray: ...
+    @property
+    def specular(self) -> np.ndarray: ...
+    @property
+    def ior(self) -> np.ndarray: ...
+
+
+def reflectance_factor(rig: Rig, samples: ShadedSurface) -> np.ndarray:
     """``lit * falloff * rho`` (H, W) float64: the frame of a projector level of 1 at exposure 1 (fraction of FS)."""
     points = samples.points
     normals = samples.normals

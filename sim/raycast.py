@@ -18,12 +18,16 @@ Everything is vectorized over pixels; the only Python loops are over meshes.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from dptpu.fpp.calibration import Rig
 from dptpu.fpp.distortion import distort, normalized_to_pixels
 from dptpu.fpp.triangulate import camera_rays
+
+if TYPE_CHECKING:
+    import open3d as o3d
 
 __all__ = ["SurfaceSamples", "trace", "project_to_projector"]
 
@@ -108,7 +112,7 @@ def _camera_rays(camera) -> np.ndarray:
     return rays
 
 
-def _vertex_normals(vertices: np.ndarray, triangles: np.ndarray) -> np.ndarray:
+def _vertex_normals(vertices: np.ndarray, triangles: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Area-weighted vertex normals (V, 3) and face normals (T, 3), unit length."""
     v0, v1, v2 = (vertices[triangles[:, i]] for i in range(3))
     face = np.cross(v1 - v0, v2 - v0)  # (T, 3), length = 2 * area
@@ -118,6 +122,15 @@ def _vertex_normals(vertices: np.ndarray, triangles: np.ndarray) -> np.ndarray:
     normals /= np.maximum(np.linalg.norm(normals, axis=1, keepdims=True), 1e-300)
     face /= np.maximum(np.linalg.norm(face, axis=1, keepdims=True), 1e-300)
     return normals, face
+
+
+def _o3d_tensor(array: np.ndarray) -> o3d.core.Tensor:
+    """An open3d tensor holding a copy of ``array`` (the array's dtype, on the CPU)."""
+    import open3d as o3d  # heavy: loaded on first use
+
+    # open3d's generated stub makes ``dtype`` and ``device`` required; at runtime both are optional (the array's
+    # dtype, CPU:0), so the one-argument call matches no overload of the stub
+    return o3d.core.Tensor(array)  # type: ignore[call-overload]
 
 
 def _bilinear(texture: np.ndarray, uv: np.ndarray) -> np.ndarray:
@@ -163,8 +176,8 @@ def trace(rig: Rig, meshes) -> SurfaceSamples:
     prepared = []
     for index, mesh in enumerate(meshes):
         vertices = mesh.vertices - origin
-        gid = scene.add_triangles(o3d.core.Tensor(vertices.astype(np.float32)),
-                                  o3d.core.Tensor(mesh.triangles.astype(np.uint32)))
+        gid = scene.add_triangles(_o3d_tensor(vertices.astype(np.float32)),
+                                  _o3d_tensor(mesh.triangles.astype(np.uint32)))
         geometry_to_mesh[int(gid)] = index
         prepared.append((vertices, *_vertex_normals(mesh.vertices, mesh.triangles)))
     lookup = np.full(max(geometry_to_mesh) + 2, -1, dtype=np.int32)
@@ -172,7 +185,7 @@ def trace(rig: Rig, meshes) -> SurfaceSamples:
         lookup[gid] = index
 
     rays = np.hstack([np.zeros_like(directions), directions]).astype(np.float32)
-    answer = scene.cast_rays(o3d.core.Tensor(rays))
+    answer = scene.cast_rays(_o3d_tensor(rays))
     t_hit = answer["t_hit"].numpy()
     gids = answer["geometry_ids"].numpy().astype(np.int64)
     prims = answer["primitive_ids"].numpy().astype(np.int64)
@@ -241,7 +254,7 @@ def trace(rig: Rig, meshes) -> SurfaceSamples:
         offset = SHADOW_OFFSET_FRACTION * t[candidates]
         starts = points[candidates] - origin + face_normals[candidates] * offset[:, None]
         shadow = np.hstack([starts, to_projector[candidates]]).astype(np.float32)
-        blocked_t = scene.cast_rays(o3d.core.Tensor(shadow))["t_hit"].numpy()
+        blocked_t = scene.cast_rays(_o3d_tensor(shadow))["t_hit"].numpy()
         lit[candidates] = ~(blocked_t < distance[candidates] - 2.0 * offset)
 
     depth = (points - origin) @ camera.R[2]  # z in the camera frame (R[2] = camera z axis in world)

@@ -152,10 +152,12 @@ def nominal_rig(*, camera_size=DEFAULT_CAMERA_SIZE, distance_mm: float = 800.0, 
     a = np.radians(angle_deg)
     R_p = np.array([[np.cos(a), 0.0, -np.sin(a)], [0.0, 1.0, 0.0], [np.sin(a), 0.0, np.cos(a)]])  # axis +x turned
     centre = np.array([-baseline, 0.0, 0.0])
-    camera = DeviceModel(K=[[2600.0, 0.0, 319.5], [0.0, 2600.0, 239.5], [0.0, 0.0, 1.0]],
-                         dist=[-0.06, 0.0, 0.0, 0.0, 0.0], R=np.eye(3), T=np.zeros(3), size=DEFAULT_CAMERA_SIZE)
-    projector = DeviceModel(K=[[1736.0, 0.0, 455.5], [0.0, 3473.0, 569.5], [0.0, 0.0, 1.0]],
-                            dist=[-0.05, 0.0, 0.0, 0.0, 0.0], R=R_p, T=-R_p @ centre, size=DEFAULT_PROJECTOR_SIZE)
+    camera = DeviceModel(K=np.array([[2600.0, 0.0, 319.5], [0.0, 2600.0, 239.5], [0.0, 0.0, 1.0]]),
+                         dist=np.array([-0.06, 0.0, 0.0, 0.0, 0.0]),
+                         R=np.eye(3), T=np.zeros(3), size=DEFAULT_CAMERA_SIZE)
+    projector = DeviceModel(K=np.array([[1736.0, 0.0, 455.5], [0.0, 3473.0, 569.5], [0.0, 0.0, 1.0]]),
+                            dist=np.array([-0.05, 0.0, 0.0, 0.0, 0.0]),
+                            R=R_p, T=-R_p @ centre, size=DEFAULT_PROJECTOR_SIZE)
     rig = Rig(camera=camera, projector=projector, units="mm")
     return rig if tuple(camera_size) == DEFAULT_CAMERA_SIZE else resize_camera(rig, camera_size)
 
@@ -206,12 +208,14 @@ def dynamic_rig(*, distance_mm: float = 600.0, angle_deg: float = 10.07, focal_l
     centre = np.array([-baseline, 0.0, 0.0])
     f_px = focal_length_mm / pixel_pitch_mm
     width, height = DEFAULT_CAMERA_SIZE
-    camera = DeviceModel(K=[[f_px, 0.0, (width - 1) / 2], [0.0, f_px, (height - 1) / 2], [0.0, 0.0, 1.0]],
-                         dist=[-0.03, 0.0, 0.0, 0.0, 0.0], R=np.eye(3), T=np.zeros(3), size=DEFAULT_CAMERA_SIZE)
+    camera = DeviceModel(K=np.array([[f_px, 0.0, (width - 1) / 2], [0.0, f_px, (height - 1) / 2], [0.0, 0.0, 1.0]]),
+                         dist=np.array([-0.03, 0.0, 0.0, 0.0, 0.0]),
+                         R=np.eye(3), T=np.zeros(3), size=DEFAULT_CAMERA_SIZE)
     pw, ph = DYNAMIC_PROJECTOR_SIZE
-    projector = DeviceModel(K=[[projector_focal_px, 0.0, (pw - 1) / 2], [0.0, projector_focal_px, (ph - 1) / 2],
-                               [0.0, 0.0, 1.0]],
-                            dist=[-0.02, 0.0, 0.0, 0.0, 0.0], R=R_p, T=-R_p @ centre, size=DYNAMIC_PROJECTOR_SIZE)
+    projector = DeviceModel(K=np.array([[projector_focal_px, 0.0, (pw - 1) / 2],
+                                        [0.0, projector_focal_px, (ph - 1) / 2], [0.0, 0.0, 1.0]]),
+                            dist=np.array([-0.02, 0.0, 0.0, 0.0, 0.0]),
+                            R=R_p, T=-R_p @ centre, size=DYNAMIC_PROJECTOR_SIZE)
     rig = Rig(camera=camera, projector=projector, units="mm")
     return rig if tuple(camera_size) == DEFAULT_CAMERA_SIZE else resize_camera(rig, camera_size)
 
@@ -249,10 +253,12 @@ def wide_rig(*, distance_mm: float = 700.0, angle_deg: float = 8.0, camera_focal
     R_p = np.array([[np.cos(a), 0.0, -np.sin(a)], [0.0, 1.0, 0.0], [np.sin(a), 0.0, np.cos(a)]])  # axis +x turned
     centre = np.array([-distance_mm * np.tan(a), 0.0, 0.0])
     f = float(camera_focal_px)
-    camera = DeviceModel(K=[[f, 0.0, 319.5], [0.0, f, 239.5], [0.0, 0.0, 1.0]],
-                         dist=[-0.08, 0.0, 0.0, 0.0, 0.0], R=np.eye(3), T=np.zeros(3), size=DEFAULT_CAMERA_SIZE)
-    projector = DeviceModel(K=[[1736.0, 0.0, 455.5], [0.0, 3473.0, 569.5], [0.0, 0.0, 1.0]],
-                            dist=[-0.05, 0.0, 0.0, 0.0, 0.0], R=R_p, T=-R_p @ centre, size=DEFAULT_PROJECTOR_SIZE)
+    camera = DeviceModel(K=np.array([[f, 0.0, 319.5], [0.0, f, 239.5], [0.0, 0.0, 1.0]]),
+                         dist=np.array([-0.08, 0.0, 0.0, 0.0, 0.0]),
+                         R=np.eye(3), T=np.zeros(3), size=DEFAULT_CAMERA_SIZE)
+    projector = DeviceModel(K=np.array([[1736.0, 0.0, 455.5], [0.0, 3473.0, 569.5], [0.0, 0.0, 1.0]]),
+                            dist=np.array([-0.05, 0.0, 0.0, 0.0, 0.0]),
+                            R=R_p, T=-R_p @ centre, size=DEFAULT_PROJECTOR_SIZE)
     rig = Rig(camera=camera, projector=projector, units="mm")
     return rig if tuple(camera_size) == DEFAULT_CAMERA_SIZE else resize_camera(rig, camera_size)
 

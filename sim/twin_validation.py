@@ -21,6 +21,7 @@ import json
 import sys
 from dataclasses import replace
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from scipy.optimize import least_squares
@@ -96,7 +97,7 @@ def fit_sphere_pose(rig: Rig, projector_x: np.ndarray, *, with_offset: bool = Fa
     return center, float(fitted_radius), float(dx), float(np.sqrt(np.mean(r * r)))
 
 
-def phase_difference_report(ours: np.ndarray, theirs: np.ndarray) -> dict:
+def phase_difference_report(ours: np.ndarray, theirs: np.ndarray) -> dict[str, Any]:
     """Statistics of ``ours - theirs`` (absolute phase maps (H, W), radians, NaN invalid): RMS, bias, a plane
     ``a + b u + c v`` over the image (its coefficients in projector px and px per 100 camera px), the RMS left after
     the plane, and the RMS in the interior and the outer band of the sphere's image."""
@@ -129,7 +130,7 @@ def _render_phase(rig: Rig, center, subdivisions: int = 7) -> np.ndarray:
     return np.where(samples.lit, samples.projector_xy[..., 0] * PX_TO_RAD, np.nan)
 
 
-def _reconstructions(rig: Rig, refined: Rig, phase: np.ndarray) -> dict:
+def _reconstructions(rig: Rig, refined: Rig | None, phase: np.ndarray) -> dict[str, float]:
     paper = real_sphere.paper_reconstruction(rig, phase)
     valid = np.isfinite(phase)
     same = fit_sphere(Triangulator(rig).points(projector_coordinate(phase, FREQUENCY, WIDTH))[valid])
@@ -143,12 +144,12 @@ def _reconstructions(rig: Rig, refined: Rig, phase: np.ndarray) -> dict:
     return out
 
 
-def _fit_entry(center, radius, dx, rms) -> dict:
+def _fit_entry(center, radius, dx, rms) -> dict[str, Any]:
     return {"center_mm": [round(float(c), 3) for c in center], "radius_mm": round(radius, 4),
             "offset_px": round(dx, 3), "rms_px": round(rms, 4)}
 
 
-def validate(data_dir, *, full: bool = True) -> dict:
+def validate(data_dir, *, full: bool = True) -> dict[str, Any]:
     """The whole comparison (module docstring) as a JSON-ready dict; ``full=False`` keeps the essentials (one pose
     fit, one render at 6 subdivisions: 1.8 um facets) for tests."""
     data_dir = Path(data_dir)
@@ -156,27 +157,30 @@ def validate(data_dir, *, full: bool = True) -> dict:
     refined = real_sphere.load_rig(data_dir, "twin", relative_pose="all-views") if full else None
     theirs = real_sphere.load_phase(data_dir, "twin")
     x_theirs = projector_coordinate(theirs, FREQUENCY, WIDTH)
-    report = {"paper_figure_um": real_sphere.PAPER_FIGURES_UM[("twin", "twin")], "fits": {}, "renders": {}}
+    fits: dict[str, dict[str, Any]] = {}
+    renders: dict[str, dict[str, Any]] = {}
+    report: dict[str, Any] = {"paper_figure_um": real_sphere.PAPER_FIGURES_UM[("twin", "twin")], "fits": fits,
+                              "renders": renders}
     models = (("distortion", rig), ("pinhole", without_distortion(rig))) if full else (("distortion", rig),)
     for label, model in models:
-        report["fits"][label] = _fit_entry(*fit_sphere_pose(model, x_theirs))
-        ours = _render_phase(model, report["fits"][label]["center_mm"], 7 if full else 6)
+        fits[label] = _fit_entry(*fit_sphere_pose(model, x_theirs))
+        ours = _render_phase(model, fits[label]["center_mm"], 7 if full else 6)
         entry = phase_difference_report(ours, theirs)
         entry["reconstruction_ours"] = _reconstructions(rig, refined, ours)
-        report["renders"][label] = entry
+        renders[label] = entry
     report["reconstruction_theirs"] = _reconstructions(rig, refined, theirs)
     if not full:
         return report
     # a constant projector offset: fitted, and fixed at 0, 0.5, 1 px with the radius free
-    report["fits"]["distortion+offset"] = _fit_entry(*fit_sphere_pose(rig, x_theirs, with_offset=True))
+    fits["distortion+offset"] = _fit_entry(*fit_sphere_pose(rig, x_theirs, with_offset=True))
     for offset in (0.0, 0.5, 1.0):
-        report["fits"][f"distortion_offset_{offset:g}"] = _fit_entry(*fit_sphere_pose(rig, x_theirs, offset_px=offset))
-        report["fits"][f"distortion_offset_{offset:g}_free_radius"] = _fit_entry(
+        fits[f"distortion_offset_{offset:g}"] = _fit_entry(*fit_sphere_pose(rig, x_theirs, offset_px=offset))
+        fits[f"distortion_offset_{offset:g}_free_radius"] = _fit_entry(
             *fit_sphere_pose(rig, x_theirs, offset_px=offset, radius=None))
     # the real calibration against the twin phase: the "+1 px" finding
     real = real_sphere.load_rig(data_dir, "real")
     for label, model in (("real_pinhole", without_distortion(real)), ("real_distortion", real)):
-        report["fits"][f"{label}+offset"] = _fit_entry(*fit_sphere_pose(model, x_theirs, with_offset=True))
+        fits[f"{label}+offset"] = _fit_entry(*fit_sphere_pose(model, x_theirs, with_offset=True))
     return report
 
 

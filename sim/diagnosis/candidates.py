@@ -24,7 +24,7 @@ from scipy.optimize import minimize_scalar
 from dptpu.fpp.calibration import DeviceModel, Rig
 
 from .forward import PixelSet, intensity_residual
-from .registration import register
+from .registration import Registration, register
 from .selection import delta_bic, gain
 
 __all__ = ["Candidate", "PHOTOMETRIC", "NOT_IDENTIFIABLE", "not_identifiable", "fit_photometric",
@@ -182,7 +182,7 @@ def fit_geometric_extra(rig: Rig, reference, measured_x, baseline) -> list[dict]
     return out
 
 
-def fit_lens_distortion(rig: Rig, reference, measured_x, baseline) -> tuple[dict, object]:
+def fit_lens_distortion(rig: Rig, reference, measured_x, baseline: Registration) -> tuple[dict, Registration]:
     """Camera ``k1`` the calibration lacks, fitted with the pose (phase domain). Returns the entry and the
     :class:`~dptpu.sim.diagnosis.registration.Registration` with it."""
     fitted = register(rig, reference, measured_x, baseline.mask, rig_of=add_camera_k1, extra0=[0.0],

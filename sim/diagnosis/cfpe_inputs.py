@@ -66,7 +66,7 @@ def load_cfpe_frames(cfpe_dir, scene: str) -> np.ndarray:
     folder = Path(cfpe_dir)
     if not (isinstance(scene, str) and len(scene) == 2 and scene.isdigit()):
         raise ValueError(f"CFPE scene must be two digits such as '06'; got {scene!r}")
-    frames, shape = [], None
+    frames: list[np.ndarray] = []
     for index in range(12 * len(PERIODS_PX)):
         path = folder / f"{scene}{index:02d}h.png"
         if not path.is_file():
@@ -75,11 +75,10 @@ def load_cfpe_frames(cfpe_dir, scene: str) -> np.ndarray:
         image = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
         if image is None or image.ndim != 2 or image.dtype != np.uint8:
             raise ValueError(f"{path}: expected an 8-bit mono PNG")
-        if shape is not None and image.shape != shape:
-            raise ValueError(f"{path}: size {image.shape} differs from the scene's first frame {shape}")
-        shape = image.shape
+        if frames and image.shape != frames[0].shape:
+            raise ValueError(f"{path}: size {image.shape} differs from the scene's first frame {frames[0].shape}")
         frames.append(image)
-    height, width = shape
+    height, width = frames[0].shape
     return np.stack(frames).reshape(len(PERIODS_PX), 12, height, width)
 
 
@@ -91,6 +90,8 @@ def _phases(frames: np.ndarray) -> tuple[list[np.ndarray], np.ndarray]:
         ok = quality_mask(images, maps.modulation, min_modulation=MIN_MODULATION_FRACTION * _FULL_SCALE)
         phases.append(maps.phase)
         mask = ok if mask is None else mask & ok
+    if mask is None:
+        raise ValueError("no phase sequence in the frames")
     return phases, mask
 
 
@@ -226,7 +227,7 @@ def input_rms(cfpe_dir, scene: str, *, low: str = "het12") -> dict:
     valid = pair.valid
     high = np.angle(np.exp(1j * (pair.wrapped_high - psi12)))[valid]
     low_true = np.mod(pair.reference_phase / pair.frequency_high, _TWO_PI)
-    low = np.angle(np.exp(1j * (pair.wrapped_low - low_true)))[valid]
-    rms_low = float(np.sqrt(np.mean(low ** 2)))
+    low_error = np.angle(np.exp(1j * (pair.wrapped_low - low_true)))[valid]
+    rms_low = float(np.sqrt(np.mean(low_error ** 2)))
     return {"high_rad": float(np.sqrt(np.mean(high ** 2))), "low_rad": rms_low,
             "low_in_high_periods": rms_low * pair.frequency_high / _TWO_PI, "pixels": int(valid.sum())}

@@ -29,14 +29,14 @@ from .candidates import (
     fit_photometric,
     not_identifiable,
 )
-from .forward import intensity_residual
+from .forward import PixelSet, intensity_residual
 from .measured import Measured, load_measured
 from .motion import fit_motion, identifiable_directions
 from .noise import fit_sensor_noise
 from .phase_candidates import PHASE_VISIBLE, fit_phase_candidate
 from .pixels import DEFAULT_MAX_PIXELS, erode_mask, reference_pixels, self_reference_pixels
 from .reference import Reference, load_scene_reference, parse_reference
-from .registration import register_robust
+from .registration import Registration, register_robust
 from .response import fit_response
 from .scene_registration import fit_scene_lens_distortion, register_scene
 from .selection import MIN_DELTA_BIC, delta_bic, gain, significant
@@ -58,11 +58,11 @@ class Diagnosis:
     cause: str
     effects: list
     measured: Measured
-    rig: Rig
+    rig: Rig | None
     reference: Reference
-    registration: object = None
-    geometry: object = None
-    pixels: object = None
+    registration: Registration | None = None
+    geometry: Registration | None = None
+    pixels: PixelSet | None = None
     pixel_mask: np.ndarray | None = None
     residual_before: list | None = None
     residual_after: list | None = None
@@ -122,7 +122,7 @@ def _reference_material(reference: Reference, rig: Rig):
     return load_scene(name, rig).meshes[0].material
 
 
-def diagnose(measured, rig: Rig, *, reference=None, self_reference: bool = False, frequency=None,
+def diagnose(measured, rig: Rig | None, *, reference=None, self_reference: bool = False, frequency=None,
              max_pixels: int = DEFAULT_MAX_PIXELS, seed: int = 0, candidates=PHOTOMETRIC,
              outside_vocabulary: bool = False, rounds: int = 1, phase_candidates: bool = True) -> Diagnosis:
     """Diagnose ``measured`` (a path or :class:`Measured`) against the twin of ``rig``.
@@ -131,8 +131,9 @@ def diagnose(measured, rig: Rig, *, reference=None, self_reference: bool = False
     ----------
     measured : path-like or Measured
         Capture folder, ``.npz`` or ``.mat`` phase file (:func:`~.measured.load_measured`).
-    rig : Rig
-        The baseline rig (its effects are ignored: the baseline twin is ideal).
+    rig : Rig or None
+        The baseline rig (its effects are ignored: the baseline twin is ideal); None only with
+        ``self_reference``.
     reference : str or Reference, optional
         ``sphere:DIAMETER_MM``, ``plane`` or ``scene:FILE``; required unless ``self_reference``.
     self_reference : bool

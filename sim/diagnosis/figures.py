@@ -24,7 +24,7 @@ def _panel(image: np.ndarray, title: str, scale: float, height: int) -> np.ndarr
     green = 1.0 - np.abs(normalized)
     rgb = np.stack([blue, green, red], axis=-1)  # BGR: white at 0, red +, blue -
     rgb[~finite] = 0.5
-    panel = (rgb * 255).astype(np.uint8)
+    panel: np.ndarray = (rgb * 255).astype(np.uint8)
     zoom = max(1, height // image.shape[0])
     panel = cv2.resize(panel, (image.shape[1] * zoom, image.shape[0] * zoom), interpolation=cv2.INTER_NEAREST)
     banner = np.full((18, panel.shape[1], 3), 255, np.uint8)

@@ -33,7 +33,28 @@ from dptpu.sim.effects import find_effect, parse_effects
 from dptpu.sim.effects.camera import apply_camera_effects, vignetting_factor
 from dptpu.sim.effects.pattern import defocus_sigma_px, pattern_levels, step_shifts
 
-__all__ = ["PixelSet", "render_pixels", "fit_gain", "fit_global_gain", "intensity_residual"]
+__all__ = ["ImageGrid", "PixelSet", "render_pixels", "fit_gain", "fit_global_gain", "intensity_residual"]
+
+
+@dataclass
+class ImageGrid:
+    """The whole image behind a :class:`PixelSet`, for ``camera_defocus``.
+
+    Attributes
+    ----------
+    coords : list of ndarray (H, W)
+        Projector coordinate along the fringe axis per sequence (projector px).
+    factor, albedo, projector_depth : ndarray (H, W)
+        As in :class:`PixelSet`, per image pixel; factor 0 off the reference.
+    hit : ndarray (H, W) bool
+        Pixels that see the reference.
+    """
+
+    coords: list[np.ndarray]
+    factor: np.ndarray
+    albedo: np.ndarray
+    projector_depth: np.ndarray
+    hit: np.ndarray
 
 
 @dataclass
@@ -60,9 +81,8 @@ class PixelSet:
     full_scale : float
     shape : tuple (H, W), optional
         Image size (for ``vignetting``).
-    grid : namespace, optional
-        The whole image for ``camera_defocus``: ``coords`` (list of (H, W) per sequence, projector px),
-        ``factor``, ``albedo``, ``projector_depth`` (H, W; factor 0 off the reference), ``hit`` (H, W) bool.
+    grid : ImageGrid, optional
+        The whole image for ``camera_defocus``.
     motion_jacobian : ndarray (P, 3), optional
         Derivative of the projector coordinate with respect to a translation of the surface (px per rig unit).
     motion_reference_frame : float
@@ -81,7 +101,7 @@ class PixelSet:
     amplitude: float
     full_scale: float
     shape: tuple | None = None
-    grid: object = None
+    grid: ImageGrid | None = None
     motion_jacobian: np.ndarray | None = None
     motion_reference_frame: float = 0.0
 
@@ -130,7 +150,7 @@ def render_pixels(pixels: PixelSet, effects=(), *, seed: int = 0, factor=None, o
     if blur is not None and blur["sigma_px"] > 0:
         if pixels.grid is None:
             raise ValueError("camera_defocus needs the whole image of the reference (PixelSet.grid)")
-        return _render_grid(pixels, effects, seed=seed, factor=factor, offsets=offsets)
+        return _render_grid(pixels, pixels.grid, effects, seed=seed, factor=factor, offsets=offsets)
     rng = np.random.default_rng(seed)
     sigma = defocus_sigma_px(effects, pixels.projector_depth)
     hit = np.ones((pixels.size, 1), dtype=bool)
@@ -164,12 +184,11 @@ def render_pixels(pixels: PixelSet, effects=(), *, seed: int = 0, factor=None, o
     return out
 
 
-def _render_grid(pixels: PixelSet, effects, *, seed: int, factor, offsets) -> list[np.ndarray]:
-    """Render the whole image from ``pixels.grid`` (effects on the image grid), sampled at the pixels; a
-    ``factor`` other than the set's scales the sampled values (after the blur: an approximation)."""
+def _render_grid(pixels: PixelSet, grid: ImageGrid, effects, *, seed: int, factor, offsets) -> list[np.ndarray]:
+    """Render the whole image from ``grid`` (``pixels.grid``: effects on the image grid), sampled at the pixels;
+    a ``factor`` other than the set's scales the sampled values (after the blur: an approximation)."""
     if _motion_velocity(effects) is not None:
         raise ValueError("camera_defocus and motion together are not modelled by the diagnosis")
-    grid = pixels.grid
     rng = np.random.default_rng(seed)
     rows, cols = pixels.index
     lit = grid.factor > 0

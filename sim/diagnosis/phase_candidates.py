@@ -29,6 +29,10 @@ PHASE_VISIBLE = (
 
 def fit_phase_candidate(measured, rig, reference, material, registration, candidate: Candidate) -> dict:
     """Fit ``candidate`` on the phase residual (projector px) over ``registration.mask``."""
+    neutral = candidate.neutral
+    if neutral is None:
+        raise ValueError(f"{candidate.name}: a phase-only fit needs the parameter value at which the effect does "
+                         f"nothing (Candidate.neutral)")
     sequences = [SequenceSpec(measured.frequency, 12), SequenceSpec(1.0, 12)]
     to_x = measured.extent / (2.0 * np.pi * measured.frequency)
     mask = registration.mask & np.isfinite(measured.projector_x)
@@ -36,7 +40,7 @@ def fit_phase_candidate(measured, rig, reference, material, registration, candid
     period = measured.extent / measured.frequency
 
     def residual(value):
-        effects = [candidate.effect(value)] if value != candidate.neutral else []
+        effects = [candidate.effect(value)] if value != neutral else []
         frames = render_twin(rig, reference, registration.pose, material, sequences, effects=effects)
         x = decode(frames, sequences) * to_x
         r = x[mask] - target
@@ -48,7 +52,7 @@ def fit_phase_candidate(measured, rig, reference, material, registration, candid
         return float(np.sum(r * r))
 
     lo, hi = candidate.bounds
-    grid = np.unique(np.append(np.linspace(lo, hi, 7), candidate.neutral))
+    grid = np.unique(np.append(np.linspace(lo, hi, 7), neutral))
     values = [rss(v) for v in grid]
     best = int(np.argmin(values))
     value, best_rss = float(grid[best]), float(values[best])
@@ -56,7 +60,7 @@ def fit_phase_candidate(measured, rig, reference, material, registration, candid
     solution = minimize_scalar(rss, bounds=(left, right), method="bounded", options={"xatol": 1e-4 * (hi - lo)})
     if solution.fun < best_rss:
         value, best_rss = float(solution.x), float(solution.fun)
-    rss0 = rss(candidate.neutral)
+    rss0 = rss(neutral)
     n = int(mask.sum())
     before, after = float(np.sqrt(rss0 / n)), float(np.sqrt(best_rss / n))
     return {"name": candidate.name, "parameters": {candidate.main: value, **candidate.fixed},

@@ -13,7 +13,7 @@ their cost grows with the count.
 """
 from __future__ import annotations
 
-from types import SimpleNamespace
+from dataclasses import dataclass
 
 import cv2
 import numpy as np
@@ -21,7 +21,7 @@ import numpy as np
 from dptpu.fpp.phase import wrapped_phase
 from dptpu.sim.image_formation import reflectance_factor
 
-from .forward import PixelSet
+from .forward import ImageGrid, PixelSet
 from .measured import Measured
 from .reference import reference_hits, translated_pose
 
@@ -46,6 +46,19 @@ def _limit(mask: np.ndarray, max_pixels: int, seed: int) -> tuple:
         keep = np.sort(np.random.default_rng(seed).choice(len(rows), max_pixels, replace=False))
         rows, cols = rows[keep], cols[keep]
     return rows, cols
+
+
+@dataclass(frozen=True)
+class _ReferenceSurface:
+    """The registered reference's surface and material per pixel (H, W), as :func:`reflectance_factor` reads it."""
+
+    points: np.ndarray
+    normals: np.ndarray
+    lit: np.ndarray
+    albedo: np.ndarray
+    roughness: np.ndarray
+    specular: np.ndarray
+    ior: np.ndarray
 
 
 def _surface_material(hits, material, shape):
@@ -86,17 +99,17 @@ def reference_pixels(measured: Measured, rig, reference, pose, material, *, max_
     axis = 0 if measured.fringe_axis == "x" else 1
     shape = hits.lit.shape
     albedo, roughness, specular, ior = _surface_material(hits, material, shape)
-    samples = SimpleNamespace(points=hits.points, normals=hits.normals, lit=hits.lit, albedo=albedo,
-                              roughness=roughness, specular=specular, ior=ior)
+    samples = _ReferenceSurface(points=hits.points, normals=hits.normals, lit=hits.lit, albedo=albedo,
+                                roughness=roughness, specular=specular, ior=ior)
     factor = np.where(hits.lit, reflectance_factor(rig, samples), 0.0)
     stack = np.concatenate(measured.frames)  # (sum N, H, W)
     mask = erode_mask(hits.lit, erode_px) & (factor > 0) & (stack.max(axis=0) > 0)
     rows, cols = _limit(mask, max_pixels, seed) if index is None else index
     coord_image = np.where(hits.lit, hits.projector_xy[..., axis], 0.0)
     coord = coord_image[rows, cols]
-    grid = SimpleNamespace(coords=[coord_image] * len(measured.sequences), factor=factor,
-                           albedo=np.where(hits.hit, albedo, 0.0), projector_depth=np.nan_to_num(hits.projector_depth),
-                           hit=hits.hit)
+    grid = ImageGrid(coords=[coord_image] * len(measured.sequences), factor=factor,
+                     albedo=np.where(hits.hit, albedo, 0.0), projector_depth=np.nan_to_num(hits.projector_depth),
+                     hit=hits.hit)
     jacobian = motion_jacobian(rig, reference, pose, (rows, cols), axis, coord) if motion else None
     high = int(np.argmax([s.frequency for s in measured.sequences]))
     start = sum(s.steps for s in measured.sequences[:high])

@@ -18,9 +18,9 @@ import numpy as np
 
 from dptpu.fpp.calibration import Rig
 from dptpu.fpp.triangulate import camera_rays
-from dptpu.sim.raycast import project_to_projector, trace
+from dptpu.sim.raycast import SurfaceSamples, project_to_projector, trace
 from dptpu.sim.scene_mesh import SceneMesh
-from dptpu.sim.scenes import load_scene_file
+from dptpu.sim.scenes import Scene, load_scene_file
 
 __all__ = ["Reference", "parse_reference", "load_scene_reference", "SurfaceHits", "surface_hits", "reference_hits",
            "translated_pose", "posed_meshes"]
@@ -35,12 +35,19 @@ class Reference:
     kind: str
     diameter: float | None = None
     path: str | None = None
-    scene: object = field(default=None, compare=False, repr=False)
+    scene: Scene | None = field(default=None, compare=False, repr=False)
 
     @property
     def pose_size(self) -> int:
         """Number of pose parameters fitted by the registration."""
         return {"sphere": 3, "plane": 3}.get(self.kind, 0)
+
+    @property
+    def sphere_diameter(self) -> float:
+        """The diameter of a sphere reference, rig units."""
+        if self.diameter is None:
+            raise ValueError(f"reference {self.label!r} has no diameter (a sphere:DIAMETER_MM reference has)")
+        return self.diameter
 
     @property
     def label(self) -> str:
@@ -95,11 +102,13 @@ class SurfaceHits:
     hit: np.ndarray
     lit: np.ndarray
     projector_depth: np.ndarray
-    samples: object = None
+    samples: SurfaceSamples | None = None
 
 
 def posed_meshes(reference: Reference, pose) -> tuple:
     """The scene's meshes moved by the rigid transform ``pose`` (4, 4): ``X -> R X + t`` (world frame)."""
+    if reference.scene is None:
+        raise ValueError(f"reference {reference.label!r}: the scene file is not loaded (load_scene_reference)")
     pose = np.asarray(pose, dtype=np.float64)
     R, t = pose[:3, :3], pose[:3, 3]
     return tuple(SceneMesh(name=m.name, vertices=m.vertices @ R.T + t, triangles=m.triangles, material=m.material,
@@ -113,8 +122,6 @@ def reference_hits(rig: Rig, reference: Reference, pose) -> SurfaceHits:
     if reference.kind != "scene":
         return surface_hits(rig, reference.kind, pose, diameter=reference.diameter)
 
-    if reference.scene is None:
-        raise ValueError(f"reference {reference.label!r}: the scene file is not loaded (load_scene_reference)")
     samples = trace(rig, posed_meshes(reference, pose))
     depth = (samples.points @ rig.projector.R.T + rig.projector.T)[..., 2]
     return SurfaceHits(points=samples.points, normals=samples.normals, projector_xy=samples.projector_xy,
@@ -165,6 +172,8 @@ def surface_hits(rig: Rig, kind: str, pose, *, diameter: float | None = None, ra
     origin = rig.camera.center
     pose = np.asarray(pose, dtype=np.float64)
     if kind == "sphere":
+        if diameter is None:
+            raise ValueError("an analytic sphere needs its diameter")
         radius = diameter / 2.0
         oc = origin - pose
         b = rays @ oc
@@ -195,7 +204,7 @@ def surface_hits(rig: Rig, kind: str, pose, *, diameter: float | None = None, ra
     lit = hit & facing & on_panel & (depth > 0)
     if kind == "sphere" and not extend:
         # the projector sees the first hit along its own ray: points behind the sphere's front are shadowed
-        lit &= _sphere_front_for_projector(rig, pose, diameter / 2.0, points)
+        lit &= _sphere_front_for_projector(rig, pose, radius, points)
     return SurfaceHits(points=points, normals=normals, projector_xy=xy, hit=hit, lit=lit, projector_depth=depth)
 
 

@@ -55,7 +55,7 @@ def initial_pose(rig: Rig, reference: Reference, measured_x: np.ndarray, mask: n
     if len(points) < 10:
         raise ValueError(f"registration needs at least 10 valid measured pixels; got {len(points)}")
     if reference.kind == "sphere":
-        return fit_sphere(points, radius=reference.diameter / 2.0).center
+        return fit_sphere(points, radius=reference.sphere_diameter / 2.0).center
     plane = fit_plane(points)
     n_cam = rig.camera.R @ plane.normal
     n_cam = n_cam / -n_cam[2]  # (a, b, -1)

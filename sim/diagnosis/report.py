@@ -16,6 +16,7 @@ from __future__ import annotations
 import json
 from dataclasses import replace
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import yaml
@@ -78,7 +79,7 @@ def _intensity_rms(measured_frames, twin_frames, mask) -> float:
     return float(np.sqrt(np.mean(residual ** 2)))
 
 
-def _rerender(diagnosis, extended_effects) -> dict:
+def _rerender(diagnosis, extended_effects) -> dict[str, Any]:
     """Twin and extended twin rendered again: intensity RMS (frames) and phase RMS against the measurement,
     and the sphere-fit RMS of measurement, twin and extended twin."""
     measured, reference, geometry = diagnosis.measured, diagnosis.reference, diagnosis.registration
@@ -88,7 +89,7 @@ def _rerender(diagnosis, extended_effects) -> dict:
     effects = parse_effects(extended_effects)
     extended_rig = render_rig(rig, effects)
     extended_pose = diagnosis.geometry.pose
-    out = {}
+    out: dict[str, Any] = {}
     mask = diagnosis.pixel_mask if diagnosis.pixel_mask is not None else (geometry.mask & np.isfinite(geometry.model_x))
     axis = measured.fringe_axis
     if measured.has_frames:

@@ -71,16 +71,15 @@ def _render_moving(rig, reference, pose, material, sequences, effects, motion, *
     velocity = np.asarray(motion["velocity_per_frame"])
     out, g = [], 0
     for s, sequence in enumerate(sequences):
-        frames = None
+        frames = []  # step n of the sequence rendered at the pose of frame g
         for n in range(sequence.steps):
             moved = translated_pose(rig, reference, pose, (g - reference_frame) * velocity)
             samples = analytic_samples(rig, reference, moved, material)
             rendered = render_frames_float(rig, samples, [sequence], effects=still, seed=seed + s,
                                            bit_depth=bit_depth, **kwargs)[0]
-            frames = np.empty_like(rendered) if frames is None else frames
-            frames[n] = rendered[n]
+            frames.append(rendered[n])
             g += 1
-        out.append(quantize(frames, bit_depth).astype(np.float64))
+        out.append(quantize(np.stack(frames), bit_depth).astype(np.float64))
     return out
 
 

@@ -19,6 +19,8 @@ ambient, clipping) and the ``random`` remainder.
 """
 from __future__ import annotations
 
+from typing import Any
+
 import cv2
 import numpy as np
 
@@ -66,7 +68,8 @@ def decompose_phase(residual_px: np.ndarray, projector_x: np.ndarray, *, frequen
     height, width = residual_px.shape
     v, u = np.nonzero(mask)
     r = residual_px[mask]
-    maps, stats = {}, {"pixels": int(mask.sum()), "total_rms_px": _rms(r)}
+    maps: dict[str, np.ndarray] = {}
+    stats: dict[str, Any] = {"pixels": int(mask.sum()), "total_rms_px": _rms(r)}
     if len(r) < 10:
         return {"stats": stats, "maps": maps}
     x = (u - (width - 1) / 2.0) / (width / 2.0)
@@ -115,8 +118,8 @@ def decompose_phase(residual_px: np.ndarray, projector_x: np.ndarray, *, frequen
 
 def decompose_intensity(pixels, residual: list, model: list) -> dict:
     """Components (module docstring) of an intensity residual (lists of (N, P) per sequence)."""
-    stats = {"values": int(sum(r.size for r in residual)),
-             "total_rms_dn": _rms(np.concatenate([r.ravel() for r in residual]))}
+    stats: dict[str, Any] = {"values": int(sum(r.size for r in residual)),
+                             "total_rms_dn": _rms(np.concatenate([r.ravel() for r in residual]))}
     per_frame, periodic, random_parts = [], {}, []
     level_values, level_residual = [], []
     for sequence, coord, res, mod in zip(pixels.sequences, pixels.coords, residual, model):

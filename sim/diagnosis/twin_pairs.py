@@ -25,7 +25,7 @@ import yaml
 from dptpu.fpp import phase, tpu
 from dptpu.fpp.calibration import Rig, save_rig
 from dptpu.sim.dataset import scene_seed as dataset_scene_seed
-from dptpu.sim.effects import parse_effects
+from dptpu.sim.effects import Effect, parse_effects
 from dptpu.sim.effects.geometry import render_rig
 from dptpu.sim.image_formation import SequenceSpec, quantize, render_frames_float
 from dptpu.sim.raycast import trace
@@ -93,7 +93,7 @@ SPHERE_DESIGN = PairDesign("sphere", (96.0, 1.0), (12, 3), low="mf")
 
 def _effects(effects, sigma: float):
     """The rig's effects with ``sensor_noise`` replaced by Gaussian noise of ``sigma`` DN (none at 0)."""
-    kept = [e for e in parse_effects(effects) if e.name != "sensor_noise"]
+    kept: list[Effect | dict[str, dict[str, float]]] = [e for e in parse_effects(effects) if e.name != "sensor_noise"]
     if sigma > 0:
         kept.append({"sensor_noise": {"read_noise_dn": float(sigma), "gain_dn_per_electron": 0.0, "dark_dn": 0.0}})
     return parse_effects(kept)
@@ -111,6 +111,8 @@ def _phases(frames_list, steps, shift_sign: int) -> tuple[list, np.ndarray]:
                                 min_modulation=_MIN_MODULATION_FRACTION * (2 ** _BIT_DEPTH - 1))
         phases.append(maps.phase)
         mask = ok if mask is None else mask & ok
+    if mask is None:
+        raise ValueError("no phase sequence to wrap")
     return phases, mask
 
 
@@ -141,8 +143,8 @@ def twin_pair_sample(rig: Rig, scene, design: PairDesign, *, noise_sigma: float,
     samples = trace(traced_rig, meshes)
     extent = float(rig.projector.size[0])
     specs = [SequenceSpec(float(f), RENDER_STEPS, shift_sign=design.shift_sign) for f in design.frequencies]
-    levels = {"offset": design.offset, "amplitude": design.amplitude}
-    label_frames = render_frames_float(traced_rig, samples, specs, effects=_effects(effects, 0.0), seed=seed, **levels)
+    label_frames = render_frames_float(traced_rig, samples, specs, effects=_effects(effects, 0.0), seed=seed,
+                                       offset=design.offset, amplitude=design.amplitude)
     psi_label = [phase.wrapped_phase(f, shift_sign=design.shift_sign).phase for f in label_frames]
     labelled = _reference(design, psi_label)
     f_h = float(design.frequencies[0])
@@ -151,7 +153,7 @@ def twin_pair_sample(rig: Rig, scene, design: PairDesign, *, noise_sigma: float,
     with np.errstate(invalid="ignore"):
         agrees = samples.lit & (np.abs(phi12 - true_phase) < LABEL_TOLERANCE_RAD)
     noisy = render_frames_float(traced_rig, samples, specs, effects=_effects(effects, noise_sigma), seed=seed + 1,
-                                **levels)
+                                offset=design.offset, amplitude=design.amplitude)
     psi, usable = _phases([quantize(f, _BIT_DEPTH) for f in noisy], design.input_steps, design.shift_sign)
     reference = np.where(agrees, phi12, np.nan)
     if design.low == "mf":

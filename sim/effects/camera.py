@@ -70,8 +70,8 @@ def apply_camera_effects(frames: np.ndarray, *, effects, albedo, hit, full_scale
             frames[n] = gaussian_blur(frames[n], effect["sigma_px"])
     effect = find_effect(effects, "intensity_drift")
     if effect is not None:
-        n = np.arange(len(frames))
-        factor = 1.0 + effect["rate_per_frame"] * n
+        frame_index = np.arange(len(frames))
+        factor = 1.0 + effect["rate_per_frame"] * frame_index
         if effect["sigma"] > 0:
             factor = factor * (1.0 + effect["sigma"] * rng.normal(size=len(frames)))
         frames *= factor[:, None, None]

@@ -84,8 +84,8 @@ def defocus_sigma_px(effects, projector_depth):
     return sigma
 
 
-def pattern_levels(coord, *, frequency: float, extent: float, shift: float, offset: float, amplitude: float,
-                   phase_offset: float = 0.0, effects=(), sigma_px=None) -> np.ndarray:
+def pattern_levels(coord, *, frequency: float, extent: float, shift: float | np.ndarray, offset: float,
+                   amplitude: float, phase_offset: float = 0.0, effects=(), sigma_px=None) -> np.ndarray:
     """Projected level in [0, 1] (fraction of full scale) at projector coordinates ``coord`` (any shape).
 
     Parameters

@@ -20,6 +20,7 @@ Stages (the order in which they act; docs/effects.md documents each effect's par
 """
 from __future__ import annotations
 
+import math
 import numbers
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -115,7 +116,7 @@ EFFECTS = {spec.name: spec for spec in _SPECS}
 def _value(where: str, kind: str, value):
     expected = _KINDS[kind]
     if kind in ("num", "pos", "nonneg"):
-        if isinstance(value, bool) or not isinstance(value, numbers.Real) or not np.isfinite(value) or \
+        if isinstance(value, bool) or not isinstance(value, numbers.Real) or not math.isfinite(value) or \
                 (kind == "pos" and value <= 0) or (kind == "nonneg" and value < 0):
             raise ValueError(f"{where}: must be {expected}; got {value!r}")
         return float(value)
@@ -125,7 +126,7 @@ def _value(where: str, kind: str, value):
         return int(value)
     size = {"vec3": 3, "vec5": 5}.get(kind)
     if not isinstance(value, (list, tuple)) or (size is not None and len(value) != size) or not all(
-            isinstance(v, numbers.Real) and not isinstance(v, bool) and np.isfinite(v) for v in value):
+            isinstance(v, numbers.Real) and not isinstance(v, bool) and math.isfinite(v) for v in value):
         raise ValueError(f"{where}: must be {expected}; got {value!r}")
     return tuple(float(v) for v in value)
 

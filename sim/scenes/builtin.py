@@ -1,6 +1,8 @@
 """Built-in scenes, usable by name: ``sphere``, ``plane``, ``board``."""
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
 
 from dptpu.fpp.calibration import Rig
@@ -64,4 +66,5 @@ def default_board_scene(rig: Rig, *, cols: int = 11, rows: int = 8, square_mm: f
     return board_scene(rig, R, T, cols=cols, rows=rows, square_mm=s)
 
 
-BUILTIN_SCENES = {"sphere": sphere_scene, "plane": plane_scene, "board": default_board_scene}
+BUILTIN_SCENES: dict[str, Callable[[Rig], Scene]] = {"sphere": sphere_scene, "plane": plane_scene,
+                                                    "board": default_board_scene}

@@ -10,6 +10,8 @@ staircase: sharp depth steps), ``plane`` (a grid in z = 0 facing -z, i.e. toward
 """
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
 
 __all__ = ["SHAPES", "sphere", "box", "cylinder", "torus", "superquadric", "blob", "step_block", "plane",
@@ -193,5 +195,6 @@ def plane(size, subdivisions: int = 1):
 
 
 #: Shape name -> builder, for scene files.
-SHAPES = {"sphere": sphere, "box": box, "cylinder": cylinder, "torus": torus, "superquadric": superquadric,
-          "blob": blob, "step_block": step_block, "plane": plane}
+SHAPES: dict[str, Callable[..., tuple[np.ndarray, ...]]] = {
+    "sphere": sphere, "box": box, "cylinder": cylinder, "torus": torus, "superquadric": superquadric, "blob": blob,
+    "step_block": step_block, "plane": plane}

@@ -28,6 +28,7 @@ from __future__ import annotations
 
 import numbers
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import yaml
@@ -124,7 +125,7 @@ def _parse_object(where: _Where, entry, key: str, rig: Rig, root: Path):
     name = entry.get("name", f"object{key[8:-1]}")
     if not isinstance(name, str) or not name:
         where.fail(f"{key}.name", f"must be a non-empty string; got {name!r}")
-    params = {}
+    params: dict[str, Any] = {}
     for param, (kind, default) in SHAPE_PARAMETERS[shape].items():
         if param not in entry:
             if default is REQUIRED:
@@ -263,7 +264,7 @@ def load_mesh_file(path) -> tuple[np.ndarray, np.ndarray]:
     path = Path(path)
     if not path.is_file():
         raise FileNotFoundError(f"{path}: no such mesh file")
-    mesh = o3d.io.read_triangle_mesh(str(path))
+    mesh = o3d.io.read_triangle_mesh(path)
     vertices = np.asarray(mesh.vertices, dtype=np.float64)
     triangles = np.asarray(mesh.triangles, dtype=np.int32)
     if len(vertices) < 3 or len(triangles) == 0:
