@@ -41,7 +41,7 @@ import numpy as np
 import torch
 from torch import nn
 
-from .factory import build_model, model_config
+from .factory import FringeOrderNet, build_model, model_config
 from .onnx_graph import GRAPH_FORMAT, build_dptpu_graph
 
 __all__ = [
@@ -74,7 +74,7 @@ def _example_inputs(height: int = 64, width: int = 96) -> tuple[torch.Tensor, ..
         torch.tensor([64.0, 48.0])
 
 
-def export_onnx(model: nn.Module, out, *, training: dict | None = None, graph: str = "fast") -> Path:
+def export_onnx(model: FringeOrderNet, out, *, training: dict | None = None, graph: str = "fast") -> Path:
     """Write ``model`` (eval mode) to the ONNX file ``out`` and return its path.
 
     Parameters
@@ -174,7 +174,7 @@ def _check_fast_graph(model: nn.Module, proto) -> None:
                          "follow models/network.py; export with graph='torch'")
 
 
-def load_checkpoint_model(path) -> tuple[nn.Module, dict]:
+def load_checkpoint_model(path) -> tuple[FringeOrderNet, dict]:
     """The network saved in a training checkpoint (eval mode) and the checkpoint dict."""
     path = Path(path)
     if not path.is_file():

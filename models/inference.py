@@ -12,8 +12,10 @@ Fig. 9 pipeline); invalid pixels keep the classical order.
 from __future__ import annotations
 
 import json
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any, Protocol
 
 import numpy as np
 
@@ -32,6 +34,21 @@ class ModelLoadError(ValueError):
 def shipped_model_path() -> Path | None:
     """The shipped model file, or None when the package has none."""
     return SHIPPED_MODEL if SHIPPED_MODEL.is_file() else None
+
+
+class _NodeArg(Protocol):
+    """An input of an onnxruntime session (``onnxruntime.NodeArg``)."""
+
+    @property
+    def name(self) -> str: ...
+
+
+class _Session(Protocol):
+    """What the model uses of an ``onnxruntime.InferenceSession`` (onnxruntime ships no type information)."""
+
+    def get_inputs(self) -> Sequence[_NodeArg]: ...
+
+    def run(self, output_names: Sequence[str] | None, input_feed: Mapping[str, np.ndarray]) -> list[Any]: ...
 
 
 @dataclass(frozen=True, eq=False)
@@ -53,7 +70,7 @@ class FringeOrderModel:
     kind: str
     config: dict
     training: dict
-    _session: object
+    _session: _Session
 
     @classmethod
     def load(cls, path, *, threads: int | None = None, spinning: bool = False) -> FringeOrderModel:
@@ -168,8 +185,8 @@ class FringeOrderModel:
         mask = np.ones(arrays[0].shape, bool) if valid is None else np.array(valid, dtype=bool)
         for a in floating:
             mask &= np.isfinite(a)
-        clean = [np.where(mask, a, 0).astype(np.float32, copy=False) for a in arrays]
-        continuous = self.predict(*clean, float(frequency_high))
+        high, low, order = (np.where(mask, a, 0).astype(np.float32, copy=False) for a in arrays)
+        continuous = self.predict(high, low, order, float(frequency_high))
         rounded = np.rint(continuous, out=continuous).astype(np.int32)
         coarse = arrays[2]
         if np.issubdtype(coarse.dtype, np.integer):

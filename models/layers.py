@@ -82,8 +82,8 @@ class ConvSelfAttention(nn.Module):
         weights = torch.exp(logits - logits.amax(dim=2, keepdim=True))
         weights = weights / weights.sum(dim=2, keepdim=True)
         padded = F.pad(self.value(x), (r, r, r, r)).reshape(b, self.heads, c // self.heads, h + 2 * r, w + 2 * r)
-        out = 0
-        for index in range(k2):  # weighted sum of the shifted value maps (slices, no 6-D transpose)
+        out = weights[:, :, 0:1] * padded[:, :, :, 0:h, 0:w]  # window position 0: (dy, dx) = (0, 0)
+        for index in range(1, k2):  # weighted sum of the shifted value maps (slices, no 6-D transpose)
             dy, dx = divmod(index, self.kernel)
             out = out + weights[:, :, index:index + 1] * padded[:, :, :, dy:dy + h, dx:dx + w]
         return self.proj(out.reshape(b, c, h, w))  # out: (B, heads, C/heads, H, W)

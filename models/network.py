@@ -53,6 +53,7 @@ the projector); invalid pixels must carry 0 in all three images (the inference w
 from __future__ import annotations
 
 from dataclasses import asdict, dataclass
+from typing import Any
 
 import torch
 from torch import nn
@@ -165,7 +166,8 @@ class DPTPUConfig:
         unknown = set(values) - known
         if unknown:
             raise ValueError(f"unknown DP-TPU config keys {sorted(unknown)}; expected some of {sorted(known)}")
-        return cls(**{k: tuple(v) if isinstance(v, list) else v for k, v in values.items()})
+        fields: dict[str, Any] = {k: tuple(v) if isinstance(v, list) else v for k, v in values.items()}
+        return cls(**fields)  # keys checked above, values by __post_init__
 
 
 def _median3(a: torch.Tensor, b: torch.Tensor, c: torch.Tensor) -> torch.Tensor:
@@ -306,8 +308,8 @@ class DPTPUNet(nn.Module):
         self.head_correction = nn.Conv2d(dw, PATCH * PATCH, 1)
         self.head_gate = nn.Conv2d(dw, PATCH * PATCH, 1)
         for layer in (self.head_correction, self.head_gate):
-            nn.init.zeros_(layer.weight)
-            nn.init.zeros_(layer.bias)
+            for parameter in layer.parameters():  # weight and bias
+                nn.init.zeros_(parameter)
 
     def forward(self, wrapped_high, wrapped_low, coarse_order, frequency_high):
         height, width = wrapped_high.shape[-2], wrapped_high.shape[-1]
@@ -331,7 +333,7 @@ class DPTPUNet(nn.Module):
 
     def _decode(self, x: torch.Tensor) -> torch.Tensor:
         """Encoder + decoder at strides 4-32: ``(B, C_in, h, w) -> (B, D, h, w)`` (stride 4)."""
-        features = []
+        features: list[torch.Tensor] = []
         for embed, stage in zip(self.embed, self.stages):
             x = stage(embed(x if not features else features[-1]))
             features.append(x)  # strides 4, 8, 16, 32

@@ -339,7 +339,7 @@ def build_dptpu_graph(state: dict, config):
         folded = embed_w[:, :w0] @ patch_w[:, index].reshape(patch_w.shape[0], PATCH * PATCH)
         x = g.op("Add", [x, g.conv(feature, folded.reshape(w0, PATCH * PATCH, 1, 1))])
     x = g.affine(g.normalize(x, w0), *_norm_params(p, "embed.0.1"))
-    features = []
+    features: list[str] = []  # value names of the encoder's stage outputs
     for stage in range(4):
         if stage > 0:
             x = g.conv(features[-1], _w(p, f"embed.{stage}.0.weight"), _w(p, f"embed.{stage}.0.bias"),

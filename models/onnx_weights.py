@@ -24,7 +24,7 @@ import torch
 from torch import nn
 
 from .export import export_onnx
-from .factory import build_model
+from .factory import FringeOrderNet, build_model
 from .inference import FringeOrderModel
 
 __all__ = ["MAX_ABS_DIFFERENCE", "convert_onnx", "load_onnx_model"]
@@ -73,7 +73,7 @@ def _anonymous_uses(proto, state) -> list:
     return uses
 
 
-def _folded_names(kind: str, config: dict, keys: list[str]) -> list:
+def _folded_names(kind: str, config: dict | None, keys: list[str]) -> list:
     """``[(use, (state_dict key, flat indices, scale) or None)]`` for the uses of anonymous initializers of an
     export (:func:`_anonymous_uses`, :func:`_folded_names_cached`)."""
     return list(_folded_names_cached(kind, json.dumps(config, sort_keys=True), tuple(keys)))
@@ -140,7 +140,7 @@ def _check_against_onnxruntime(model: nn.Module, path: Path) -> float:
     return float(np.max(np.abs(ours.numpy()[:, 0] - reference)))
 
 
-def load_onnx_model(path) -> tuple[nn.Module, dict]:
+def load_onnx_model(path) -> tuple[FringeOrderNet, dict]:
     """The torch network (eval mode) of an exported ONNX model, and the model's ``training`` metadata.
 
     Parameters
@@ -150,7 +150,7 @@ def load_onnx_model(path) -> tuple[nn.Module, dict]:
 
     Returns
     -------
-    (nn.Module, dict)
+    (DPTPUNet or UNetBaseline, dict)
         The network with every parameter copied from the ONNX initializers (checked against onnxruntime to
         :data:`MAX_ABS_DIFFERENCE`), and the ``training`` metadata (``kind`` and ``config`` added).
 
