@@ -94,6 +94,8 @@ def load_bench(file_name: str, module_name: str):
             f"and `pip install -e .` it, or run `python benchmarks/{file_name}` there"
         )
     spec = importlib.util.spec_from_file_location(module_name, path)
+    if spec is None or spec.loader is None:
+        raise ImportError(f"{path}: not loadable as a Python module")
     module = importlib.util.module_from_spec(spec)
     sys.modules[module_name] = module  # before exec: dataclasses and pickling look modules up by name
     try:

@@ -23,6 +23,7 @@ import json
 import time
 from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import yaml
@@ -134,11 +135,13 @@ def split_rigs(extended, base_rig=None) -> tuple:
     return replace(rig, effects=()), replace(rig, effects=tuple(effects))
 
 
-def evaluate_orders(pair: MeasuredPair, orders: dict, rig=None) -> dict:
+def evaluate_orders(pair: MeasuredPair, orders: dict, rig=None) -> dict[str, Any]:
     """Accuracy of each order map of ``orders`` (name -> (H, W)) on ``pair``; 3D errors when ``rig`` is given."""
-    row = {"pair": pair.name, "pixels": int(pair.valid.sum()), "accuracy": {}, "provenance": pair.provenance}
+    accuracy: dict[str, float] = {}
+    row: dict[str, Any] = {"pair": pair.name, "pixels": int(pair.valid.sum()), "accuracy": accuracy,
+                           "provenance": pair.provenance}
     for name, order in orders.items():
-        row["accuracy"][name] = order_accuracy(order, pair)
+        accuracy[name] = order_accuracy(order, pair)
     if rig is not None:
         row["3d"] = {name: sphere_errors_um(pair, order, rig)
                      for name, order in {"reference": pair.reference_order, **orders}.items()}
@@ -255,9 +258,9 @@ def _mean(values) -> float:
     return float(np.mean(values)) if values else float("nan")
 
 
-def _summary(rows: list, twin_rows: dict) -> dict:
+def _summary(rows: list, twin_rows: dict) -> dict[str, Any]:
     names = ["classical", *MODEL_NAMES]
-    summary = {"measured_accuracy_mean": {n: _mean([r["accuracy"][n] for r in rows]) for n in names}}
+    summary: dict[str, Any] = {"measured_accuracy_mean": {n: _mean([r["accuracy"][n] for r in rows]) for n in names}}
     for twin, rs in twin_rows.items():
         summary[f"twin_{twin}_accuracy_mean"] = {n: _mean([r["accuracy"][n] for r in rs]) for n in names}
     if rows and "3d" in rows[0]:

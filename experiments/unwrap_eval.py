@@ -173,7 +173,7 @@ def goal_checks(rows: list[Row], solver: str, methods=EVAL_METHODS, goals=GOALS)
         noise = noises[level]
         mine = [r for r in rows if r.solver == solver and r.noise == noise]
         worst = min(mine, key=lambda r: r.accuracy) if mine else None
-        passed = bool(mine) and not missing and worst.accuracy >= goals[key]
+        passed = worst is not None and not missing and worst.accuracy >= goals[key]
         detail = (f"lowest {100 * worst.accuracy:.2f} % ({worst.method.upper()} f_h = {worst.frequency:g})"
                   if worst else "no rows")
         if missing:
@@ -181,7 +181,7 @@ def goal_checks(rows: list[Row], solver: str, methods=EVAL_METHODS, goals=GOALS)
         checks.append((f">= {100 * goals[key]:g} % at every frequency, all methods, noise {noise:g}", passed, detail))
     ratios = error_ratio(rows, solver, min_frequency=goals["high_frequency"])
     worst_ratio = max(ratios.items(), key=lambda kv: kv[1][2]) if ratios else None
-    passed = bool(ratios) and not missing and worst_ratio[1][2] <= goals["error_ratio"]
+    passed = worst_ratio is not None and not missing and worst_ratio[1][2] <= goals["error_ratio"]
     detail = (f"highest ratio {worst_ratio[1][2]:.3f} ({worst_ratio[0][0].upper()}, noise {worst_ratio[0][1]:g})"
               if worst_ratio else "no rows")
     if missing:

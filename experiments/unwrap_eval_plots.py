@@ -64,7 +64,8 @@ def heatmap_size(n_frequencies: int, n_rows: int, n_solvers: int) -> tuple[int, 
 def _colour(accuracy: float) -> tuple[int, int, int]:
     level = np.clip((accuracy - _ACCURACY_FLOOR) / (1.0 - _ACCURACY_FLOOR), 0.0, 1.0)
     pixel = cv2.applyColorMap(np.array([[round(255 * float(level))]], np.uint8), cv2.COLORMAP_VIRIDIS)[0, 0]
-    return tuple(int(v) for v in pixel)
+    blue, green, red = (int(v) for v in pixel)  # BGR
+    return blue, green, red
 
 
 def _text(image, text, origin, scale=0.4, colour=(0, 0, 0), thickness=1):
