@@ -74,7 +74,7 @@ def _blender(rig, scene, sequences, samples: int, raycast_s_per_frame: float) ->
         start = time.perf_counter()
         blender.render_frames(rig, scene.meshes, patterns.astype(np.float32), samples=samples, seed=0)
         elapsed = time.perf_counter() - start
-    except Exception as exc:  # not set up (dptpu sim setup-blender), worker failure: report, do not crash
+    except Exception as exc:  # noqa: BLE001 -- not set up (dptpu sim setup-blender), a worker failure: report it
         return {"seconds_per_frame": None, "raycast_blender_ratio": None, "reason": f"{type(exc).__name__}: {exc}"}
     per_frame = elapsed / len(patterns)
     return {"seconds_per_frame": round(per_frame, 3), "samples": samples, "frames": len(patterns),

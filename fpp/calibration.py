@@ -25,6 +25,7 @@ import cv2
 import numpy as np
 import yaml
 
+from .mat_file import read_mat
 from .rig_model import DeviceModel, Rig, checked_array
 
 __all__ = ["RIG_FORMAT", "DeviceModel", "Rig", "load_bouguet", "load_bouguet_pair", "load_device", "load_opencv_device",
@@ -48,15 +49,8 @@ def load_bouguet(path, size, *, pose: int = 1) -> DeviceModel:
     pose : int
         Calibration pose whose extrinsics define the world frame (1-based, as in the toolbox).
     """
-    from scipy.io import loadmat  # scipy: heavy to import, and only a .mat file needs it
-
     path = Path(path)
-    if not path.exists():
-        raise FileNotFoundError(f"{path}: no such calibration file")
-    try:
-        data = loadmat(str(path))
-    except Exception as exc:  # scipy raises several types for a damaged file
-        raise ValueError(f"{path}: not a readable MATLAB .mat file ({exc})") from None
+    data = read_mat(path, what="calibration file")
     fields = {"KK": (3, 3), "kc": None, f"Rc_{pose}": (3, 3), f"Tc_{pose}": None}
     for name, shape in fields.items():
         if name not in data:
@@ -98,12 +92,11 @@ def load_bouguet_pair(camera_path, projector_path, *, camera_size=None, projecto
 
 def _projector_from_all_views(camera_path, projector_path, camera: DeviceModel,
                               projector: DeviceModel) -> DeviceModel:
-    # scipy (loadmat, least squares): heavy to import, and only this option needs it
-    from scipy.io import loadmat
-
+    # scipy (least squares): heavy to import, and only this option needs it
     from .stereo_calibration import CalibrationViews, refine_relative_pose
 
-    camera_data, projector_data = loadmat(str(camera_path)), loadmat(str(projector_path))
+    camera_data = read_mat(camera_path, what="calibration file")
+    projector_data = read_mat(projector_path, what="calibration file")
     active = np.ravel(camera_data.get("active_images", np.ones((1, 0)))).astype(bool)
     views = [k + 1 for k in np.flatnonzero(active)]
     object_points, camera_points, projector_points, boards = [], [], [], []

@@ -21,10 +21,10 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from scipy.io import loadmat
 
 from .calibration import Rig, load_bouguet_pair
 from .fitting import fit_sphere, fit_sphere_algebraic
+from .mat_file import read_mat
 from .triangulate import Triangulator, projector_coordinate
 
 #: Certified diameter of the standard sphere, mm (data README / paper).
@@ -84,12 +84,7 @@ def load_phase(data_dir, phase: str) -> np.ndarray:
         raise ValueError(f"phase must be 'real' or 'twin'; got {phase!r}")
     name, field = _PHASE_FILES[phase]
     path = Path(data_dir) / name
-    if not path.exists():
-        raise FileNotFoundError(f"{path}: no such phase file")
-    try:
-        data = loadmat(str(path))
-    except Exception as exc:
-        raise ValueError(f"{path}: not a readable MATLAB .mat file ({exc})") from None
+    data = read_mat(path, what="phase file")
     if field not in data:
         raise ValueError(f"{path}: missing field '{field}'")
     values = np.asarray(data[field], dtype=np.float64)

@@ -299,7 +299,7 @@ class Executor:
     def _run(self, entity, work, group) -> None:
         try:
             work()
-        except Exception as exc:  # noqa: BLE001 -- a callback's failure must not kill the node
+        except Exception as exc:  # any exception: a callback's failure must not kill the node
             entity.exception_count = getattr(entity, "exception_count", 0) + 1
             if isinstance(entity, _TaskEntity):
                 get_logger("dptpu.graph").error(f"exception in an executor task: {type(exc).__name__}: {exc}",

@@ -482,7 +482,7 @@ class Node:
         for name in names:
             try:
                 types.append(self._parameters.get_or(name).type_)
-            except Exception:  # noqa: BLE001
+            except Exception:  # noqa: BLE001 -- a remote caller's name may be anything: NOT_SET, as rclpy answers
                 types.append(Parameter.Type.NOT_SET)
         return types
 

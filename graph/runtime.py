@@ -337,7 +337,7 @@ class GraphRuntime:
         """``function(*args)``, logging (not raising) whatever it raises."""
         try:
             function(*args)
-        except Exception as exc:  # noqa: BLE001 -- the I/O thread must survive anything
+        except Exception as exc:  # any exception: the I/O thread must survive anything
             if self._running:
                 self.logger.error(f"graph I/O thread: {type(exc).__name__}: {exc}", exc_info=True,
                                   throttle_duration_sec=1.0)
@@ -365,8 +365,8 @@ class GraphRuntime:
     @staticmethod
     def _handler_for(entity):
         if hasattr(entity, "_flush"):
-            return lambda frames, e=entity: e._on_message(frames)  # noqa: E731 -- clients notify nobody
-        return lambda frames, e=entity: e._node if e._on_message(frames) else None  # noqa: E731
+            return lambda frames, e=entity: e._on_message(frames)  # clients notify nobody
+        return lambda frames, e=entity: e._node if e._on_message(frames) else None
 
     def _open(self, entity, registry: set, opener) -> None:
         if entity._destroyed:

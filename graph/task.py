@@ -131,6 +131,6 @@ class Task(Future):
     def __call__(self) -> None:
         try:
             self.set_result(self._handler(*self._args, **self._kwargs))
-        except Exception as exc:  # noqa: BLE001 -- a task's failure is its result
+        except Exception as exc:  # any exception: a task's failure is its result
             self.set_exception(exc)
             raise

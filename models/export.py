@@ -181,7 +181,7 @@ def load_checkpoint_model(path) -> tuple[FringeOrderNet, dict]:
         raise FileNotFoundError(f"{path}: no such checkpoint")
     try:
         checkpoint = torch.load(path, map_location="cpu", weights_only=True)
-    except Exception as exc:  # noqa: BLE001 - a truncated or foreign file raises many exception types
+    except Exception as exc:  # noqa: BLE001 -- a truncated or foreign file raises many exception types
         raise ValueError(f"{path}: not a dptpu training checkpoint ({type(exc).__name__}: {exc})") from None
     if not isinstance(checkpoint, dict) or checkpoint.get("format") != "dptpu-checkpoint/1":
         raise ValueError(f"{path}: not a dptpu training checkpoint (format dptpu-checkpoint/1)")

@@ -100,7 +100,7 @@ class FringeOrderModel:
         options.add_session_config_entry("session.intra_op.allow_spinning", "1" if spinning else "0")
         try:
             session = ort.InferenceSession(str(path), sess_options=options, providers=["CPUExecutionProvider"])
-        except Exception as exc:  # noqa: BLE001 - onnxruntime raises its own exception types for corrupt files
+        except Exception as exc:  # noqa: BLE001 -- onnxruntime raises its own exception types for corrupt files
             raise ModelLoadError(f"{path}: not a loadable ONNX model ({type(exc).__name__}: "
                                  f"{str(exc).splitlines()[0][:200]})") from None
         metadata = session.get_modelmeta().custom_metadata_map

@@ -167,7 +167,7 @@ def load_onnx_model(path) -> tuple[FringeOrderNet, dict]:
         raise FileNotFoundError(f"{path}: no such ONNX model")
     try:
         proto = onnx.load(str(path))
-    except Exception as exc:  # noqa: BLE001 - a truncated or foreign file raises many exception types
+    except Exception as exc:  # noqa: BLE001 -- a truncated or foreign file raises many exception types
         raise ValueError(f"{path}: not a readable ONNX model ({type(exc).__name__}: {exc})") from None
     kind, config, training = _metadata(proto, path)
     model = build_model(kind, config or None)

@@ -157,7 +157,7 @@ def _load_resume(path, options: TrainOptions) -> dict:
         raise FileNotFoundError(f"{path}: no such checkpoint (--resume)")
     try:
         checkpoint = torch.load(path, map_location="cpu", weights_only=True)
-    except Exception as exc:  # noqa: BLE001 - torch.load raises pickle, zip and runtime errors for a corrupt file
+    except Exception as exc:  # noqa: BLE001 -- torch.load raises pickle, zip and runtime errors for a corrupt file
         raise ValueError(f"{path}: not a dptpu training checkpoint ({type(exc).__name__}: {exc})") from None
     if not isinstance(checkpoint, dict) or checkpoint.get("format") != CHECKPOINT_FORMAT:
         raise ValueError(f"{path}: not a dptpu training checkpoint (format {CHECKPOINT_FORMAT})")

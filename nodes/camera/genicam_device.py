@@ -149,7 +149,7 @@ class GenICamDevice:
             described = {"serial": str(info.serial_number), "model": str(info.model), "vendor": str(info.vendor)}
             try:
                 acquirer = harvester.create(index)
-            except Exception as exc:  # noqa: BLE001 - the GenTL exceptions have no common base we can name
+            except Exception as exc:  # noqa: BLE001 -- the GenTL exceptions have no common base we can name
                 raise CameraUnavailable(f"cannot open camera {described['serial']} ({exc}); is another "
                                         "program using it?") from None
             try:
@@ -158,7 +158,7 @@ class GenICamDevice:
             except CameraUnavailable:
                 acquirer.destroy()
                 raise
-            except Exception as exc:  # noqa: BLE001
+            except Exception as exc:  # noqa: BLE001 -- GenICam node-map errors have no common base either
                 acquirer.destroy()
                 raise CameraUnavailable(f"cannot configure camera {described['serial']}: {exc}") from None
             return cls(harvester, acquirer, settings, described, notes)
@@ -170,7 +170,7 @@ class GenICamDevice:
         """Fire ``TriggerSoftware`` (software mode)."""
         try:
             self._acquirer.remote_device.node_map.TriggerSoftware.execute()
-        except Exception as exc:  # noqa: BLE001
+        except Exception as exc:  # noqa: BLE001 -- any GenTL error here means the camera is gone
             raise CameraUnavailable(f"software trigger failed ({exc}); camera lost?") from None
 
     def fetch(self, timeout_s: float) -> tuple[np.ndarray, int] | None:
@@ -179,7 +179,7 @@ class GenICamDevice:
             buffer = self._acquirer.fetch(timeout=timeout_s)
         except TimeoutException:
             return None
-        except Exception as exc:  # noqa: BLE001
+        except Exception as exc:  # noqa: BLE001 -- any GenTL error but the timeout means the camera is gone
             raise CameraUnavailable(f"acquisition failed ({type(exc).__name__}: {exc}); camera unplugged?") from None
         stamp_ns = time.time_ns()
         with buffer:
@@ -195,7 +195,7 @@ class GenICamDevice:
         for action in (self._acquirer.stop, self._acquirer.destroy, self._harvester.reset):
             try:
                 action()
-            except Exception:  # noqa: BLE001 - closing a lost device may fail in any way; nothing to do
+            except Exception:  # noqa: BLE001 -- closing a lost device may fail in any way; nothing to do
                 pass
 
 

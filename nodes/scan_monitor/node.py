@@ -274,7 +274,7 @@ class ScanMonitorNode(Node):
         self._start_call = None
         try:
             response = future.result()
-        except Exception as exc:  # noqa: BLE001 - a failed call is retried on the next tick
+        except Exception as exc:  # noqa: BLE001 -- a failed call is retried on the next tick
             self.get_logger().warning(f"start_scan failed: {exc}", throttle_duration_sec=5.0)
             return
         if response is not None and response.success:

@@ -192,10 +192,10 @@ class _Handler(BaseHTTPRequestHandler):
     server_version = "dptpu-viewer"
     protocol_version = "HTTP/1.1"
 
-    def log_message(self, format, *args):  # noqa: A002 - the stdlib's name
+    def log_message(self, format, *args):  # BaseHTTPRequestHandler's signature
         self.server.node_logger.debug("http: " + format % args)
 
-    def do_GET(self):  # noqa: N802 - the stdlib's name
+    def do_GET(self):  # BaseHTTPRequestHandler's name
         path = self.path.split("?", 1)[0]
         if path == "/ws":
             self._websocket()

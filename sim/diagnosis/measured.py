@@ -13,9 +13,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
-from scipy.io import loadmat
 
 from dptpu.fpp.capture import PatternLevels, load_sequence_images, read_capture
+from dptpu.fpp.mat_file import read_mat
 from dptpu.fpp.reconstruct import unwrap_capture
 from dptpu.sim.image_formation import SequenceSpec
 
@@ -135,10 +135,7 @@ def _from_npz(path: Path) -> Measured:
 def _from_mat(path: Path, frequency) -> Measured:
     if frequency is None:
         raise ValueError(f"{path}: a .mat phase file needs --frequency (96 for the dptpu-sphere data)")
-    try:
-        data = loadmat(str(path))
-    except Exception as exc:
-        raise ValueError(f"{path}: not a readable MATLAB .mat file ({exc})") from None
+    data = read_mat(path, what="phase file")
     arrays = {k: v for k, v in data.items() if not k.startswith("__") and getattr(v, "ndim", 0) == 2
               and min(v.shape) > 8}
     if not arrays:

@@ -193,7 +193,9 @@ def write_report(diagnosis, out_dir, *, rerender: bool = True) -> dict:
                                                             x_label="angle / frame / level", unit="").name
     report["decomposition"] = decomposition
     if diagnosis.residual_before is not None:
-        rms = lambda parts: float(np.sqrt(np.mean(np.concatenate([p.ravel() for p in parts]) ** 2)))  # noqa: E731
+        def rms(parts) -> float:
+            return float(np.sqrt(np.mean(np.concatenate([p.ravel() for p in parts]) ** 2)))
+
         report["residual_rms_dn"] = {"twin": rms(diagnosis.residual_before),
                                      "extended_twin": rms(diagnosis.residual_after),
                                      "pixels": diagnosis.pixels.size}

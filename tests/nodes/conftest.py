@@ -49,7 +49,7 @@ def spawn_node(node_env):
     for process in started:
         try:
             process.proc.wait(timeout=5)
-        except Exception:  # noqa: BLE001 - killed below
+        except Exception:  # noqa: BLE001 -- killed below
             pass
         process.kill()
 

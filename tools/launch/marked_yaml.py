@@ -121,7 +121,7 @@ def load_marked_yaml(path: str | Path):
     """
     text = Path(path).read_text(encoding="utf-8")
     try:
-        return yaml.load(text, Loader=_MarkedLoader)  # noqa: S506 -- a SafeLoader subclass
+        return yaml.load(text, Loader=_MarkedLoader)  # safe: _MarkedLoader is a SafeLoader subclass
     except yaml.MarkedYAMLError as exc:
         mark = exc.problem_mark or exc.context_mark
         problem = exc.problem or "invalid YAML"

@@ -246,7 +246,8 @@ class Supervisor:
         if node.output in ("log", "both") and managed.log is None:
             if self._log_dir is None:  # _prepare_log_dir sets it whenever a node logs to a file
                 raise RuntimeError(f"no log directory for '{node.label}'")
-            managed.log = open(os.path.join(self._log_dir, f"{node.label}.log"), "a", encoding="utf-8")  # noqa: SIM115
+            # open for the node's life: closed when the node exits (below, where its readers finish)
+            managed.log = open(os.path.join(self._log_dir, f"{node.label}.log"), "a", encoding="utf-8")
         screen = node.output in ("screen", "both")
         if process.stdout is None or process.stderr is None:  # Popen was given stdout=PIPE, stderr=PIPE
             raise RuntimeError(f"'{node.label}' was started without output pipes")

@@ -186,7 +186,7 @@ def stop(*processes: NodeProcess) -> None:
     for process in processes:
         try:
             process.proc.wait(timeout=5)
-        except Exception:  # noqa: BLE001 - killed below
+        except Exception:  # noqa: BLE001 -- killed below
             pass
         process.kill()
 
@@ -252,7 +252,7 @@ def test_bridge_republishes_points_camera_info_and_answers_capture_requests(node
             points.publish(cloud)
             try:
                 events.append(listener.wait_event("cloud", timeout=0.5))
-            except Exception:  # noqa: BLE001 - not matched yet: publish again
+            except Exception:  # noqa: BLE001 -- not matched yet: publish again
                 pass
         assert len(events) == 3, (bridge.stderr[-2000:], listener.stderr[-2000:])
         for event in events:
