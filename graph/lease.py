@@ -49,7 +49,7 @@ IO, BUSY, POLLING = "io", "busy", "polling"
 
 #: Seconds an executor may hold its lent sockets without polling them before the I/O thread takes them back.
 #: Also how often the I/O thread wakes to watch a lease while messages flow, so a longer period costs less CPU
-#: a scan (docs/benchmarks.md, Run 9, measured 10 ms against 25 ms).
+#: a scan (docs/benchmarks.md, Run 9, compares 10 ms with 25 ms).
 TAKEOVER_S = 0.025
 #: Seconds after the last poll that received messages during which the I/O thread watches the lease every TAKEOVER_S.
 WATCH_AFTER_TRAFFIC_S = 1.0

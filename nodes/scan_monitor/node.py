@@ -254,7 +254,7 @@ class ScanMonitorNode(Node):
         if self.start_client is None or not self._outputs_ready or self.finished or self._start_call is not None:
             return
         now_s = time.monotonic()
-        if now_s >= self._heard_checked_s + _HEARD_RECHECK_S:  # a graph snapshot costs ~1 ms: once a second at most
+        if now_s >= self._heard_checked_s + _HEARD_RECHECK_S:  # a graph snapshot reads all peers: once a second
             # the camera (sim) must hear the Triggers too (and this monitor, when it takes them)
             heard_by = 2 if self.trigger_sub is not None else 1
             self._triggers_heard = self.count_subscribers(self._trigger_topic) >= heard_by
