@@ -107,5 +107,6 @@ def test_wheel_runs_the_main_job_from_its_installed_launch_files(tmp_path, wheel
     output = run.stdout + run.stderr
     assert run.returncode == 0, output[-3000:]
     scans = [line for line in output.splitlines() if line.startswith("[scan_monitor] scan ")]
-    assert len(scans) == 2 and all(": ok" in line for line in scans), output[-3000:]
+    # graded, not failed: ok, or UNTRUSTED with the wrong share (the shipped random-1 has wrong orders, issue #16)
+    assert len(scans) == 2 and all(": ok, " in line or ": UNTRUSTED (" in line for line in scans), output[-3000:]
     assert sorted(path.name for path in (tmp_path / "scans").glob("*.ply")), "the scan monitor wrote no PLY"

@@ -1,10 +1,15 @@
-"""Scan monitor: one status line per scan (points, fringe-order accuracy and depth RMS against the twin's ground
-truth, latency), PLY files of the first clouds, and the end of the launch after ``scans`` scans.
+"""Scan monitor: one status line per scan (points, precision and completeness, fringe-order accuracy and depth RMS
+against the twin's ground truth, latency), PLY files of the first clouds, and the end of the launch after ``scans``
+scans.
 
 The monitor is the sim rig's robot: it subscribes to the clouds and the scan statuses (and, with ground truth, to
 the absolute phase and the sim node's truth), reports each scan once, when its cloud arrived (``ok``), when a node
 reported it failed (``FAILED``, with the node and the reason), or when nothing more came for ``scan_timeout_s``
-(``LOST``). A cloud carries its scan's stamp, not its ``sequence_id``: with ground truth the scan's AbsolutePhase
+(``LOST``). With ground truth a scan whose cloud arrived is ``ok`` only within the bounds ``max_wrong_share`` (the
+share of its published points with a wrong fringe order or off the true surface) and ``min_completeness`` (the
+share of the truly valid pixels published); otherwise it is ``UNTRUSTED``, with the figure out of bounds
+(:func:`dptpu.nodes.scan_monitor.scan_metrics.trust_verdict`).
+A cloud carries its scan's stamp, not its ``sequence_id``: with ground truth the scan's AbsolutePhase
 (same stamp) names it, without it the cloud node's ``done`` ScanStatus does (its ``header.stamp`` minus its
 ``duration_s`` is the scan's stamp, to the nanosecond; docs/nodes.md), so a monitor without ground truth takes
 no full-size map but the clouds. Figures: :mod:`dptpu.nodes.scan_monitor.scan_metrics`. With ``scans:=N`` it
@@ -14,7 +19,9 @@ graph cleanly (docs/launch.md). Run it as ``python -m dptpu.nodes.scan_monitor -
 
 A line looks like::
 
-    scan 3 sphere: ok, 1,327 points, fringe orders 100.00 %, depth RMS 0.052 mm, latency 184 ms
+    scan 3 sphere: ok, 1,327 points, 0.000 % wrong, 97.8 % complete, fringe orders 100.00 %, depth RMS 0.052 mm
+    (0.052 mm where the order is right), latency 184 ms
+    scan 1 random-1: UNTRUSTED (5.93 % of the points wrong (> 0.10 %)), 62,110 points, 5.930 % wrong, ...
 
 Latency is from the scan's last frame (the stamp its cloud carries; the sim stamps a frame with its Trigger's
 stamp) to the cloud's arrival here.
@@ -43,6 +50,12 @@ name                 default  meaning
 ``scans``            0        exit (code 0) after this many scans were reported; 0 = run until Ctrl-C
 ``scan_timeout_s``   5.0      a scan with no cloud and no failure this long after its last message is LOST
 ``ground_truth``     true     compare with ``/sim/ground_truth``; false: points and latency only (a real rig)
+``max_wrong_share``  0.001    with ground truth: a scan with a larger share of wrong points (wrong order or off
+                              the surface) among its published points is UNTRUSTED
+``min_completeness`` 0.60     with ground truth: a scan publishing a smaller share of the truly valid pixels is
+                              UNTRUSTED (defaults and the measurements behind them: docs/scanner.md)
+``off_surface_mm``   1.0      a point of the right order is off the surface beyond
+                              ``max(off_surface_mm, 6 sigma)`` from the true depth (:mod:`dptpu.fpp.cloud_accuracy`)
 ``ply_dir``          ""       folder for PLY files of the first ``ply_count`` clouds ("" = none)
 ``ply_count``        3        clouds written as ``scan_<sequence_id>.ply``
 ``summary``          ""       JSON file written at exit (and every 50 scans): the last 200 scans' figures, totals
@@ -68,6 +81,7 @@ from typing import Any
 import numpy as np
 
 import dptpu.graph as rclpy
+from dptpu.fpp.cloud_accuracy import OFF_SURFACE_MM
 from dptpu.fpp.point_cloud_file import write_point_cloud
 from dptpu.graph.interfaces import Trigger as TriggerService
 from dptpu.graph.node import Node
@@ -77,7 +91,7 @@ from dptpu.graph.task import Future
 from dptpu.messages import AbsolutePhase, Image, PointCloud2, ScanStatus, Trigger
 from dptpu.nodes.node_main import run_node
 
-from .scan_metrics import scan_metrics
+from .scan_metrics import MAX_WRONG_SHARE, MIN_COMPLETENESS, scan_metrics, trust_verdict
 
 __all__ = ["ScanMonitorNode", "main"]
 
@@ -120,6 +134,14 @@ class ScanMonitorNode(Node):
         self.start_scans = self.declare_parameter("start_scans", 0).value
         start_service = self.declare_parameter("start_service", "/projector/start_scan").value
         self.trigger_latency = self.declare_parameter("trigger_latency", True).value
+        self.max_wrong_share = float(self.declare_parameter("max_wrong_share", MAX_WRONG_SHARE).value)
+        self.min_completeness = float(self.declare_parameter("min_completeness", MIN_COMPLETENESS).value)
+        self.off_surface_mm = float(self.declare_parameter("off_surface_mm", OFF_SURFACE_MM).value)
+        if not (0.0 <= self.max_wrong_share <= 1.0 and 0.0 <= self.min_completeness <= 1.0):
+            raise ValueError(f"parameters max_wrong_share and min_completeness are shares in [0, 1]; got "
+                             f"{self.max_wrong_share}, {self.min_completeness}")
+        if not self.off_surface_mm >= 0.0:
+            raise ValueError(f"parameter off_surface_mm must be >= 0 mm; got {self.off_surface_mm}")
         if self.scans < 0 or self.start_scans < 0:
             raise ValueError(f"parameters scans (0 = run until Ctrl-C) and start_scans (0 = none) must be >= 0; "
                              f"got {self.scans}, {self.start_scans}")
@@ -127,9 +149,10 @@ class ScanMonitorNode(Node):
             raise ValueError(f"parameter scan_timeout_s must be > 0 seconds; got {self.scan_timeout_s}")
         self.records: list[dict] = []
         self.reported = 0
-        self.counts = {"ok": 0, "failed": 0, "lost": 0}
+        self.counts = {"ok": 0, "untrusted": 0, "failed": 0, "lost": 0}
         self._latencies_ms = array("d")  # every ok scan's latency (8 bytes each)
-        self._pooled: dict[str, float] = {"compared": 0, "errors": 0, "depth_pixels": 0, "depth_squares": 0.0}
+        self._pooled: dict[str, float] = {"compared": 0, "errors": 0, "depth_pixels": 0, "depth_squares": 0.0,
+                                          "published": 0, "wrong": 0, "truly_valid": 0, "published_truly_valid": 0}
         self.ply_written = 0
         self.finished = False
         self._pending: dict[int, _Scan] = {}
@@ -342,6 +365,11 @@ class ScanMonitorNode(Node):
         if scan.cloud is not None:
             record.update(self._figures(scan, scan.cloud, truth))
             record["outcome"] = "ok"
+            if "wrong_share" in record:
+                reason = trust_verdict(record["wrong_share"], record["completeness"],
+                                       max_wrong_share=self.max_wrong_share, min_completeness=self.min_completeness)
+                if reason:
+                    record.update(outcome="untrusted", reason=reason)
             record["node_durations_s"] = dict(scan.durations_s)  # each node's own ScanStatus.duration_s
         elif scan.failure:
             record.update(outcome="failed", reason=scan.failure)
@@ -379,7 +407,7 @@ class ScanMonitorNode(Node):
             same_frequency = math.isclose(phase.frequency, truth.frequency, rel_tol=1e-9)
             metrics = scan_metrics(xyz[..., 2], phase.absolute_phase if same_frequency else np.full_like(
                 phase.absolute_phase, np.nan), phase.valid, truth.absolute_phase, truth.valid,
-                scan.truth_depth.to_array())
+                scan.truth_depth.to_array(), off_surface_mm=self.off_surface_mm)
             figures.update(metrics.as_dict())
             figures["method"] = phase.method
         elif xyz is None and scan.cloud_points is not None \
@@ -395,9 +423,12 @@ class ScanMonitorNode(Node):
     @staticmethod
     def _line(record: dict) -> str:
         head = f"scan {record['sequence_id']}" + (f" {record['scene']}" if record["scene"] else "")
-        if record["outcome"] != "ok":
+        if record["outcome"] not in ("ok", "untrusted"):
             return f"{head}: {record['outcome'].upper()}: {record['reason']}"
-        text = f"{head}: ok, {record['valid_points']:,} points"
+        verdict = "ok" if record["outcome"] == "ok" else f"UNTRUSTED ({record['reason']})"
+        text = f"{head}: {verdict}, {record['valid_points']:,} points"
+        if "wrong_share" in record:
+            text += f", {100.0 * record['wrong_share']:.3f} % wrong, {100.0 * record['completeness']:.1f} % complete"
         if "order_accuracy" in record:
             text += (f", fringe orders {100.0 * record['order_accuracy']:.2f} %, depth RMS "
                      f"{record['depth_rms_mm']:.3f} mm ({record['depth_rms_right_order_mm']:.3f} mm where the order "
@@ -405,7 +436,7 @@ class ScanMonitorNode(Node):
         return text + f", latency {record['latency_ms']:.0f} ms"
 
     def _pool(self, record: dict) -> None:
-        if record["outcome"] != "ok":
+        if record["outcome"] not in ("ok", "untrusted"):
             return
         self._latencies_ms.append(record["latency_ms"])
         if record.get("compared_pixels"):
@@ -414,6 +445,11 @@ class ScanMonitorNode(Node):
         if record.get("depth_pixels"):
             self._pooled["depth_pixels"] += record["depth_pixels"]
             self._pooled["depth_squares"] += record["depth_rms_mm"] ** 2 * record["depth_pixels"]
+        if "wrong_points" in record:
+            for key, figure in (("published", "valid_points"), ("wrong", "wrong_points"),
+                                ("truly_valid", "truly_valid_pixels"),
+                                ("published_truly_valid", "published_truly_valid")):
+                self._pooled[key] += record[figure]
 
     def totals(self) -> dict[str, float]:
         """Counts and figures over every reported scan (accuracy and RMS pooled over pixels)."""
@@ -425,13 +461,21 @@ class ScanMonitorNode(Node):
         pooled = self._pooled
         if pooled["compared"]:
             totals["order_accuracy"] = 1.0 - pooled["errors"] / pooled["compared"]
+        if pooled["published"]:
+            totals["wrong_share"] = pooled["wrong"] / pooled["published"]
+        if pooled["truly_valid"]:
+            totals["completeness"] = pooled["published_truly_valid"] / pooled["truly_valid"]
         if pooled["depth_pixels"]:
             totals["depth_rms_mm"] = math.sqrt(pooled["depth_squares"] / pooled["depth_pixels"])
         return totals
 
     def summary_line(self) -> str:
         t = self.totals()
-        text = f"{t['scans']} scans: {t['ok']} ok, {t['failed']} failed, {t['lost']} lost"
+        text = f"{t['scans']} scans: {t['ok']} ok, {t['untrusted']} untrusted, {t['failed']} failed, {t['lost']} lost"
+        if "wrong_share" in t:
+            text += f"; {100.0 * t['wrong_share']:.3f} % of the points wrong"
+            if "completeness" in t:
+                text += f", {100.0 * t['completeness']:.1f} % complete"
         if "order_accuracy" in t:
             text += f"; fringe orders {100.0 * t['order_accuracy']:.3f} %"
         if "depth_rms_mm" in t:

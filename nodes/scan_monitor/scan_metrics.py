@@ -1,4 +1,5 @@
-"""How good one scan is against the twin's ground truth: valid points, fringe-order accuracy, depth error.
+"""How good one scan is against the twin's ground truth: valid points, fringe-order accuracy, depth error,
+precision and completeness, and whether the scan can be trusted.
 
 Pure numpy (no sockets): the scan monitor (:mod:`dptpu.nodes.scan_monitor`), the whole-graph tests and the
 pipeline benchmark use the same definitions.
@@ -13,17 +14,30 @@ Definitions (H, W = camera height, width):
   ``Psi`` is right;
 - depth error: ``z - z_true`` in millimetres over pixels with a finite point that the ground truth marks valid;
   ``depth_rms_mm`` over all of them, ``depth_rms_right_order_mm`` over those of the right fringe order (the
-  phase noise alone).
+  phase noise alone);
+- precision and completeness (:mod:`dptpu.fpp.cloud_accuracy`, the definition ``dptpu eval cloud`` uses too):
+  ``wrong_share`` = published points (finite) with a wrong fringe order or off the true surface / published
+  points, ``completeness`` = published points the truth marks valid / pixels the truth marks valid;
+- the verdict (:func:`trust_verdict`): a scan is trusted when ``wrong_share <= max_wrong_share`` and
+  ``completeness >= min_completeness`` (the scan monitor's parameters; defaults and the measurements behind them
+  in docs/scanner.md).
 """
 from __future__ import annotations
 
+import math
 from dataclasses import asdict, dataclass
 
 import numpy as np
 
-__all__ = ["ScanMetrics", "scan_metrics"]
+from dptpu.fpp.cloud_accuracy import NOISE_SIGMAS, OFF_SURFACE_MM, cloud_accuracy, order_shift
 
-_TWO_PI = 2.0 * np.pi
+__all__ = ["MAX_WRONG_SHARE", "MIN_COMPLETENESS", "ScanMetrics", "scan_metrics", "trust_verdict"]
+
+#: Default bound of a trusted scan: at most this share of its published points wrong (issue #16's goal, 0.1 %).
+MAX_WRONG_SHARE = 0.001
+#: Default bound of a trusted scan: at least this share of the truly valid pixels published (docs/scanner.md).
+MIN_COMPLETENESS = 0.60
+
 
 
 @dataclass(frozen=True)
@@ -39,13 +53,22 @@ class ScanMetrics:
     depth_rms_mm: float
     depth_rms_right_order_mm: float
     depth_max_abs_mm: float
+    truly_valid_pixels: int = 0
+    published_truly_valid: int = 0
+    wrong_order_points: int = 0
+    off_surface_points: int = 0
+    wrong_points: int = 0
+    wrong_share: float = float("nan")
+    completeness: float = float("nan")
+    off_surface_tolerance_mm: float = float("nan")
 
     def as_dict(self) -> dict:
         return asdict(self)
 
 
 def scan_metrics(depth_m: np.ndarray, absolute_phase: np.ndarray, phase_valid: np.ndarray,
-                 truth_phase: np.ndarray, truth_valid: np.ndarray, truth_depth_m: np.ndarray) -> ScanMetrics:
+                 truth_phase: np.ndarray, truth_valid: np.ndarray, truth_depth_m: np.ndarray, *,
+                 off_surface_mm: float = OFF_SURFACE_MM, noise_sigmas: float = NOISE_SIGMAS) -> ScanMetrics:
     """Compare one scan with the ground truth.
 
     Parameters
@@ -58,6 +81,9 @@ def scan_metrics(depth_m: np.ndarray, absolute_phase: np.ndarray, phase_valid: n
         True absolute phase of the same frequency (rad) and where it holds.
     truth_depth_m : ndarray (H, W)
         True depth, metres, NaN where no surface.
+    off_surface_mm, noise_sigmas : float
+        A point of the right order is off the surface beyond ``max(off_surface_mm, noise_sigmas * sigma)``
+        (:func:`dptpu.fpp.cloud_accuracy.cloud_accuracy`).
 
     Returns
     -------
@@ -70,8 +96,7 @@ def scan_metrics(depth_m: np.ndarray, absolute_phase: np.ndarray, phase_valid: n
     truth_depth = np.asarray(truth_depth_m, np.float64)
     truth_valid = np.asarray(truth_valid, bool)
     finite = np.isfinite(depth)
-    with np.errstate(invalid="ignore"):
-        fringe_shift = np.rint((np.asarray(absolute_phase, np.float64) - truth_phase) / _TWO_PI)  # (H, W)
+    fringe_shift = order_shift(absolute_phase, truth_phase)  # (H, W)
     compared = np.asarray(phase_valid, bool) & truth_valid & np.isfinite(fringe_shift)
     wrong = compared & (fringe_shift != 0)
     right = compared & ~wrong
@@ -81,6 +106,9 @@ def scan_metrics(depth_m: np.ndarray, absolute_phase: np.ndarray, phase_valid: n
     def rms(mask) -> float:
         return float(np.sqrt(np.mean(errors_mm[mask] ** 2))) if mask.any() else float("nan")
 
+    accuracy = cloud_accuracy(finite, truth_valid, shift=np.where(compared, fringe_shift, np.nan),
+                              depth=depth * 1e3, truth_depth=truth_depth * 1e3, off_surface=off_surface_mm,
+                              noise_sigmas=noise_sigmas)
     compared_count = int(np.count_nonzero(compared))
     wrong_count = int(np.count_nonzero(wrong))
     return ScanMetrics(
@@ -89,4 +117,25 @@ def scan_metrics(depth_m: np.ndarray, absolute_phase: np.ndarray, phase_valid: n
         order_accuracy=1.0 - wrong_count / compared_count if compared_count else float("nan"),
         depth_pixels=int(np.count_nonzero(in_depth)), depth_rms_mm=rms(in_depth),
         depth_rms_right_order_mm=rms(in_depth & right),
-        depth_max_abs_mm=float(np.abs(errors_mm[in_depth]).max()) if in_depth.any() else float("nan"))
+        depth_max_abs_mm=float(np.abs(errors_mm[in_depth]).max()) if in_depth.any() else float("nan"),
+        truly_valid_pixels=accuracy.truly_valid, published_truly_valid=accuracy.published_truly_valid,
+        wrong_order_points=accuracy.wrong_order,
+        off_surface_points=accuracy.off_surface, wrong_points=accuracy.wrong, wrong_share=accuracy.wrong_share,
+        completeness=accuracy.completeness, off_surface_tolerance_mm=accuracy.off_surface_tolerance)
+
+
+def trust_verdict(wrong_share: float, completeness: float, *, max_wrong_share: float = MAX_WRONG_SHARE,
+                  min_completeness: float = MIN_COMPLETENESS) -> str:
+    """Why a scan is not to be trusted, or "" when it is within both bounds.
+
+    ``"5.93 % of the points wrong (> 0.10 %)"``, ``"completeness 71.2 % (< 80.0 %)"``, both joined by ``"; "``, or
+    ``"no point published"`` (NaN shares).
+    """
+    if not (math.isfinite(wrong_share) and math.isfinite(completeness)):
+        return "no point published" if not math.isfinite(wrong_share) else "no truly valid pixel to compare"
+    reasons = []
+    if wrong_share > max_wrong_share:
+        reasons.append(f"{100 * wrong_share:.2f} % of the points wrong (> {100 * max_wrong_share:.2f} %)")
+    if completeness < min_completeness:
+        reasons.append(f"completeness {100 * completeness:.1f} % (< {100 * min_completeness:.1f} %)")
+    return "; ".join(reasons)

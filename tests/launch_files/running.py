@@ -20,7 +20,7 @@ SIM_RIG = REPO_ROOT / "launch" / "sim_rig.yaml"
 #: the round-number twin rig the whole-graph tests render with (sim_rig.yaml's default is the shipped renders' rig)
 TWIN_RIG_ARG = f"rig:={REPO_ROOT / 'launch' / 'params' / 'twin_rig.yaml'}"
 _STARTED = re.compile(r"\[launch\] started '([^']+)' \(pid (\d+)\)")
-_SCAN = re.compile(r"^\[scan_monitor\] scan (\d+)(?: (\S+))?: (ok|FAILED|LOST)")
+_SCAN = re.compile(r"^\[scan_monitor\] scan (\d+)(?: (\S+))?: (ok|UNTRUSTED|FAILED|LOST)")
 
 
 class LaunchRun:

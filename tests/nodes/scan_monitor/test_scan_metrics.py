@@ -4,7 +4,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from dptpu.nodes.scan_monitor.scan_metrics import scan_metrics
+from dptpu.nodes.scan_monitor.scan_metrics import scan_metrics, trust_verdict
 
 
 def test_metrics_count_wrong_fringes_and_depth_errors_exactly():
@@ -33,3 +33,25 @@ def test_metrics_refuse_arrays_of_different_shapes():
     a = np.zeros((4, 4))
     with pytest.raises(ValueError, match=r"share one \(H, W\) shape"):
         scan_metrics(a, a, a > 0, np.zeros((4, 5)), a > 0, a)
+
+
+def test_metrics_give_the_precision_and_completeness_the_verdict_reads():
+    truth_phase = np.tile(np.linspace(0.5, 2 * np.pi * 8, 10), (5, 1))
+    truth_depth = np.full((5, 10), 0.8)
+    truth_valid = np.ones((5, 10), bool)
+    truth_valid[0, :] = False  # 40 truly valid pixels
+    phase = truth_phase.copy()
+    phase[2, 3] += 2 * np.pi  # one wrong order
+    depth = truth_depth.copy()
+    depth[2, 3] += 0.004
+    depth[3, 5] += 0.0025  # right order, 2.5 mm off: off the surface
+    depth[4, :] = np.nan  # 10 truly valid pixels not published
+    m = scan_metrics(depth, phase, np.ones((5, 10), bool), truth_phase, truth_valid, truth_depth)
+    assert (m.valid_points, m.truly_valid_pixels, m.published_truly_valid) == (40, 40, 30)
+    assert (m.wrong_order_points, m.off_surface_points, m.wrong_points) == (1, 1, 2)
+    assert m.wrong_share == pytest.approx(2 / 40) and m.completeness == pytest.approx(30 / 40)
+    assert trust_verdict(m.wrong_share, m.completeness) == "5.00 % of the points wrong (> 0.10 %)"
+    assert trust_verdict(m.wrong_share, m.completeness, max_wrong_share=0.06, min_completeness=0.8) \
+        == "completeness 75.0 % (< 80.0 %)"
+    assert trust_verdict(0.0005, 0.97) == ""
+    assert trust_verdict(float("nan"), float("nan")) == "no point published"
