@@ -1,0 +1,344 @@
+"""``dptpu eval cloud``: precision and completeness of the published points on rigs and scenes the model never saw,
+and on the real CFPE captures (issue #16).
+
+1. **Twin captures** (:func:`render_eval_captures`): crossing-axes rigs outside the training rigs (other camera focal
+   lengths, baselines, toe-in angles and working distances: :data:`OUTSIDE_RIGS`), random scenes of several objects
+   before a tilted background (:func:`dptpu.sim.scenes.random_scene`, a seed root no training set used), rendered by
+   the raycast twin at ``supersample x supersample`` rays per pixel and box-averaged (a camera pixel integrates its
+   area: mixed pixels at depth edges), with Gaussian camera noise of 0, 1 and 2 of the paper's sigma (1.5693 DN),
+   12 steps and the paper's 3 steps, one capture holding the high frequency and the low one of every method
+   (MF ``f_l = 1``, MW ``f_l = f_h - 1``, NT ``f_l`` = :data:`NT_LOW_FREQUENCY`).
+2. **Each method and solver** (:func:`published_cloud`, what ``dptpu triangulate`` does): the classical order
+   (:func:`dptpu.fpp.reconstruct.unwrap_capture`) or DP-TPU's (:func:`dptpu.models.refine.refine_capture_result`,
+   the model of ``--model``, on the methods it was trained for), then triangulation; the published points are the
+   finite ones.
+3. **Scores** (:func:`dptpu.fpp.cloud_accuracy.cloud_accuracy`, the scan monitor's definition): the share of
+   published points with a wrong order or off the true surface, and the share of the truly valid pixels published,
+   pooled over rigs and scenes.
+4. **Real CFPE captures** (:func:`cfpe_rows`, ``../shared/data/cfpe``): 3-step inputs from steps 0, 4, 8 of the
+   12-step frames, the three-period heterodyne (classical, = MF on the beat pair of
+   :func:`dptpu.sim.diagnosis.cfpe_inputs.cfpe_pair`) and DP-TPU on that pair; reference: the 12-step heterodyne
+   order. Published: pixels the reference holds whose order puts them on the projector; precision = the share at
+   the reference order; completeness = published / pixels the reference holds.
+
+Outputs: ``cloud_eval.md`` (the table and the goals) and ``cloud_eval.json`` (every row, per capture and pooled).
+"""
+from __future__ import annotations
+
+import json
+import math
+from collections.abc import Callable, Iterable
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from dptpu.fpp.calibration import load_rig
+from dptpu.fpp.capture import read_capture
+from dptpu.fpp.cloud_accuracy import OFF_SURFACE_MM, cloud_accuracy, order_shift
+from dptpu.fpp.reconstruct import CaptureResult, unwrap_capture
+from dptpu.fpp.triangulate import Triangulator, projector_coordinate
+from dptpu.models.inference import FringeOrderModel
+from dptpu.models.refine import refine_capture_result, refine_order
+from dptpu.sim.diagnosis.cfpe_inputs import cfpe_pair
+from dptpu.sim.image_formation import SequenceSpec
+from dptpu.sim.render import render_capture
+from dptpu.sim.rig import Rig, resize_camera, wide_rig
+from dptpu.sim.scenes.random_scene import random_scene
+
+__all__ = ["CFPE_SCENES", "GOALS", "NT_LOW_FREQUENCY", "OUTSIDE_RIGS", "PAPER_SIGMA_DN", "CloudEvalSpec", "EvalRig",
+           "cfpe_rows", "format_table", "goal_checks", "pool_rows", "published_cloud", "render_eval_captures",
+           "run_cloud_eval", "score_capture"]
+
+#: The paper's 1 sigma camera noise, gray levels (2 sigma = 3.1386).
+PAPER_SIGMA_DN = 1.5693
+#: NT's low frequency (the paper's NT pairs: f_l = 10.9, not a divisor of f_h).
+NT_LOW_FREQUENCY = 10.9
+#: Scene seed root: the shipped model's training set used 100, its held-out set 200, ``dptpu eval unwrap`` 300.
+DEFAULT_SEED = 500
+CFPE_SCENES = ("01", "04", "06", "08")
+#: Issue #16's goals: largest wrong share and smallest completeness per capture kind.
+GOALS = {"12-step": (0.0005, 0.97), "3-step 2 sigma": (0.001, 0.95), "cfpe": (0.005, float("nan"))}
+
+
+@dataclass(frozen=True)
+class EvalRig:
+    """A crossing-axes rig (:func:`dptpu.sim.rig.wide_rig`'s construction: the DLP4500 projector to the camera's left,
+    turned by ``angle_deg`` so the axes cross at ``distance_mm``; baseline ``distance_mm * tan(angle_deg)``)."""
+
+    name: str
+    focal_px: float  # camera focal length at 640x480
+    angle_deg: float
+    distance_mm: float
+
+    def rig(self, size: tuple[int, int]) -> Rig:
+        return resize_camera(wide_rig(distance_mm=self.distance_mm, angle_deg=self.angle_deg,
+                                      camera_focal_px=self.focal_px), size)
+
+    @property
+    def baseline_mm(self) -> float:
+        return self.distance_mm * math.tan(math.radians(self.angle_deg))
+
+
+#: Rigs no shipped model was trained on (training: nominal 2600 px / 6.21 deg / 800 mm and wide 1000 px / 8 deg /
+#: 700 mm): issue #16's outside rig (1800 px, 150 mm baseline, 14 deg), a long narrow one and a short wide one.
+OUTSIDE_RIGS = (EvalRig("f1800-b150-14deg", 1800.0, 14.0, 601.6), EvalRig("f1300-b79-5deg", 1300.0, 5.0, 900.0),
+                EvalRig("f2400-b164-20deg", 2400.0, 20.0, 450.0))
+
+
+@dataclass(frozen=True)
+class CloudEvalSpec:
+    """What ``dptpu eval cloud`` renders and scores (defaults: one tiny scene on one rig, seconds)."""
+
+    rigs: tuple[EvalRig, ...] = OUTSIDE_RIGS[:1]
+    scenes: int = 1
+    size: tuple[int, int] = (96, 72)
+    frequency: float = 16.0  # periods of about 9 camera pixels at 96x72 on the first rig (64 at 320x240: 7.4)
+    steps: tuple[int, ...] = (12, 3)
+    noise_sigmas: tuple[float, ...] = (0.0, 1.0, 2.0)
+    methods: tuple[str, ...] = ("mf", "mw", "nt")
+    supersample: int = 3
+    seed: int = DEFAULT_SEED
+    objects: tuple[int, int] = (2, 4)
+    cfpe_scenes: tuple[str, ...] = ()
+    off_surface_mm: float = OFF_SURFACE_MM
+
+    def __post_init__(self):
+        if not self.rigs or self.scenes < 1 or not self.steps or not self.noise_sigmas or not self.methods:
+            raise ValueError("dptpu eval cloud needs at least one rig, scene, step count, noise level and method")
+        if any(m not in ("mf", "mw", "nt") for m in self.methods):
+            raise ValueError(f"methods must be among mf, mw, nt; got {', '.join(self.methods)}")
+        if any(s < 3 for s in self.steps) or any(not s >= 0 for s in self.noise_sigmas):
+            raise ValueError(f"steps must be >= 3 and noise sigmas >= 0; got {self.steps}, {self.noise_sigmas}")
+        if not 16 <= self.frequency <= 120:
+            raise ValueError(f"frequency must lie in 16..120 periods; got {self.frequency:g}")
+        if any(s not in CFPE_SCENES for s in self.cfpe_scenes):
+            raise ValueError(f"CFPE scenes are {', '.join(CFPE_SCENES)}; got {', '.join(self.cfpe_scenes)}")
+
+    def low_frequency(self, method: str) -> float:
+        return {"mf": 1.0, "mw": self.frequency - 1.0, "nt": NT_LOW_FREQUENCY}[method]
+
+
+@dataclass
+class CloudEvalResult:
+    rows: list[dict]
+    pooled: list[dict]
+    cfpe: list[dict]
+    goals: list[dict]
+    table: str
+    files: dict[str, Path] = field(default_factory=dict)
+
+
+# -- twin captures -----------------------------------------------------------------------------------------------
+
+def render_eval_captures(spec: CloudEvalSpec, out_dir) -> list[dict]:
+    """Render every (rig, scene, steps, noise) capture of ``spec`` under ``out_dir``; their descriptions."""
+    out_dir = Path(out_dir)
+    captures = []
+    lows = sorted({spec.low_frequency(m) for m in spec.methods}, reverse=True)
+    for rig_index, eval_rig in enumerate(spec.rigs):
+        rig = eval_rig.rig(spec.size)
+        for scene_index in range(spec.scenes):
+            scene_seed = spec.seed + 100 * rig_index + scene_index
+            scene = random_scene(rig, scene_seed, objects=spec.objects, background_probability=1.0)
+            for steps in spec.steps:
+                sequences = [SequenceSpec(frequency=f, steps=steps) for f in (spec.frequency, *lows)]
+                for sigma in spec.noise_sigmas:
+                    effects = [{"name": "sensor_noise", "read_noise_dn": sigma * PAPER_SIGMA_DN,
+                                "gain_dn_per_electron": 0.0}] if sigma > 0 else []
+                    folder = out_dir / f"{eval_rig.name}_scene{scene_seed}_{steps}step_{sigma:g}sigma"
+                    render_capture(rig, scene, sequences, folder, effects=effects,
+                                   seed=scene_seed * 10 + steps + int(10 * sigma), supersample=spec.supersample)
+                    captures.append({"folder": folder, "rig": eval_rig.name, "scene": scene_seed, "steps": steps,
+                                     "noise_sigma": sigma})
+    return captures
+
+
+def published_cloud(result: CaptureResult, rig: Rig, extent_px: int, axis: str) -> tuple[np.ndarray, np.ndarray]:
+    """``(published (H, W) bool, depth (H, W))`` of an unwrapped capture, as ``dptpu triangulate`` publishes it:
+    every valid pixel triangulated, the finite points kept; depth = camera ``z`` in the rig's units."""
+    x_p = projector_coordinate(np.where(result.valid, result.absolute_phase, np.nan), result.frequency, extent_px)
+    points = Triangulator(rig, axis=axis).points(x_p)  # (H, W, 3) world
+    camera_points = points @ np.asarray(rig.camera.R).T + np.asarray(rig.camera.T)  # (H, W, 3)
+    published = np.all(np.isfinite(points), axis=-1)
+    return published, np.where(published, camera_points[..., 2], np.nan)
+
+
+def score_capture(capture: dict, spec: CloudEvalSpec, models: Iterable[FringeOrderModel] = (),
+                  publish: Callable[..., tuple[np.ndarray, np.ndarray]] = published_cloud) -> list[dict]:
+    """One row per method and solver (``classical`` and each model serving the method) of one rendered capture."""
+    folder = Path(capture["folder"])
+    loaded = read_capture(folder)
+    if loaded.calibration is None:
+        raise ValueError(f"{folder}: the rendered capture has no calibration")
+    rig = load_rig(loaded.calibration)
+    truth = np.load(folder / "gt.npz")
+    truly_valid = np.asarray(truth["valid"], bool)
+    extent = loaded.fringe_extent_px
+    truth_phase = 2.0 * np.pi * spec.frequency * np.asarray(truth["projector_x"], np.float64) / extent
+    truth_depth = np.asarray(truth["depth"], np.float64)
+    scale_to_mm = {"mm": 1.0, "m": 1e3}.get(rig.units, 1.0)
+    rows = []
+    for method in spec.methods:
+        classical = unwrap_capture(loaded, method=method, high=spec.frequency, low=spec.low_frequency(method))
+        solvers: list[tuple[str, CaptureResult]] = [("classical", classical)]
+        for model in models:
+            if model.serves(method):
+                solvers.append(("dptpu" if model.kind == "dptpu" else model.kind,
+                                refine_capture_result(classical, model)))
+        for solver, result in solvers:
+            published, depth = publish(result, rig, extent, loaded.fringe_axis)
+            accuracy = cloud_accuracy(published, truly_valid,
+                                      shift=np.where(truly_valid, order_shift(result.absolute_phase, truth_phase),
+                                                     np.nan),
+                                      depth=depth * scale_to_mm, truth_depth=truth_depth * scale_to_mm,
+                                      off_surface=spec.off_surface_mm)
+            rows.append({"rig": capture["rig"], "scene": capture["scene"], "steps": capture["steps"],
+                         "noise_sigma": capture["noise_sigma"], "method": method, "solver": solver,
+                         **accuracy.as_dict()})
+    return rows
+
+
+def pool_rows(rows: list[dict]) -> list[dict]:
+    """Rows pooled over rigs and scenes per (steps, noise, method, solver): counts summed, shares recomputed."""
+    pooled: dict[tuple, dict] = {}
+    for row in rows:
+        key = (row["steps"], row["noise_sigma"], row["method"], row["solver"])
+        entry = pooled.setdefault(key, {"steps": key[0], "noise_sigma": key[1], "method": key[2], "solver": key[3],
+                                        "captures": 0, "published": 0, "truly_valid": 0, "published_truly_valid": 0,
+                                        "wrong": 0, "wrong_order": 0, "off_surface": 0})
+        entry["captures"] += 1
+        for name in ("published", "truly_valid", "published_truly_valid", "wrong", "wrong_order", "off_surface"):
+            entry[name] += row[name]
+    for entry in pooled.values():
+        entry["wrong_share"] = entry["wrong"] / entry["published"] if entry["published"] else float("nan")
+        entry["completeness"] = (entry["published_truly_valid"] / entry["truly_valid"] if entry["truly_valid"]
+                                 else float("nan"))
+    return sorted(pooled.values(), key=lambda e: (-e["steps"], e["noise_sigma"], e["method"], e["solver"]))
+
+
+# -- real CFPE ---------------------------------------------------------------------------------------------------
+
+def cfpe_rows(cfpe_dir, scenes: Iterable[str], models: Iterable[FringeOrderModel] = ()) -> list[dict]:
+    """Per CFPE scene and solver: published pixels, the share at the 12-step reference order, completeness."""
+    rows = []
+    models = list(models)
+    for scene in scenes:
+        pair = cfpe_pair(cfpe_dir, scene)
+        solvers = [("classical", np.asarray(pair.coarse_order))]
+        for model in models:
+            if model.serves("mf"):
+                order = refine_order(model, "mf", pair.wrapped_high, pair.wrapped_low, pair.coarse_order,
+                                     pair.frequency_high, pair.frequency_low, pair.valid)
+                solvers.append(("dptpu" if model.kind == "dptpu" else model.kind, order))
+        for solver, order in solvers:
+            phase = pair.absolute_phase(order)
+            with np.errstate(invalid="ignore"):
+                published = pair.valid & (phase >= 0) & (phase < 2 * np.pi * pair.frequency_high)
+            accuracy = cloud_accuracy(published, pair.valid,
+                                      shift=np.where(pair.valid, np.asarray(order) - pair.reference_order, np.nan))
+            rows.append({"scene": scene, "solver": solver, "method": "heterodyne 3-step (MF on the beat pair)",
+                         **accuracy.as_dict(), "at_reference": 1.0 - accuracy.wrong_share})
+    return rows
+
+
+# -- report ------------------------------------------------------------------------------------------------------
+
+def _goal_of(entry: dict) -> tuple[str, float, float] | None:
+    if entry["steps"] >= 12:
+        return ("12-step", *GOALS["12-step"])
+    if entry["steps"] == 3 and entry["noise_sigma"] == 2.0:
+        return ("3-step 2 sigma", *GOALS["3-step 2 sigma"])
+    return None
+
+
+def goal_checks(pooled: list[dict], cfpe: list[dict]) -> list[dict]:
+    """Each pooled row with a goal (12-step; 3-step at 2 sigma) and each CFPE row against issue #16's goals."""
+    checks = []
+    for entry in pooled:
+        goal = _goal_of(entry)
+        if goal is None:
+            continue
+        name, max_wrong, min_complete = goal
+        checks.append({"goal": name, "steps": entry["steps"], "noise_sigma": entry["noise_sigma"],
+                       "method": entry["method"], "solver": entry["solver"], "wrong_share": entry["wrong_share"],
+                       "completeness": entry["completeness"],
+                       "met": bool(entry["wrong_share"] <= max_wrong and entry["completeness"] >= min_complete)})
+    for row in cfpe:
+        checks.append({"goal": "cfpe", "scene": row["scene"], "solver": row["solver"],
+                       "wrong_share": row["wrong_share"], "completeness": row["completeness"],
+                       "met": bool(row["wrong_share"] <= GOALS["cfpe"][0])})
+    return checks
+
+
+def _percent(value: float, digits: int) -> str:
+    return "n/a" if not math.isfinite(value) else f"{100 * value:.{digits}f}"
+
+
+def format_table(pooled: list[dict], cfpe: list[dict], spec: CloudEvalSpec) -> str:
+    """The markdown report: the twin table (wrong % / complete % per solver) and the CFPE table."""
+    solvers = sorted({e["solver"] for e in pooled}, key=lambda s: (s != "classical", s))
+    lines = [f"Twin captures: {len(spec.rigs)} rig(s) ({', '.join(r.name for r in spec.rigs)}), {spec.scenes} "
+             f"scene(s) each, {spec.size[0]}x{spec.size[1]}, f_h = {spec.frequency:g}, {spec.supersample}x"
+             f"{spec.supersample} supersampling; wrong = wrong order or more than max({spec.off_surface_mm:g} mm, "
+             "6 sigma) off the true depth, per published point; complete = published / truly valid pixels.", "",
+             "| steps | noise | method | " + " | ".join(f"{s} wrong % | {s} complete %" for s in solvers) + " |",
+             "|---|---|---|" + "---|---|" * len(solvers)]
+    by_key: dict[tuple, dict[str, dict]] = {}
+    for entry in pooled:
+        by_key.setdefault((entry["steps"], entry["noise_sigma"], entry["method"]), {})[entry["solver"]] = entry
+    for (steps, sigma, method), entries in by_key.items():
+        cells = []
+        for solver in solvers:
+            found = entries.get(solver)
+            cells += ["-", "-"] if found is None else [_percent(found["wrong_share"], 3),
+                                                       _percent(found["completeness"], 2)]
+        lines.append(f"| {steps} | {sigma:g} sigma | {method} | " + " | ".join(cells) + " |")
+    if cfpe:
+        lines += ["", "Real CFPE captures (3-step from the 12-step frames; reference: the 12-step heterodyne order):",
+                  "", "| scene | solver | published | at reference order % | completeness % |", "|---|---|---|---|---|"]
+        for row in cfpe:
+            lines.append(f"| {row['scene']} | {row['solver']} | {row['published']:,} | "
+                         f"{_percent(row['at_reference'], 3)} | {_percent(row['completeness'], 2)} |")
+    return "\n".join(lines) + "\n"
+
+
+def _json_ready(value: Any) -> Any:
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    if isinstance(value, dict):
+        return {k: _json_ready(v) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [_json_ready(v) for v in value]
+    if isinstance(value, Path):
+        return str(value)
+    return value
+
+
+def run_cloud_eval(spec: CloudEvalSpec, out_dir, *, models: Iterable[FringeOrderModel] = (), cfpe_dir=None,
+                   command: str = "") -> CloudEvalResult:
+    """Render, score and write ``cloud_eval.md`` and ``cloud_eval.json`` to ``out_dir``."""
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    models = list(models)
+    rows = []
+    for capture in render_eval_captures(spec, out_dir / "captures"):
+        rows += score_capture(capture, spec, models)
+    pooled = pool_rows(rows)
+    cfpe = cfpe_rows(cfpe_dir, spec.cfpe_scenes, models) if cfpe_dir is not None and spec.cfpe_scenes else []
+    goals = goal_checks(pooled, cfpe)
+    table = format_table(pooled, cfpe, spec)
+    met = sum(g["met"] for g in goals)
+    report = table + f"\nGoals of issue #16 met: {met} of {len(goals)}" + "".join(
+        f"\n- not met: {g['goal']} {g.get('method', g.get('scene', ''))} {g['solver']}: "
+        f"{_percent(g['wrong_share'], 3)} % wrong, {_percent(g['completeness'], 2)} % complete"
+        for g in goals if not g["met"]) + "\n"
+    if command:
+        report = f"Command: `{command}`\n\n" + report
+    files = {"table": out_dir / "cloud_eval.md", "json": out_dir / "cloud_eval.json"}
+    files["table"].write_text(report)
+    spec_dict: dict[str, Any] = {**asdict(spec), "rigs": [asdict(r) for r in spec.rigs]}
+    files["json"].write_text(json.dumps(_json_ready({"command": command, "spec": spec_dict, "pooled": pooled,
+                                                     "cfpe": cfpe, "goals": goals, "rows": rows}), indent=1))
+    return CloudEvalResult(rows=rows, pooled=pooled, cfpe=cfpe, goals=goals, table=report, files=files)

@@ -1,0 +1,96 @@
+"""``dptpu eval cloud``'s scoring (dptpu.experiments.cloud_eval) on one tiny twin scene of a rig outside training."""
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from dptpu.experiments.cloud_eval import (
+    OUTSIDE_RIGS,
+    CloudEvalSpec,
+    pool_rows,
+    render_eval_captures,
+    run_cloud_eval,
+    score_capture,
+)
+from dptpu.models.inference import FringeOrderModel, shipped_model_path
+
+
+def _spec(**changes) -> CloudEvalSpec:
+    base = {"steps": (12,), "noise_sigmas": (0.0,), "methods": ("mf", "nt")}
+    return CloudEvalSpec(**{**base, **changes})
+
+
+def test_without_mixed_pixels_or_noise_every_published_point_is_right(tmp_path):
+    # one ray per pixel, 12 noiseless steps: every order is right and every point lies on the true surface
+    spec = _spec(supersample=1)
+    capture, = render_eval_captures(spec, tmp_path)
+    rows = score_capture(capture, spec)
+    assert [(r["method"], r["solver"]) for r in rows] == [("mf", "classical"), ("nt", "classical")]
+    for row in rows:
+        assert row["wrong"] == 0 and row["wrong_share"] == 0.0, row
+        assert row["published"] > 0.5 * 96 * 72 and row["completeness"] > 0.9, row
+        assert row["published_truly_valid"] <= row["published"], row
+
+
+def test_mixed_pixels_at_depth_edges_make_points_off_the_surface(tmp_path):
+    # 3x3 supersampling: pixels straddling a depth edge blend two phases (flying points or wrong orders)
+    spec = _spec(methods=("mf",))
+    capture, = render_eval_captures(spec, tmp_path)
+    row, = score_capture(capture, spec)
+    assert row["off_surface"] > 0 and row["wrong"] == row["wrong_order"] + row["off_surface"], row
+    assert row["wrong_share"] < 0.2, row  # the edges are a band, not the surface
+
+
+def test_run_writes_the_table_and_json_and_pools_counts_exactly(tmp_path):
+    model_path = shipped_model_path()
+    if model_path is None:
+        pytest.skip("no shipped DP-TPU model")
+    model = FringeOrderModel.load(model_path)
+    spec = _spec(steps=(12, 3), noise_sigmas=(0.0, 2.0), methods=("mf",))
+    result = run_cloud_eval(spec, tmp_path, models=[model], command="dptpu eval cloud")
+    assert len(result.rows) == 4 * 2  # (12, 3 steps) x (0, 2 sigma) x (classical, dptpu)
+    assert {r["solver"] for r in result.rows} == {"classical", "dptpu"} and {r["rig"] for r in result.rows} \
+        == {OUTSIDE_RIGS[0].name}
+    assert result.pooled == pool_rows(result.rows)
+    for entry in result.pooled:
+        rows = [r for r in result.rows if (r["steps"], r["noise_sigma"], r["solver"])
+                == (entry["steps"], entry["noise_sigma"], entry["solver"])]
+        assert entry["wrong"] == sum(r["wrong"] for r in rows)
+        assert entry["wrong_share"] == pytest.approx(entry["wrong"] / entry["published"])
+    table = result.files["table"].read_text()
+    assert table.startswith("Command: `dptpu eval cloud`") and "| 3 | 2 sigma | mf |" in table
+    assert "dptpu wrong %" in table and "Goals of issue #16 met:" in table
+    saved = json.loads(result.files["json"].read_text())
+    # goals: 12-step at every noise (0, 2 sigma) and 3-step at 2 sigma, each for classical and dptpu
+    assert len(saved["rows"]) == 8 and len(saved["goals"]) == 3 * 2
+    assert saved["spec"]["rigs"][0]["focal_px"] == 1800.0
+
+
+def test_the_outside_rigs_differ_from_the_training_rigs():
+    # training: nominal (2600 px, 6.21 deg, 800 mm) and wide (1000 px, 8 deg, 700 mm)
+    for rig in OUTSIDE_RIGS:
+        assert rig.focal_px not in (2600.0, 1000.0) and rig.angle_deg not in (6.21, 8.0)
+    assert OUTSIDE_RIGS[0].baseline_mm == pytest.approx(150.0, abs=0.1)
+    built = OUTSIDE_RIGS[0].rig((96, 72))
+    assert built.camera.size == (96, 72) and np.isclose(built.camera.K[0, 0], 1800.0 * 96 / 640)
+
+
+def test_bad_specs_are_refused():
+    with pytest.raises(ValueError, match="methods must be among mf, mw, nt"):
+        CloudEvalSpec(methods=("graycode",))
+    with pytest.raises(ValueError, match="CFPE scenes are 01, 04, 06, 08"):
+        CloudEvalSpec(cfpe_scenes=("99",))
+
+
+def test_real_cfpe_scores_the_published_orders_against_the_12_step_reference(cfpe_dir):
+    from dptpu.experiments.cloud_eval import cfpe_rows
+    from dptpu.sim.diagnosis.cfpe_inputs import cfpe_pair
+
+    row, = cfpe_rows(cfpe_dir, ["06"])  # classical only: the 3-step three-period heterodyne
+    pair = cfpe_pair(cfpe_dir, "06")
+    at_reference = np.count_nonzero(pair.valid & (pair.coarse_order == pair.reference_order))
+    assert row["solver"] == "classical" and row["truly_valid"] == np.count_nonzero(pair.valid)
+    assert row["published"] - row["wrong"] == at_reference  # every published pixel at the reference order counts
+    assert row["at_reference"] == pytest.approx(0.70112, abs=5e-5)  # measured 2026-11-26: real 3-step noise
