@@ -1,11 +1,14 @@
 """``dptpu triangulate``: point cloud (PLY) of a calibrated capture folder.
 
-    dptpu triangulate --capture DIR --method heterodyne --out cloud.ply
+    dptpu triangulate --capture DIR --method heterodyne [--model PATH|none] [--min-confidence C] --out cloud.ply
 
-Unwraps like ``dptpu unwrap``, turns the absolute phase into the projector coordinate
+Unwraps like ``dptpu unwrap`` (the same code path, :func:`dptpu.cli.unwrap_cmd.unwrap_from_args`: the DP-TPU network
+by default where it serves, ``--min-confidence``), turns the absolute phase into the projector coordinate
 ``x_p = phi * W_p / (2 pi f)``, intersects each valid camera ray with the projector plane of that
-coordinate (:class:`dptpu.fpp.triangulate.Triangulator`, the capture's ``calibration`` rig file) and
-writes the valid points with open3d, in the rig's world frame and units.
+coordinate (:class:`dptpu.fpp.triangulate.Triangulator`, the capture's ``calibration`` rig file), drops the points
+at depth edges (:func:`dptpu.fpp.depth_edges.edge_points`: flying points, modulation dips, isolated points; off with
+``--keep-edges``) and writes the rest with open3d, in the rig's world frame and units. The summary line counts
+what was dropped and why.
 """
 from __future__ import annotations
 
@@ -14,11 +17,11 @@ from pathlib import Path
 
 import numpy as np
 
-from dptpu.cli.unwrap_cmd import add_unwrap_arguments
+from dptpu.cli.unwrap_cmd import add_unwrap_arguments, summary, unwrap_from_args
 from dptpu.fpp.calibration import load_rig
 from dptpu.fpp.capture import CAPTURE_FILE, read_capture
+from dptpu.fpp.depth_edges import DEFAULT_MAX_SLOPE, edge_points
 from dptpu.fpp.point_cloud_file import write_point_cloud
-from dptpu.fpp.reconstruct import unwrap_capture
 from dptpu.fpp.triangulate import Triangulator, projector_coordinate
 
 
@@ -34,6 +37,13 @@ def register(subparsers) -> None:
                         help="output point cloud (PLY; open3d picks the format from the suffix), rig units")
     parser.add_argument("--no-distortion", action="store_true",
                         help="ignore the lens distortion of camera and projector (pinhole triangulation)")
+    parser.add_argument("--keep-edges", action="store_true",
+                        help="keep the points at depth edges (flying points between surfaces, modulation dips, "
+                             "isolated points; docs/nodes.md 'Flying points')")
+    parser.add_argument("--max-edge-slope", type=float, default=DEFAULT_MAX_SLOPE, metavar="S",
+                        help="depth step between neighbours, in pixel footprints, above which a point standing "
+                             "apart from both neighbours along a line is a flying point "
+                             f"(default {DEFAULT_MAX_SLOPE:g})")
     parser.set_defaults(func=run)
 
 
@@ -51,16 +61,29 @@ def run(args: argparse.Namespace) -> int:
     if not args.out.parent.is_dir():
         raise FileNotFoundError(f"{args.out.parent}: output folder does not exist")
 
-    result = unwrap_capture(capture, method=args.method, high=args.high, low=args.low,
-                            min_modulation=args.min_modulation)
+    if not args.max_edge_slope > 0:
+        raise ValueError(f"--max-edge-slope must be > 0; got {args.max_edge_slope:g}")
+
+    unwrapping = unwrap_from_args(args)
+    result = unwrapping.result
     x_p = projector_coordinate(np.where(result.valid, result.absolute_phase, np.nan), result.frequency,
                                capture.fringe_extent_px)  # (H, W), NaN where invalid
     triangulator = Triangulator(rig, axis=capture.fringe_axis, distortion=not args.no_distortion)
     points = triangulator.points(x_p)  # (H, W, 3), rig units
     keep = np.all(np.isfinite(points), axis=-1)  # (H, W)
+    edges_note = "depth edges kept"
+    if not args.keep_edges:
+        depth = np.where(keep, (points @ rig.camera.R.T + rig.camera.T)[..., 2], np.nan)  # (H, W) camera z
+        focal_px = 0.5 * float(rig.camera.K[0, 0] + rig.camera.K[1, 1])
+        edges = edge_points(depth, focal_px, result.modulation, max_slope=args.max_edge_slope)
+        counts = edges.counts(keep)
+        keep &= ~edges.dropped
+        edges_note = (f"{counts['total']} points at depth edges dropped ({counts['flying']} flying, "
+                      f"{counts['modulation_dip']} modulation dips, {counts['isolated']} isolated)")
     cloud_points = points[keep]  # (M, 3)
     if cloud_points.shape[0] == 0:
         raise ValueError(f"no valid pixel to triangulate in {capture.root} ({args.method}); nothing written")
     write_point_cloud(args.out, cloud_points, unit=rig.units)
-    print(f"{args.method}: {cloud_points.shape[0]} points ({rig.units}) -> {args.out}")
+    print(f"{args.method}: {cloud_points.shape[0]} points ({rig.units}); {summary(unwrapping)}; {edges_note} "
+          f"-> {args.out}")
     return 0

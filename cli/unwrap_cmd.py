@@ -1,20 +1,25 @@
 """``dptpu unwrap``: absolute phase of a capture folder, saved as ``.npz``.
 
     dptpu unwrap --capture DIR --method mf|mw|nt|heterodyne|graycode [--high F --low F] [--model PATH|none]
-                 --out OUT.npz
+                 [--min-confidence C] --out OUT.npz
 
 Thin shell over :func:`dptpu.fpp.capture.read_capture` and :func:`dptpu.fpp.reconstruct.unwrap_capture`;
 for mf/mw/nt the DP-TPU network (:mod:`dptpu.models.refine`, onnxruntime) refines the fringe order, by
-default with the shipped model when the package has one (``--model none``: the classical result).
+default with the shipped model when it serves the method and the fringes (:func:`dptpu.models.refine.choose_model`;
+``--model none``: the classical result). Pixels whose confidence (``reliability``: the classical rounding margin or
+the network's confidence, :mod:`dptpu.fpp.confidence`) is below ``--min-confidence`` are invalid; the summary line
+counts them. ``dptpu triangulate`` unwraps through :func:`unwrap_from_args` too (same defaults, same code path).
 """
 from __future__ import annotations
 
 import argparse
+import dataclasses
 from pathlib import Path
 
 import numpy as np
 
 from dptpu.fpp.capture import read_capture
+from dptpu.fpp.confidence import DEFAULT_MIN_CONFIDENCE, confident
 from dptpu.fpp.methods import CAPTURE_METHODS
 from dptpu.fpp.reconstruct import (
     DEFAULT_MIN_MODULATION_FRACTION,
@@ -43,13 +48,60 @@ def add_unwrap_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--min-modulation", type=float, metavar="DN",
                         help="smallest fringe modulation B of a valid pixel, camera digital numbers; default "
                              f"{DEFAULT_MIN_MODULATION_FRACTION:g} of full scale (5.1 for 8-bit frames)")
+    parser.add_argument("--model", metavar="PATH|none",
+                        help="DP-TPU network (.onnx) that refines the mf/mw/nt fringe order; 'none' = classical; "
+                             "default: the shipped model (models/dptpu.onnx) when present, for the methods it "
+                             "serves (NT through its band prior when trained on MF) and fringe periods of 4 camera "
+                             "pixels or more (measured on the wrapped phase)")
+    parser.add_argument("--min-confidence", type=float, metavar="C", default=DEFAULT_MIN_CONFIDENCE,
+                        help="drop pixels whose confidence in [0, 1] is lower (the classical rounding margin or the "
+                             f"network's confidence, docs/nodes.md 'Confidence'); default {DEFAULT_MIN_CONFIDENCE:g}, "
+                             "0 keeps all")
 
 
-def unwrap_from_args(args: argparse.Namespace) -> CaptureResult:
-    """Read the capture named by ``args`` and unwrap it."""
+@dataclasses.dataclass(frozen=True, eq=False)
+class Unwrapping:
+    """What :func:`unwrap_from_args` did: the result, the model applied (or None and why), the pixels dropped."""
+
+    result: CaptureResult
+    model_path: str  # "none" without a model
+    note: str
+    dropped_low_confidence: int
+
+
+def unwrap_from_args(args: argparse.Namespace) -> Unwrapping:
+    """Read the capture named by ``args``, unwrap it, refine with the model (:func:`dptpu.models.refine.choose_model`)
+    and drop what falls below ``--min-confidence``: the one code path of ``dptpu unwrap`` and ``dptpu triangulate``."""
+    # imported when the command runs, not at start-up: keeps `dptpu --help` fast
+    from dptpu.models.refine import choose_model, refine_capture_result, resolve_model
+
+    if not (0.0 <= args.min_confidence <= 1.0):
+        raise ValueError(f"--min-confidence must be in [0, 1]; got {args.min_confidence:g}")
+    model = resolve_model(args.model, args.method)  # before the work: a bad model file fails fast
     capture = read_capture(args.capture)
-    return unwrap_capture(capture, method=args.method, high=args.high, low=args.low,
-                          min_modulation=args.min_modulation)
+    result = unwrap_capture(capture, method=args.method, high=args.high, low=args.low,
+                            min_modulation=args.min_modulation)
+    note = ""
+    if model is not None or args.model is None:
+        model, note = choose_model(model, args.model, args.method, result.wrapped_phases[0], result.quality)
+    if model is not None:
+        result = refine_capture_result(result, model)
+    valid, dropped = confident(result.reliability, result.valid, args.min_confidence)
+    if dropped:
+        result = dataclasses.replace(result, valid=valid, fringe_order=np.where(valid, result.fringe_order, 0),
+                                     absolute_phase=np.where(valid, result.absolute_phase, np.nan),
+                                     reliability=np.where(valid, result.reliability, 0.0))
+    return Unwrapping(result=result, model_path=str(model.path) if model is not None else "none", note=note,
+                      dropped_low_confidence=dropped)
+
+
+def summary(unwrapping: Unwrapping) -> str:
+    """The counts of the summary line: model, pixels dropped for low confidence."""
+    parts = [f"model {unwrapping.model_path}"]
+    if unwrapping.note:
+        parts.append(unwrapping.note)
+    parts.append(f"{unwrapping.dropped_low_confidence} pixels below the confidence threshold dropped")
+    return "; ".join(parts)
 
 
 def register(subparsers) -> None:
@@ -60,33 +112,16 @@ def register(subparsers) -> None:
                     "valid (bool), modulation (camera DN), reliability, frequency, fringe_axis, "
                     "projector_size and method. Arrays are (H, W).")
     add_unwrap_arguments(parser)
-    parser.add_argument("--model", metavar="PATH|none",
-                        help="DP-TPU network (.onnx) that refines the mf/mw/nt fringe order; 'none' = classical; "
-                             "default: the shipped model (models/dptpu.onnx) when present, for the methods it "
-                             "serves (NT through its band prior when trained on MF) and fringe periods of 4 camera "
-                             "pixels or more")
     parser.add_argument("--out", required=True, type=Path, metavar="OUT.npz", help="output .npz file")
     parser.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:
-    # imported when the command runs, not at start-up: keeps `dptpu --help` fast
-    from dptpu.models.refine import (
-        DEFAULT_MAX_PERIODS_PER_PIXEL,
-        fringe_density,
-        refine_capture_result,
-        resolve_model,
-    )
-
-    model = resolve_model(args.model, args.method)  # before the work: a bad model file fails fast
-    result = unwrap_from_args(args)
-    if model is not None and args.model is None and fringe_density(result) > DEFAULT_MAX_PERIODS_PER_PIXEL:
-        model = None  # the shipped model by default only within its training domain (fringe periods >= 4 px)
-    if model is not None:
-        result = refine_capture_result(result, model)
     out = args.out if args.out.suffix == ".npz" else args.out.with_name(args.out.name + ".npz")
     if not out.parent.is_dir():
         raise FileNotFoundError(f"{out.parent}: output folder does not exist")
+    unwrapping = unwrap_from_args(args)
+    result = unwrapping.result
     np.savez_compressed(
         out,
         fringe_order=result.fringe_order,
@@ -98,9 +133,10 @@ def run(args: argparse.Namespace) -> int:
         fringe_axis=np.str_(result.fringe_axis),
         projector_size=np.asarray(result.projector_size, dtype=np.int64),
         method=np.str_(result.method),
-        model=np.str_(str(model.path) if model is not None else "none"),
+        model=np.str_(unwrapping.model_path),
     )
     total = result.valid.size
     print(f"{result.method}: {result.valid_count} of {total} pixels valid "
-          f"({100.0 * result.valid_count / total:.1f}%), frequency {result.frequency:g} -> {out}")
+          f"({100.0 * result.valid_count / total:.1f}%), frequency {result.frequency:g}; {summary(unwrapping)} "
+          f"-> {out}")
     return 0

@@ -7,7 +7,13 @@ classical fringe order); the network's rounded order, post-processed by the neig
 pixel that passes the capture's quality mask (so NT pixels whose lookup key was rejected get an order too), and the
 absolute phase and validity are recomputed as ``unwrap_capture`` does: ``psi + 2*pi*k`` (Eq. (3)), valid
 where the quality mask holds and the phase lies on the projector, ``0 <= phi < 2*pi*f``. ``reliability``
-stays the classical method's margin (0 where the classical method rejected the pixel).
+becomes the network's confidence (:func:`dptpu.fpp.confidence.network_confidence`: its distance to an integer order
+and its agreement with its prior).
+
+The default model (:func:`choose_model`, ``dptpu unwrap`` and ``dptpu triangulate`` without ``--model``): the
+shipped one, for the methods it serves and fringes of at most :data:`DEFAULT_MAX_PERIODS_PER_PIXEL` periods per
+camera pixel, measured on the wrapped phase (:func:`fringe_density`), never on an unwrapped one (whose wrong orders
+are the steps the network is there to fix).
 """
 from __future__ import annotations
 
@@ -16,6 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
+from dptpu.fpp.confidence import network_confidence
 from dptpu.fpp.methods import TWO_FREQUENCY_METHODS
 
 from .consensus import consensus_order
@@ -23,8 +30,8 @@ from .inference import FringeOrderModel, shipped_model_path
 from .nt_prior import mf_representation
 from .projector_ends import coarse_order_at_ends
 
-__all__ = ["DEFAULT_MAX_PERIODS_PER_PIXEL", "REFINABLE_METHODS", "fringe_density", "network_prior",
-           "refine_capture_result", "refine_order", "resolve_model"]
+__all__ = ["DEFAULT_MAX_PERIODS_PER_PIXEL", "REFINABLE_METHODS", "choose_model", "fringe_density", "network_prior",
+           "refine_capture_result", "refine_order", "refine_order_and_confidence", "resolve_model"]
 
 #: Classical methods whose result the network refines (the paper's three two-frequency methods).
 REFINABLE_METHODS = TWO_FREQUENCY_METHODS
@@ -76,7 +83,8 @@ def refine_capture_result(result, model: FringeOrderModel, *, consensus: bool = 
     -------
     CaptureResult
         ``fringe_order`` (H, W) int32 refined, ``absolute_phase`` (H, W) float64, NaN where invalid,
-        ``valid`` recomputed; ``method`` unchanged (the caller records the model).
+        ``valid`` recomputed, ``reliability`` the network's confidence (0 where invalid); ``method`` unchanged
+        (the caller records the model).
     """
     if result.method not in REFINABLE_METHODS or len(result.wrapped_phases) != 2 or result.quality is None:
         raise ValueError(f"the network refines a two-frequency {'/'.join(REFINABLE_METHODS)} result with its "
@@ -84,15 +92,15 @@ def refine_capture_result(result, model: FringeOrderModel, *, consensus: bool = 
     psi_h, psi_l = result.wrapped_phases
     quality = np.asarray(result.quality, dtype=bool)
     f_h, f_l = result.frequencies[0], result.frequencies[1]
-    order = refine_order(model, result.method, psi_h, psi_l, result.fringe_order, f_h, f_l, quality,
-                         classical_valid=result.valid, consensus=consensus)
+    order, confidence = refine_order_and_confidence(model, result.method, psi_h, psi_l, result.fringe_order, f_h, f_l,
+                                                    quality, classical_valid=result.valid, consensus=consensus)
     absolute = psi_h + 2.0 * np.pi * order  # Eq. (3), (H, W)
     with np.errstate(invalid="ignore"):
         valid = quality & (absolute >= 0.0) & (absolute < 2.0 * np.pi * result.frequency)
     return dataclasses.replace(
         result, fringe_order=np.where(valid, order, 0).astype(np.int32),
         absolute_phase=np.where(valid, absolute, np.nan), valid=valid,
-        reliability=np.where(valid, result.reliability, 0.0))
+        reliability=np.where(valid, confidence, 0.0).astype(np.float64))
 
 
 def refine_order(model: FringeOrderModel, method: str, psi_h, psi_l, classical_order, f_h: float, f_l: float,
@@ -125,6 +133,19 @@ def refine_order(model: FringeOrderModel, method: str, psi_h, psi_l, classical_o
     consensus : bool
         Post-process with :func:`dptpu.models.consensus.consensus_order` (default).
     """
+    return refine_order_and_confidence(model, method, psi_h, psi_l, classical_order, f_h, f_l, valid,
+                                       classical_valid=classical_valid, consensus=consensus)[0]
+
+
+def refine_order_and_confidence(model: FringeOrderModel, method: str, psi_h, psi_l, classical_order, f_h: float,
+                                f_l: float, valid, *, classical_valid=None,
+                                consensus: bool = True) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`refine_order`'s order and its confidence, ``(order (H, W) int32, confidence (H, W) float32)``.
+
+    The confidence is :func:`dptpu.fpp.confidence.network_confidence` of the network's continuous output, the
+    published order and the prior the network received (0 where not ``valid``). Parameters as
+    :func:`refine_order`'s.
+    """
     if method not in REFINABLE_METHODS or not model.serves(method):
         raise ValueError(f"the model {model.path} (trained for {', '.join(model.trained_methods)}) does not refine "
                          f"method {method!r}")
@@ -132,14 +153,29 @@ def refine_order(model: FringeOrderModel, method: str, psi_h, psi_l, classical_o
     if model.kind == "dptpu":
         wrapped_low, classical = network_prior(method, psi_h, psi_l, classical_order, f_h, f_l, valid,
                                                classical_valid=classical_valid)
-        order = model.refine(psi_h, wrapped_low, classical, f_h, valid=valid)
+        continuous, mask = _continuous_order(model, psi_h, wrapped_low, classical, f_h, valid)
+        order = np.where(mask, np.rint(continuous), classical).astype(np.int32)
     else:  # the U-Net baseline: the wrapped phases alone (it takes no order)
-        order = model.refine(psi_h, psi_l, classical_order, f_h, valid=valid)
+        continuous, mask = _continuous_order(model, psi_h, psi_l, classical_order, f_h, valid)
+        order = np.where(mask, np.rint(continuous), np.asarray(classical_order)).astype(np.int32)
         classical_valid = valid if classical_valid is None else np.asarray(classical_valid, dtype=bool) & valid
         classical = np.where(classical_valid, classical_order, order)  # the network's where classical has none
     if consensus:
         order = consensus_order(order, classical, np.where(valid, psi_h, 0.0), valid)
-    return order
+    return order, network_confidence(continuous, order, classical, mask)
+
+
+def _continuous_order(model: FringeOrderModel, psi_h, wrapped_low, coarse, f_h: float,
+                      valid: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The network's unrounded order (H, W) float32 on the pixels it decides (``valid`` with finite inputs), and
+    that mask; as :meth:`FringeOrderModel.refine` masks its inputs."""
+    arrays = [np.asarray(a) for a in (psi_h, wrapped_low, coarse)]
+    mask = np.array(valid, dtype=bool)
+    for a in arrays:
+        if not np.issubdtype(a.dtype, np.integer):
+            mask &= np.isfinite(a)
+    high, low, order = (np.where(mask, a, 0).astype(np.float32) for a in arrays)
+    return model.predict(high, low, order, float(f_h)), mask
 
 
 def network_prior(method: str, psi_h, psi_l, classical_order, f_h: float, f_l: float, valid, *,
@@ -162,16 +198,51 @@ def network_prior(method: str, psi_h, psi_l, classical_order, f_h: float, f_l: f
     raise ValueError(f"network_prior takes method mf, mw or nt; got {method!r}")
 
 
-def fringe_density(result) -> float:
-    """Median fringe periods per camera pixel of a result, along its fringe axis' faster image direction.
+def fringe_density(wrapped_high, valid=None) -> float:
+    """Median fringe periods per camera pixel of a wrapped phase, along its faster image direction.
 
-    The median over valid neighbour pairs of ``|d absolute_phase| / 2pi`` along image rows and along
-    columns; the larger of the two. 0.0 when fewer than 2 valid neighbours exist.
+    The median over neighbour pairs (both valid) of ``|wrap(d psi)| / 2pi``, ``wrap`` into ``(-pi, pi]``, along
+    image rows and along columns; the larger of the two. It depends on the wrapped phase alone, not on an
+    unwrapping (whose wrong orders would add steps of whole periods). A density above the Nyquist limit of 0.5
+    folds back below it (such fringes are not resolved by the camera at all). 0.0 when fewer than 2 valid
+    neighbours exist.
+
+    Parameters
+    ----------
+    wrapped_high : ndarray (H, W)
+        Wrapped phase of the high frequency, radians; NaN allowed.
+    valid : ndarray (H, W) bool, optional
+        Pixels to use; default the finite ones.
     """
-    periods = np.where(result.valid, result.absolute_phase, np.nan) / (2.0 * np.pi)  # (H, W)
+    psi = np.asarray(wrapped_high, dtype=np.float64)
+    if valid is not None:
+        psi = np.where(np.asarray(valid, dtype=bool), psi, np.nan)
     medians = []
     for axis in (0, 1):
-        steps = np.abs(np.diff(periods, axis=axis))
-        steps = steps[np.isfinite(steps)]
+        steps = np.diff(psi, axis=axis)
+        steps = np.abs(np.mod(steps[np.isfinite(steps)] + np.pi, 2.0 * np.pi) - np.pi) / (2.0 * np.pi)
         medians.append(float(np.median(steps)) if steps.size else 0.0)
     return max(medians)
+
+
+def choose_model(model: FringeOrderModel | None, value, method: str, wrapped_high,
+                 valid=None) -> tuple[FringeOrderModel | None, str]:
+    """The model ``dptpu unwrap`` / ``dptpu triangulate`` apply, and why none when none: ``(model, note)``.
+
+    ``model`` is :func:`resolve_model` of ``value`` (``--model``; resolved before the capture is read, so a bad
+    model file fails fast) and ``method``. An explicit path is always applied; by default (None) the
+    shipped model is applied when it serves ``method`` and the capture's fringes are at most
+    :data:`DEFAULT_MAX_PERIODS_PER_PIXEL` periods per camera pixel (:func:`fringe_density` of the wrapped phase of
+    the high frequency). ``note`` is "" when a model is applied or ``--model none`` was asked, else the reason.
+    """
+    if value is not None:
+        return model, ""
+    if model is None:
+        if shipped_model_path() is None:
+            return None, "no shipped model"
+        return None, f"the shipped model does not serve method {method}"
+    density = fringe_density(wrapped_high, valid)
+    if density > DEFAULT_MAX_PERIODS_PER_PIXEL:
+        return None, (f"shipped model skipped: fringes of {density:.2f} periods per camera pixel, more than the "
+                      f"{DEFAULT_MAX_PERIODS_PER_PIXEL:g} it serves (pass --model to apply it anyway)")
+    return model, ""

@@ -134,7 +134,10 @@ def test_fringe_density_is_periods_per_pixel(synthetic_capture):
 
     folder, _ = synthetic_capture(MF, scene=_scene(2.0))
     result = unwrap_capture(read_capture(folder), method="mf")
-    assert fringe_density(result) == pytest.approx(64 * 2.0 / 912, rel=1e-3)  # 0.14 periods per pixel
+    # on the wrapped phase: 64 periods over 912 projector pixels, 2 projector pixels per camera column
+    assert fringe_density(result.wrapped_phases[0], result.quality) == pytest.approx(64 * 2.0 / 912, rel=1e-3)
+    # wrong orders on half of the pixels change nothing: the density never looks at an unwrapped phase
+    assert fringe_density(result.wrapped_phases[0]) == pytest.approx(64 * 2.0 / 912, rel=1e-3)
 
 
 @pytest.mark.skipif(__import__("dptpu.models.inference", fromlist=["x"]).shipped_model_path() is None,

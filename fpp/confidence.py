@@ -1,0 +1,71 @@
+"""Per-pixel confidence of a fringe order, in ``[0, 1]``, from every unwrapping method; the threshold that drops.
+
+Classical methods (MF, MW, NT, heterodyne; :mod:`dptpu.fpp.tpu`): the confidence is ``Unwrapped.reliability``, the
+**rounding margin** of the consistency residual of Eqs. (3)-(9): the method rounds a real quantity ``q`` to the
+order (MF and MW: ``q`` of Eq. (5) / (7); heterodyne: each level of the beat tree, the smallest margin kept), and
+``1 - 2 |q - Round(q)|`` is how far the residual ``q - k`` stays from the margin ``1/2`` at which noise would round
+to the next order (1: no residual; 0: on the margin). NT: the key's distance to its decision boundary over the
+table's tolerance (the same margin for the lookup of Eq. (9)). Gray code: ``[0, 0.5]``.
+
+The DP-TPU network (:func:`network_confidence`): the larger of two supports for the published order ``k``,
+
+- the network's own: ``1 - 2 |c - k|`` with ``c`` its continuous (unrounded) order, the rounding margin of the
+  network's output on the scale of the classical one (0 where the neighbour consensus overruled the network by half
+  an order or more);
+- its prior's: 1 where ``k`` equals the coarse order it was given (:func:`dptpu.models.refine.network_prior`),
+  0.5 one order off (a noisy prior of a 3-step capture often is), 0 further off.
+
+An order that neither the network's output nor its prior supports is one the consensus vote made up from its
+neighbours: on the outside rigs of ``docs/nodes.md`` ("Confidence") every wrong order of a pure (not mixed) pixel
+was of that kind.
+
+:func:`confident` applies a threshold (``min_confidence`` of the unwrap and cloud nodes, ``--min-confidence`` of
+``dptpu unwrap`` / ``dptpu triangulate``) and counts what it drops. Defaults: :data:`DEFAULT_MIN_CONFIDENCE`.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+__all__ = ["DEFAULT_MIN_CONFIDENCE", "confident", "network_confidence"]
+
+#: Default threshold of the confidence: a pixel below is dropped. Chosen on outside rigs (docs/nodes.md,
+#: "Confidence"): it removes the orders the consensus made up (network confidence 0) and the classical orders whose
+#: residual came within 0.4 of an order of the rounding margin.
+DEFAULT_MIN_CONFIDENCE = 0.2
+
+
+def network_confidence(continuous: np.ndarray, order: np.ndarray, prior_order: np.ndarray,
+                       valid: np.ndarray) -> np.ndarray:
+    """Confidence ``(H, W)`` float32 of the network's published ``order`` (see the module docstring).
+
+    Parameters
+    ----------
+    continuous : ndarray (H, W)
+        The network's unrounded fringe order.
+    order : ndarray (H, W) int
+        The published order (the network's, rounded, after the neighbour consensus).
+    prior_order : ndarray (H, W) int
+        The coarse order the network received (its prior).
+    valid : ndarray (H, W) bool
+        Pixels with an order; 0 elsewhere.
+    """
+    k = np.asarray(order, dtype=np.float64)
+    own = np.clip(1.0 - 2.0 * np.abs(np.asarray(continuous, dtype=np.float64) - k), 0.0, 1.0)
+    prior = np.clip(1.0 - 0.5 * np.abs(k - np.asarray(prior_order, dtype=np.float64)), 0.0, 1.0)
+    confidence = np.maximum(own, prior)
+    return np.where(np.asarray(valid, dtype=bool) & np.isfinite(confidence), confidence, 0.0).astype(np.float32)
+
+
+def confident(confidence: np.ndarray, valid: np.ndarray, min_confidence: float) -> tuple[np.ndarray, int]:
+    """``(valid & (confidence >= min_confidence), how many valid pixels that dropped)``.
+
+    ``min_confidence`` 0 keeps every valid pixel; it must lie in ``[0, 1]``.
+    """
+    if not (np.isfinite(min_confidence) and 0.0 <= min_confidence <= 1.0):
+        raise ValueError(f"min_confidence must be in [0, 1]; got {min_confidence}")
+    valid = np.asarray(valid, dtype=bool)
+    if min_confidence <= 0.0:
+        return valid.copy(), 0
+    with np.errstate(invalid="ignore"):
+        kept = valid & (np.asarray(confidence) >= min_confidence)
+    return kept, int(np.count_nonzero(valid)) - int(np.count_nonzero(kept))

@@ -1,0 +1,182 @@
+"""Flying points at depth edges: mixed pixels found from the geometry and from the fringes' own modulation.
+
+A camera pixel that straddles a depth edge integrates foreground and background; its fringe phase is a blend of
+the two (the sum of two phasors), so it triangulates to a point between the surfaces, or anywhere when the two
+phases nearly cancel: a "flying point". A surface seen edge-on (its normal almost perpendicular to the camera ray)
+gives points whose depth changes by many pixel footprints from one pixel to the next, as unreliable.
+
+:func:`flying_points` marks a pixel whose depth differs from BOTH its neighbours along a line (left and right, up
+and down, or either diagonal) by more than ``max_slope`` times the pixel's footprint ``z / f`` (the lateral
+distance one pixel spans at depth ``z``, per diagonal step ``sqrt(2) z / f``). The ratio is the tangent of the
+angle between the surface and the image plane, so the rule does not depend on the rig's focal length, working
+distance or units. A pixel on a smooth surface, however tilted up to ``atan(max_slope)``, is never marked; the
+last pixel of a foreground surface has one neighbour on the same surface, so it is kept; a mixed pixel between the
+two sides (or a sliver of them) differs from both and is marked. Invalid (NaN) neighbours never mark a pixel (the
+background behind a projector shadow carries no phase, so a pixel mixing the foreground with a shadow keeps the
+foreground's phase).
+
+Two more signs of a pixel that straddles an edge, both used by :func:`edge_points`:
+
+- its fringe modulation ``B`` dips below ``min_modulation_ratio`` times the largest of its 8 neighbours': the
+  phasors of two surfaces (or of a lit surface and a projector shadow) add to less than either; a partly shadowed
+  pixel carries the phase of its lit part only, off its centre's ray;
+- it has fewer than ``min_neighbours`` of its 8 neighbours left with a point: a sliver between edges or shadows,
+  which no neighbour confirms.
+
+An albedo edge also dips the modulation; its pixels are dropped though their depth is right (completeness, never
+precision, pays for it).
+
+Parameters and why (``docs/nodes.md``, "Flying points", has the measurements behind the defaults):
+
+- ``max_slope`` (default :data:`DEFAULT_MAX_SLOPE` = 4, a surface inclined ``atan(4) = 76`` degrees from facing
+  the camera): a mixed pixel at an edge of depth step ``dz`` differs from its two neighbours by about ``dz / 2``,
+  i.e. by ``f dz / (2 z)`` footprints, more than 4 for any step over 8 footprints (8 mm at a 1 mm footprint).
+- ``min_modulation_ratio`` (default :data:`DEFAULT_MIN_MODULATION_RATIO` = 0.6): a pixel at 60 % of its brightest
+  neighbour's modulation; noise and smooth shading change ``B`` by a few percent between neighbours.
+- ``min_neighbours`` (default :data:`DEFAULT_MIN_NEIGHBOURS` = 2).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+__all__ = ["DEFAULT_MAX_SLOPE", "DEFAULT_MIN_MODULATION_RATIO", "DEFAULT_MIN_NEIGHBOURS", "EdgePoints", "edge_points",
+           "flying_points"]
+
+#: Depth change between neighbouring pixels, in pixel footprints ``z / f``, above which a pixel that differs so from
+#: both its neighbours along a line is a flying point: the tangent of the steepest surface kept (76 degrees).
+DEFAULT_MAX_SLOPE = 4.0
+#: A pixel whose modulation is below this fraction of its brightest 8-neighbour's is a mixed pixel.
+DEFAULT_MIN_MODULATION_RATIO = 0.6
+#: A point with fewer of its 8 neighbours holding a point is a sliver.
+DEFAULT_MIN_NEIGHBOURS = 2
+
+# (row step, column step, footprint factor) of the four lines through a pixel
+_LINES = ((0, 1, 1.0), (1, 0, 1.0), (1, 1, np.sqrt(2.0)), (1, -1, np.sqrt(2.0)))
+
+
+def flying_points(depth: np.ndarray, focal_px: float, *, max_slope: float = DEFAULT_MAX_SLOPE) -> np.ndarray:
+    """Pixels whose depth stands apart from both neighbours along a line (see the module docstring).
+
+    Parameters
+    ----------
+    depth : ndarray (H, W)
+        Depth ``z`` along the camera axis (any unit), NaN where there is no point.
+    focal_px : float
+        The camera's focal length in pixels (``K[0, 0]``; the mean of ``fx`` and ``fy`` for non-square pixels).
+    max_slope : float
+        Depth change per neighbour step, in pixel footprints ``z / focal_px``, above which a neighbour is apart.
+
+    Returns
+    -------
+    ndarray (H, W) bool
+        True at flying points (never where ``depth`` is NaN).
+    """
+    if not (np.isfinite(focal_px) and focal_px > 0):
+        raise ValueError(f"focal_px must be a positive number of pixels; got {focal_px}")
+    if not (np.isfinite(max_slope) and max_slope > 0):
+        raise ValueError(f"max_slope must be > 0 (a depth change in pixel footprints); got {max_slope}")
+    z = np.asarray(depth, dtype=np.float64)
+    if z.ndim != 2:
+        raise ValueError(f"depth must be an (H, W) image; got shape {z.shape}")
+    padded = np.pad(z, 1, constant_values=np.nan)
+    height, width = z.shape
+    footprint = np.abs(z) / focal_px  # (H, W) lateral extent of one pixel at its depth
+    flying = np.zeros(z.shape, dtype=bool)
+    with np.errstate(invalid="ignore"):  # NaN comparisons are False: no point, no mark
+        for dr, dc, factor in _LINES:
+            before = padded[1 - dr:1 - dr + height, 1 - dc:1 - dc + width]
+            after = padded[1 + dr:1 + dr + height, 1 + dc:1 + dc + width]
+            limit = max_slope * factor * footprint
+            flying |= (np.abs(z - before) > limit) & (np.abs(after - z) > limit)
+    return flying
+
+
+@dataclass(frozen=True, eq=False)
+class EdgePoints:
+    """Pixels :func:`edge_points` drops, by reason, each (H, W) bool (a pixel may have several reasons)."""
+
+    flying: np.ndarray
+    modulation_dip: np.ndarray
+    isolated: np.ndarray
+
+    @property
+    def dropped(self) -> np.ndarray:
+        """(H, W) bool: dropped for any reason."""
+        return self.flying | self.modulation_dip | self.isolated
+
+    def counts(self, points: np.ndarray) -> dict[str, int]:
+        """How many of the pixels with a point (``points`` (H, W) bool) each reason drops, and ``"total"``."""
+        points = np.asarray(points, dtype=bool)
+        return {"flying": int(np.count_nonzero(self.flying & points)),
+                "modulation_dip": int(np.count_nonzero(self.modulation_dip & points)),
+                "isolated": int(np.count_nonzero(self.isolated & points)),
+                "total": int(np.count_nonzero(self.dropped & points))}
+
+
+def edge_points(depth: np.ndarray, focal_px: float, modulation: np.ndarray | None = None, *,
+                max_slope: float = DEFAULT_MAX_SLOPE, min_modulation_ratio: float = DEFAULT_MIN_MODULATION_RATIO,
+                min_neighbours: int = DEFAULT_MIN_NEIGHBOURS) -> EdgePoints:
+    """The points at depth edges to drop: flying points, modulation dips, isolated points (module docstring).
+
+    Parameters
+    ----------
+    depth : ndarray (H, W)
+        Depth along the camera axis, NaN where there is no point.
+    focal_px : float
+        The camera's focal length, pixels.
+    modulation : ndarray (H, W), optional
+        Fringe modulation ``B`` of every pixel (also where there is no point: a shadowed neighbour counts), any
+        unit; NaN allowed. None skips the modulation test (its mask is all False).
+    max_slope, min_modulation_ratio, min_neighbours
+        See the module docstring; ``min_modulation_ratio`` 0 and ``min_neighbours`` 0 turn those tests off.
+
+    Returns
+    -------
+    EdgePoints
+    """
+    if not (np.isfinite(min_modulation_ratio) and 0.0 <= min_modulation_ratio <= 1.0):
+        raise ValueError(f"min_modulation_ratio must be in [0, 1]; got {min_modulation_ratio}")
+    if not 0 <= int(min_neighbours) <= 8:
+        raise ValueError(f"min_neighbours must be 0 to 8 (of the 8 neighbours); got {min_neighbours}")
+    z = np.asarray(depth, dtype=np.float64)
+    flying = flying_points(z, focal_px, max_slope=max_slope)
+    has_point = np.isfinite(z)
+    dip = np.zeros(z.shape, dtype=bool)
+    if modulation is not None and min_modulation_ratio > 0:
+        b = np.asarray(modulation, dtype=np.float64)
+        if b.shape != z.shape:
+            raise ValueError(f"modulation must have the depth's shape {z.shape}; got {b.shape}")
+        brightest = _neighbour_max(np.where(np.isfinite(b), b, -np.inf))
+        with np.errstate(invalid="ignore"):
+            dip = has_point & (b < min_modulation_ratio * brightest)
+    isolated = np.zeros(z.shape, dtype=bool)
+    if min_neighbours > 0:
+        kept = has_point & ~flying & ~dip
+        isolated = kept & (_neighbour_count(kept) < int(min_neighbours))
+    return EdgePoints(flying=flying, modulation_dip=dip, isolated=isolated)
+
+
+def _neighbours(values: np.ndarray, fill):
+    """The 8 shifted copies of ``values`` (H, W), ``fill`` outside the image."""
+    padded = np.pad(values, 1, constant_values=fill)
+    height, width = values.shape
+    for dr in (-1, 0, 1):
+        for dc in (-1, 0, 1):
+            if dr or dc:
+                yield padded[1 + dr:1 + dr + height, 1 + dc:1 + dc + width]
+
+
+def _neighbour_max(values: np.ndarray) -> np.ndarray:
+    out = np.full(values.shape, -np.inf)
+    for shifted in _neighbours(values, -np.inf):
+        np.maximum(out, shifted, out=out)
+    return out
+
+
+def _neighbour_count(mask: np.ndarray) -> np.ndarray:
+    out = np.zeros(mask.shape, dtype=np.int32)
+    for shifted in _neighbours(mask, False):
+        out += shifted
+    return out
