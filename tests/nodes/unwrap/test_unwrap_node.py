@@ -7,7 +7,7 @@ import sys
 import numpy as np
 import pytest
 
-from dptpu.fpp.tpu import unwrap_mf
+from dptpu.fpp.tpu import unwrap_mf, unwrap_mf_float32
 from dptpu.messages import AbsolutePhase, Header, Image, PhaseMaps, ScanStatus, Time
 from dptpu.nodes.harness import NodeHarness
 from dptpu.nodes.unwrap import UnwrapNode
@@ -241,3 +241,47 @@ def test_nt_without_the_projector_size_is_reported(harness, scene):
     (failed,) = harness.wait(status, 1)
     assert failed.reason == ("cannot unwrap scan 4 (nt): nt needs the projector extent; the PhaseMaps has "
                              "projector size 0 (unknown)")
+
+
+def test_pixels_below_min_confidence_are_dropped_and_counted(harness, scene):
+    node, source, absolute, status = start(harness, method="mf", min_confidence=0.9)
+    maps = phase_maps(scene, (64.0, 1.0), sequence_id=21)  # ratio 64: noise of q ~0.05, margins spread over [0.7, 1]
+    source.publish(maps)
+    (result,) = harness.wait(absolute, 1)
+    classical = unwrap_mf_float32(maps.phases[0], maps.phases[1], 64.0, 1.0)  # as the node unwraps mf
+    with np.errstate(invalid="ignore"):
+        valid = classical.valid & (classical.absolute_phase >= 0) & (classical.absolute_phase < 2 * np.pi * 64.0)
+    low = int(np.count_nonzero(valid & (classical.reliability < 0.9)))
+    assert low > 0 and node.pixels_low_confidence == low
+    assert np.array_equal(result.valid, valid & (classical.reliability >= 0.9))
+    (ok,) = harness.wait(status, 1)
+    assert ok.level == ScanStatus.OK and f"{low} pixels below min_confidence 0.9 dropped" in ok.reason
+
+
+def test_the_networks_confidence_reaches_the_reliability_field(harness, scene, shifted_model):
+    # the shifted model's output is exactly an integer, one order from its prior: its own margin is 1
+    _node, source, absolute, _status = start(harness, method="mf", model=str(shifted_model))
+    source.publish(phase_maps(scene, (16.0, 1.0), sequence_id=23))
+    (result,) = harness.wait(absolute, 1)
+    assert result.valid.any() and np.all(result.reliability[result.valid] == 1.0)
+    assert np.all(result.reliability[~result.valid] == 0.0)
+
+
+@pytest.mark.skipif(not HAS_INFERENCE, reason="dptpu.models.inference is not in this build")
+def test_auto_model_serves_a_scan_within_the_models_fringes_and_says_why_not_beyond(harness, scene):
+    from dptpu.models.inference import shipped_model_path
+    from dptpu.models.refine import fringe_density
+
+    if shipped_model_path() is None:
+        pytest.skip("no shipped model")
+    node, source, absolute, status = start(harness, method="mf", model="auto")
+    maps = phase_maps(scene, (16.0, 1.0), sequence_id=31)
+    density = fringe_density(maps.phases[0])
+    assert density < 0.25
+    dense = 16.0 * 0.3 / density  # 0.3 periods per camera pixel
+    source.publish(maps)
+    source.publish(phase_maps(scene, (dense, 1.0), sequence_id=32))
+    first, second = harness.wait(absolute, 2)
+    assert (first.method, second.method) == ("dptpu", "mf")
+    _, skipped = harness.wait(status, 2)
+    assert "no model: fringes of 0.30 periods per camera pixel" in skipped.reason and node.scans_without_model == 1
