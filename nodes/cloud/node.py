@@ -16,6 +16,8 @@ topic                       type          dir   notes
 ``/camera/camera_info``     CameraInfo    in    transient local, only with ``use_camera_info``
 ``/scanner/points``         PointCloud2   out   organized H x W; float32 x, y, z (m), intensity (DN), quality
 ``/scanner/depth``          Image         out   32FC1, z in metres, NaN where invalid
+``/scanner/confidence``     Image         out   32FC1, the cloud's ``quality`` (the confidence in [0, 1] of each
+                                                 published point, 0 where none), the cloud's stamp
 ``/scanner/status``         ScanStatus    out   one per scan: ``done`` (OK, WARN) or ``failed``; ``duration_s`` =
                                                  ``header.stamp`` - the scan's stamp (its cloud's), to the ns
 =========================== ============= ===== ==================================================================
@@ -39,12 +41,22 @@ name                   default                   meaning
 ``camera_info_wait_s`` 5.0                       with ``use_camera_info``: how long a scan may wait for the first
                                                  CameraInfo (at most 8 scans wait; a scan that waited in vain fails
                                                  with the reason)
+``min_confidence``     0.2                       pixels whose confidence (``AbsolutePhase.reliability``, see
+                                                 :mod:`dptpu.fpp.confidence`) is lower get no point; 0 keeps all
+``drop_edges``         true                      drop the points at depth edges (:func:`dptpu.fpp.depth_edges.
+                                                 edge_points`: flying points between surfaces, modulation dips,
+                                                 isolated points; the modulation test needs the intensity image)
+``max_edge_slope``     4.0                       depth step between neighbours, in pixel footprints ``z / f``, above
+                                                 which a point apart from both neighbours along a line is flying
 ====================== ========================= ===================================================================
+
+What is dropped is counted: counters ``points_low_confidence``, ``points_flying``, ``points_modulation_dip``,
+``points_isolated`` and the scan's status reason (level OK).
 
 Fields of the cloud: ``x, y, z`` NaN where the pixel is invalid (``is_dense`` false); ``intensity`` the fringe
 modulation B of the unwrapped frequency in camera digital numbers, from ``/scanner/intensity`` (NaN when the
-scan's intensity image was not seen); ``quality`` the unwrapping margin ``AbsolutePhase.reliability`` in [0, 1]
-(0 where invalid). Run:
+scan's intensity image was not seen); ``quality`` the confidence ``AbsolutePhase.reliability`` in [0, 1] (the
+classical rounding margin or the network's confidence; 0 where there is no point). Run:
 ``python -m dptpu.nodes.cloud --ros-args -p rig:=calibration.yaml``; design: ``docs/nodes.md``.
 """
 from __future__ import annotations
@@ -57,6 +69,8 @@ import cv2
 import numpy as np
 
 from dptpu.fpp.calibration import DeviceModel, Rig, load_rig
+from dptpu.fpp.confidence import DEFAULT_MIN_CONFIDENCE
+from dptpu.fpp.depth_edges import DEFAULT_MAX_SLOPE, edge_points
 from dptpu.fpp.point_cloud_file import write_point_cloud
 from dptpu.fpp.triangulate import Triangulator, projector_coordinate
 from dptpu.graph.node import Node
@@ -108,7 +122,8 @@ class CloudNode(Node):
     """AbsolutePhase -> PointCloud2 + depth Image (see the module docstring).
 
     Counters: ``scans_published``, ``scans_rejected``, ``ply_written``, ``pixels_nan`` (pixels marked valid whose
-    absolute phase was NaN or inf).
+    absolute phase was NaN or inf), ``points_low_confidence``, ``points_flying``, ``points_modulation_dip``,
+    ``points_isolated`` (dropped; a point may count under several edge reasons).
     """
 
     def __init__(self, node_name: str = "cloud", **node_options):
@@ -121,6 +136,13 @@ class CloudNode(Node):
         self.ply_every = self.declare_parameter("ply_every", 0).value
         self.intensity_wait_s = self.declare_parameter("intensity_wait_s", 0.2).value
         self.camera_info_wait_s = self.declare_parameter("camera_info_wait_s", 5.0).value
+        self.min_confidence = self.declare_parameter("min_confidence", DEFAULT_MIN_CONFIDENCE).value
+        self.drop_edges = self.declare_parameter("drop_edges", True).value
+        self.max_edge_slope = self.declare_parameter("max_edge_slope", DEFAULT_MAX_SLOPE).value
+        if not 0.0 <= self.min_confidence <= 1.0:
+            raise ValueError(f"parameter min_confidence must be in [0, 1]; got {self.min_confidence}")
+        if not self.max_edge_slope > 0:
+            raise ValueError(f"parameter max_edge_slope must be > 0 pixel footprints; got {self.max_edge_slope}")
         if not rig_path:
             raise ValueError("parameter rig must name a dptpu-rig/1 calibration file (-p rig:=calibration.yaml)")
         if self.ply_every < 0:
@@ -143,9 +165,14 @@ class CloudNode(Node):
         self.scans_rejected = 0
         self.ply_written = 0
         self.pixels_nan = 0
+        self.points_low_confidence = 0
+        self.points_flying = 0
+        self.points_modulation_dip = 0
+        self.points_isolated = 0
 
         self.points_publisher = self.create_publisher(PointCloud2, "/scanner/points", 10)
         self.depth_publisher = self.create_publisher(Image, "/scanner/depth", 10)
+        self.confidence_publisher = self.create_publisher(Image, "/scanner/confidence", 10)
         self.status_publisher = self.create_publisher(ScanStatus, "/scanner/status", STATUS_QOS)
 
         self._subscriptions_in = [
@@ -224,7 +251,7 @@ class CloudNode(Node):
         which is published without a copy; the depth image is the z plane itself (no copy).
         """
         try:
-            coord, nan_pixels = self._projector_coordinate(msg)
+            coord, nan_pixels, low_confidence = self._projector_coordinate(msg)
             triangulator = self._triangulator(msg.fringe_axis)
             planes = np.empty((3, *coord.shape), dtype=np.float32)  # (3, H, W): x, y, z planes
             triangulator.camera_points(coord, scale=triangulator.rig.scale_to_m, dtype=np.float32,
@@ -240,16 +267,23 @@ class CloudNode(Node):
         intensity_seen = intensity is not None
         if not intensity_seen:
             intensity = np.full(coord.shape, np.nan, dtype=np.float32)
-        reliability = msg.reliability
-        if reliability.dtype != np.float32 or not reliability.flags.c_contiguous:
-            reliability = np.ascontiguousarray(reliability, dtype=np.float32)
-        channels = [planes[0], planes[1], planes[2], np.ascontiguousarray(intensity, dtype=np.float32), reliability]
+        edge_counts = self._drop_edges(planes, intensity if intensity_seen else None, triangulator)
+        quality = np.where(np.isfinite(planes[2]), msg.reliability, np.float32(0.0)).astype(np.float32, copy=False)
+        channels = [planes[0], planes[1], planes[2], np.ascontiguousarray(intensity, dtype=np.float32), quality]
         cloud = cv2.merge(channels)  # (H, W, 5) float32: x y z intensity quality, one interleaving pass
         self.points_publisher.publish(PointCloud2.from_array(cloud, FIELDS, header=header, is_dense=False))
         depth_m = planes[2]  # (H, W) metres
         self.depth_publisher.publish(Image.from_array(depth_m, "32FC1", header=header))
+        self.confidence_publisher.publish(Image.from_array(quality, "32FC1", header=header))
         self.scans_published += 1
         valid_points = int(np.count_nonzero(np.isfinite(depth_m)))
+        notes = []  # what was dropped, counted: not a warning
+        if low_confidence:
+            self.points_low_confidence += low_confidence
+            notes.append(f"{low_confidence} pixels below min_confidence {self.min_confidence:g} dropped")
+        if edge_counts["total"]:
+            notes.append(f"{edge_counts['total']} points at depth edges dropped ({edge_counts['flying']} flying, "
+                         f"{edge_counts['modulation_dip']} modulation dips, {edge_counts['isolated']} isolated)")
         reasons = []
         if nan_pixels:
             self.pixels_nan += nan_pixels
@@ -260,10 +294,24 @@ class CloudNode(Node):
             reasons += self._snapshot(msg.sequence_id, cloud[..., :3], cloud[..., 3])
         if reasons:
             self.get_logger().warning(f"scan {msg.sequence_id}: {'; '.join(reasons)}", throttle_duration_sec=1.0)
-        self._status(msg, ScanStatus.WARN if reasons else ScanStatus.OK, "done", "; ".join(reasons),
+        self._status(msg, ScanStatus.WARN if reasons else ScanStatus.OK, "done", "; ".join(reasons + notes),
                      valid_pixels=valid_points, total_pixels=int(depth_m.size))
 
     # -- helpers ---------------------------------------------------------------------------------------------
+
+    def _drop_edges(self, planes: np.ndarray, modulation: np.ndarray | None,
+                    triangulator: Triangulator) -> dict[str, int]:
+        """Blank (NaN) the points at depth edges in ``planes`` (3, H, W), count them by reason (counters too)."""
+        if not self.drop_edges:
+            return {"flying": 0, "modulation_dip": 0, "isolated": 0, "total": 0}
+        K = triangulator.rig.camera.K
+        edges = edge_points(planes[2], 0.5 * float(K[0, 0] + K[1, 1]), modulation, max_slope=self.max_edge_slope)
+        counts = edges.counts(np.isfinite(planes[2]))
+        planes[:, edges.dropped] = np.nan
+        self.points_flying += counts["flying"]
+        self.points_modulation_dip += counts["modulation_dip"]
+        self.points_isolated += counts["isolated"]
+        return counts
 
     def _triangulator(self, axis: str) -> Triangulator:
         """The rig's triangulation tables for ``axis`` (rays, projector distortion), made once per rig, and one
@@ -277,9 +325,10 @@ class CloudNode(Node):
             self._triangulators[axis] = triangulator
         return self._triangulators[axis]
 
-    def _projector_coordinate(self, msg: AbsolutePhase) -> tuple[np.ndarray, int]:
-        """Projector coordinate (H, W) float64 of the scan, NaN where invalid or not finite, and how many pixels
-        marked valid were not finite; ValueError when the scan does not fit the rig."""
+    def _projector_coordinate(self, msg: AbsolutePhase) -> tuple[np.ndarray, int, int]:
+        """Projector coordinate (H, W) float64 of the scan, NaN where invalid, not finite or below
+        ``min_confidence``; how many pixels marked valid were not finite, and how many finite ones fell below
+        ``min_confidence``; ValueError when the scan does not fit the rig."""
         width, height = self.rig.camera.size
         phase = msg.absolute_phase
         if phase.shape != (height, width):
@@ -288,10 +337,18 @@ class CloudNode(Node):
         coord = projector_coordinate(phase, msg.frequency, self._extent_px(msg))  # (H, W) float64 projector pixels
         mask = np.isfinite(coord)
         np.logical_and(mask, msg.valid, out=mask)  # (H, W) usable pixels
-        nan_pixels = int(np.count_nonzero(msg.valid)) - int(np.count_nonzero(mask))
+        usable = int(np.count_nonzero(mask))
+        nan_pixels = int(np.count_nonzero(msg.valid)) - usable
+        low_confidence = 0
+        if self.min_confidence > 0:
+            if msg.reliability.shape != mask.shape:
+                raise ValueError(f"reliability is {msg.reliability.shape[1]}x{msg.reliability.shape[0]} pixels; "
+                                 f"the absolute phase is {width}x{height}")
+            np.logical_and(mask, msg.reliability >= self.min_confidence, out=mask)
+            low_confidence = usable - int(np.count_nonzero(mask))
         np.logical_not(mask, out=mask)  # (H, W) pixels to blank
         np.copyto(coord, np.nan, where=mask)
-        return coord, nan_pixels
+        return coord, nan_pixels, low_confidence
 
     def _extent_px(self, msg: AbsolutePhase) -> int:
         """Projector pixels along the fringe axis: the rig's; ValueError when the message says otherwise."""
