@@ -58,6 +58,10 @@ def _register_cloud(targets) -> None:
                        help="CFPE frames folder (default $DPTPU_DATA/cfpe or ../shared/data/cfpe; 'none' to skip)")
     cloud.add_argument("--cfpe-scenes", default="", help="CFPE scenes, comma separated, e.g. 01,04,06,08 "
                                                          "(default none: the real captures take longer)")
+    cloud.add_argument("--min-confidence", type=float, default=None, metavar="C",
+                       help="drop pixels of lower confidence, as dptpu triangulate (default its default; 0 keeps all)")
+    cloud.add_argument("--keep-edges", action="store_true",
+                       help="keep the points at depth edges (default: dropped, as dptpu triangulate does)")
     cloud.add_argument("--threads", type=int, default=None, help="onnxruntime threads")
     cloud.set_defaults(func=run_cloud)
 
@@ -85,7 +89,9 @@ def run_cloud(args) -> int:
                          steps=steps, noise_sigmas=_numbers(args.noise, "--noise"),
                          methods=tuple(m.strip() for m in args.methods.split(",") if m.strip()),
                          supersample=args.supersample, seed=DEFAULT_SEED if args.seed is None else args.seed,
-                         cfpe_scenes=tuple(s.strip() for s in args.cfpe_scenes.split(",") if s.strip()))
+                         cfpe_scenes=tuple(s.strip() for s in args.cfpe_scenes.split(",") if s.strip()),
+                         edges=not args.keep_edges,
+                         **({} if args.min_confidence is None else {"min_confidence": args.min_confidence}))
     cfpe_dir = None
     if spec.cfpe_scenes and (args.cfpe is None or args.cfpe.lower() != "none"):
         cfpe_dir = Path(args.cfpe) if args.cfpe else shared_data_dir() / "cfpe"

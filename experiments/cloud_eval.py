@@ -8,10 +8,12 @@ and on the real CFPE captures (issue #16).
    area: mixed pixels at depth edges), with Gaussian camera noise of 0, 1 and 2 of the paper's sigma (1.5693 DN),
    12 steps and the paper's 3 steps, one capture holding the high frequency and the low one of every method
    (MF ``f_l = 1``, MW ``f_l = f_h - 1``, NT ``f_l`` = :data:`NT_LOW_FREQUENCY`).
-2. **Each method and solver** (:func:`published_cloud`, what ``dptpu triangulate`` does): the classical order
-   (:func:`dptpu.fpp.reconstruct.unwrap_capture`) or DP-TPU's (:func:`dptpu.models.refine.refine_capture_result`,
-   the model of ``--model``, on the methods it was trained for), then triangulation; the published points are the
-   finite ones.
+2. **Each method and solver** (:func:`published_cloud`, what ``dptpu triangulate`` does with its defaults): the
+   classical order (:func:`dptpu.fpp.reconstruct.unwrap_capture`) or DP-TPU's
+   (:func:`dptpu.models.refine.refine_capture_result`, the model of ``--model``, on the methods it was trained
+   for); the pixels whose confidence is below ``min_confidence`` dropped (:func:`dptpu.fpp.confidence.confident`);
+   triangulation; the points at depth edges dropped (:func:`dptpu.fpp.depth_edges.edge_points`: flying points,
+   modulation dips, isolated points; ``edges=False`` keeps them). The published points are the finite ones left.
 3. **Scores** (:func:`dptpu.fpp.cloud_accuracy.cloud_accuracy`, the scan monitor's definition): the share of
    published points with a wrong order or off the true surface, and the share of the truly valid pixels published,
    pooled over rigs and scenes.
@@ -34,13 +36,16 @@ from typing import Any
 
 import numpy as np
 
+from dptpu.fpp import tpu
 from dptpu.fpp.calibration import load_rig
 from dptpu.fpp.capture import read_capture
 from dptpu.fpp.cloud_accuracy import OFF_SURFACE_MM, cloud_accuracy, order_shift
+from dptpu.fpp.confidence import DEFAULT_MIN_CONFIDENCE, confident
+from dptpu.fpp.depth_edges import edge_points
 from dptpu.fpp.reconstruct import CaptureResult, unwrap_capture
 from dptpu.fpp.triangulate import Triangulator, projector_coordinate
 from dptpu.models.inference import FringeOrderModel
-from dptpu.models.refine import refine_capture_result, refine_order
+from dptpu.models.refine import refine_capture_result, refine_order_and_confidence
 from dptpu.sim.diagnosis.cfpe_inputs import cfpe_pair
 from dptpu.sim.image_formation import SequenceSpec
 from dptpu.sim.render import render_capture
@@ -103,6 +108,8 @@ class CloudEvalSpec:
     objects: tuple[int, int] = (2, 4)
     cfpe_scenes: tuple[str, ...] = ()
     off_surface_mm: float = OFF_SURFACE_MM
+    min_confidence: float = DEFAULT_MIN_CONFIDENCE
+    edges: bool = True  # drop the points at depth edges (dptpu triangulate's default)
 
     def __post_init__(self):
         if not self.rigs or self.scenes < 1 or not self.steps or not self.noise_sigmas or not self.methods:
@@ -111,6 +118,8 @@ class CloudEvalSpec:
             raise ValueError(f"methods must be among mf, mw, nt; got {', '.join(self.methods)}")
         if any(s < 3 for s in self.steps) or any(not s >= 0 for s in self.noise_sigmas):
             raise ValueError(f"steps must be >= 3 and noise sigmas >= 0; got {self.steps}, {self.noise_sigmas}")
+        if not 0.0 <= self.min_confidence <= 1.0:
+            raise ValueError(f"min_confidence must be in [0, 1]; got {self.min_confidence:g}")
         if not 16 <= self.frequency <= 120:
             raise ValueError(f"frequency must lie in 16..120 periods; got {self.frequency:g}")
         if any(s not in CFPE_SCENES for s in self.cfpe_scenes):
@@ -155,18 +164,34 @@ def render_eval_captures(spec: CloudEvalSpec, out_dir) -> list[dict]:
     return captures
 
 
-def published_cloud(result: CaptureResult, rig: Rig, extent_px: int, axis: str) -> tuple[np.ndarray, np.ndarray]:
-    """``(published (H, W) bool, depth (H, W))`` of an unwrapped capture, as ``dptpu triangulate`` publishes it:
-    every valid pixel triangulated, the finite points kept; depth = camera ``z`` in the rig's units."""
-    x_p = projector_coordinate(np.where(result.valid, result.absolute_phase, np.nan), result.frequency, extent_px)
+def published_cloud(result: CaptureResult, rig: Rig, extent_px: int, axis: str, *,
+                    min_confidence: float = DEFAULT_MIN_CONFIDENCE, edges: bool = True) -> tuple[np.ndarray, np.ndarray,
+                                                                                               dict[str, int]]:
+    """``(published (H, W) bool, depth (H, W), dropped counts)`` of an unwrapped capture, as ``dptpu triangulate``
+    publishes it: the valid pixels of at least ``min_confidence`` triangulated, the finite points kept but those at
+    depth edges (``edges``); depth = camera ``z`` in the rig's units, NaN where nothing is published. ``dropped``:
+    ``{"low_confidence": n, "edges": n}``."""
+    valid, low_confidence = confident(result.reliability, result.valid, min_confidence)
+    x_p = projector_coordinate(np.where(valid, result.absolute_phase, np.nan), result.frequency, extent_px)
     points = Triangulator(rig, axis=axis).points(x_p)  # (H, W, 3) world
     camera_points = points @ np.asarray(rig.camera.R).T + np.asarray(rig.camera.T)  # (H, W, 3)
     published = np.all(np.isfinite(points), axis=-1)
-    return published, np.where(published, camera_points[..., 2], np.nan)
+    depth = np.where(published, camera_points[..., 2], np.nan)  # (H, W)
+    at_edges = 0
+    if edges:
+        focal_px = 0.5 * float(rig.camera.K[0, 0] + rig.camera.K[1, 1])
+        dropped = edge_points(depth, focal_px, result.modulation).dropped & published
+        at_edges = int(np.count_nonzero(dropped))
+        published &= ~dropped
+        depth = np.where(published, depth, np.nan)
+    return published, depth, {"low_confidence": low_confidence, "edges": at_edges}
+
+
+Publisher = Callable[..., tuple[np.ndarray, np.ndarray, dict[str, int]]]
 
 
 def score_capture(capture: dict, spec: CloudEvalSpec, models: Iterable[FringeOrderModel] = (),
-                  publish: Callable[..., tuple[np.ndarray, np.ndarray]] = published_cloud) -> list[dict]:
+                  publish: Publisher = published_cloud) -> list[dict]:
     """One row per method and solver (``classical`` and each model serving the method) of one rendered capture."""
     folder = Path(capture["folder"])
     loaded = read_capture(folder)
@@ -188,7 +213,8 @@ def score_capture(capture: dict, spec: CloudEvalSpec, models: Iterable[FringeOrd
                 solvers.append(("dptpu" if model.kind == "dptpu" else model.kind,
                                 refine_capture_result(classical, model)))
         for solver, result in solvers:
-            published, depth = publish(result, rig, extent, loaded.fringe_axis)
+            published, depth, dropped = publish(result, rig, extent, loaded.fringe_axis,
+                                                min_confidence=spec.min_confidence, edges=spec.edges)
             accuracy = cloud_accuracy(published, truly_valid,
                                       shift=np.where(truly_valid, order_shift(result.absolute_phase, truth_phase),
                                                      np.nan),
@@ -196,7 +222,8 @@ def score_capture(capture: dict, spec: CloudEvalSpec, models: Iterable[FringeOrd
                                       off_surface=spec.off_surface_mm)
             rows.append({"rig": capture["rig"], "scene": capture["scene"], "steps": capture["steps"],
                          "noise_sigma": capture["noise_sigma"], "method": method, "solver": solver,
-                         **accuracy.as_dict()})
+                         **accuracy.as_dict(), "dropped_low_confidence": dropped["low_confidence"],
+                         "dropped_at_edges": dropped["edges"]})
     return rows
 
 
@@ -207,9 +234,11 @@ def pool_rows(rows: list[dict]) -> list[dict]:
         key = (row["steps"], row["noise_sigma"], row["method"], row["solver"])
         entry = pooled.setdefault(key, {"steps": key[0], "noise_sigma": key[1], "method": key[2], "solver": key[3],
                                         "captures": 0, "published": 0, "truly_valid": 0, "published_truly_valid": 0,
-                                        "wrong": 0, "wrong_order": 0, "off_surface": 0})
+                                        "wrong": 0, "wrong_order": 0, "off_surface": 0, "dropped_low_confidence": 0,
+                                        "dropped_at_edges": 0})
         entry["captures"] += 1
-        for name in ("published", "truly_valid", "published_truly_valid", "wrong", "wrong_order", "off_surface"):
+        for name in ("published", "truly_valid", "published_truly_valid", "wrong", "wrong_order", "off_surface",
+                     "dropped_low_confidence", "dropped_at_edges"):
             entry[name] += row[name]
     for entry in pooled.values():
         entry["wrong_share"] = entry["wrong"] / entry["published"] if entry["published"] else float("nan")
@@ -220,22 +249,32 @@ def pool_rows(rows: list[dict]) -> list[dict]:
 
 # -- real CFPE ---------------------------------------------------------------------------------------------------
 
-def cfpe_rows(cfpe_dir, scenes: Iterable[str], models: Iterable[FringeOrderModel] = ()) -> list[dict]:
-    """Per CFPE scene and solver: published pixels, the share at the 12-step reference order, completeness."""
+def cfpe_rows(cfpe_dir, scenes: Iterable[str], models: Iterable[FringeOrderModel] = (), *,
+              min_confidence: float = DEFAULT_MIN_CONFIDENCE) -> list[dict]:
+    """Per CFPE scene and solver: published pixels, the share at the 12-step reference order, completeness.
+
+    The pixels of a confidence below ``min_confidence`` are not published (classical: the MF rounding margin of the
+    beat pair, :func:`dptpu.fpp.tpu.unwrap_mf`; DP-TPU: the network's confidence). No calibration ships with CFPE:
+    no depth, so no depth-edge filter and no off-surface test; only the order counts.
+    """
     rows = []
     models = list(models)
     for scene in scenes:
         pair = cfpe_pair(cfpe_dir, scene)
-        solvers = [("classical", np.asarray(pair.coarse_order))]
+        classical = tpu.unwrap_mf(pair.wrapped_high, pair.wrapped_low, pair.frequency_high, pair.frequency_low,
+                                  valid=pair.valid)
+        solvers = [("classical", np.asarray(pair.coarse_order), np.asarray(classical.reliability))]
         for model in models:
             if model.serves("mf"):
-                order = refine_order(model, "mf", pair.wrapped_high, pair.wrapped_low, pair.coarse_order,
-                                     pair.frequency_high, pair.frequency_low, pair.valid)
-                solvers.append(("dptpu" if model.kind == "dptpu" else model.kind, order))
-        for solver, order in solvers:
+                order, confidence = refine_order_and_confidence(
+                    model, "mf", pair.wrapped_high, pair.wrapped_low, pair.coarse_order, pair.frequency_high,
+                    pair.frequency_low, pair.valid)
+                solvers.append(("dptpu" if model.kind == "dptpu" else model.kind, order, confidence))
+        for solver, order, confidence in solvers:
             phase = pair.absolute_phase(order)
             with np.errstate(invalid="ignore"):
-                published = pair.valid & (phase >= 0) & (phase < 2 * np.pi * pair.frequency_high)
+                on_projector = pair.valid & (phase >= 0) & (phase < 2 * np.pi * pair.frequency_high)
+            published, _ = confident(confidence, on_projector, min_confidence)
             accuracy = cloud_accuracy(published, pair.valid,
                                       shift=np.where(pair.valid, np.asarray(order) - pair.reference_order, np.nan))
             rows.append({"scene": scene, "solver": solver, "method": "heterodyne 3-step (MF on the beat pair)",
@@ -282,7 +321,9 @@ def format_table(pooled: list[dict], cfpe: list[dict], spec: CloudEvalSpec) -> s
     lines = [f"Twin captures: {len(spec.rigs)} rig(s) ({', '.join(r.name for r in spec.rigs)}), {spec.scenes} "
              f"scene(s) each, {spec.size[0]}x{spec.size[1]}, f_h = {spec.frequency:g}, {spec.supersample}x"
              f"{spec.supersample} supersampling; wrong = wrong order or more than max({spec.off_surface_mm:g} mm, "
-             "6 sigma) off the true depth, per published point; complete = published / truly valid pixels.", "",
+             "6 sigma) off the true depth, per published point; complete = published / truly valid pixels. "
+             f"Published as `dptpu triangulate` does: confidence >= {spec.min_confidence:g}, "
+             + ("points at depth edges dropped." if spec.edges else "points at depth edges kept."), "",
              "| steps | noise | method | " + " | ".join(f"{s} wrong % | {s} complete %" for s in solvers) + " |",
              "|---|---|---|" + "---|---|" * len(solvers)]
     by_key: dict[tuple, dict[str, dict]] = {}
@@ -326,7 +367,9 @@ def run_cloud_eval(spec: CloudEvalSpec, out_dir, *, models: Iterable[FringeOrder
     for capture in render_eval_captures(spec, out_dir / "captures"):
         rows += score_capture(capture, spec, models)
     pooled = pool_rows(rows)
-    cfpe = cfpe_rows(cfpe_dir, spec.cfpe_scenes, models) if cfpe_dir is not None and spec.cfpe_scenes else []
+    cfpe = []
+    if cfpe_dir is not None and spec.cfpe_scenes:
+        cfpe = cfpe_rows(cfpe_dir, spec.cfpe_scenes, models, min_confidence=spec.min_confidence)
     goals = goal_checks(pooled, cfpe)
     table = format_table(pooled, cfpe, spec)
     met = sum(g["met"] for g in goals)
