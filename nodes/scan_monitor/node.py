@@ -52,7 +52,7 @@ name                 default  meaning
 ``ground_truth``     true     compare with ``/sim/ground_truth``; false: points and latency only (a real rig)
 ``max_wrong_share``  0.001    with ground truth: a scan with a larger share of wrong points (wrong order or off
                               the surface) among its published points is UNTRUSTED
-``min_completeness`` 0.60     with ground truth: a scan publishing a smaller share of the truly valid pixels is
+``min_completeness`` 0.50     with ground truth: a scan publishing a smaller share of the truly valid pixels is
                               UNTRUSTED (defaults and the measurements behind them: docs/scanner.md)
 ``off_surface_mm``   1.0      a point of the right order is off the surface beyond
                               ``max(off_surface_mm, 6 sigma)`` from the true depth (:mod:`dptpu.fpp.cloud_accuracy`)

@@ -36,7 +36,7 @@ __all__ = ["MAX_WRONG_SHARE", "MIN_COMPLETENESS", "ScanMetrics", "scan_metrics",
 #: Default bound of a trusted scan: at most this share of its published points wrong (issue #16's goal, 0.1 %).
 MAX_WRONG_SHARE = 0.001
 #: Default bound of a trusted scan: at least this share of the truly valid pixels published (docs/scanner.md).
-MIN_COMPLETENESS = 0.60
+MIN_COMPLETENESS = 0.50
 
 
 

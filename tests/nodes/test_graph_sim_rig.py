@@ -6,8 +6,9 @@ the launch after ``scans:=N`` with exit code 0. Bounds (docs/scanner.md): with 1
 (``model:=none``: these tests pin the classical order; the main job's default is DP-TPU) every scan has at least
 99.5 % of its fringe orders right and a depth RMS below 1.5 mm (measured: 100 % and 0.42-0.84 mm; at f = 16
 a phase noise of 0.02 rad is 0.18 projector pixels, about 0.45 mm of depth at 800 mm), and the monitor calls it
-``ok``: at most 0.1 % of its points wrong and at least 60 % complete (measured: 0-0.006 % wrong, 97.6-99.4 %
-complete on the objects, 65.8 % on the board, whose black squares fall under the phase node's min_modulation).
+``ok``: at most 0.1 % of its points wrong and at least 50 % complete (measured with the confidence and depth-edge
+filters: 0.000 % wrong, 93.0-93.8 % complete on the objects, 64.7 % on the board, whose black squares fall under
+the phase node's min_modulation).
 """
 from __future__ import annotations
 
@@ -29,7 +30,7 @@ def _check_scan(record: dict) -> None:
     assert record["order_accuracy"] >= ORDER_ACCURACY_BOUND, record
     assert record["depth_rms_mm"] < DEPTH_RMS_BOUND_MM, record
     assert record["valid_points"] > 0.5 * record["depth_pixels"] > 0, record
-    assert record["wrong_share"] <= 0.001 and record["completeness"] >= 0.6, record
+    assert record["wrong_share"] <= 0.001 and record["completeness"] >= 0.5, record
 
 
 def test_n_scans_through_the_whole_graph_meet_the_documented_bounds_and_a_dropped_frame_fails_one(node_env, tmp_path):
@@ -78,10 +79,10 @@ def test_dptpu_scans_through_the_whole_graph_meet_the_bounds(node_env, tmp_path)
     model 99.49 / 97.95 / 99.38 / 97.25 %; classical MF 99.68 / 98.93 / 99.17 / 100 % in the same graph. On these
     160x120 12-step frames (finer fringes per pixel than its 320x240 3-step training data) the shipped model does
     not beat classical MF; the bound guards the wiring and against a broken model (an untrained one would return
-    the classical order), not the paper's claim, which issue [4/7] still owes. With 1.4-2.8 % of their points wrong
-    (2026-11-26, the same rig, no confidence filter yet) these scans are over the monitor's 0.1 % bound: it calls
-    them UNTRUSTED and names the share, which is the one it computed from the scan's wrong orders and off-surface
-    points.
+    the classical order), not the paper's claim, which issue [4/7] still owes. With 0.18-1.04 % of their points wrong
+    (2026-11-26, the same rig, with the confidence and depth-edge filters; their wrong orders come in patches that
+    neither filter sees) these scans are over the monitor's 0.1 % bound: it calls them UNTRUSTED and names the
+    share, which is the one it computed from the scan's wrong orders and off-surface points.
     """
     import pytest
 
@@ -104,7 +105,7 @@ def test_dptpu_scans_through_the_whole_graph_meet_the_bounds(node_env, tmp_path)
         assert record["wrong_points"] == record["wrong_order_points"] + record["off_surface_points"], record
         assert record["wrong_share"] == record["wrong_points"] / record["valid_points"], record
         assert record["wrong_order_points"] <= record["order_errors"], record  # published pixels only
-        trusted = record["wrong_share"] <= 0.001 and record["completeness"] >= 0.6
+        trusted = record["wrong_share"] <= 0.001 and record["completeness"] >= 0.5
         assert (record["outcome"] == "ok") == trusted, record
         if not trusted:
             assert f"{100 * record['wrong_share']:.2f} % of the points wrong (> 0.10 %)" in record["reason"], record
