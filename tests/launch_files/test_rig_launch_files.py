@@ -57,3 +57,16 @@ def test_real_rigs_take_the_serial_port_and_the_gentl_producer():
 def test_an_unknown_argument_is_refused_with_exit_code_2(capsys):
     assert main(["launch", str(LAUNCH_DIR / "sim_rig.yaml"), "--print", "scnas:=3"]) == 2
     assert "scnas" in capsys.readouterr().err
+
+
+def test_the_main_job_runs_the_network_by_default_and_grades_scans_within_the_monitors_bounds():
+    plan = load_launch_file(str(LAUNCH_DIR / "sim_rig.yaml"), {})
+    commands = {node.label: node.command for node in plan.nodes}
+    assert "model:=auto" in commands["unwrap"]  # the shipped model wherever it serves the method and the fringes
+    assert "max_wrong_share:=0.001" in commands["scan_monitor"] and "min_completeness:=0.5" in commands["scan_monitor"]
+    classical = load_launch_file(str(LAUNCH_DIR / "sim_rig.yaml"), {"model": "none", "max_wrong_share": "0.01"})
+    commands = {node.label: node.command for node in classical.nodes}
+    assert "model:=none" in commands["unwrap"] and "max_wrong_share:=0.01" in commands["scan_monitor"]
+    # the real rigs keep the classical order unless asked (their sequences are not the twin's)
+    real = {node.label: node.command for node in load_launch_file(str(LAUNCH_DIR / "dlp4500_aca640.yaml"), {}).nodes}
+    assert "model:=none" in real["unwrap"]
