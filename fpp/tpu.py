@@ -90,8 +90,8 @@ class Unwrapped:
         ``tolerance_px``, clipped to ``[0, 1]`` (0 = on a boundary). 0 at invalid pixels.
     n_rejected : int
         Pixels that were valid on input but that the method rejected (NT: key outside every table
-        entry's decision cell, beyond the smallest or largest key by more than half the outer gap);
-        0 for the other methods.
+        entry's decision cell, nearer to a fringe-order pair that cannot occur on the projector than to
+        the smallest or largest key); 0 for the other methods.
 
     Notes
     -----
@@ -125,6 +125,11 @@ class NTLookupTable:
     tolerance_px : float
         Half the smallest gap between neighbouring keys, pixels: a key error below it never changes
         the matched pair (see :attr:`tolerance_rad`).
+    outside_low_px, outside_high_px : float
+        The nearest keys below the smallest and above the largest key of pairs that cannot occur on the
+        projector (``k_l`` in ``[0, ceil(f_l))``, any ``k_h``), pixels: the outer decision boundaries
+        lie half way to them, so that a key is matched to the pair an exhaustive search over ``k_l``
+        finds. NaN (the default): half the adjacent gap outside the first and last key.
     """
 
     key_px: np.ndarray
@@ -133,6 +138,8 @@ class NTLookupTable:
     lambda_h_px: float
     lambda_l_px: float
     tolerance_px: float
+    outside_low_px: float = float("nan")
+    outside_high_px: float = float("nan")
 
     @property
     def tolerance_rad(self) -> float:
@@ -158,8 +165,8 @@ class NTLookupTable:
             Index of the nearest entry of :attr:`key_px`.
         margin_px : ndarray of float64, same shape
             Signed distance (pixels) from the key to the nearest decision boundary of its entry
-            (the midpoints to the neighbouring keys; beyond the first and last key the boundary lies
-            half the adjacent gap outside). Negative outside every entry's cell.
+            (the midpoints to the neighbouring keys; beyond the first and last key the midpoint to
+            :attr:`outside_low_px` / :attr:`outside_high_px`). Negative outside every entry's cell.
         """
         key_px = np.asarray(key_px, dtype=np.float64)
         low_edge, high_edge = self._cell_edges
@@ -172,8 +179,10 @@ class NTLookupTable:
         """(M,) lower and upper decision boundaries of each entry, pixels."""
         keys = self.key_px
         mid = 0.5 * (keys[:-1] + keys[1:])
-        low = np.concatenate([[keys[0] - 0.5 * (keys[1] - keys[0])], mid])
-        high = np.concatenate([mid, [keys[-1] + 0.5 * (keys[-1] - keys[-2])]])
+        below = self.outside_low_px if math.isfinite(self.outside_low_px) else keys[0] - (keys[1] - keys[0])
+        above = self.outside_high_px if math.isfinite(self.outside_high_px) else keys[-1] + (keys[-1] - keys[-2])
+        low = np.concatenate([[0.5 * (keys[0] + below)], mid])
+        high = np.concatenate([mid, [0.5 * (keys[-1] + above)]])
         return low, high
 
 
@@ -500,8 +509,21 @@ def nt_lookup_table(f_h, f_l, extent) -> NTLookupTable:
             f"{k_l[min(i + 1, key.size - 1)]}), so they repeat within the projector (Eq. (8) needs "
             "LCM(lambda_h, lambda_l) >= W)"
         )
+    below, above = _nearest_outside_keys(float(key[0]), float(key[-1]), lambda_h, lambda_l, math.ceil(f_l),
+                                         _NT_SEGMENT_EPS * extent)
     return NTLookupTable(key_px=key, k_h=k_h.astype(np.int32), k_l=k_l.astype(np.int32),
-                         lambda_h_px=lambda_h, lambda_l_px=lambda_l, tolerance_px=0.5 * float(gaps.min()))
+                         lambda_h_px=lambda_h, lambda_l_px=lambda_l, tolerance_px=0.5 * float(gaps.min()),
+                         outside_low_px=below, outside_high_px=above)
+
+
+def _nearest_outside_keys(smallest, largest, lambda_h, lambda_l, n_low, eps) -> tuple[float, float]:
+    """The largest key below ``smallest`` and the smallest key above ``largest`` (pixels, farther than ``eps``)
+    of ``lambda_h*k_h - lambda_l*k_l`` over ``k_l`` in ``[0, n_low)`` and every integer ``k_h``: the nearest
+    pairs beyond the table's keys, none of which occurs on the projector."""
+    shift = lambda_l * np.arange(n_low)  # (n_low,) px
+    below = lambda_h * (np.ceil((smallest - eps + shift) / lambda_h) - 1.0) - shift
+    above = lambda_h * (np.floor((largest + eps + shift) / lambda_h) + 1.0) - shift
+    return float(below.max()), float(above.min())
 
 
 def unwrap_nt(psi_h, psi_l, f_h, f_l, extent, *, valid=None) -> Unwrapped:
@@ -524,8 +546,9 @@ def unwrap_nt(psi_h, psi_l, f_h, f_l, extent, *, valid=None) -> Unwrapped:
     Unwrapped
         Fringe order and absolute phase of ``f_h``. ``reliability`` is the distance of the key to
         its entry's nearest decision boundary over ``tolerance_px``, clipped to ``[0, 1]``. A pixel
-        whose key lies outside every entry's decision cell (more than half the outer gap beyond the
-        smallest or largest key) is invalid (not an exception) and counted in ``n_rejected``.
+        whose key lies outside every entry's decision cell (beyond the smallest or largest key, nearer
+        to a pair that cannot occur on the projector) is invalid (not an exception) and counted in
+        ``n_rejected``.
 
     Notes
     -----
@@ -538,6 +561,15 @@ def unwrap_nt(psi_h, psi_l, f_h, f_l, extent, *, valid=None) -> Unwrapped:
     (64 / 10.9 / 912 px: 0.196 px, 0.0126 rad); pixels whose entry has wider gaps tolerate more.
     With Gaussian phase noise of std ``sigma`` the key error has std
     ``sigma*sqrt(lambda_h**2 + lambda_l**2)/(2*pi)`` pixels.
+
+    The same decision as an exhaustive search over the low order (for each ``k_l`` in
+    ``[0, ceil(f_l))`` predict the high phase ``(f_h/f_l)*(psi_l + 2*pi*k_l)``, take the nearest ``k_h``
+    and keep the candidate of the smallest residual): that residual is the key's distance to
+    ``lambda_h*k_h - lambda_l*k_l`` over ``lambda_h``, so wherever the search's best candidate is a pair
+    that occurs on the projector, NT returns it; where the search's best is a pair that cannot occur
+    (``k_h`` off the projector, e.g. at a mixed pixel), NT returns the nearest pair that can, or rejects
+    the key beyond the table's ends (tests/fpp/test_tpu_nt.py checks this on random frequency pairs and
+    rendered outside rigs).
     """
     table = nt_lookup_table(f_h, f_l, extent)
     psi_h = _as_phase_map("psi_h", psi_h, wrapped=True)
