@@ -14,7 +14,11 @@ of 10.9 across the projector is 30-60 camera pixels wide), so the evidence of ev
 1. **Bands** (:func:`low_order_bands`): 4-connected pixels whose low phase runs on without a wrap (a raw step
    of more than pi) or a jump (a wrapped step of more than :data:`BAND_JUMP_RAD`, a depth edge); pixels on a
    cut are left out. A depth edge that shifts the low phase by a whole period leaves it running on; there the
-   band's residual ``b_p`` (below) takes a second value, and the pixels of that value become bands of their own.
+   band's residual ``b_p`` (below) takes a second value, and the pixels of that value become bands of their own:
+   those whose local mean residual lies farther from the band's than half the turn between neighbouring low
+   orders (:func:`merge_tolerance_rad`; 0.23 rad for ``88 / 10.9``, whose orders ``m`` and ``m + 1`` give
+   residuals only 0.073 periods apart). Mixed pixels, which integrate both surfaces, smooth such an edge's low
+   phase into steps below :data:`BAND_JUMP_RAD`, so on a real camera this is the common case.
 2. **Band order**: for a band ``B`` and a candidate low order ``m``, Eq. (3) for both frequencies at one
    projector column says ``(f_h / f_l) (m + psi_l / 2pi) - psi_h / 2pi`` is an integer (``k_h``). Its
    circular agreement over the band, ``sum_B cos(2pi ((f_h/f_l) m + b_p))`` with ``b_p = (f_h/f_l) psi_l/2pi -
@@ -42,7 +46,7 @@ import numpy as np
 from .consensus import consensus_order
 
 __all__ = ["BAND_JUMP_RAD", "MIN_BAND_PIXELS", "NTInputs", "low_order_bands", "low_order_from_high",
-           "mf_representation"]
+           "merge_tolerance_rad", "mf_representation"]
 
 #: A wrapped step of the low phase larger than this between 4-neighbours cuts a band (a depth edge), radians.
 #: The low phase of ``f_l = 10.9`` changes 0.1-0.3 rad a pixel on the rigs of this project; its noise is
@@ -51,6 +55,15 @@ BAND_JUMP_RAD = 0.5
 #: A band pixel whose 3x3 mean residual ``b`` lies farther than this from its band's (radians) belongs to another
 #: surface that the band ran into (:func:`_merged_pixels`).
 MERGE_TOLERANCE_RAD = 0.3 * np.pi
+#: Side of the window (pixels) whose circular mean residual :func:`_merged_pixels` compares with its band's when the
+#: tolerance is below :data:`MERGE_TOLERANCE_RAD` (:func:`merge_tolerance_rad`): 25 pixels average the noise of the
+#: paper's 3-step, 2 sigma inputs (0.3-0.4 rad a pixel for ``f_h/f_l`` near 8) to below a third of a 0.23 rad
+#: tolerance; 3x3 does not (measured on the outside rigs of tests/outside_rigs.py, docs/model-eval.md).
+MERGE_WINDOW = 5
+#: Passes of the split (:func:`_bands`) against a tolerance below :data:`MERGE_TOLERANCE_RAD`: the first splits off
+#: the other surface's pixels whose window lies mostly on it, the second, measuring the pieces left, those next to
+#: the edge (one pass with the 0.3 pi tolerance).
+MERGE_PASSES = 2
 #: Bands smaller than this keep the per-pixel NT low order (and the vote), pixels.
 MIN_BAND_PIXELS = 50
 _TWO_PI = 2.0 * np.pi
@@ -58,6 +71,8 @@ _TWO_PI = 2.0 * np.pi
 # end by more than the slack (periods of f_l): the band of that order holds only the first ceil(f_l) - f_l of a period.
 _PROJECTOR_END_SHARE = 0.1
 _PROJECTOR_END_SLACK = 0.02
+# _band_modes: bins of the circular histogram of a band's local residuals.
+_MODE_BINS = 128
 
 
 def low_order_from_high(order_high, psi_h, psi_l, f_h: float, f_l: float) -> np.ndarray:
@@ -105,7 +120,7 @@ def low_order_bands(psi_h, psi_l, f_h: float, f_l: float, valid, order_low, *,
     ratio = f_h / f_l
     core = _band_pixels(psi_l, valid, jump_rad)
     residual = np.where(core, ratio * psi_l - psi_h, 0.0)  # 2pi b_p, (H, W)
-    labels, count = _bands(core, residual)
+    labels, count = _bands(core, residual, ratio, int(np.ceil(f_l)))
     band = labels[core]  # (P,) band of every core pixel; 0 is the background
     z_re, z_im, size = _band_sums(residual, core, band, count)
     candidates = np.arange(int(np.ceil(f_l)))  # (M,)
@@ -139,20 +154,50 @@ def _band_pixels(psi_l, valid, jump_rad: float) -> np.ndarray:
     return core
 
 
-def _bands(core, residual) -> tuple[np.ndarray, int]:
+def merge_tolerance_rad(ratio: float, orders: int) -> float:
+    """How far (radians) a band pixel's local mean residual may lie from its band's before it counts as another
+    surface's (:func:`_bands`): :data:`MERGE_TOLERANCE_RAD`, or half the turn between neighbouring low orders where
+    that is smaller.
+
+    Neighbouring low orders ``m`` and ``m + 1`` give residuals ``2pi (f_h/f_l)`` apart (modulo ``2pi``): 0.46 rad
+    for ``88 / 10.9`` (``f_h/f_l = 8.073``). A depth edge whose mixed pixels carry the low phase on with a shift of
+    one period joins two surfaces of neighbouring orders in one band; a tolerance above half that turn would keep
+    them together and give the smaller one the other's order (every pixel ``f_h/f_l`` high orders off).
+    """
+    if orders < 2:
+        return MERGE_TOLERANCE_RAD
+    turn = (ratio % 1.0) * _TWO_PI
+    return float(min(MERGE_TOLERANCE_RAD, 0.5 * min(turn, _TWO_PI - turn)))
+
+
+def _bands(core, residual, ratio: float, orders: int) -> tuple[np.ndarray, int]:
     """Band labels ``(H, W)`` int32 (0 off the bands) and their count (with 0): the 4-connected components of
     ``core``, where a band that ran over a depth edge (:func:`_merged_pixels`) gives the other surface's pixels
-    bands of their own."""
+    bands of their own (:data:`MERGE_PASSES` times)."""
+    tolerance_rad = merge_tolerance_rad(ratio, orders)
     count, labels = cv2.connectedComponents(core.astype(np.uint8), connectivity=4, ltype=cv2.CV_32S)
-    outliers = _merged_pixels(residual, core, labels, count)
-    if not outliers.any():
-        return labels, count
-    inside, outside = core & ~outliers, core & outliers
-    count_in, labels_in = cv2.connectedComponents(inside.astype(np.uint8), connectivity=4, ltype=cv2.CV_32S)
-    count_out, labels_out = cv2.connectedComponents(outside.astype(np.uint8), connectivity=4, ltype=cv2.CV_32S)
-    labels = np.where(outside, labels_out + (count_in - 1), labels_in)
-    labels[~core] = 0
-    return labels, count_in + count_out - 1
+    for _ in range(MERGE_PASSES if tolerance_rad < MERGE_TOLERANCE_RAD else 1):
+        outliers = _merged_pixels(residual, core, labels, count, tolerance_rad)
+        if not outliers.any():
+            break
+        count_in, labels_in = _split_components(labels * ~outliers, count)
+        count_out, labels_out = _split_components(labels * outliers, count)  # never joins two bands' outliers
+        labels = np.where(outliers, labels_out + (count_in - 1), labels_in).astype(np.int32)
+        labels[~core] = 0
+        count = count_in + count_out - 1
+    return labels, count
+
+
+def _split_components(labels, count) -> tuple[int, np.ndarray]:
+    """The 4-connected pieces of every band of ``labels`` (``(H, W)``, 0 = off the bands, ``count`` labels with 0):
+    their count (with 0) and labels ``1..``, ``(H, W)`` int32. Pieces of two bands that touch stay apart."""
+    out = np.zeros(labels.shape, np.int32)
+    on = labels > 0
+    _, components = cv2.connectedComponents(on.astype(np.uint8), connectivity=4, ltype=cv2.CV_32S)
+    pair = components[on].astype(np.int64) * (int(count) + 1) + labels[on]  # (P,) a piece: component and band
+    unique, inverse = np.unique(pair, return_inverse=True)
+    out[on] = inverse.astype(np.int32) + 1
+    return unique.size + 1, out
 
 
 def _band_sums(residual, core, band, count):
@@ -162,23 +207,43 @@ def _band_sums(residual, core, band, count):
     return z_re, z_im, np.bincount(band, minlength=count)
 
 
-def _merged_pixels(residual, core, labels, count) -> np.ndarray:
-    """Band pixels whose 3x3 circular mean residual lies more than :data:`MERGE_TOLERANCE_RAD` (0.15 periods) from
-    their band's, ``(H, W)`` bool.
+def _merged_pixels(residual, core, labels, count, tolerance_rad: float) -> np.ndarray:
+    """Band pixels whose local circular mean residual lies more than ``tolerance_rad`` from their band's value,
+    ``(H, W)`` bool: a 3x3 mean against :data:`MERGE_TOLERANCE_RAD` (0.15 periods), a :data:`MERGE_WINDOW` square
+    one against a smaller tolerance (:func:`merge_tolerance_rad`).
 
     On one surface ``b_p`` is one value (``-(f_h/f_l) k_l`` modulo 1) but for noise; a band that runs over a
     depth edge where the low phase runs on (a shift of a whole low period) holds a second value, ``f_h/f_l``
-    times the order step apart modulo 1 (half a period for f_h = 60).
+    times the order step apart modulo 1 (half a period for f_h = 60). Against the smaller tolerance the band's
+    value is its most common local value (:func:`_band_modes`), not its mean, which the second surface would pull
+    towards itself by a good part of that tolerance (or, at ``f_h/f_l = 8.807``, onto a third order's value).
     """
     band = labels[core]
-    z_re, z_im, _ = _band_sums(residual, core, band, count)
+    narrow = tolerance_rad < MERGE_TOLERANCE_RAD
+    window = (MERGE_WINDOW, MERGE_WINDOW) if narrow else (3, 3)
     weight = core.astype(np.float64)
-    local_re = cv2.boxFilter(np.cos(residual) * weight, -1, (3, 3), normalize=False)
-    local_im = cv2.boxFilter(np.sin(residual) * weight, -1, (3, 3), normalize=False)
-    band_angle = np.arctan2(z_im, z_re)[labels]
-    deviation = np.arctan2(local_im, local_re) - band_angle
+    local_re = cv2.boxFilter(np.cos(residual) * weight, -1, window, normalize=False)
+    local_im = cv2.boxFilter(np.sin(residual) * weight, -1, window, normalize=False)
+    local = np.arctan2(local_im, local_re)  # (H, W) radians
+    if narrow:  # the band's most common local value: its mean would lie between two surfaces' values
+        band_angle = _band_modes(local[core], band, count, tolerance_rad)
+    else:  # orders far apart (3x3 against the band's mean)
+        z_re, z_im, _ = _band_sums(residual, core, band, count)
+        band_angle = np.arctan2(z_im, z_re)
+    deviation = local - band_angle[labels]
     deviation = np.abs((deviation + np.pi) % _TWO_PI - np.pi)
-    return core & (deviation > MERGE_TOLERANCE_RAD)
+    return core & (deviation > tolerance_rad)
+
+
+def _band_modes(angle, band, count, tolerance_rad: float) -> np.ndarray:
+    """The most common value of ``angle`` (``(P,)`` radians) in each band (``band``: ``(P,)`` labels < ``count``),
+    ``(count,)`` radians: the centre of the ``2 * tolerance_rad`` arc that holds the most of the band's values."""
+    bins = _MODE_BINS
+    index = np.floor((angle + np.pi) / _TWO_PI * bins).astype(np.int64) % bins  # (P,)
+    histogram = np.bincount(band * bins + index, minlength=count * bins).reshape(count, bins).astype(np.float64)
+    half = max(1, int(tolerance_rad / _TWO_PI * bins))
+    arcs = sum(np.roll(histogram, shift, axis=1) for shift in range(-half, half + 1))  # (count, bins)
+    return (np.argmax(arcs, axis=1) + 0.5) * _TWO_PI / bins - np.pi
 
 
 @dataclass(frozen=True, eq=False)
