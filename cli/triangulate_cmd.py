@@ -6,7 +6,8 @@ Unwraps like ``dptpu unwrap`` (the same code path, :func:`dptpu.cli.unwrap_cmd.u
 by default where it serves, ``--min-confidence``), turns the absolute phase into the projector coordinate
 ``x_p = phi * W_p / (2 pi f)``, intersects each valid camera ray with the projector plane of that
 coordinate (:class:`dptpu.fpp.triangulate.Triangulator`, the capture's ``calibration`` rig file), drops the points
-at depth edges (:func:`dptpu.fpp.depth_edges.edge_points`: flying points, modulation dips, isolated points; off with
+at depth edges (:func:`dptpu.fpp.depth_edges.edge_points`: flying points, points beside a depth step, modulation dips,
+isolated points; off with
 ``--keep-edges``) and writes the rest with open3d, in the rig's world frame and units. The summary line counts
 what was dropped and why.
 """
@@ -38,8 +39,8 @@ def register(subparsers) -> None:
     parser.add_argument("--no-distortion", action="store_true",
                         help="ignore the lens distortion of camera and projector (pinhole triangulation)")
     parser.add_argument("--keep-edges", action="store_true",
-                        help="keep the points at depth edges (flying points between surfaces, modulation dips, "
-                             "isolated points; docs/nodes.md 'Flying points')")
+                        help="keep the points at depth edges (flying points between surfaces, points beside a depth "
+                             "step, modulation dips, isolated points; docs/nodes.md 'Flying points')")
     parser.add_argument("--max-edge-slope", type=float, default=DEFAULT_MAX_SLOPE, metavar="S",
                         help="depth step between neighbours, in pixel footprints, above which a point standing "
                              "apart from both neighbours along a line is a flying point "
@@ -79,7 +80,8 @@ def run(args: argparse.Namespace) -> int:
         counts = edges.counts(keep)
         keep &= ~edges.dropped
         edges_note = (f"{counts['total']} points at depth edges dropped ({counts['flying']} flying, "
-                      f"{counts['modulation_dip']} modulation dips, {counts['isolated']} isolated)")
+                      f"{counts['beside_step']} beside a step, {counts['modulation_dip']} modulation dips, "
+                      f"{counts['isolated']} isolated)")
     cloud_points = points[keep]  # (M, 3)
     if cloud_points.shape[0] == 0:
         raise ValueError(f"no valid pixel to triangulate in {capture.root} ({args.method}); nothing written")

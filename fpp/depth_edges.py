@@ -15,7 +15,12 @@ two sides (or a sliver of them) differs from both and is marked. Invalid (NaN) n
 background behind a projector shadow carries no phase, so a pixel mixing the foreground with a shadow keeps the
 foreground's phase).
 
-Two more signs of a pixel that straddles an edge, both used by :func:`edge_points`:
+Three more signs of a pixel that straddles an edge, all used by :func:`edge_points`:
+
+- a neighbour more than ``max_step`` footprints nearer or farther (:func:`beside_steps`): the last pixel on each
+  side of a depth step (a step, not a slope: 10 footprints between neighbours is a surface 84 degrees from facing
+  the camera) still integrates a sliver of the other side, whose phase is far from its own (the flying points are
+  taken out first: a lone wrong point is flying, and its right neighbours are not beside a step);
 
 - its fringe modulation ``B`` dips below ``min_modulation_ratio`` times the largest of its 8 neighbours': the
   phasors of two surfaces (or of a lit surface and a projector shadow) add to less than either; a partly shadowed
@@ -31,8 +36,12 @@ Parameters and why (``docs/nodes.md``, "Flying points", has the measurements beh
 - ``max_slope`` (default :data:`DEFAULT_MAX_SLOPE` = 4, a surface inclined ``atan(4) = 76`` degrees from facing
   the camera): a mixed pixel at an edge of depth step ``dz`` differs from its two neighbours by about ``dz / 2``,
   i.e. by ``f dz / (2 z)`` footprints, more than 4 for any step over 8 footprints (8 mm at a 1 mm footprint).
+- ``max_step`` (default :data:`DEFAULT_MAX_STEP` = 10): on the twin's outside-rig scenes the last pixel beside a
+  step held half of what stayed off the surface; dropping it costs one pixel per side of each depth edge.
 - ``min_modulation_ratio`` (default :data:`DEFAULT_MIN_MODULATION_RATIO` = 0.6): a pixel at 60 % of its brightest
-  neighbour's modulation; noise and smooth shading change ``B`` by a few percent between neighbours.
+  neighbour's modulation; noise and smooth shading change ``B`` by a few percent between neighbours, texture by more
+  (0.7 halves what stays off the surface again but costs about 0.7 % of completeness on textured scenes; at 0.8 the
+  noise of 3-step captures starts to trigger it).
 - ``min_neighbours`` (default :data:`DEFAULT_MIN_NEIGHBOURS` = 2).
 """
 from __future__ import annotations
@@ -41,8 +50,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["DEFAULT_MAX_SLOPE", "DEFAULT_MIN_MODULATION_RATIO", "DEFAULT_MIN_NEIGHBOURS", "EdgePoints", "edge_points",
-           "flying_points"]
+__all__ = ["DEFAULT_MAX_SLOPE", "DEFAULT_MAX_STEP", "DEFAULT_MIN_MODULATION_RATIO", "DEFAULT_MIN_NEIGHBOURS",
+           "EdgePoints", "beside_steps", "edge_points", "flying_points"]
 
 #: Depth change between neighbouring pixels, in pixel footprints ``z / f``, above which a pixel that differs so from
 #: both its neighbours along a line is a flying point: the tangent of the steepest surface kept (76 degrees).
@@ -51,9 +60,28 @@ DEFAULT_MAX_SLOPE = 4.0
 DEFAULT_MIN_MODULATION_RATIO = 0.6
 #: A point with fewer of its 8 neighbours holding a point is a sliver.
 DEFAULT_MIN_NEIGHBOURS = 2
+#: A point with a neighbour more than this many pixel footprints nearer or farther lies beside a depth step.
+DEFAULT_MAX_STEP = 10.0
 
 # (row step, column step, footprint factor) of the four lines through a pixel
 _LINES = ((0, 1, 1.0), (1, 0, 1.0), (1, 1, np.sqrt(2.0)), (1, -1, np.sqrt(2.0)))
+
+
+def beside_steps(depth: np.ndarray, focal_px: float, *, max_step: float) -> np.ndarray:
+    """Pixels with a neighbour (of 8) whose depth differs by more than ``max_step`` pixel footprints ``z / f`` (per
+    diagonal step ``sqrt(2) z / f``): the last pixel on each side of a depth step, (H, W) bool."""
+    z = np.asarray(depth, dtype=np.float64)
+    padded = np.pad(z, 1, constant_values=np.nan)
+    height, width = z.shape
+    limit = max_step * np.abs(z) / focal_px
+    out = np.zeros(z.shape, dtype=bool)
+    with np.errstate(invalid="ignore"):
+        for dr in (-1, 0, 1):
+            for dc in (-1, 0, 1):
+                if dr or dc:
+                    other = padded[1 + dr:1 + dr + height, 1 + dc:1 + dc + width]
+                    out |= np.abs(other - z) > (limit * np.sqrt(2.0) if dr and dc else limit)
+    return out
 
 
 def flying_points(depth: np.ndarray, focal_px: float, *, max_slope: float = DEFAULT_MAX_SLOPE) -> np.ndarray:
@@ -98,27 +126,31 @@ class EdgePoints:
     """Pixels :func:`edge_points` drops, by reason, each (H, W) bool (a pixel may have several reasons)."""
 
     flying: np.ndarray
+    beside_step: np.ndarray
     modulation_dip: np.ndarray
     isolated: np.ndarray
 
     @property
     def dropped(self) -> np.ndarray:
         """(H, W) bool: dropped for any reason."""
-        return self.flying | self.modulation_dip | self.isolated
+        return self.flying | self.beside_step | self.modulation_dip | self.isolated
 
     def counts(self, points: np.ndarray) -> dict[str, int]:
         """How many of the pixels with a point (``points`` (H, W) bool) each reason drops, and ``"total"``."""
         points = np.asarray(points, dtype=bool)
         return {"flying": int(np.count_nonzero(self.flying & points)),
+                "beside_step": int(np.count_nonzero(self.beside_step & points)),
                 "modulation_dip": int(np.count_nonzero(self.modulation_dip & points)),
                 "isolated": int(np.count_nonzero(self.isolated & points)),
                 "total": int(np.count_nonzero(self.dropped & points))}
 
 
 def edge_points(depth: np.ndarray, focal_px: float, modulation: np.ndarray | None = None, *,
-                max_slope: float = DEFAULT_MAX_SLOPE, min_modulation_ratio: float = DEFAULT_MIN_MODULATION_RATIO,
+                max_slope: float = DEFAULT_MAX_SLOPE, max_step: float = DEFAULT_MAX_STEP,
+                min_modulation_ratio: float = DEFAULT_MIN_MODULATION_RATIO,
                 min_neighbours: int = DEFAULT_MIN_NEIGHBOURS) -> EdgePoints:
-    """The points at depth edges to drop: flying points, modulation dips, isolated points (module docstring).
+    """The points at depth edges to drop: flying points, points beside a depth step, modulation dips, isolated
+    points (module docstring).
 
     Parameters
     ----------
@@ -129,8 +161,9 @@ def edge_points(depth: np.ndarray, focal_px: float, modulation: np.ndarray | Non
     modulation : ndarray (H, W), optional
         Fringe modulation ``B`` of every pixel (also where there is no point: a shadowed neighbour counts), any
         unit; NaN allowed. None skips the modulation test (its mask is all False).
-    max_slope, min_modulation_ratio, min_neighbours
-        See the module docstring; ``min_modulation_ratio`` 0 and ``min_neighbours`` 0 turn those tests off.
+    max_slope, max_step, min_modulation_ratio, min_neighbours
+        See the module docstring; ``max_step`` inf, ``min_modulation_ratio`` 0 and ``min_neighbours`` 0 turn those
+        tests off.
 
     Returns
     -------
@@ -140,8 +173,13 @@ def edge_points(depth: np.ndarray, focal_px: float, modulation: np.ndarray | Non
         raise ValueError(f"min_modulation_ratio must be in [0, 1]; got {min_modulation_ratio}")
     if not 0 <= int(min_neighbours) <= 8:
         raise ValueError(f"min_neighbours must be 0 to 8 (of the 8 neighbours); got {min_neighbours}")
+    if not max_step > 0:
+        raise ValueError(f"max_step must be > 0 pixel footprints (inf: off); got {max_step}")
     z = np.asarray(depth, dtype=np.float64)
     flying = flying_points(z, focal_px, max_slope=max_slope)
+    step = np.zeros(z.shape, dtype=bool)
+    if np.isfinite(max_step):  # beside a step of the surfaces: a flying point (a lone wrong order too) makes none
+        step = beside_steps(np.where(flying, np.nan, z), focal_px, max_step=max_step) & ~flying
     has_point = np.isfinite(z)
     dip = np.zeros(z.shape, dtype=bool)
     if modulation is not None and min_modulation_ratio > 0:
@@ -153,9 +191,9 @@ def edge_points(depth: np.ndarray, focal_px: float, modulation: np.ndarray | Non
             dip = has_point & (b < min_modulation_ratio * brightest)
     isolated = np.zeros(z.shape, dtype=bool)
     if min_neighbours > 0:
-        kept = has_point & ~flying & ~dip
+        kept = has_point & ~flying & ~step & ~dip
         isolated = kept & (_neighbour_count(kept) < int(min_neighbours))
-    return EdgePoints(flying=flying, modulation_dip=dip, isolated=isolated)
+    return EdgePoints(flying=flying, beside_step=step, modulation_dip=dip, isolated=isolated)
 
 
 def _neighbours(values: np.ndarray, fill):

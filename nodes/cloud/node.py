@@ -44,14 +44,15 @@ name                   default                   meaning
 ``min_confidence``     0.2                       pixels whose confidence (``AbsolutePhase.reliability``, see
                                                  :mod:`dptpu.fpp.confidence`) is lower get no point; 0 keeps all
 ``drop_edges``         true                      drop the points at depth edges (:func:`dptpu.fpp.depth_edges.
-                                                 edge_points`: flying points between surfaces, modulation dips,
-                                                 isolated points; the modulation test needs the intensity image)
+                                                 edge_points`: flying points between surfaces, points beside a
+                                                 depth step, modulation dips, isolated points; the modulation test
+                                                 needs the intensity image)
 ``max_edge_slope``     4.0                       depth step between neighbours, in pixel footprints ``z / f``, above
                                                  which a point apart from both neighbours along a line is flying
 ====================== ========================= ===================================================================
 
 What is dropped is counted: counters ``points_low_confidence``, ``points_flying``, ``points_modulation_dip``,
-``points_isolated`` and the scan's status reason (level OK).
+``points_beside_step``, ``points_isolated`` and the scan's status reason (level OK).
 
 Fields of the cloud: ``x, y, z`` NaN where the pixel is invalid (``is_dense`` false); ``intensity`` the fringe
 modulation B of the unwrapped frequency in camera digital numbers, from ``/scanner/intensity`` (NaN when the
@@ -122,8 +123,8 @@ class CloudNode(Node):
     """AbsolutePhase -> PointCloud2 + depth Image (see the module docstring).
 
     Counters: ``scans_published``, ``scans_rejected``, ``ply_written``, ``pixels_nan`` (pixels marked valid whose
-    absolute phase was NaN or inf), ``points_low_confidence``, ``points_flying``, ``points_modulation_dip``,
-    ``points_isolated`` (dropped; a point may count under several edge reasons).
+    absolute phase was NaN or inf), ``points_low_confidence``, ``points_flying``, ``points_beside_step``,
+    ``points_modulation_dip``, ``points_isolated`` (dropped; a point may count under several edge reasons).
     """
 
     def __init__(self, node_name: str = "cloud", **node_options):
@@ -167,6 +168,7 @@ class CloudNode(Node):
         self.pixels_nan = 0
         self.points_low_confidence = 0
         self.points_flying = 0
+        self.points_beside_step = 0
         self.points_modulation_dip = 0
         self.points_isolated = 0
 
@@ -283,7 +285,8 @@ class CloudNode(Node):
             notes.append(f"{low_confidence} pixels below min_confidence {self.min_confidence:g} dropped")
         if edge_counts["total"]:
             notes.append(f"{edge_counts['total']} points at depth edges dropped ({edge_counts['flying']} flying, "
-                         f"{edge_counts['modulation_dip']} modulation dips, {edge_counts['isolated']} isolated)")
+                         f"{edge_counts['beside_step']} beside a step, {edge_counts['modulation_dip']} modulation "
+                         f"dips, {edge_counts['isolated']} isolated)")
         reasons = []
         if nan_pixels:
             self.pixels_nan += nan_pixels
@@ -303,12 +306,13 @@ class CloudNode(Node):
                     triangulator: Triangulator) -> dict[str, int]:
         """Blank (NaN) the points at depth edges in ``planes`` (3, H, W), count them by reason (counters too)."""
         if not self.drop_edges:
-            return {"flying": 0, "modulation_dip": 0, "isolated": 0, "total": 0}
+            return {"flying": 0, "beside_step": 0, "modulation_dip": 0, "isolated": 0, "total": 0}
         K = triangulator.rig.camera.K
         edges = edge_points(planes[2], 0.5 * float(K[0, 0] + K[1, 1]), modulation, max_slope=self.max_edge_slope)
         counts = edges.counts(np.isfinite(planes[2]))
         planes[:, edges.dropped] = np.nan
         self.points_flying += counts["flying"]
+        self.points_beside_step += counts["beside_step"]
         self.points_modulation_dip += counts["modulation_dip"]
         self.points_isolated += counts["isolated"]
         return counts

@@ -171,9 +171,8 @@ def test_triangulate_writes_points_on_the_plane_in_rig_units(synthetic_capture, 
     points = np.asarray(o3d.io.read_point_cloud(str(out)).points)  # (M, 3), mm
     assert points.shape == (scene.lit.size, 3)
     assert stdout.strip() == (f"heterodyne: {scene.lit.size} points (mm); model none; the shipped model does not serve "
-                              f"method heterodyne; 0 pixels below the confidence "
-                              f"threshold dropped; 0 points at depth edges dropped (0 flying, 0 modulation dips, "
-                              f"0 isolated) -> {out}")
+                              f"method heterodyne; 0 pixels below the confidence threshold dropped; 0 points at depth "
+                              f"edges dropped (0 flying, 0 beside a step, 0 modulation dips, 0 isolated) -> {out}")
     # Phase noise ~0.002 rad at period 42 px is ~0.01 projector px, ~0.04 mm in depth here.
     assert np.abs(points[:, 2] - PLANE_Z_MM).max() < 0.5
     assert points[:, 0].min() == pytest.approx(-197.5, abs=0.5)  # pixel column 0: (0 - 39.5) / 100 * 500
