@@ -276,8 +276,8 @@ class AbsolutePhase(Message):
     valid : ndarray (H, W) bool
         Pixels with a trusted absolute phase.
     reliability : ndarray (H, W) float32
-        Per-pixel margin in ``[0, 1]``: ``1 - 2*|q - round(q)|`` of the quantity the method rounds
-        (1 = exactly an integer).
+        Per-pixel confidence in ``[0, 1]``: classical methods ``1 - 2*|q - round(q)|`` of the quantity the method
+        rounds (1 = exactly an integer); ``"dptpu"`` the network's confidence (``dptpu.fpp.confidence``).
     method : str
         The unwrapping method, e.g. ``"mf"``, ``"mw"``, ``"nt"``, ``"heterodyne"``, ``"graycode"``,
         ``"dptpu"``.
