@@ -148,8 +148,10 @@ def test_unwrap_uses_the_shipped_model_by_default_only_within_its_fringe_density
     from dptpu.models.inference import shipped_model_path
 
     folder, scene = synthetic_capture(MF, scene=_scene(px_per_pixel))
-    code, _, stderr = _run(capsys, ["unwrap", "--capture", folder, "--method", "mf", "--out", tmp_path / "x.npz"])
+    code, stdout, stderr = _run(capsys, ["unwrap", "--capture", folder, "--method", "mf", "--out", tmp_path / "x.npz"])
     assert code == 0, stderr
+    # skipped with the reason: 10 projector px per camera px is 0.70 periods, folded by the wrapping to 0.30
+    assert ("shipped model skipped: fringes of 0.30 periods per camera pixel" in stdout) != used
     with np.load(tmp_path / "x.npz") as result:
         assert str(result["model"]) == (str(shipped_model_path()) if used else "none")
         valid = result["valid"]
