@@ -53,9 +53,10 @@ def add_unwrap_arguments(parser: argparse.ArgumentParser) -> None:
                              "default: the shipped model (models/dptpu.onnx) when present, for the methods it "
                              "serves (NT through its band prior when trained on MF) and fringe periods of 4 camera "
                              "pixels or more (measured on the wrapped phase)")
-    parser.add_argument("--min-confidence", type=float, metavar="C", default=DEFAULT_MIN_CONFIDENCE,
+    parser.add_argument("--min-confidence", type=float, metavar="C",
                         help="drop pixels whose confidence in [0, 1] is lower (the classical rounding margin or the "
-                             f"network's confidence, docs/nodes.md 'Confidence'); default {DEFAULT_MIN_CONFIDENCE:g}, "
+                             f"network's confidence, docs/nodes.md 'Confidence'); default {DEFAULT_MIN_CONFIDENCE:g} "
+                             "(graycode: 0, its margin is the distance to a code edge, not to a rounding margin), "
                              "0 keeps all")
 
 
@@ -75,8 +76,11 @@ def unwrap_from_args(args: argparse.Namespace) -> Unwrapping:
     # imported when the command runs, not at start-up: keeps `dptpu --help` fast
     from dptpu.models.refine import choose_model, refine_capture_result, resolve_model
 
-    if not (0.0 <= args.min_confidence <= 1.0):
-        raise ValueError(f"--min-confidence must be in [0, 1]; got {args.min_confidence:g}")
+    min_confidence = args.min_confidence
+    if min_confidence is None:
+        min_confidence = 0.0 if args.method == "graycode" else DEFAULT_MIN_CONFIDENCE
+    if not (0.0 <= min_confidence <= 1.0):
+        raise ValueError(f"--min-confidence must be in [0, 1]; got {min_confidence:g}")
     model = resolve_model(args.model, args.method)  # before the work: a bad model file fails fast
     capture = read_capture(args.capture)
     result = unwrap_capture(capture, method=args.method, high=args.high, low=args.low,
@@ -86,7 +90,7 @@ def unwrap_from_args(args: argparse.Namespace) -> Unwrapping:
         model, note = choose_model(model, args.model, args.method, result.wrapped_phases[0], result.quality)
     if model is not None:
         result = refine_capture_result(result, model)
-    valid, dropped = confident(result.reliability, result.valid, args.min_confidence)
+    valid, dropped = confident(result.reliability, result.valid, min_confidence)
     if dropped:
         result = dataclasses.replace(result, valid=valid, fringe_order=np.where(valid, result.fringe_order, 0),
                                      absolute_phase=np.where(valid, result.absolute_phase, np.nan),

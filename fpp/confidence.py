@@ -5,7 +5,9 @@ Classical methods (MF, MW, NT, heterodyne; :mod:`dptpu.fpp.tpu`): the confidence
 order (MF and MW: ``q`` of Eq. (5) / (7); heterodyne: each level of the beat tree, the smallest margin kept), and
 ``1 - 2 |q - Round(q)|`` is how far the residual ``q - k`` stays from the margin ``1/2`` at which noise would round
 to the next order (1: no residual; 0: on the margin). NT: the key's distance to its decision boundary over the
-table's tolerance (the same margin for the lookup of Eq. (9)). Gray code: ``[0, 0.5]``.
+table's tolerance (the same margin for the lookup of Eq. (9)). Gray code: twice the phase's distance, in periods,
+to the nearest code edge (:func:`dptpu.fpp.graycode.unwrap_graycode`), a margin against a blurred edge, not a
+rounding margin: ``dptpu unwrap`` keeps a threshold of 0 for it by default.
 
 The DP-TPU network (:func:`network_confidence`): the larger of two supports for the published order ``k``,
 

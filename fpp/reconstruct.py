@@ -72,8 +72,8 @@ class CaptureResult:
     modulation : ndarray (H, W) float64
         Modulation ``B`` of the high sequence, camera digital numbers.
     reliability : ndarray (H, W) float64
-        The method's margin against phase noise, in ``[0, 1]`` (Gray code: ``[0, 0.5]``); 0 where the
-        method rejected the pixel.
+        The method's margin in ``[0, 1]`` (:mod:`dptpu.fpp.confidence`; Gray code: the distance to a code
+        edge); 0 where the method rejected the pixel.
     frequency : float
         Frequency ``f`` of the high sequence (periods across ``W_p``).
     method : str

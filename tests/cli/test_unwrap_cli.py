@@ -200,3 +200,21 @@ def test_triangulate_help_states_the_units(capsys):
     with pytest.raises(SystemExit):
         main(["triangulate", "--help"])
     assert "rig's units" in " ".join(capsys.readouterr().out.split())
+
+
+def test_a_plain_gray_code_keeps_its_pixels_near_code_edges_by_default(synthetic_capture, tmp_path, capsys):
+    # its margin is the distance to a code edge, which a plain code's pixels near its edges keep small (19 % of the
+    # pixels of a capture of this synthetic scene with noise below 0.2, all of them right): the default threshold for
+    # graycode is 0; an explicit one still applies
+    folder, scene = synthetic_capture([{"period": 16}, {"kind": "graycode", "bits": 6, "period": 16, "inverse": True}])
+    code, stdout, stderr = _run(capsys, ["unwrap", "--capture", str(folder), "--method", "graycode",
+                                         "--out", str(tmp_path / "g.npz")])
+    assert code == 0, stderr
+    assert "; 0 pixels below the confidence threshold dropped" in stdout
+    code, stdout, _ = _run(capsys, ["unwrap", "--capture", str(folder), "--method", "graycode", "--min-confidence",
+                                    "0.99", "--out", str(tmp_path / "g2.npz")])
+    dropped = int(stdout.split(" pixels below the confidence threshold dropped")[0].rsplit("; ", 1)[1])
+    assert code == 0 and dropped > 0.1 * scene.lit.sum()
+    code, _, stderr = _run(capsys, ["unwrap", "--capture", str(folder), "--method", "graycode", "--min-confidence",
+                                    "1.5", "--out", str(tmp_path / "g3.npz")])
+    assert code == 2 and stderr.strip().endswith("--min-confidence must be in [0, 1]; got 1.5")
