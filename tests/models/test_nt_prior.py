@@ -120,6 +120,8 @@ def test_merge_tolerance_is_half_the_turn_between_neighbouring_low_orders():
     assert merge_tolerance_rad(88.0 / F_L, 11) == pytest.approx(np.pi * (88.0 / F_L - 8.0), rel=1e-12)
     assert merge_tolerance_rad(96.0 / F_L, 11) == pytest.approx(np.pi * (9.0 - 96.0 / F_L), rel=1e-12)  # 0.193
     assert merge_tolerance_rad(60.0 / F_L, 11) == MERGE_TOLERANCE_RAD  # 0.495 periods apart: the cap
+    # 0.028 periods apart (half-turn 0.086 rad): below what the window's mean resolves at 2 sigma: the cap
+    assert merge_tolerance_rad(76.0 / F_L, 11) == MERGE_TOLERANCE_RAD
     assert merge_tolerance_rad(16.0, 1) == MERGE_TOLERANCE_RAD  # one low order: nothing to confuse
 
 
