@@ -29,6 +29,7 @@ import zmq
 from ..messages.decoder import decode
 from ..messages.wire_format import DecodeError
 from .qos import QoSProfile, ReliabilityPolicy, pipe_high_water_mark, queue_limit
+from .sequence_tracking import SequenceTracker
 from .transport import FLAG_HISTORY, EnvelopeError, configure_client, unpack_envelope
 
 __all__ = ["Subscription", "MessageInfo"]
@@ -72,7 +73,7 @@ class Subscription:
         self._queue: deque = deque()
         self._ready_queue = self._queue  # the executor skips this subscription while it is empty
         self._lock = threading.Lock()
-        self._last_seq: dict[bytes, int] = {}
+        self._sequences = SequenceTracker()  # per publisher, bounded (sequence_tracking)
         self.received_count = 0
         self.queue_dropped_count = 0
         self.lost_count = 0
@@ -128,19 +129,19 @@ class Subscription:
             return False
         if envelope.flags & FLAG_HISTORY and not self._transient:
             return False  # a TRANSIENT_LOCAL replay; a VOLATILE subscription does not want the past
-        last = self._last_seq.get(envelope.gid)
-        if last is not None:
-            if envelope.seq <= last:
-                return False  # already delivered (replay to another late joiner)
-            if envelope.seq > last + 1:
-                gap = envelope.seq - last - 1
-                self.lost_count += gap
-                if self._reliable:
-                    self._node.get_logger().warning(
-                        f"subscription on {self.topic_name} lost {gap} message(s) from publisher "
-                        f"{envelope.gid.hex()[:8]} in transport (its pipe was full); {self.lost_count} lost so far",
-                        throttle_duration_sec=5.0)
-        self._last_seq[envelope.gid] = envelope.seq
+        verdict = self._sequences.accept(envelope.gid, envelope.seq, history=bool(envelope.flags & FLAG_HISTORY))
+        if verdict.note:
+            self._node.get_logger().warning(f"subscription on {self.topic_name}, publisher {envelope.gid.hex()[:8]}: "
+                                            f"{verdict.note}", throttle_duration_sec=5.0)
+        if not verdict.deliver:
+            return False  # already delivered (a replay to another late joiner)
+        if verdict.lost:
+            self.lost_count += verdict.lost
+            if self._reliable:
+                self._node.get_logger().warning(
+                    f"subscription on {self.topic_name} lost {verdict.lost} message(s) from publisher "
+                    f"{envelope.gid.hex()[:8]} in transport (its pipe was full); {self.lost_count} lost so far",
+                    throttle_duration_sec=5.0)
         item = (frames[:-1], envelope)
         with self._lock:
             if len(self._queue) >= self._limit:
@@ -158,7 +159,7 @@ class Subscription:
             throttle_duration_sec=1.0)
 
     def _forget_publisher(self, gid: bytes) -> None:
-        self._last_seq.pop(gid, None)
+        self._sequences.forget(gid)
 
     # -- executor side ------------------------------------------------------------------------------
 
