@@ -272,11 +272,13 @@ class Node:
         return publisher
 
     def create_subscription(self, msg_type, topic, callback, qos_profile, *, callback_group=None,
-                            raw: bool = False) -> Subscription:
+                            raw: bool = False, publishers: KnownPublishers | None = None) -> Subscription:
         """A subscription calling ``callback(msg)`` for each message of ``msg_type`` on ``topic``.
 
         ``raw=True`` hands the callback the undecoded frames ``[topic, header, *arrays]`` (memoryviews);
-        with ``raw=True``, ``msg_type`` may be None to accept any type.
+        with ``raw=True``, ``msg_type`` may be None to accept any type. ``publishers``: take messages only from
+        the publishers this policy accepts (:mod:`dptpu.graph.known_publishers`; its relative node names are
+        resolved in this node's namespace); None: from any publisher.
         """
         self._check_alive()
         if not (raw and msg_type is None):
@@ -284,8 +286,10 @@ class Node:
         if not callable(callback):
             raise ValueError(f"subscription callback must be callable; got {callback!r}")
         qos = as_qos_profile(qos_profile)
+        if publishers is not None:
+            publishers = replace(publishers, nodes=tuple(self._resolve_node_name(name) for name in publishers.nodes))
         subscription = Subscription(self, msg_type, self.resolve_topic_name(topic), callback, qos,
-                                    self._group(callback_group), raw=raw)
+                                    self._group(callback_group), raw=raw, known_publishers=publishers)
         with self._lock:
             self._subscriptions.append(subscription)
         self._changed()
@@ -494,6 +498,12 @@ class Node:
 
     def remove_on_set_parameters_callback(self, callback) -> None:
         self._parameters.remove_on_set_parameters_callback(callback)
+
+    def add_post_set_parameters_callback(self, callback) -> None:
+        self._parameters.add_post_set_parameters_callback(callback)
+
+    def remove_post_set_parameters_callback(self, callback) -> None:
+        self._parameters.remove_post_set_parameters_callback(callback)
 
     # -- announcement (I/O thread) ------------------------------------------------------------------
 

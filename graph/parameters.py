@@ -10,8 +10,10 @@ Semantics follow rclpy (Humble and later):
   declaration; the type check applies to them and the error names where the value came from.
 - ``set_parameters`` checks read-only, type and range, then asks every on-set callback
   (``add_on_set_parameters_callback``); a refusal leaves the value unchanged and comes back as
-  ``SetParametersResult(successful=False, reason=...)``. Undeclared names raise
-  :class:`ParameterNotDeclaredException` unless the node allows undeclared parameters.
+  ``SetParametersResult(successful=False, reason=...)``. Once the values are stored, every post-set callback
+  (``add_post_set_parameters_callback``, rclpy Jazzy) gets the parameters that were set, to apply them; unlike
+  Jazzy, a declaration does not call the post-set callbacks (the node reads the declared value itself).
+  Undeclared names raise :class:`ParameterNotDeclaredException` unless the node allows undeclared parameters.
 """
 
 from __future__ import annotations
@@ -344,6 +346,7 @@ class NodeParameters:
         self._values: dict[str, Parameter] = {}
         self._descriptors: dict[str, ParameterDescriptor] = {}
         self._callbacks: list = []
+        self._post_set_callbacks: list = []
         self._lock = threading.RLock()
 
     @property
@@ -504,6 +507,20 @@ class NodeParameters:
             except ValueError:
                 raise ValueError("callback was not added with add_on_set_parameters_callback") from None
 
+    def add_post_set_parameters_callback(self, callback) -> None:
+        """``callback(parameters)`` after every successful set, with the parameters set (their new values)."""
+        if not callable(callback):
+            raise ValueError(f"callback must be callable; got {callback!r}")
+        with self._lock:
+            self._post_set_callbacks.append(callback)
+
+    def remove_post_set_parameters_callback(self, callback) -> None:
+        with self._lock:
+            try:
+                self._post_set_callbacks.remove(callback)
+            except ValueError:
+                raise ValueError("callback was not added with add_post_set_parameters_callback") from None
+
     def _ask_callbacks(self, parameters) -> SetParametersResult:
         for callback in list(self._callbacks):
             result = callback(list(parameters))
@@ -563,4 +580,6 @@ class NodeParameters:
                         and _is_empty(parameter.value) and not descriptor.dynamic_typing:
                     value = Parameter(parameter.name, T(descriptor.type), [])
                 self._values[parameter.name] = value
+            for callback in list(self._post_set_callbacks):
+                callback(list(parameters))
             return SetParametersResult(successful=True)

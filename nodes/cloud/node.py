@@ -51,6 +51,10 @@ name                   default                   meaning
                                                  which a point apart from both neighbours along a line is flying
 ====================== ========================= ===================================================================
 
+Read-only (fixed at start-up, ``param set`` refused): ``rig``, ``use_camera_info``, ``intensity_wait_s``. The others
+apply from the next scan (``dptpu param set /cloud frame_id base_link``), checked as at start-up: a bad value is
+refused with the reason and the old one stays.
+
 What is dropped is counted: counters ``points_low_confidence``, ``points_flying``, ``points_modulation_dip``,
 ``points_beside_step``, ``points_isolated`` and the scan's status reason (level OK).
 
@@ -75,6 +79,7 @@ from dptpu.fpp.depth_edges import DEFAULT_MAX_SLOPE, edge_points
 from dptpu.fpp.point_cloud_file import write_point_cloud
 from dptpu.fpp.triangulate import Triangulator, projector_coordinate
 from dptpu.graph.node import Node
+from dptpu.graph.parameter_rules import ParameterRules, at_least, frame_id, greater_than, within
 from dptpu.messages import (
     AbsolutePhase,
     CameraInfo,
@@ -129,29 +134,23 @@ class CloudNode(Node):
 
     def __init__(self, node_name: str = "cloud", **node_options):
         super().__init__(node_name, **node_options)
-        rig_path = self.declare_parameter("rig", "").value
-        self.use_camera_info = self.declare_parameter("use_camera_info", False).value
-        self.frame_id = self.declare_parameter("frame_id", DEFAULT_FRAME_ID).value
-        self.distortion = self.declare_parameter("distortion", True).value
-        self.ply_dir = self.declare_parameter("ply_dir", "").value
-        self.ply_every = self.declare_parameter("ply_every", 0).value
-        self.intensity_wait_s = self.declare_parameter("intensity_wait_s", 0.2).value
-        self.camera_info_wait_s = self.declare_parameter("camera_info_wait_s", 5.0).value
-        self.min_confidence = self.declare_parameter("min_confidence", DEFAULT_MIN_CONFIDENCE).value
-        self.drop_edges = self.declare_parameter("drop_edges", True).value
-        self.max_edge_slope = self.declare_parameter("max_edge_slope", DEFAULT_MAX_SLOPE).value
-        if not 0.0 <= self.min_confidence <= 1.0:
-            raise ValueError(f"parameter min_confidence must be in [0, 1]; got {self.min_confidence}")
-        if not self.max_edge_slope > 0:
-            raise ValueError(f"parameter max_edge_slope must be > 0 pixel footprints; got {self.max_edge_slope}")
+        rules = ParameterRules(self)
+        rig_path = rules.read_only("rig", "", description="a dptpu-rig/1 file; restart the node to change it")
+        self.use_camera_info = rules.read_only("use_camera_info", False, description="sets the subscriptions up")
+        self.frame_id = rules.settable("frame_id", DEFAULT_FRAME_ID, check=frame_id,
+                                       description="header.frame_id of the next clouds and images")
+        self.distortion = rules.settable("distortion", True, apply=self._set_distortion)
+        self.ply_dir = rules.settable("ply_dir", "")
+        self.ply_every = rules.settable("ply_every", 0, check=at_least(0))
+        self.intensity_wait_s = rules.read_only("intensity_wait_s", 0.2, description="sets the wait timer's period")
+        self.camera_info_wait_s = rules.settable("camera_info_wait_s", 5.0, check=greater_than(0.0))
+        self.min_confidence = rules.settable("min_confidence", DEFAULT_MIN_CONFIDENCE, check=within(0.0, 1.0))
+        self.drop_edges = rules.settable("drop_edges", True)
+        self.max_edge_slope = rules.settable("max_edge_slope", DEFAULT_MAX_SLOPE, check=greater_than(0.0))
         if not rig_path:
             raise ValueError("parameter rig must name a dptpu-rig/1 calibration file (-p rig:=calibration.yaml)")
-        if self.ply_every < 0:
-            raise ValueError(f"parameter ply_every must be >= 0 (0 = no PLY); got {self.ply_every}")
         if not self.intensity_wait_s > 0:
             raise ValueError(f"parameter intensity_wait_s must be > 0 seconds; got {self.intensity_wait_s}")
-        if not self.camera_info_wait_s > 0:
-            raise ValueError(f"parameter camera_info_wait_s must be > 0 seconds; got {self.camera_info_wait_s}")
         self.rig = load_rig(rig_path)
         if self.ply_dir and self.ply_every:
             import open3d  # noqa: F401 -- a heavy import: loaded now, not in the first scan's callback
@@ -301,6 +300,13 @@ class CloudNode(Node):
                      valid_pixels=valid_points, total_pixels=int(depth_m.size))
 
     # -- helpers ---------------------------------------------------------------------------------------------
+
+    def _set_distortion(self, distortion: bool) -> None:
+        """Apply ``distortion`` from the next scan: the triangulation tables are made again."""
+        self.distortion = distortion
+        self._triangulators.clear()
+        if self._camera_info_seen:
+            self._triangulator("x")
 
     def _drop_edges(self, planes: np.ndarray, modulation: np.ndarray | None,
                     triangulator: Triangulator) -> dict[str, int]:

@@ -39,6 +39,10 @@ name                default   meaning
                               counted (``pixels_low_confidence``, the scan's status reason); 0 keeps all
 =================== ========= ===================================================================================
 
+Every parameter applies from the next scan (``dptpu param set /unwrap method nt``), checked as at start-up
+(``method``, ``model`` and ``consensus`` together; a new model is loaded before it is accepted): a bad value is
+refused with the reason and the old one stays.
+
 Valid pixels: valid in the PhaseMaps, accepted by the method, at least ``min_confidence`` and on the
 projector (``0 <= Psi < 2*pi*f``, as :func:`dptpu.fpp.reconstruct.unwrap_capture` requires). Run:
 ``python -m dptpu.nodes.unwrap --ros-args -p method:=nt``; design: ``docs/nodes.md``.
@@ -47,6 +51,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable
+from typing import Any, NamedTuple
 
 import numpy as np
 
@@ -55,6 +60,7 @@ from dptpu.fpp.confidence import DEFAULT_MIN_CONFIDENCE, confident
 from dptpu.fpp.frequencies import select_frequencies
 from dptpu.fpp.methods import PHASE_SEQUENCE_METHODS
 from dptpu.graph.node import Node
+from dptpu.graph.parameter_rules import ParameterRules, at_least, within
 from dptpu.messages import AbsolutePhase, Image, PhaseMaps, ScanStatus
 from dptpu.nodes.node_main import run_node
 from dptpu.nodes.plumbing import STATUS_QOS, DecodeErrorCount, scan_status
@@ -74,37 +80,16 @@ class UnwrapNode(Node):
 
     def __init__(self, node_name: str = "unwrap", **node_options):
         super().__init__(node_name, **node_options)
-        self.method = self.declare_parameter("method", "mf").value
-        self.model_path = self.declare_parameter("model", "none").value
-        self.high_frequency = self.declare_parameter("high_frequency", 0.0).value
-        self.low_frequency = self.declare_parameter("low_frequency", 0.0).value
-        self.min_confidence = self.declare_parameter("min_confidence", DEFAULT_MIN_CONFIDENCE).value
-        self.consensus = self.declare_parameter("consensus", False).value
-        if self.method not in PHASE_SEQUENCE_METHODS:
-            raise ValueError(f"parameter method must be one of {', '.join(PHASE_SEQUENCE_METHODS)}; got "
-                             f"{self.method!r}")
-        if self.high_frequency < 0 or self.low_frequency < 0:
-            raise ValueError("parameters high_frequency and low_frequency must be >= 0 (0 = default); got "
-                             f"{self.high_frequency}, {self.low_frequency}")
-        if not 0.0 <= self.min_confidence <= 1.0:
-            raise ValueError(f"parameter min_confidence must be in [0, 1]; got {self.min_confidence}")
-        self.auto_model = self.model_path == "auto"
-        if self.auto_model:  # the packaged model where it serves the method; the fringes are judged per scan
-            self.model_path = "shipped" if self.method != "heterodyne" else "none"
-        if self.model_path not in ("", "none") and self.method == "heterodyne":
-            raise ValueError("parameter model refines a two-frequency method (mf, mw or nt), as the network was "
-                             "trained; got method heterodyne")
-        self.model = load_model(self.model_path) if not self.auto_model or _shipped_model_exists() else None
-        if self.auto_model and self.model is not None and not self.model.serves(self.method):
-            self.model = None
-        if self.model is not None and not self.model.serves(self.method):
-            raise ValueError(f"parameter model {self.model_path!r} was trained for method(s) "
-                             f"{', '.join(self.model.trained_methods)}; got method {self.method}")
-        if self.consensus and self.model is None:
-            raise ValueError("parameter consensus post-processes the network's fringe order; set model (a DP-TPU "
-                             "model file or shipped) or consensus:=false")
-        self.refine_order: Callable[..., tuple[np.ndarray, np.ndarray]] | None = (
-            _load_refine_order() if self.model is not None else None)
+        rules = self._rules = ParameterRules(self)
+        self.method = rules.settable("method", "mf", check=self._check_method, apply=self._apply_model_setup)
+        self.model_path = rules.settable("model", "none", check=self._check_model, apply=self._apply_model_setup)
+        self.high_frequency = rules.settable("high_frequency", 0.0, check=at_least(0.0))
+        self.low_frequency = rules.settable("low_frequency", 0.0, check=at_least(0.0))
+        self.min_confidence = rules.settable("min_confidence", DEFAULT_MIN_CONFIDENCE, check=within(0.0, 1.0))
+        self.consensus = rules.settable("consensus", False, check=self._check_consensus,
+                                        apply=self._apply_model_setup)
+        self._prepared: _ModelSetup | None = None
+        self._use(_model_setup(self.method, self.model_path, self.consensus))
         self.scans_published = 0
         self.scans_rejected = 0
         self.pixels_nan = 0
@@ -161,6 +146,37 @@ class UnwrapNode(Node):
         self._status(msg, level, "processing", "; ".join(reasons), started_s,
                      valid_pixels=int(np.count_nonzero(valid)), total_pixels=int(valid.size))
 
+    # -- parameters (method, model and consensus are checked together) --------------------------------------------
+
+    def _check_method(self, method: str) -> str | None:
+        if not self.has_parameter("consensus"):
+            return None
+        return self._prepare(method, self._rules.value("model"), self._rules.value("consensus"))
+
+    def _check_model(self, model_path: str) -> str | None:
+        if not self.has_parameter("consensus"):
+            return None
+        return self._prepare(self._rules.value("method"), model_path, self._rules.value("consensus"))
+
+    def _check_consensus(self, consensus: bool) -> str | None:
+        return self._prepare(self._rules.value("method"), self._rules.value("model"), consensus)
+
+    def _prepare(self, method: str, model_path: str, consensus: bool) -> str | None:
+        """Make (load) the setup of a new method, model or consensus before it is applied; ValueError refuses.
+        (While the three are being declared the checks wait: ``__init__`` makes the first setup once all are.)"""
+        self._prepared = _model_setup(method, model_path, consensus)
+        return None
+
+    def _apply_model_setup(self, _value) -> None:
+        """Use the setup :meth:`_prepare` made, from the next scan."""
+        if self._prepared is not None:
+            self._use(self._prepared)
+            self._prepared = None
+
+    def _use(self, setup: _ModelSetup) -> None:
+        self.method, self.consensus, self.auto_model = setup.method, setup.consensus, setup.auto
+        self.model_path, self.model, self.refine_order = setup.model_path, setup.model, setup.refine_order
+
     # -- helpers ---------------------------------------------------------------------------------------------
 
     def _valid_pixels(self, result: tpu.Unwrapped, valid_in: np.ndarray, f_h: float) -> tuple[np.ndarray, int]:
@@ -214,6 +230,41 @@ class UnwrapNode(Node):
         self.status_publisher.publish(scan_status(
             self, msg.sequence_id, level, state, reason, decode_errors=self.decode_errors.since_last_report(),
             duration_s=time.monotonic() - started_s, **counts))
+
+
+class _ModelSetup(NamedTuple):
+    """What ``method``, ``model`` and ``consensus`` make together (:func:`_model_setup`)."""
+
+    method: str
+    model_path: str  # "shipped" or "none" for auto
+    auto: bool
+    consensus: bool
+    model: Any  # dptpu.models.inference.FringeOrderModel or None (an optional part of a build)
+    refine_order: Callable[..., tuple[np.ndarray, np.ndarray]] | None
+
+
+def _model_setup(method: str, model_path: str, consensus: bool) -> _ModelSetup:
+    """Check ``method``, ``model`` and ``consensus`` together and load the model; ValueError (or ImportError) when
+    they do not go together."""
+    if method not in PHASE_SEQUENCE_METHODS:
+        raise ValueError(f"parameter method must be one of {', '.join(PHASE_SEQUENCE_METHODS)}; got {method!r}")
+    auto = model_path == "auto"
+    if auto:  # the packaged model where it serves the method; the fringes are judged per scan
+        model_path = "shipped" if method != "heterodyne" else "none"
+    if model_path not in ("", "none") and method == "heterodyne":
+        raise ValueError("parameter model refines a two-frequency method (mf, mw or nt), as the network was "
+                         "trained; got method heterodyne")
+    model = load_model(model_path) if not auto or _shipped_model_exists() else None
+    if auto and model is not None and not model.serves(method):
+        model = None
+    if model is not None and not model.serves(method):
+        raise ValueError(f"parameter model {model_path!r} was trained for method(s) "
+                         f"{', '.join(model.trained_methods)}; got method {method}")
+    if consensus and model is None:
+        raise ValueError("parameter consensus post-processes the network's fringe order; set model (a DP-TPU "
+                         "model file or shipped) or consensus:=false")
+    return _ModelSetup(method, model_path, auto, consensus, model,
+                       _load_refine_order() if model is not None else None)
 
 
 def _masked_in_place(values: np.ndarray, invalid: np.ndarray, fill, dtype) -> np.ndarray:
