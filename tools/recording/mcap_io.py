@@ -27,6 +27,7 @@ Example::
 
 from __future__ import annotations
 
+import io
 import os
 import threading
 from collections import Counter
@@ -39,7 +40,10 @@ from mcap.exceptions import McapError
 from mcap.reader import make_reader
 from mcap.records import Schema
 from mcap.well_known import MessageEncoding, SchemaEncoding
+from mcap.writer import LIBRARY_IDENTIFIER as MCAP_LIBRARY_IDENTIFIER
 from mcap.writer import CompressionType
+from mcap.writer import Writer as McapWriter
+from mcap_ros2 import __version__ as MCAP_ROS2_VERSION
 from mcap_ros2.decoder import DecoderFactory
 from mcap_ros2.writer import Writer as Ros2Writer
 
@@ -47,14 +51,18 @@ from dptpu.messages import DEFAULT_LIMITS, DecodeLimits, lookup
 from dptpu.messages.schema import Message
 
 from . import msgpack_records
+from .mcap_integrity import PARSE_ERRORS, check_summary_crc, find_corruption
+from .mcap_integrity import reason as _reason
 from .ros2_cdr import from_ros2, is_ros2_type, ros2_schema_text, to_ros2_dict
 
 __all__ = ["McapRecordWriter", "RecordedMessage", "ChannelSummary", "McapReadError", "read_mcap", "describe_mcap",
-           "read_metadata", "COMPRESSIONS"]
+           "read_metadata", "verify_mcap", "COMPRESSIONS"]
 
 #: Chunk compressions a writer accepts.
 COMPRESSIONS = {"zstd": CompressionType.ZSTD, "lz4": CompressionType.LZ4, "none": CompressionType.NONE}
 _UINT64_MAX = 2**64 - 1
+#: The Header record's library field (what mcap-ros2-support writes, and ours).
+_LIBRARY = f"{MCAP_LIBRARY_IDENTIFIER} mcap-ros2-support/{MCAP_ROS2_VERSION} dptpu"
 
 
 class McapReadError(ValueError):
@@ -152,8 +160,12 @@ class McapRecordWriter:
             self._owns_stream = False
         else:
             raise ValueError(f"output must be a path or a writable binary file; got {type(output).__name__}")
-        self._ros2 = Ros2Writer(self._stream, chunk_size=chunk_size_bytes, compression=COMPRESSIONS[compression])
-        self._mcap = _underlying_mcap_writer(self._ros2)
+        # Chunk CRCs and the data section CRC on (mcap-ros2-support's writer leaves the latter off and has no
+        # argument for it), so a reader finds flipped bytes anywhere before the summary (mcap_integrity).
+        self._mcap = McapWriter(self._stream, chunk_size=chunk_size_bytes, compression=COMPRESSIONS[compression],
+                                enable_crcs=True, enable_data_crcs=True)
+        self._mcap.start(profile="ros2", library=_LIBRARY)
+        self._ros2 = _ros2_writer_over(self._mcap)
         self._channels: dict[str, _Channel] = {}
         self._ros2_schemas: dict[type[Message], Schema] = {}
         self._msgpack_schema_ids: dict[type[Message], int] = {}
@@ -275,15 +287,19 @@ class McapRecordWriter:
         return channel
 
 
-def _underlying_mcap_writer(ros2_writer: Ros2Writer):
-    """The ``mcap.writer.Writer`` inside ``mcap_ros2.writer.Writer``, to add our non-CDR channels to the
-    same file. mcap-ros2-support has no public accessor; fail clearly if a release renames it."""
-    inner = getattr(ros2_writer, "_writer", None)
-    if inner is None or not all(hasattr(inner, name) for name in ("register_schema", "register_channel",
-                                                                   "add_message")):
-        raise RuntimeError("this mcap-ros2-support release does not expose its mcap writer as Writer._writer; "
+def _ros2_writer_over(mcap_writer: McapWriter) -> Ros2Writer:
+    """An ``mcap_ros2.writer.Writer`` (the ROS 2 CDR encoders) that writes through ``mcap_writer``.
+
+    mcap-ros2-support builds its own ``mcap.writer.Writer`` without the data section CRC and keeps it as
+    ``Writer._writer``; it is built on a throwaway buffer and pointed at ours. Fails clearly if a release
+    renames the attribute.
+    """
+    ros2 = Ros2Writer(io.BytesIO(), compression=CompressionType.NONE)
+    if not hasattr(ros2, "_writer"):
+        raise RuntimeError("this mcap-ros2-support release does not keep its mcap writer as Writer._writer; "
                            "dptpu's recorder needs it to add dptpu-msgpack channels (tested with 0.6.0)")
-    return inner
+    ros2._writer = mcap_writer
+    return ros2
 
 
 def _check_time(name: str, value) -> int:
@@ -297,7 +313,7 @@ def _check_time(name: str, value) -> int:
 # --------------------------------------------------------------------------------------------------
 
 def read_mcap(path, *, topics: Iterable[str] | None = None, skip_unknown: bool = False,
-              limits: DecodeLimits = DEFAULT_LIMITS) -> Iterator[RecordedMessage]:
+              limits: DecodeLimits = DEFAULT_LIMITS, verify: bool = True) -> Iterator[RecordedMessage]:
     """Yield the messages of an MCAP file in log-time order as our message types.
 
     Parameters
@@ -311,6 +327,9 @@ def read_mcap(path, *, topics: Iterable[str] | None = None, skip_unknown: bool =
         Skip channels we cannot decode (a type we do not have, another encoding) instead of raising.
     limits : DecodeLimits
         Limits for ``dptpu-msgpack`` records (those of the wire codec by default).
+    verify : bool
+        Check every CRC of the file (chunks, data section, summary: :func:`.mcap_integrity.find_corruption`)
+        before the first message. Without it the chunk CRCs are still checked as chunks are read.
 
     Yields
     ------
@@ -322,24 +341,30 @@ def read_mcap(path, *, topics: Iterable[str] | None = None, skip_unknown: bool =
     FileNotFoundError
         No such file.
     McapReadError
-        Not an MCAP file, truncated, an undecodable channel (unless ``skip_unknown``), a schema of
-        another version, or a malformed message; the message names the topic and log time.
+        Not an MCAP file, truncated, corrupt (a CRC that does not match: the message names the byte
+        offset), an undecodable channel (unless ``skip_unknown``), a schema of another version, or a
+        malformed message; the message names the topic and log time.
     """
     path = _existing_path(path)
     topic_filter = None if topics is None else _topic_list(topics)
+    if verify:
+        verify_mcap(path)
     converters: dict[int, _Converter | None] = {}  # channel id -> its converter, None for an undecodable one
     ros2_decoders = DecoderFactory()
     with open(path, "rb") as stream:
-        reader = _open_reader(path, stream)
+        reader = _open_reader(path, stream, validate_crcs=True)
         iterator = reader.iter_messages(topics=topic_filter, log_time_order=True)
         while True:
             try:
                 item = next(iterator)
             except StopIteration:
                 return
-            except (McapError, ValueError, EOFError, OSError) as error:
-                raise McapReadError(f"cannot read {path}: {error} (a recording that was not closed lacks its "
-                                    "summary; `mcap recover` repairs it)") from None
+            except (*PARSE_ERRORS, OSError) as error:
+                problem = find_corruption(path)
+                if problem is not None:
+                    raise McapReadError(f"cannot read {path}: corrupt: {problem}") from None
+                raise McapReadError(f"cannot read {path}: {_reason(error)} (a recording that was not closed lacks "
+                                    "its summary; `mcap recover` repairs it)") from None
             schema, channel, record = item
             if channel.id not in converters:
                 converters[channel.id] = _converter(path, schema, channel, ros2_decoders, limits)
@@ -351,7 +376,7 @@ def read_mcap(path, *, topics: Iterable[str] | None = None, skip_unknown: bool =
                                     "skip_unknown=True or choose topics")
             try:
                 msg = converter(record.data)
-            except (McapError, ValueError, NotImplementedError, IndexError, TypeError) as error:
+            except (*PARSE_ERRORS, NotImplementedError, IndexError, TypeError) as error:
                 raise McapReadError(f"cannot read {path}: message on {channel.topic!r} at log time "
                                     f"{record.log_time} ns: {error}") from None
             yield RecordedMessage(channel.topic, msg, record.log_time)
@@ -367,9 +392,10 @@ def describe_mcap(path) -> list[ChannelSummary]:
     FileNotFoundError
         No such file.
     McapReadError
-        Not an MCAP file.
+        Not an MCAP file, or its summary section does not match its CRC.
     """
     path = _existing_path(path)
+    _check_summary(path)
     with open(path, "rb") as stream:
         reader = _open_reader(path, stream)
         try:
@@ -384,8 +410,8 @@ def describe_mcap(path) -> list[ChannelSummary]:
                     channels[channel.id] = channel
                     if schema is not None:
                         schemas[schema.id] = schema
-        except (McapError, ValueError, EOFError, OSError) as error:
-            raise McapReadError(f"cannot read {path}: {error}") from None
+        except (*PARSE_ERRORS, OSError) as error:
+            raise McapReadError(f"cannot read {path}: {_reason(error)}") from None
     out = []
     for channel_id, channel in channels.items():
         schema = schemas.get(channel.schema_id)
@@ -406,18 +432,49 @@ def read_metadata(path) -> dict[str, dict[str, str]]:
     FileNotFoundError
         No such file.
     McapReadError
-        Not an MCAP file, or unreadable.
+        Not an MCAP file, or unreadable (a summary section that does not match its CRC included).
     """
     path = _existing_path(path)
+    _check_summary(path)
     out: dict[str, dict[str, str]] = {}
     with open(path, "rb") as stream:
         reader = _open_reader(path, stream)
         try:
             for record in reader.iter_metadata():
                 out.setdefault(record.name, {}).update(record.metadata)
-        except (McapError, ValueError, EOFError, OSError) as error:
-            raise McapReadError(f"cannot read {path}: {error}") from None
+        except (*PARSE_ERRORS, OSError) as error:
+            raise McapReadError(f"cannot read {path}: {_reason(error)}") from None
     return out
+
+
+def verify_mcap(path) -> None:
+    """Check every CRC and the framing of an MCAP file (one pass, every chunk decompressed).
+
+    Raises
+    ------
+    FileNotFoundError
+        No such file.
+    McapReadError
+        Not an MCAP file, or damaged: the message names the byte offset of the record at fault and the CRC
+        or parse error (:func:`.mcap_integrity.find_corruption`).
+    """
+    path = _existing_path(path)
+    with open(path, "rb") as stream:
+        _open_reader(path, stream)  # "not an MCAP file" before any CRC talk
+    try:
+        problem = find_corruption(path)
+    except OSError as error:
+        raise McapReadError(f"cannot read {path}: {_reason(error)}") from None
+    if problem is not None:
+        raise McapReadError(f"cannot read {path}: corrupt: {problem}")
+
+
+def _check_summary(path: Path) -> None:
+    with open(path, "rb") as stream:
+        _open_reader(path, stream)
+    problem = check_summary_crc(path)
+    if problem is not None:
+        raise McapReadError(f"cannot read {path}: corrupt: {problem}")
 
 
 #: Turns one record's bytes into a message.
@@ -442,11 +499,11 @@ def _topic_list(topics) -> list[str]:
     return topics
 
 
-def _open_reader(path: Path, stream):
+def _open_reader(path: Path, stream, *, validate_crcs: bool = False):
     try:
-        return make_reader(stream)
-    except (McapError, ValueError, EOFError) as error:
-        raise McapReadError(f"cannot read {path}: not an MCAP file ({error})") from None
+        return make_reader(stream, validate_crcs=validate_crcs)
+    except (*PARSE_ERRORS, OSError) as error:
+        raise McapReadError(f"cannot read {path}: not an MCAP file ({_reason(error)})") from None
 
 
 def _readable_reason(schema, channel) -> str | None:

@@ -23,7 +23,7 @@ from dptpu.graph.node import Node
 from dptpu.graph.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from dptpu.messages import lookup
 
-from .mcap_io import describe_mcap, read_mcap, read_metadata
+from .mcap_io import describe_mcap, read_mcap, read_metadata, verify_mcap
 from .recorder import TOPIC_QOS_METADATA
 
 __all__ = ["PlayResult", "play", "playback_qos", "PLAYBACK_DEPTH"]
@@ -116,7 +116,7 @@ def play(path, *, rate: float = 1.0, loop: bool = False, topics=None, delay_s: f
     Raises
     ------
     FileNotFoundError, McapReadError
-        The file is missing or unreadable.
+        The file is missing, unreadable or corrupt (a CRC that does not match: nothing is published).
     ValueError
         A bad argument, a requested topic the file lacks, or no playable topic.
     """
@@ -125,6 +125,7 @@ def play(path, *, rate: float = 1.0, loop: bool = False, topics=None, delay_s: f
     for name, value in (("delay_s", delay_s), ("wait_for_subscribers_s", wait_for_subscribers_s)):
         if isinstance(value, bool) or not isinstance(value, (int, float)) or not value >= 0:
             raise ValueError(f"{name} must be a number of seconds >= 0; got {value!r}")
+    verify_mcap(path)  # every CRC once, before anything is published (each pass still checks chunk CRCs)
     channels = {channel.topic: channel for channel in describe_mcap(path)}
     result = PlayResult()
     wanted = list(channels) if topics is None else list(dict.fromkeys(topics))
@@ -201,7 +202,7 @@ def _play_once(path, publishers: dict, rate: float, stop_event, result: PlayResu
     """One pass through the file; True when stopped early."""
     first_log_ns = None
     start = time.monotonic()
-    for topic, msg, log_time_ns in read_mcap(path, topics=list(publishers), skip_unknown=True):
+    for topic, msg, log_time_ns in read_mcap(path, topics=list(publishers), skip_unknown=True, verify=False):
         if first_log_ns is None:
             first_log_ns = log_time_ns
         target = start + (log_time_ns - first_log_ns) / 1e9 / rate
