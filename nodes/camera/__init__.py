@@ -3,7 +3,7 @@
 Modules: ``node`` (the node), ``genicam_acquisition`` (the acquisition thread), ``genicam_device`` (one camera
 through harvesters), ``genicam_producers`` (finding GenTL producer ``.cti`` files).
 
-Run: ``python -m dptpu.nodes.camera``, or ``module: dptpu.nodes.camera`` in a launch file.
+Run: ``python -m dptpu.nodes.camera``, or ``pkg: dptpu, exec: camera`` in a launch file.
 """
 from .node import CameraNode, main
 

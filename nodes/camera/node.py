@@ -1,7 +1,7 @@
 """Camera node: acquires frames through GenICam GenTL (harvesters) and pairs each with its projector Trigger.
 
 Run it as ``python -m dptpu.nodes.camera --ros-args -p cti:=/opt/pylon/lib/gentlproducer/gtl/ProducerU3V.cti
--p serial:=22334455`` or from a launch file (``module: dptpu.nodes.camera``). Without a ``cti`` it uses
+-p serial:=22334455`` or from a launch file (``pkg: dptpu, exec: camera``). Without a ``cti`` it uses
 the ``viky.cti`` simulated producer shipped in the genicam wheel (docs/camera.md). How frames are paired
 with Triggers in each trigger mode: ``dptpu.nodes.camera.genicam_acquisition``.
 

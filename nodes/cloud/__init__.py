@@ -1,6 +1,6 @@
 """Cloud node: absolute phase -> organized point cloud and depth image.
 
-Run: ``python -m dptpu.nodes.cloud``, or ``module: dptpu.nodes.cloud`` in a launch file.
+Run: ``python -m dptpu.nodes.cloud``, or ``pkg: dptpu, exec: cloud`` in a launch file.
 """
 from .node import CloudNode, main
 

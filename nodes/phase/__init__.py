@@ -2,7 +2,7 @@
 
 Modules: ``node`` (the node), ``sequence_assembler`` (frames collected by ``sequence_id``: pure logic).
 
-Run: ``python -m dptpu.nodes.phase``, or ``module: dptpu.nodes.phase`` in a launch file.
+Run: ``python -m dptpu.nodes.phase``, or ``pkg: dptpu, exec: phase`` in a launch file.
 """
 from .node import PhaseNode, main
 

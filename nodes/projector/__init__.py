@@ -4,7 +4,7 @@ Modules: ``node`` (the node), ``link`` (the thread that owns the serial port), `
 encode and parse), ``emulator`` (an emulator of the box on a pseudo-terminal, ``python -m
 dptpu.nodes.projector.emulator``).
 
-Run: ``python -m dptpu.nodes.projector``, or ``module: dptpu.nodes.projector`` in a launch file.
+Run: ``python -m dptpu.nodes.projector``, or ``pkg: dptpu, exec: projector`` in a launch file.
 """
 from .node import ProjectorNode, main
 

@@ -4,7 +4,7 @@ The node loads the pattern sequence given by its parameters into the trigger box
 ``dptpu-trigger/1``, docs/projector-protocol.md), starts a scan on request, and publishes a
 :class:`~dptpu.messages.Trigger` the moment the box acknowledges each displayed pattern. Run it as
 ``python -m dptpu.nodes.projector --ros-args -p port:=/dev/ttyACM0`` or from a launch file
-(``module: dptpu.nodes.projector``).
+(``pkg: dptpu, exec: projector``).
 
 Topics and services (defaults; remappable):
 

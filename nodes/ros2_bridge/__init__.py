@@ -3,7 +3,7 @@
 Modules: ``node`` (the node), ``ros2_idl`` (ROS 2's DDS types and conversions), ``ros2_qos`` (ROS 2's QoS
 profiles, the Cyclone configuration).
 
-Run: ``python -m dptpu.nodes.ros2_bridge``, or ``module: dptpu.nodes.ros2_bridge`` in a launch file.
+Run: ``python -m dptpu.nodes.ros2_bridge``, or ``pkg: dptpu, exec: ros2_bridge`` in a launch file.
 """
 from .node import Ros2BridgeNode, main
 

@@ -2,7 +2,7 @@
 
 Modules: ``node`` (the node), ``scan_metrics`` (the figures of one scan).
 
-Run: ``python -m dptpu.nodes.scan_monitor``, or ``module: dptpu.nodes.scan_monitor`` in a launch file.
+Run: ``python -m dptpu.nodes.scan_monitor``, or ``pkg: dptpu, exec: scan_monitor`` in a launch file.
 """
 from .node import ScanMonitorNode, main
 

@@ -13,7 +13,7 @@ A cloud carries its scan's stamp, not its ``sequence_id``: with ground truth the
 (same stamp) names it, without it the cloud node's ``done`` ScanStatus does (its ``header.stamp`` minus its
 ``duration_s`` is the scan's stamp, to the nanosecond; docs/nodes.md), so a monitor without ground truth takes
 no full-size map but the clouds. Figures: :mod:`dptpu.nodes.scan_monitor.scan_metrics`. With ``scans:=N`` it
-prints a summary after N scans and exits with code 0; in a launch file as ``required: true`` that stops the whole
+prints a summary after N scans and exits with code 0; in a launch file with ``on_exit: shutdown`` that stops the whole
 graph cleanly (docs/launch.md). Run it as ``python -m dptpu.nodes.scan_monitor --ros-args -p scans:=10`` or from
 ``launch/sim_rig.yaml``. Design: ``docs/scanner.md``.
 

@@ -2,7 +2,7 @@
 
 Modules: ``node`` (the node), ``source`` (the scenes it replays or renders).
 
-Run: ``python -m dptpu.nodes.sim``, or ``module: dptpu.nodes.sim`` in a launch file.
+Run: ``python -m dptpu.nodes.sim``, or ``pkg: dptpu, exec: sim`` in a launch file.
 """
 from .node import SimNode, main
 

@@ -3,7 +3,7 @@
 Modules: ``node`` (the node, HTTP server, cloud message), ``websocket`` (the server side of RFC 6455); ``static/``
 (the page, its script and the three.js bundle).
 
-Run: ``python -m dptpu.nodes.viewer``, or ``module: dptpu.nodes.viewer`` in a launch file.
+Run: ``python -m dptpu.nodes.viewer``, or ``pkg: dptpu, exec: viewer`` in a launch file.
 """
 from .node import ViewerNode, main
 

@@ -95,11 +95,10 @@ def test_the_three_nodes_validate_in_a_launch_file(tmp_path):
     launch.write_text(
         "launch:\n"
         "  - group:\n"
-        "      namespace: /scanner\n"
-        "      children:\n"
-        "        - node: {module: dptpu.nodes.phase, name: phase, param: [{name: timeout_s, value: 1.0}]}\n"
-        "        - node: {module: dptpu.nodes.unwrap, name: unwrap, param: [{name: method, value: nt}]}\n"
-        "        - node: {module: dptpu.nodes.cloud, name: cloud, param: [{name: rig, value: rig.yaml}]}\n")
+        "      - push_ros_namespace: {namespace: /scanner}\n"
+        "      - node: {pkg: dptpu, exec: phase, name: phase, param: [{name: timeout_s, value: 1.0}]}\n"
+        "      - node: {pkg: dptpu, exec: unwrap, name: unwrap, param: [{name: method, value: nt}]}\n"
+        "      - node: {pkg: dptpu, exec: cloud, name: cloud, param: [{name: rig, value: rig.yaml}]}\n")
     plan = load_launch_file(str(launch), {})
     commands = {node.label: node.command for node in plan.nodes}
     assert set(commands) == {"phase", "unwrap", "cloud"}

@@ -1,20 +1,24 @@
 """Launch files: parse, validate and resolve a YAML launch file into a :class:`LaunchPlan`.
 
-The format is ROS 2's YAML front end (``docs/launch.md`` describes every key)::
+The format is ROS 2's YAML front end, a documented subset (``docs/launch.md`` describes every key)::
 
     launch:
       - arg: {name: rate, default: "10", description: frames per second}
-      - include: {file: camera.yaml, arg: [{name: rate, value: "$(var rate)"}]}
+      - arg: {name: method, default: mf, choice: [{value: mf}, {value: nt}]}
+      - include: {file: $(dirname)/camera.yaml, arg: [{name: rate, value: "$(var rate)"}]}
       - group:
-          namespace: /scanner
-          children:
-            - node:
-                module: dptpu.nodes.phase
-                name: phase
-                param: [{name: min_modulation, value: 5.0}, {from: params.yaml}]
-                remap: [{from: /camera/image_raw, to: /sim/image}]
-                respawn: true
-                respawn_delay: 1.0
+          - push_ros_namespace: {namespace: /scanner}
+          - node:
+              pkg: dptpu
+              exec: phase                 # python -m dptpu.nodes.phase
+              name: phase
+              param: [{name: min_modulation, value: 5.0}, {from: $(dirname)/params.yaml}]
+              remap: [{from: /camera/image_raw, to: /sim/image}]
+              respawn: true
+              respawn_delay: 1.0
+
+The project's keys from before it followed ROS 2 (``module``, ``executable``, ``required``, ``choices``, a group's
+``namespace``) are refused with the ROS 2 spelling (``OLD_KEYS``).
 
 Everything is checked before anything starts: unknown and missing keys, types, ``$(...)``
 substitutions, that modules (``python -m``), executables, included files and parameter files exist,
@@ -24,8 +28,8 @@ raised together as one :class:`LaunchFileError`.
 
 Scoping: each file sees only its own ``arg`` values (from the command line for the top file, from the
 ``include``'s ``arg`` list for an included one, else the default) and the ``let`` values set before the
-use; a ``group`` scopes the ``let`` inside it and pushes its namespace onto every node within,
-included files too.
+use; a ``group`` scopes the ``let`` and ``push_ros_namespace`` inside it; a namespace pushed applies to every
+node after it in its list, included files too.
 """
 from __future__ import annotations
 
@@ -60,6 +64,8 @@ __all__ = [
 ]
 
 _MAX_PROBLEMS = 50
+#: The entity that pushes a namespace onto the nodes after it (both ROS 2 spellings).
+PUSH_NAMESPACE = ("push_ros_namespace", "push-ros-namespace")
 _ARG_NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_.\-]*")
 
 
@@ -253,6 +259,10 @@ class LaunchLoader:
         if kind not in ENTITY_KEYS:
             raise EntryFailure(line, f"unknown entry {kind!r}{suggest(str(kind), list(ENTITY_KEYS))}; known: {kinds}")
         body = entry[kind]
+        if kind == "group" and isinstance(body, MarkedList):  # ROS 2's short form: the group is its children
+            children = body
+            body = MarkedDict(children=children)
+            body.key_lines["children"] = body.value_lines["children"] = children.line
         if not isinstance(body, MarkedDict):
             raise EntryFailure(entry.value_line(kind), f"{kind}: expected a mapping of keys; got {type_name(body)}"
                                + (" -- are its keys indented under it?" if body is None else ""))
@@ -265,7 +275,10 @@ class LaunchLoader:
         for index in range(len(entries)):
             try:
                 kind, body = self.entity(scope, entries, index)
-                if kind == "arg":
+                if kind in PUSH_NAMESPACE:  # for the entries after it in this list (a group's, or the file's)
+                    if self.values.condition(scope, body, variables, kind):
+                        namespace = self.values.join_namespace(scope, body, namespace, variables, kind)
+                elif kind == "arg":
                     self.declare_argument(scope, body, variables, top_level)
                 elif kind == "let":
                     if self.values.condition(scope, body, variables, "let"):
@@ -282,8 +295,7 @@ class LaunchLoader:
                         raise EntryFailure(body.value_line("children"),
                                            f"group: children must be a list of entries; got {type_name(children)}")
                     if self.values.condition(scope, body, variables, "group"):
-                        inner = self.values.join_namespace(scope, body, namespace, variables, "group")
-                        self.run_entries(scope, children, inner, dict(variables), top_level=False)
+                        self.run_entries(scope, children, namespace, dict(variables), top_level=False)
                     else:
                         self.check_structure(scope, children)
                 elif kind == "node":

@@ -17,16 +17,27 @@ from .launch_plan import LaunchArgument
 from .marked_yaml import MarkedDict, MarkedList
 from .substitutions import SubstitutionContext, SubstitutionError, substitute
 
-__all__ = ["ENTITY_KEYS", "EntryFailure", "FileScope", "ValueReader", "suggest", "type_name"]
+__all__ = ["ENTITY_KEYS", "OLD_KEYS", "EntryFailure", "FileScope", "ValueReader", "suggest", "type_name"]
 
-#: Keys each entity accepts; the first group of each tuple pair is required.
+#: Keys each entity accepts; the first group of each tuple pair is required. ROS 2 spells the namespace entity
+#: both ways (launch_ros exposes ``push_ros_namespace`` and ``push-ros-namespace``).
 ENTITY_KEYS: dict[str, tuple[tuple[str, ...], tuple[str, ...]]] = {
-    "arg": (("name",), ("default", "description", "choices")),
+    "arg": (("name",), ("default", "description", "choice")),
     "let": (("name", "value"), ("if", "unless")),
     "include": (("file",), ("arg", "if", "unless")),
-    "group": (("children",), ("namespace", "if", "unless")),
-    "node": ((), ("module", "executable", "name", "namespace", "args", "param", "remap", "env", "respawn",
-                  "respawn_delay", "respawn_max_delay", "required", "output", "if", "unless")),
+    "group": (("children",), ("if", "unless")),
+    "push_ros_namespace": (("namespace",), ("if", "unless")),
+    "push-ros-namespace": (("namespace",), ("if", "unless")),
+    "node": (("exec",), ("pkg", "name", "namespace", "args", "param", "remap", "env", "respawn",
+                         "respawn_delay", "respawn_max_delay", "on_exit", "output", "if", "unless")),
+}
+#: Keys of the project's own launch dialect before it followed ROS 2, and what ROS 2 writes instead.
+OLD_KEYS: dict[tuple[str, str], str] = {
+    ("node", "module"): "'pkg' and 'exec' (pkg: dptpu, exec: NODE runs dptpu.nodes.NODE)",
+    ("node", "executable"): "'exec' (a program without 'pkg')",
+    ("node", "required"): "'on_exit: shutdown'",
+    ("arg", "choices"): "'choice', a list of {value: ...} (choice: [{value: a}, {value: b}])",
+    ("group", "namespace"): "a '- push_ros_namespace: {namespace: NS}' entry among the group's children",
 }
 _NAMESPACE = re.compile(r"/|(/[A-Za-z_][A-Za-z0-9_]*)+")
 _TRUE, _FALSE = ("true", "1"), ("false", "0")
@@ -86,6 +97,9 @@ class ValueReader:
         elif allowed is None:
             raise ValueError("check_keys: allowed must be given with required")
         for key in body:
+            if key not in allowed and (kind, key) in OLD_KEYS:
+                raise EntryFailure(body.key_line(key), f"{kind}: {key!r} is the old spelling; ROS 2 launch YAML "
+                                                       f"writes {OLD_KEYS[kind, key]}")
             if key not in allowed:
                 hint = suggest(str(key), allowed)
                 listing = "" if hint else f" (allowed: {', '.join(allowed)})"
@@ -158,14 +172,21 @@ class ValueReader:
         return True
 
     def choices(self, scope: FileScope, body: MarkedDict) -> tuple[str, ...] | None:
-        if "choices" not in body:
+        """The values of an ``arg``'s ``choice`` list (ROS 2: ``choice: [{value: a}, {value: b}]``)."""
+        if "choice" not in body:
             return None
-        value = body["choices"]
-        if not isinstance(value, list) or not value or any(
-                isinstance(item, list | dict) or item is None for item in value):
-            raise EntryFailure(body.value_line("choices"), f"arg: choices must be a non-empty list of values; "
-                                                           f"got {type_name(value)}")
-        return tuple(("true" if item else "false") if isinstance(item, bool) else str(item) for item in value)
+        value = body["choice"]
+        usage = "choice must be a non-empty list of {value: ...} (choice: [{value: a}, {value: b}])"
+        if not isinstance(value, MarkedList) or not value:
+            raise EntryFailure(body.value_line("choice"), f"arg: {usage}; got {type_name(value)}")
+        found = []
+        for index, item in enumerate(value):
+            if not isinstance(item, MarkedDict) or list(item) != ["value"] or isinstance(item["value"], list | dict) \
+                    or item["value"] is None:
+                raise EntryFailure(value.item_line(index), f"arg: {usage}; got {type_name(item)}")
+            entry = item["value"]
+            found.append(("true" if entry else "false") if isinstance(entry, bool) else str(entry))
+        return tuple(found)
 
     def list_of_mappings(self, body: MarkedDict, key: str, kind: str) -> MarkedList:
         value = body[key]

@@ -7,7 +7,10 @@ read, checks that node names are unique and gives each node a unique label.
 from __future__ import annotations
 
 import dataclasses
+import functools
+import importlib.util
 import os
+import pkgutil
 import re
 import shlex
 import shutil
@@ -18,17 +21,30 @@ from pathlib import Path
 import yaml
 
 from .command_line import PARAMETER_SCALAR_TYPES, InlineParameter, ParameterFile
+from .installed import PACKAGE_NAME
 from .launch_plan import DEFAULT_RESPAWN_MAX_DELAY_S, OUTPUT_MODES, NodeLaunch
 from .launch_values import EntryFailure, FileScope, ValueReader, suggest, type_name
 from .marked_yaml import MarkedDict, MarkedList
 from .python_modules import module_problem
 from .substitutions import has_substitution
 
-__all__ = ["NodeDraft", "NodeReader"]
+__all__ = ["NODES_PACKAGE", "NodeDraft", "NodeReader", "dptpu_nodes"]
 
 _NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
+#: ``pkg: dptpu``'s executables are the modules of this package.
+NODES_PACKAGE = "dptpu.nodes"
 _PARAM_NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_]*(\.[A-Za-z_][A-Za-z0-9_]*)*")
 _ENV_NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
+#: ``pkg: dptpu``'s executables are the modules of this package.
+NODES_PACKAGE = "dptpu.nodes"
+
+
+@functools.cache
+def dptpu_nodes() -> list[str]:
+    """The project's node modules (``pkg: dptpu``'s executables), found without importing them."""
+    spec = importlib.util.find_spec(NODES_PACKAGE)
+    locations = list(spec.submodule_search_locations or ()) if spec is not None else []
+    return sorted(info.name for info in pkgutil.iter_modules(locations) if info.ispkg)
 
 
 @dataclass
@@ -50,25 +66,39 @@ class NodeReader:
         self.drafts: list[NodeDraft] = []
 
     def node_program_keys(self, body: MarkedDict) -> None:
-        if ("module" in body) == ("executable" in body):
-            raise EntryFailure(body.line, "node: give exactly one of 'module' (run with python -m) or 'executable'"
-                               + (" -- not both" if "module" in body else ""))
+        """Checks a skipped node's program keys need (the keys themselves were checked with the entry)."""
+        if "exec" not in body:
+            raise EntryFailure(body.line, "node: missing required key 'exec'")
+
+    def program(self, scope: FileScope, body: MarkedDict, variables: dict[str, str]) \
+            -> tuple[tuple[str, ...], str | None, str]:
+        """The command that runs the node, its module (``None`` for a program) and its default label.
+
+        ``pkg: dptpu`` with ``exec: NAME`` runs the project's node ``dptpu.nodes.NAME`` (``python -m``); another
+        ``pkg`` is a Python package whose module ``exec`` runs (``python -m PKG.EXEC``); without ``pkg``, ``exec`` is
+        a program (a path, or a name on ``PATH``), as launch_ros runs a node without a package.
+        """
+        executable = self.values.text(scope, body, "exec", "node", variables=variables).strip()
+        line = body.value_line("exec")
+        if "pkg" not in body:
+            return (self.find_executable(scope, executable, line),), None, os.path.basename(executable)
+        package = self.values.text(scope, body, "pkg", "node", variables=variables).strip()
+        if not _NAME.fullmatch(executable):
+            raise EntryFailure(line, f"node: exec {executable!r} of pkg {package!r} must be a module name "
+                                     f"(letters, digits and _)")
+        module = f"{NODES_PACKAGE}.{executable}" if package == PACKAGE_NAME else f"{package}.{executable}"
+        problem = module_problem(module, self.module_search_path)
+        if problem:
+            if package == PACKAGE_NAME:
+                problem = f"pkg {PACKAGE_NAME} has no node {executable!r}{suggest(executable, dptpu_nodes())} " \
+                          f"(its nodes: {', '.join(dptpu_nodes())})"
+            raise EntryFailure(line, f"node: {problem}")
+        return (self.python, "-m", module), module, executable
 
     def node(self, scope: FileScope, body: MarkedDict, namespace: str, variables: dict[str, str]) -> None:
         self.node_program_keys(body)
         kind = "node"
-        program: tuple[str, ...]
-        if "module" in body:
-            module = self.values.text(scope, body, "module", kind, variables=variables).strip()
-            problem = module_problem(module, self.module_search_path)
-            if problem:
-                raise EntryFailure(body.value_line("module"), f"node: {problem}")
-            program, default_label = (self.python, "-m", module), module.rsplit(".", 1)[-1]
-        else:
-            module = None
-            executable = self.values.text(scope, body, "executable", kind, variables=variables).strip()
-            program, default_label = (self.find_executable(scope, executable, body.value_line("executable")),), \
-                os.path.basename(executable)
+        program, module, default_label = self.program(scope, body, variables)
         arguments = self.arguments(scope, body, variables) if "args" in body else ()
         name = None
         if "name" in body:
@@ -82,11 +112,11 @@ class NodeReader:
         remaps = tuple(self.remaps(scope, body, variables)) if "remap" in body else ()
         env = tuple(self.environment(scope, body, variables)) if "env" in body else ()
         respawn = self.values.boolean(scope, body, "respawn", kind, variables, False)
-        required = self.values.boolean(scope, body, "required", kind, variables, False)
+        required = self.on_exit(scope, body, variables)
         if respawn and required:
-            raise EntryFailure(body.key_line("required"),
-                               "node: a node cannot be both required and respawn: true "
-                               "(required stops everything when it exits; respawn restarts it)")
+            raise EntryFailure(body.key_line("on_exit"),
+                               "node: a node cannot have both on_exit: shutdown and respawn: true "
+                               "(on_exit: shutdown stops everything when it exits; respawn restarts it)")
         delay = self.values.seconds(scope, body, "respawn_delay", kind, variables, 0.0)
         cap = self.values.seconds(scope, body, "respawn_max_delay", kind, variables,
                                   max(DEFAULT_RESPAWN_MAX_DELAY_S, delay))
@@ -103,6 +133,16 @@ class NodeReader:
                           parameters=parameters, remaps=remaps, env=env, respawn=respawn, respawn_delay_s=delay,
                           respawn_max_delay_s=cap, required=required, output=output)
         self.drafts.append(NodeDraft(node, scope.display, body.line))
+
+    def on_exit(self, scope: FileScope, body: MarkedDict, variables) -> bool:
+        """True for ``on_exit: shutdown`` (ROS 2's action when the process exits: stop the whole launch)."""
+        if "on_exit" not in body:
+            return False
+        action = self.values.text(scope, body, "on_exit", "node", variables=variables).strip()
+        if action != "shutdown":
+            raise EntryFailure(body.value_line("on_exit"), f"node: on_exit supports only 'shutdown' (stop the launch "
+                                                           f"when this node exits); got {action!r}")
+        return True
 
     def find_executable(self, scope: FileScope, executable: str, line: int) -> str:
         if not executable:

@@ -6,6 +6,7 @@
 ``$(env NAME DEFAULT)`` environment variable ``NAME``, or ``DEFAULT`` when it is not set
 ``$(optenv NAME [DEFAULT])`` environment variable ``NAME``, or ``DEFAULT`` (default: empty) when not set
 ``$(dirname)``         the absolute directory of the launch file being read
+``$(find-pkg-share dptpu)`` the folder holding the installed ``launch/`` folder (ROS 2: a package's share)
 =====================  ==============================================================================
 
 Arguments are separated by white space; quote one that holds spaces (``$(env GREETING 'hello world')``).
@@ -19,10 +20,12 @@ import os
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 
+from .installed import PACKAGE_NAME, installed_launch_dir
+
 __all__ = ["SubstitutionError", "SubstitutionContext", "substitute", "has_substitution", "SUBSTITUTIONS"]
 
 #: The substitution names this module understands.
-SUBSTITUTIONS = ("var", "env", "optenv", "dirname")
+SUBSTITUTIONS = ("var", "env", "optenv", "dirname", "find-pkg-share")
 
 
 class SubstitutionError(ValueError):
@@ -158,6 +161,12 @@ def _call(call: _Call, context: SubstitutionContext) -> str:
     if call.name == "dirname":
         _arity(call, args, 0, 0, "$(dirname)")
         return context.launch_file_dir
+    if call.name == "find-pkg-share":
+        _arity(call, args, 1, 1, f"$(find-pkg-share {PACKAGE_NAME})")
+        if args[0] != PACKAGE_NAME:
+            raise SubstitutionError(f"$(find-pkg-share {args[0]}): only this package's share is known here; "
+                                    f"use $(find-pkg-share {PACKAGE_NAME})")
+        return os.fspath(installed_launch_dir().parent)
     hint = difflib.get_close_matches(call.name, SUBSTITUTIONS, n=1)
     suggestion = f" (did you mean '{hint[0]}'?)" if hint else ""
     raise SubstitutionError(f"unknown substitution '$({call.name} ...)'{suggestion}; "

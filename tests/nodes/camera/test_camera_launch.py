@@ -18,14 +18,16 @@ from tests.tools.launch.conftest import LaunchProcess
 LAUNCH = """
 launch:
   - node:
-      module: dptpu.nodes.projector
+      pkg: dptpu
+      exec: projector
       name: projector
       param:
         - {name: port, value: "loop://"}
         - {name: sequence, value: "4x3,1x3"}
         - {name: exposure_us, value: 20000}
   - node:
-      module: dptpu.nodes.camera
+      pkg: dptpu
+      exec: camera
       name: camera
       param:
         - {name: trigger_mode, value: free-running}

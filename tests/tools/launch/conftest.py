@@ -15,9 +15,10 @@ from pathlib import Path
 import pytest
 
 REPO_ROOT = Path(__file__).resolve().parents[3]
-TICKER = "tests.tools.launch.fixtures.ticker"
-CRASHER = "tests.tools.launch.fixtures.crasher"
-STUBBORN = "tests.tools.launch.fixtures.stubborn"
+FIXTURES = "tests.tools.launch.fixtures"
+TICKER = f"{FIXTURES}.ticker"
+CRASHER = f"{FIXTURES}.crasher"
+STUBBORN = f"{FIXTURES}.stubborn"
 
 
 @pytest.fixture

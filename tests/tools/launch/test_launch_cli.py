@@ -8,7 +8,7 @@ import shlex
 import sys
 
 from dptpu.cli.main import main
-from tests.tools.launch.conftest import REPO_ROOT, TICKER
+from tests.tools.launch.conftest import FIXTURES, REPO_ROOT, TICKER
 
 
 def _run(*argv):
@@ -27,7 +27,7 @@ def test_print_shows_resolved_command_lines_with_options_after_the_file(write_fi
     path = write_file("rig.yaml", f"""
         launch:
           - arg: {{name: ns, default: /left}}
-          - node: {{module: {TICKER}, name: cam, namespace: $(var ns), respawn: true, respawn_delay: 0.5}}
+          - node: {{pkg: {FIXTURES}, exec: ticker, name: cam, namespace: $(var ns), respawn: true, respawn_delay: 0.5}}
         """)
     code, stdout, _ = _run(str(path), "ns:=/right", "--print")
     assert code == 0
@@ -50,7 +50,7 @@ def test_show_args_lists_names_descriptions_and_defaults(write_file):
 
 
 def test_invalid_file_exits_2_with_file_and_line(write_file):
-    path = write_file("rig.yaml", f"launch:\n  - node: {{module: {TICKER}, remapp: []}}\n")
+    path = write_file("rig.yaml", f"launch:\n  - node: {{pkg: {FIXTURES}, exec: ticker, remapp: []}}\n")
     code, stdout, stderr = _run(str(path))
     assert code == 2
     assert stderr == f"dptpu launch: error: {path}:2: node: unknown key 'remapp' (did you mean 'remap'?)\n"

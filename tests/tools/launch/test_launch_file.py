@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import sys
+from pathlib import Path
 
 import pytest
 
@@ -13,7 +14,7 @@ from dptpu.tools.launch import (
     load_launch_file,
     parse_launch_arguments,
 )
-from tests.tools.launch.conftest import REPO_ROOT, TICKER
+from tests.tools.launch.conftest import FIXTURES, REPO_ROOT, TICKER
 
 
 def _load(path, arguments=None, environ=None):
@@ -34,20 +35,21 @@ def test_unknown_key_names_file_line_and_the_close_match(write_file):
     path = write_file("sim_rig.yaml", f"""
         launch:
           - node:
-              module: {TICKER}
+              pkg: {FIXTURES}
+              exec: ticker
               name: phase
               remapp:
                 - {{from: a, to: b}}
         """)
     error = _error(path)
-    assert str(error) == f"{path}:5: node: unknown key 'remapp' (did you mean 'remap'?)"
-    assert [(problem.line, problem.file) for problem in error.problems] == [(5, str(path))]
+    assert str(error) == f"{path}:6: node: unknown key 'remapp' (did you mean 'remap'?)"
+    assert [(problem.line, problem.file) for problem in error.problems] == [(6, str(path))]
 
 
 def test_missing_module_names_its_line_and_a_close_sibling(write_file):
     path = write_file("rig.yaml", """
         launch:
-          - node: {name: a, module: tests.tools.launch.fixtures.tickr}
+          - node: {name: a, pkg: tests.tools.launch.fixtures, exec: tickr}
         """)
     assert str(_error(path)) == (f"{path}:2: node: no module named 'tests.tools.launch.fixtures.tickr' "
                                  f"(did you mean 'ticker'?)")
@@ -56,7 +58,7 @@ def test_missing_module_names_its_line_and_a_close_sibling(write_file):
 def test_package_without_main_cannot_be_run_with_python_m(write_file):
     path = write_file("rig.yaml", """
         launch:
-          - node: {module: tests.tools.launch.fixtures}
+          - node: {pkg: tests.tools, exec: launch}
         """)
     assert "package without a __main__ module" in str(_error(path))
 
@@ -66,13 +68,14 @@ def test_undeclared_arg_is_an_error_at_the_line_that_uses_it(write_file):
         launch:
           - arg: {{name: rate, default: "10"}}
           - node:
-              module: {TICKER}
+              pkg: {FIXTURES}
+              exec: ticker
               param:
                 - name: rate
                   value: $(var rat)
         """)
     message = str(_error(path))
-    assert message.startswith(f"{path}:7: param rate: undeclared launch argument 'rat' in $(var rat) "
+    assert message.startswith(f"{path}:8: param rate: undeclared launch argument 'rat' in $(var rat) "
                               f"(did you mean 'rate'?)")
 
 
@@ -120,9 +123,9 @@ def test_included_file_missing_a_required_arg_names_the_include(write_file):
 def test_several_problems_are_reported_together(write_file):
     path = write_file("rig.yaml", f"""
         launch:
-          - node: {{module: {TICKER}, nmae: a}}
-          - node: {{module: no_such_module_xyz}}
-          - node: {{module: {TICKER}, respawn_delay: soon}}
+          - node: {{pkg: {FIXTURES}, exec: ticker, nmae: a}}
+          - node: {{pkg: no_such_module_xyz, exec: node}}
+          - node: {{pkg: {FIXTURES}, exec: ticker, respawn_delay: soon}}
         """)
     error = _error(path)
     assert [problem.line for problem in error.problems] == [2, 3, 4]
@@ -133,20 +136,24 @@ def test_several_problems_are_reported_together(write_file):
 
 
 @pytest.mark.parametrize(("node_text", "line", "expected"), [
-    (f"{{module: {TICKER}, respawn: maybe}}", 2, "node: respawn must be true or false (or 1 / 0); got 'maybe'"),
-    (f"{{module: {TICKER}, output: scren}}", 2,
+    (f"{{pkg: {FIXTURES}, exec: ticker, respawn: maybe}}", 2,
+     "node: respawn must be true or false (or 1 / 0); got 'maybe'"),
+    (f"{{pkg: {FIXTURES}, exec: ticker, output: scren}}", 2,
      "node: output must be one of screen, log, both; got 'scren' (did you mean 'screen'?)"),
-    (f"{{module: {TICKER}, param: [{{name: gains, value: [1, 2.5]}}]}}", 2,
+    (f"{{pkg: {FIXTURES}, exec: ticker, param: [{{name: gains, value: [1, 2.5]}}]}}", 2,
      "param 'gains': array items must all have one type (bool, int, float or str); got float and int"),
-    (f"{{module: {TICKER}, param: [{{name: camera, value: {{a: 1}}}}]}}", 2,
+    (f"{{pkg: {FIXTURES}, exec: ticker, param: [{{name: camera, value: {{a: 1}}}}]}}", 2,
      "param 'camera': a value cannot be a mapping"),
-    (f"{{module: {TICKER}, remap: [{{from: /a}}]}}", 2, "remap: missing required key 'to'"),
-    ("{name: a}", 2, "node: give exactly one of 'module' (run with python -m) or 'executable'"),
-    ("{executable: no-such-program-xyz}", 2, "node: executable 'no-such-program-xyz' not found on PATH"),
-    (f"{{module: {TICKER}, name: my/node}}", 2, "node: name 'my/node' is not a valid node name"),
-    (f"{{module: {TICKER}, respawn: true, required: true}}", 2,
-     "node: a node cannot be both required and respawn: true"),
-    (f"{{module: {TICKER}, respawn_delay: 2.0, respawn_max_delay: 1.0}}", 2,
+    (f"{{pkg: {FIXTURES}, exec: ticker, remap: [{{from: /a}}]}}", 2, "remap: missing required key 'to'"),
+    ("{name: a}", 2, "node: missing required key 'exec'"),
+    ("{pkg: dptpu, exec: phse}", 2, "node: pkg dptpu has no node 'phse' (did you mean 'phase'?)"),
+    (f"{{pkg: {FIXTURES}, exec: ticker, on_exit: restart}}", 2,
+     "node: on_exit supports only 'shutdown' (stop the launch when this node exits); got 'restart'"),
+    ("{exec: no-such-program-xyz}", 2, "node: executable 'no-such-program-xyz' not found on PATH"),
+    (f"{{pkg: {FIXTURES}, exec: ticker, name: my/node}}", 2, "node: name 'my/node' is not a valid node name"),
+    (f"{{pkg: {FIXTURES}, exec: ticker, respawn: true, on_exit: shutdown}}", 2,
+     "node: a node cannot have both on_exit: shutdown and respawn: true"),
+    (f"{{pkg: {FIXTURES}, exec: ticker, respawn_delay: 2.0, respawn_max_delay: 1.0}}", 2,
      "node: respawn_max_delay (1.0 s) must be >= respawn_delay (2.0 s)"),
 ])
 def test_bad_values_are_errors_with_file_and_line(write_file, node_text, line, expected):
@@ -156,23 +163,23 @@ def test_bad_values_are_errors_with_file_and_line(write_file, node_text, line, e
 
 
 def test_yaml_syntax_error_and_duplicate_key_give_their_lines(write_file):
-    broken = write_file("broken.yaml", "launch:\n  - node: {module: x\n  - arg: {name: y}\n")
+    broken = write_file("broken.yaml", "launch:\n  - node: {exec: x\n  - arg: {name: y}\n")
     assert str(_error(broken)).startswith(f"{broken}:3: YAML syntax error")
-    duplicate = write_file("duplicate.yaml", f"launch:\n  - node:\n      module: {TICKER}\n      module: other\n")
-    assert str(_error(duplicate)) == f"{duplicate}:4: YAML syntax error: duplicate key 'module' (first at line 3)"
+    duplicate = write_file("duplicate.yaml", "launch:\n  - node:\n      exec: ticker\n      exec: other\n")
+    assert str(_error(duplicate)) == f"{duplicate}:4: YAML syntax error: duplicate key 'exec' (first at line 3)"
 
 
 def test_wrong_indentation_gets_a_hint(write_file):
-    path = write_file("rig.yaml", f"launch:\n  - node:\n    module: {TICKER}\n")
+    path = write_file("rig.yaml", f"launch:\n  - node:\n    pkg: {FIXTURES}\n")
     message = str(_error(path))
     assert message.startswith(f"{path}:2: a launch entry has exactly one key")
     assert "indented" in message
 
 
 def test_unknown_entry_and_top_level_shape(write_file):
-    path = write_file("rig.yaml", f"launch:\n  - nod: {{module: {TICKER}}}\n")
+    path = write_file("rig.yaml", f"launch:\n  - nod: {{pkg: {FIXTURES}, exec: ticker}}\n")
     assert str(_error(path)).startswith(f"{path}:2: unknown entry 'nod' (did you mean 'node'?)")
-    flat = write_file("flat.yaml", f"- node: {{module: {TICKER}}}\n")
+    flat = write_file("flat.yaml", f"- node: {{pkg: {FIXTURES}, exec: ticker}}\n")
     assert str(_error(flat)).startswith(f"{flat}:1: launch file must be a mapping with one key 'launch'")
 
 
@@ -180,7 +187,7 @@ def test_command_line_arguments_must_be_declared_and_valid(write_file):
     path = write_file("rig.yaml", """
         launch:
           - arg: {name: rate, default: "10"}
-          - arg: {name: mode, default: sim, choices: [sim, real]}
+          - arg: {name: mode, default: sim, choice: [{value: sim}, {value: real}]}
         """)
     assert str(_error(path, {"rat": "5"})) == (f"{path}: command line: unknown launch argument 'rat' "
                                                f"(did you mean 'rate'?); {path} declares: rate, mode")
@@ -193,8 +200,8 @@ def test_command_line_arguments_must_be_declared_and_valid(write_file):
 def test_duplicate_node_names_are_an_error(write_file):
     path = write_file("rig.yaml", f"""
         launch:
-          - node: {{module: {TICKER}, name: cam, namespace: /a}}
-          - node: {{module: {TICKER}, name: cam, namespace: /a}}
+          - node: {{pkg: {FIXTURES}, exec: ticker, name: cam, namespace: /a}}
+          - node: {{pkg: {FIXTURES}, exec: ticker, name: cam, namespace: /a}}
         """)
     assert str(_error(path)).startswith(f"{path}:3: node: name '/a/cam' is used twice (first at {path}:2)")
 
@@ -203,8 +210,8 @@ def test_parameter_file_must_exist_and_be_a_ros2_parameter_file(write_file):
     write_file("plain.yaml", "gain: 2\n")
     path = write_file("rig.yaml", f"""
         launch:
-          - node: {{module: {TICKER}, param: [{{from: missing.yaml}}]}}
-          - node: {{module: {TICKER}, param: [{{from: plain.yaml}}]}}
+          - node: {{pkg: {FIXTURES}, exec: ticker, param: [{{from: missing.yaml}}]}}
+          - node: {{pkg: {FIXTURES}, exec: ticker, param: [{{from: plain.yaml}}]}}
         """)
     error = _error(path)
     assert str(error.problems[0]).startswith(f"{path}:2: param: parameter file 'missing.yaml' not found")
@@ -222,7 +229,8 @@ def test_node_resolves_to_the_ros2_command_line(write_file):
         launch:
           - arg: {{name: rate, default: "10"}}
           - node:
-              module: {TICKER}
+              pkg: {FIXTURES}
+              exec: ticker
               name: phase
               namespace: /scanner
               args: "--verbose 'a b'"
@@ -261,7 +269,8 @@ def test_include_with_args_group_namespace_and_conditions(write_file):
           - arg: {{name: cam_name}}
           - arg: {{name: rate, default: "30"}}
           - node:
-              module: {TICKER}
+              pkg: {FIXTURES}
+              exec: ticker
               name: $(var cam_name)
               namespace: cam
               param: [{{name: rate, value: $(var rate)}}, {{name: dir, value: $(dirname)}}]
@@ -272,8 +281,8 @@ def test_include_with_args_group_namespace_and_conditions(write_file):
           - arg: {{name: with_extra, default: "false"}}
           - let: {{name: prefix, value: left}}
           - group:
-              namespace: /rig
               children:
+                - push_ros_namespace: {{namespace: /rig}}
                 - include:
                     file: parts/camera.yaml
                     arg:
@@ -281,10 +290,12 @@ def test_include_with_args_group_namespace_and_conditions(write_file):
                       - {{name: rate, value: $(var rate)}}
           - node:
               if: $(var with_extra)
-              module: no_such_module_is_checked_when_skipped
+              pkg: no_such_module_is_checked_when_skipped
+              exec: node
           - node:
               unless: $(var with_extra)
-              module: {TICKER}
+              pkg: {FIXTURES}
+              exec: ticker
               name: main
         """)
     plan = _load(path, {"rate": "15"})
@@ -301,7 +312,7 @@ def test_include_with_args_group_namespace_and_conditions(write_file):
 def test_skipped_entries_still_get_their_keys_checked(write_file):
     path = write_file("rig.yaml", f"""
         launch:
-          - node: {{if: "false", module: {TICKER}, remapp: []}}
+          - node: {{if: "false", pkg: {FIXTURES}, exec: ticker, remapp: []}}
         """)
     assert str(_error(path)) == f"{path}:2: node: unknown key 'remapp' (did you mean 'remap'?)"
 
@@ -311,15 +322,15 @@ def test_env_substitution_and_executables(write_file, tmp_path):
     script.chmod(0o755)
     path = write_file("rig.yaml", """
         launch:
-          - node: {executable: bin/node.sh, name: a, param: [{name: domain, value: $(env DPTPU_DOMAIN_ID 0)}]}
-          - node: {executable: sh, name: b, args: [-c, "echo $(optenv NOT_SET_XYZ fallback)"]}
+          - node: {exec: bin/node.sh, name: a, param: [{name: domain, value: $(env DPTPU_DOMAIN_ID 0)}]}
+          - node: {exec: sh, name: b, args: [-c, "echo $(optenv NOT_SET_XYZ fallback)"]}
         """)
     a, b = _load(path, environ={"PATH": "/usr/bin:/bin", "DPTPU_DOMAIN_ID": "7"}).nodes
     assert a.program == (str(script),)
     assert a.parameters == (InlineParameter("domain", 7),)
     assert b.program[0].endswith("/sh")
     assert b.arguments == ("-c", "echo fallback")
-    bare = write_file("bare.yaml", "launch:\n  - node: {executable: sh, args: $(env NOT_SET_XYZ)}\n")
+    bare = write_file("bare.yaml", "launch:\n  - node: {exec: sh, args: $(env NOT_SET_XYZ)}\n")
     assert str(_error(bare, environ={"PATH": "/bin"})).startswith(
         f"{bare}:2: node args: environment variable 'NOT_SET_XYZ' is not set")
 
@@ -327,10 +338,10 @@ def test_env_substitution_and_executables(write_file, tmp_path):
 def test_labels_are_unique(write_file):
     path = write_file("rig.yaml", f"""
         launch:
-          - node: {{module: {TICKER}, name: cam, namespace: /left}}
-          - node: {{module: {TICKER}, name: cam, namespace: /right}}
-          - node: {{module: {TICKER}}}
-          - node: {{module: {TICKER}}}
+          - node: {{pkg: {FIXTURES}, exec: ticker, name: cam, namespace: /left}}
+          - node: {{pkg: {FIXTURES}, exec: ticker, name: cam, namespace: /right}}
+          - node: {{pkg: {FIXTURES}, exec: ticker}}
+          - node: {{pkg: {FIXTURES}, exec: ticker}}
         """)
     assert [node.label for node in _load(path).nodes] == ["left/cam", "right/cam", "ticker", "ticker-2"]
 
@@ -339,8 +350,64 @@ def test_declared_arguments_lists_the_top_file_args(write_file):
     path = write_file("rig.yaml", """
         launch:
           - arg: {name: rate, default: "10", description: frames per second}
-          - arg: {name: mode, choices: [sim, real]}
+          - arg: {name: mode, choice: [{value: sim}, {value: real}]}
         """)
     rate, mode = declared_arguments(path)
     assert (rate.name, rate.default, rate.description, rate.choices) == ("rate", "10", "frames per second", None)
     assert (mode.name, mode.default, mode.choices) == ("mode", None, ("sim", "real"))
+
+
+def test_ros2_launch_yaml_with_group_list_push_namespace_include_let_choice_and_find_pkg_share(write_file):
+    """A file as ROS 2's launch docs write one: group as a list of entities, push-ros-namespace in both spellings,
+    choice, let, include through $(find-pkg-share dptpu) and $(dirname)."""
+    write_file("parts/camera.yaml", f"""
+        launch:
+          - arg: {{name: cam_name}}
+          - node: {{pkg: {FIXTURES}, exec: ticker, name: $(var cam_name), param: [{{name: dir, value: $(dirname)}}]}}
+        """)
+    path = write_file("main.yaml", """
+        launch:
+          - arg: {name: side, default: left, choice: [{value: left}, {value: right}], description: which}
+          - let: {name: camera, value: $(var side)_camera}
+          - group:
+              - push_ros_namespace: {namespace: rig}
+              - push-ros-namespace: {namespace: $(var side)}
+              - include:
+                  file: $(dirname)/parts/camera.yaml
+                  arg: [{name: cam_name, value: $(var camera)}]
+              - node: {pkg: dptpu, exec: phase, name: phase, remap: [{from: /a, to: /b}]}
+          - node:
+              pkg: dptpu
+              exec: scan_monitor
+              name: monitor
+              on_exit: shutdown
+              param: [{name: rig, value: $(find-pkg-share dptpu)/launch/params/twin_rig.yaml}]
+        """)
+    camera, phase, monitor = _load(path, {"side": "right"}).nodes
+    assert camera.full_name == "/rig/right/right_camera"
+    assert camera.parameters == (InlineParameter("dir", str(path.parent / "parts")),)
+    assert phase.full_name == "/rig/right/phase"
+    assert phase.program == (sys.executable, "-m", "dptpu.nodes.phase") and phase.remaps == (("/a", "/b"),)
+    assert monitor.full_name == "/monitor" and monitor.required and monitor.module == "dptpu.nodes.scan_monitor"
+    (rig,) = monitor.parameters
+    assert isinstance(rig, InlineParameter) and Path(rig.value).is_file()
+    assert Path(rig.value).parent.parent.name == "launch"
+    assert str(_error(path, {"side": "up"})) == f"{path}:2: arg 'side' must be one of left, right; got 'up'"
+
+
+@pytest.mark.parametrize(("entry", "expected"), [
+    (f"node: {{module: {TICKER}}}", "node: 'module' is the old spelling; ROS 2 launch YAML writes 'pkg' and 'exec' "
+                                    "(pkg: dptpu, exec: NODE runs dptpu.nodes.NODE)"),
+    ("node: {executable: sh}", "node: 'executable' is the old spelling; ROS 2 launch YAML writes 'exec' "
+                               "(a program without 'pkg')"),
+    ("node: {exec: sh, required: true}", "node: 'required' is the old spelling; ROS 2 launch YAML writes "
+                                         "'on_exit: shutdown'"),
+    ("arg: {name: mode, choices: [a, b]}", "arg: 'choices' is the old spelling; ROS 2 launch YAML writes 'choice', "
+                                           "a list of {value: ...} (choice: [{value: a}, {value: b}])"),
+    ("group: {namespace: /rig, children: []}", "group: 'namespace' is the old spelling; ROS 2 launch YAML writes a "
+                                               "'- push_ros_namespace: {namespace: NS}' entry among the group's "
+                                               "children"),
+])
+def test_old_keys_are_refused_with_the_ros2_spelling(write_file, entry, expected):
+    path = write_file("old.yaml", f"launch:\n  - {entry}\n")
+    assert str(_error(path)) == f"{path}:2: {expected}"

@@ -15,10 +15,8 @@ import time
 
 from dptpu.tools.launch import Supervisor, load_launch_file
 from tests.tools.launch.conftest import (
-    CRASHER,
+    FIXTURES,
     REPO_ROOT,
-    STUBBORN,
-    TICKER,
     LaunchProcess,
     launcher_env,
     process_running,
@@ -36,9 +34,9 @@ def _all_gone(pids, timeout_s=1.0) -> list[int]:
 def test_three_nodes_run_with_prefixed_output_and_stop_on_sigint(write_file):
     path = write_file("three.yaml", f"""
         launch:
-          - node: {{module: {TICKER}, name: alpha}}
-          - node: {{module: {TICKER}, name: beta}}
-          - node: {{module: {TICKER}, name: gamma}}
+          - node: {{pkg: {FIXTURES}, exec: ticker, name: alpha}}
+          - node: {{pkg: {FIXTURES}, exec: ticker, name: beta}}
+          - node: {{pkg: {FIXTURES}, exec: ticker, name: gamma}}
         """)
     launch = LaunchProcess(path, env=launcher_env(DPTPU_DOMAIN_ID="42"))
     try:
@@ -70,7 +68,8 @@ def test_remaps_and_params_reach_the_child_argv_exactly(write_file):
         launch:
           - arg: {{name: rate, default: "10"}}
           - node:
-              module: {TICKER}
+              pkg: {FIXTURES}
+              exec: ticker
               name: cam
               namespace: scanner
               args: --verbose
@@ -99,7 +98,7 @@ def test_remaps_and_params_reach_the_child_argv_exactly(write_file):
 def test_killed_node_is_respawned_with_a_new_pid(write_file):
     path = write_file("respawn.yaml", f"""
         launch:
-          - node: {{module: {TICKER}, name: worker, respawn: true, respawn_delay: 0.3}}
+          - node: {{pkg: {FIXTURES}, exec: ticker, name: worker, respawn: true, respawn_delay: 0.3}}
         """)
     launch = LaunchProcess(path)
     new_pid = None
@@ -123,8 +122,8 @@ def test_killed_node_is_respawned_with_a_new_pid(write_file):
 def test_sigint_stops_stubborn_nodes_and_their_helpers_within_5_s(write_file):
     path = write_file("stubborn.yaml", f"""
         launch:
-          - node: {{module: {TICKER}, name: ticker}}
-          - node: {{module: {STUBBORN}, name: stubborn}}
+          - node: {{pkg: {FIXTURES}, exec: ticker, name: ticker}}
+          - node: {{pkg: {FIXTURES}, exec: stubborn, name: stubborn}}
         """)
     launch = LaunchProcess(path)
     pids: list[int] = []
@@ -149,8 +148,8 @@ def test_sigint_stops_stubborn_nodes_and_their_helpers_within_5_s(write_file):
 def test_required_node_failure_stops_everything_and_exits_non_zero(write_file):
     path = write_file("required.yaml", f"""
         launch:
-          - node: {{module: {TICKER}, name: bystander}}
-          - node: {{module: {CRASHER}, name: essential, required: true}}
+          - node: {{pkg: {FIXTURES}, exec: ticker, name: bystander}}
+          - node: {{pkg: {FIXTURES}, exec: crasher, name: essential, on_exit: shutdown}}
         """)
     launch = LaunchProcess(path)
     bystander = None
@@ -180,8 +179,8 @@ def _supervise(path, **options):
 def test_launch_ends_with_0_when_every_node_has_exited_and_required_success_is_not_failure(write_file):
     path = write_file("exits.yaml", f"""
         launch:
-          - node: {{module: {CRASHER}, name: flaky}}
-          - node: {{executable: sh, name: quick, args: [-c, "echo done; exit 0"], required: true}}
+          - node: {{pkg: {FIXTURES}, exec: crasher, name: flaky}}
+          - node: {{exec: sh, name: quick, args: [-c, "echo done; exit 0"], on_exit: shutdown}}
         """)
     code, stdout, stderr = _supervise(path)
     assert code == 0
@@ -192,8 +191,8 @@ def test_launch_ends_with_0_when_every_node_has_exited_and_required_success_is_n
 def test_output_log_goes_to_a_file_not_the_screen(write_file, tmp_path):
     path = write_file("logged.yaml", """
         launch:
-          - node: {executable: sh, name: quiet, args: [-c, "echo to-log"], output: log}
-          - node: {executable: sh, name: loud, args: [-c, "echo to-both"], output: both}
+          - node: {exec: sh, name: quiet, args: [-c, "echo to-log"], output: log}
+          - node: {exec: sh, name: loud, args: [-c, "echo to-both"], output: both}
         """)
     code, stdout, stderr = _supervise(path, log_dir=tmp_path / "logs")
     assert code == 0
