@@ -20,7 +20,7 @@ rig_path = rules.read_only("rig", "", description="a dptpu-rig/1 file; restart t
 
 ``dptpu param set /cloud frame_id base_link`` then changes ``self.frame_id`` between two callbacks (the node's
 executor runs the parameter service), so the next cloud carries it; ``param set /cloud min_confidence 2.0`` answers
-``Setting parameter failed: min_confidence: must be within [0, 1]; got 2.0`` and the old value stays.
+``Setting parameter failed: min_confidence must be within [0, 1]; got 2.0`` and the old value stays.
 """
 from __future__ import annotations
 
@@ -31,8 +31,8 @@ from .rcl_interfaces import ParameterDescriptor, SetParametersResult
 
 __all__ = ["Check", "ParameterRules", "at_least", "frame_id", "greater_than", "one_of", "within"]
 
-#: A check: the value -> None when it is acceptable, else the reason it is not (it may also raise ValueError,
-#: OSError or ImportError, whose message is the reason).
+#: A check: the value -> None when it is acceptable, else a predicate saying why not ("must be > 0; got -1", read
+#: after the parameter's name); it may also raise ValueError, OSError or ImportError, whose message is the reason.
 Check = Callable[[Any], "str | None"]
 #: What a check may raise for a value it refuses.
 _REFUSALS = (ValueError, OSError, ImportError)
@@ -72,8 +72,9 @@ class ParameterRules:
         name, default
             As ``Node.declare_parameter`` (the default's type is the parameter's).
         check : callable, optional
-            ``check(value)``: None to accept, a reason (str, e.g. "must be > 0; got -1"; the refusal reads
-            ``NAME: REASON``) to refuse; it runs on the start-up value and on every
+            ``check(value)``: None to accept, a predicate to refuse (e.g. "must be > 0; got -1": the refusal reads
+            ``NAME must be > 0; got -1``); or it raises ValueError, OSError or ImportError, whose message (a
+            whole sentence) is the refusal. It runs on the start-up value and on every
             ``param set``. A check that depends on other parameters reads them with :meth:`value`.
         apply : callable, optional
             ``apply(value)`` once a new value is set (default: ``setattr(node, name, value)``).
@@ -109,10 +110,11 @@ class ParameterRules:
                 continue
             try:
                 reason = rule.check(parameter.value)
+                reason = f"{parameter.name} {reason}" if reason else None
             except _REFUSALS as exc:
-                reason = str(exc) or type(exc).__name__
+                reason = str(exc) or f"{parameter.name}: {type(exc).__name__}"
             if reason:
-                return SetParametersResult(successful=False, reason=f"{parameter.name}: {reason}")
+                return SetParametersResult(successful=False, reason=reason)
         return SetParametersResult(successful=True)
 
     def _apply(self, parameters) -> None:
@@ -156,9 +158,9 @@ def one_of(choices: Sequence[str]) -> Check:
 def frame_id(value: str) -> str | None:
     """A check of a TF frame id: non-empty, no spaces, no leading ``/`` (tf2 refuses one)."""
     if not value:
-        return "a frame id must not be empty"
+        return "must not be empty (a TF frame id)"
     if value.startswith("/"):
-        return f"a frame id has no leading '/' (tf2 refuses it); got {value!r}"
+        return f"must not start with '/' (tf2 refuses such a frame id); got {value!r}"
     if any(c.isspace() for c in value):
-        return f"a frame id has no spaces; got {value!r}"
+        return f"must not contain spaces (a TF frame id); got {value!r}"
     return None

@@ -396,8 +396,7 @@ class NodeParameters:
             if final.type_ != T.NOT_SET:
                 result = self._ask_callbacks([final])
                 if not result.successful:
-                    raise InvalidParameterValueException(name, final.value, f"refused by an on-set callback: "
-                                                                            f"{result.reason} (from {origin})")
+                    raise InvalidParameterValueException(name, final.value, f"{result.reason} (from {origin})")
             if final.type_ == T.NOT_SET and static_type != T.NOT_SET:
                 final = Parameter(name)  # statically typed, uninitialized
             self._values[name] = final

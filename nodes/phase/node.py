@@ -17,6 +17,10 @@ topic                           type              dir   notes
 ``/camera/image_raw``           FringeFrame       in    best effort, depth ``frame_queue_depth``
 ``/projector/pattern_sequence`` PatternSequence   in    transient local, depth 1: the scan layout (optional)
 ``/scanner/phase``              PhaseMaps         out   reliable, depth 10
+``/scanner/texture``            Image             out   reliable, depth 10; 32FC1, the scan's texture in DN
+                                                        (:mod:`dptpu.fpp.texture`: the mean intensity ``A`` of
+                                                        Eq. (2) over the entries), published just before its
+                                                        PhaseMaps with the same header
 ``/scanner/status``             ScanStatus        out   one per scan: ``processing`` (OK) or ``failed``
 =============================== ================= ===== ==============================================
 
@@ -36,6 +40,9 @@ name                    default  meaning
 ``frame_queue_depth``   100      frames the subscription may queue (at least the patterns of two scans)
 ======================= ======== ================================================================================
 
+``min_modulation`` and ``saturation_level`` apply from the next scan (``dptpu param set``), checked as at start-up;
+the others are read-only (``param set`` is refused; restart the node to change them).
+
 Run: ``python -m dptpu.nodes.phase --ros-args -p timeout_s:=1.0``, or ``module: dptpu.nodes.phase`` in a
 launch file. Conventions: ``docs/messages.md``; node design: ``docs/nodes.md``.
 """
@@ -46,11 +53,14 @@ import time
 import numpy as np
 
 from dptpu.fpp.scan_phase import IncrementalScanPhase, scan_phase_maps
+from dptpu.fpp.texture import texture_image
 from dptpu.graph.node import Node
+from dptpu.graph.parameter_rules import ParameterRules, at_least
 from dptpu.graph.qos import QoSProfile, ReliabilityPolicy
 from dptpu.messages import (
     FringeFrame,
     Header,
+    Image,
     PatternSequence,
     PhaseMaps,
     ScanStatus,
@@ -80,18 +90,19 @@ class PhaseNode(Node):
 
     def __init__(self, node_name: str = "phase", **node_options):
         super().__init__(node_name, **node_options)
-        self.timeout_s = self.declare_parameter("timeout_s", 2.0).value
-        self.max_pending_scans = self.declare_parameter("max_pending_scans", 4).value
-        self.min_modulation = self.declare_parameter("min_modulation", 5.0).value
-        self.saturation_level = self.declare_parameter("saturation_level", 0.0).value
-        shift_sign = self.declare_parameter("shift_sign", -1).value
-        fringe_axis = self.declare_parameter("fringe_axis", "x").value
-        projector_size = (self.declare_parameter("projector_width", 0).value,
-                          self.declare_parameter("projector_height", 0).value)
-        frame_queue_depth = self.frame_queue_depth = self.declare_parameter("frame_queue_depth", 100).value
-        if self.min_modulation < 0 or self.saturation_level < 0:
-            raise ValueError(f"parameters min_modulation and saturation_level must be >= 0; got "
-                             f"{self.min_modulation}, {self.saturation_level}")
+        rules = ParameterRules(self)
+        fixed = "sets the assembler up; restart the node to change it"
+        self.timeout_s = rules.read_only("timeout_s", 2.0, description=fixed)
+        self.max_pending_scans = rules.read_only("max_pending_scans", 4, description=fixed)
+        self.min_modulation = rules.settable("min_modulation", 5.0, check=at_least(0.0))
+        self.saturation_level = rules.settable("saturation_level", 0.0, check=at_least(0.0))
+        layout = "the layout without a PatternSequence (the projector's, when it comes, wins)"
+        shift_sign = rules.read_only("shift_sign", -1, description=layout)
+        fringe_axis = rules.read_only("fringe_axis", "x", description=layout)
+        projector_size = (rules.read_only("projector_width", 0, description=layout),
+                          rules.read_only("projector_height", 0, description=layout))
+        frame_queue_depth = self.frame_queue_depth = rules.read_only("frame_queue_depth", 100,
+                                                                     description="the subscription's QoS depth")
         if frame_queue_depth < 1:
             raise ValueError(f"parameter frame_queue_depth must be >= 1; got {frame_queue_depth}")
         self.assembler = SequenceAssembler(timeout_s=self.timeout_s, max_pending_scans=self.max_pending_scans,
@@ -105,6 +116,7 @@ class PhaseNode(Node):
         self._frame_id = DEFAULT_FRAME_ID  # the camera's, from its latest frame
 
         self.phase_publisher = self.create_publisher(PhaseMaps, "/scanner/phase", 10)
+        self.texture_publisher = self.create_publisher(Image, "/scanner/texture", 10)
         self.status_publisher = self.create_publisher(ScanStatus, "/scanner/status", STATUS_QOS)
 
         frame_qos = QoSProfile(depth=frame_queue_depth, reliability=ReliabilityPolicy.BEST_EFFORT)
@@ -191,16 +203,20 @@ class PhaseNode(Node):
                         sums.add(pattern_index, image, slots[pattern_index])
                     pattern_index += 1
             maps = sums.maps(slots, min_modulation=self.min_modulation, saturation_level=saturation)
+            background = sums.background()
             if maps is None:
                 maps = scan_phase_maps(scan.stacks, scan.layout.phase_offsets, shift_sign=scan.layout.shift_sign,
                                        min_modulation=self.min_modulation, saturation_level=saturation)
+                background = np.mean([stack.mean(axis=0, dtype=np.float32) for stack in scan.stacks], axis=0)
             phases, modulation, valid = maps
+            texture = texture_image(background=background)  # (H, W) float32 DN
         except ValueError as exc:
             self._report(DroppedScan(scan.sequence_id, f"phase computation refused the frames: {exc}",
                                      scan.frame_count, scan.frame_count, scan.first_arrival_s))
             return
         layout = scan.layout
         header = Header(stamp=Time.from_ns(scan.last_stamp_ns), frame_id=self._frame_id)
+        self.texture_publisher.publish(Image.from_array(texture, "32FC1", header=header))
         self.phase_publisher.publish(PhaseMaps(
             header=header, sequence_id=scan.sequence_id, fringe_axis=layout.fringe_axis,
             projector_width=layout.projector_size[0], projector_height=layout.projector_size[1],

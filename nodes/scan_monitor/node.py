@@ -67,6 +67,10 @@ name                 default  meaning
                               clouds and statuses only, as a robot subscribes (``dptpu bench pipeline``'s
                               throughput run: 24 messages a 2 x 12-step scan less; docs/benchmarks.md)
 ==================== ======== ==================================================================================
+
+``ground_truth``, ``start_scans``, ``start_service`` and ``trigger_latency`` set the subscriptions and the client up
+and are read-only; the others apply at run time (``dptpu param set /scan_monitor min_completeness 0.6``), checked as
+at start-up.
 """
 from __future__ import annotations
 
@@ -85,6 +89,7 @@ from dptpu.fpp.cloud_accuracy import OFF_SURFACE_MM
 from dptpu.fpp.point_cloud_file import write_point_cloud
 from dptpu.graph.interfaces import Trigger as TriggerService
 from dptpu.graph.node import Node
+from dptpu.graph.parameter_rules import ParameterRules, at_least, greater_than, within
 from dptpu.graph.qos import QoSProfile
 from dptpu.graph.subscription import Subscription
 from dptpu.graph.task import Future
@@ -125,28 +130,22 @@ class ScanMonitorNode(Node):
 
     def __init__(self, node_name: str = "scan_monitor", **node_options):
         super().__init__(node_name, **node_options)
-        self.scans = self.declare_parameter("scans", 0).value
-        self.scan_timeout_s = self.declare_parameter("scan_timeout_s", 5.0).value
-        self.use_truth = self.declare_parameter("ground_truth", True).value
-        self.ply_dir = self.declare_parameter("ply_dir", "").value
-        self.ply_count = self.declare_parameter("ply_count", 3).value
-        self.summary_path = self.declare_parameter("summary", "").value
-        self.start_scans = self.declare_parameter("start_scans", 0).value
-        start_service = self.declare_parameter("start_service", "/projector/start_scan").value
-        self.trigger_latency = self.declare_parameter("trigger_latency", True).value
-        self.max_wrong_share = float(self.declare_parameter("max_wrong_share", MAX_WRONG_SHARE).value)
-        self.min_completeness = float(self.declare_parameter("min_completeness", MIN_COMPLETENESS).value)
-        self.off_surface_mm = float(self.declare_parameter("off_surface_mm", OFF_SURFACE_MM).value)
-        if not (0.0 <= self.max_wrong_share <= 1.0 and 0.0 <= self.min_completeness <= 1.0):
-            raise ValueError(f"parameters max_wrong_share and min_completeness are shares in [0, 1]; got "
-                             f"{self.max_wrong_share}, {self.min_completeness}")
-        if not self.off_surface_mm >= 0.0:
-            raise ValueError(f"parameter off_surface_mm must be >= 0 mm; got {self.off_surface_mm}")
-        if self.scans < 0 or self.start_scans < 0:
-            raise ValueError(f"parameters scans (0 = run until Ctrl-C) and start_scans (0 = none) must be >= 0; "
-                             f"got {self.scans}, {self.start_scans}")
-        if not self.scan_timeout_s > 0:
-            raise ValueError(f"parameter scan_timeout_s must be > 0 seconds; got {self.scan_timeout_s}")
+        rules = ParameterRules(self)
+        wiring = "sets the subscriptions and clients up; restart the node to change it"
+        self.scans = rules.settable("scans", 0, check=at_least(0))
+        self.scan_timeout_s = rules.settable("scan_timeout_s", 5.0, check=greater_than(0.0))
+        self.use_truth = rules.read_only("ground_truth", True, description=wiring)
+        self.ply_dir = rules.settable("ply_dir", "")
+        self.ply_count = rules.settable("ply_count", 3, check=at_least(0))
+        self.summary_path = rules.settable("summary", "", apply=lambda path: setattr(self, "summary_path", path))
+        self.start_scans = rules.read_only("start_scans", 0, description=wiring)
+        start_service = rules.read_only("start_service", "/projector/start_scan", description=wiring)
+        self.trigger_latency = rules.read_only("trigger_latency", True, description=wiring)
+        self.max_wrong_share = float(rules.settable("max_wrong_share", MAX_WRONG_SHARE, check=within(0.0, 1.0)))
+        self.min_completeness = float(rules.settable("min_completeness", MIN_COMPLETENESS, check=within(0.0, 1.0)))
+        self.off_surface_mm = float(rules.settable("off_surface_mm", OFF_SURFACE_MM, check=at_least(0.0)))
+        if self.start_scans < 0:
+            raise ValueError(f"parameter start_scans (0 = none) must be >= 0; got {self.start_scans}")
         self.records: list[dict] = []
         self.reported = 0
         self.counts = {"ok": 0, "untrusted": 0, "failed": 0, "lost": 0}

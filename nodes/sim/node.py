@@ -54,6 +54,9 @@ name                default                      meaning
 ``ground_truth``    true                         publish ``/sim/ground_truth`` and ``/sim/ground_truth_depth``
 ``frame_id``        ``"scanner_optical_frame"``  ``header.frame_id`` of frames, CameraInfo and ground truth
 =================== ============================ =====================================================================
+
+``frame_rate_hz``, ``drop_frames``, ``min_subscribers``, ``ground_truth`` and ``frame_id`` apply at run time
+(``dptpu param set``), checked as at start-up; the others make the renders and are read-only.
 """
 from __future__ import annotations
 
@@ -64,7 +67,9 @@ import numpy as np
 
 from dptpu.fpp.frequencies import same_frequency
 from dptpu.graph.node import Node
+from dptpu.graph.parameter_rules import ParameterRules, at_least, frame_id
 from dptpu.graph.subscription import Subscription
+from dptpu.graph.timer import Timer
 from dptpu.messages import (
     AbsolutePhase,
     CameraInfo,
@@ -85,6 +90,11 @@ __all__ = ["SimNode", "main", "parse_drop_frames"]
 
 _TWO_PI = 2.0 * np.pi
 _SCANS_REMEMBERED = 64
+
+
+def _drop_frames_problem(text: str) -> None:
+    """A check of ``drop_frames``: :func:`parse_drop_frames`'s ValueError is the reason."""
+    parse_drop_frames(text)
 
 
 def parse_drop_frames(text: str) -> set[tuple[int, int]]:
@@ -125,23 +135,26 @@ class SimNode(Node):
 
     def __init__(self, node_name: str = "sim", **node_options):
         super().__init__(node_name, **node_options)
-        source = self.declare_parameter("source", "shipped").value
-        rig = self.declare_parameter("rig", "nominal").value
-        size = self.declare_parameter("size", "640x480").value
-        scenes = self.declare_parameter("scenes", DEFAULT_SCENES).value
-        sequence = self.declare_parameter("sequence", "96x12,1x12").value
-        fringe_axis = self.declare_parameter("fringe_axis", "x").value
-        shift_sign = self.declare_parameter("shift_sign", -1).value
-        seed = self.declare_parameter("seed", 0).value
-        bit_depth = self.declare_parameter("bit_depth", 8).value
-        self.frame_rate_hz = float(self.declare_parameter("frame_rate_hz", 0.0).value)
-        self.drop_frames = parse_drop_frames(self.declare_parameter("drop_frames", "").value)
-        self.min_subscribers = self.declare_parameter("min_subscribers", 1).value
-        self.publish_truth = self.declare_parameter("ground_truth", True).value
-        self.frame_id = self.declare_parameter("frame_id", DEFAULT_FRAME_ID).value
-        if self.frame_rate_hz < 0:
-            raise ValueError(f"parameter frame_rate_hz must be >= 0 (0 = as fast as possible); got "
-                             f"{self.frame_rate_hz}")
+        rules = ParameterRules(self)
+        rendered = "the renders are made at start-up; restart the node to change it"
+        source = rules.read_only("source", "shipped", description=rendered)
+        rig = rules.read_only("rig", "nominal", description=rendered)
+        size = rules.read_only("size", "640x480", description=rendered)
+        scenes = rules.read_only("scenes", DEFAULT_SCENES, description=rendered)
+        sequence = rules.read_only("sequence", "96x12,1x12", description=rendered)
+        fringe_axis = rules.read_only("fringe_axis", "x", description=rendered)
+        shift_sign = rules.read_only("shift_sign", -1, description=rendered)
+        seed = rules.read_only("seed", 0, description=rendered)
+        bit_depth = rules.read_only("bit_depth", 8, description=rendered)
+        self.pace_timer: Timer | None = None
+        self.frame_rate_hz = float(rules.settable("frame_rate_hz", 0.0, check=at_least(0.0),
+                                                  apply=self._set_frame_rate))
+        self.drop_frames = parse_drop_frames(rules.settable("drop_frames", "", check=_drop_frames_problem,
+                                                            apply=self._set_drop_frames))
+        self.min_subscribers = rules.settable("min_subscribers", 1, check=at_least(0))
+        self.publish_truth = rules.settable("ground_truth", True,
+                                            apply=lambda value: setattr(self, "publish_truth", value))
+        self.frame_id = rules.settable("frame_id", DEFAULT_FRAME_ID, check=frame_id)
         if bit_depth not in (8, 16):
             raise ValueError(f"parameter bit_depth must be 8 or 16; got {bit_depth}")
         # the camera is announced as soon as it is known, before the raycast renders the scenes: the cloud node
@@ -175,8 +188,7 @@ class SimNode(Node):
         if not self._info_published:  # captures and shipped renders: their rig comes with the frames
             self._publish_camera_info(self.source.rig)
         self.wait_timer = self.create_timer(0.05, self.on_wait_timer)
-        self.pace_timer = self.create_timer(min(0.01, 1.0 / self.frame_rate_hz), self.on_pace_timer) \
-            if self.frame_rate_hz > 0 else None
+        self._set_frame_rate(self.frame_rate_hz)
         width, height = self.source.size
         self.get_logger().info(f"{len(self.source.scenes)} scene(s) at {width}x{height}, sequences "
                                f"{self.source.describe_sequences()}; waiting for {self.min_subscribers} subscriber(s) "
@@ -217,6 +229,21 @@ class SimNode(Node):
             self._serve(self._queue.popleft()[0])
 
     # -- helpers ---------------------------------------------------------------------------------------------
+
+    def _set_drop_frames(self, text: str) -> None:
+        self.drop_frames = parse_drop_frames(text)
+
+    def _set_frame_rate(self, frame_rate_hz: float) -> None:
+        """Pace the frames at ``frame_rate_hz`` from now on (0: publish each at once, the queued ones now)."""
+        self.frame_rate_hz = float(frame_rate_hz)
+        if self.pace_timer is not None:
+            self.destroy_timer(self.pace_timer)
+            self.pace_timer = None
+        if self.frame_rate_hz > 0:
+            self.pace_timer = self.create_timer(min(0.01, 1.0 / self.frame_rate_hz), self.on_pace_timer)
+        else:
+            while self._queue:
+                self._serve(self._queue.popleft()[0])
 
     def scene_index(self, sequence_id: int) -> int:
         """Scene shown during scan ``sequence_id`` (scans count from 1)."""

@@ -27,6 +27,8 @@ name             default         meaning
 ``color_by``     "depth"         first colouring of the page: ``depth`` (z) or ``intensity`` (a button switches)
 ================ =============== ==============================================================================
 
+Every parameter is read-only (the server and the page's settings are made at start-up; ``param set`` is refused).
+
 Run: ``python -m dptpu.nodes.viewer --ros-args -p port:=8765``, then open ``http://127.0.0.1:8765/``.
 """
 from __future__ import annotations
@@ -45,6 +47,7 @@ import numpy as np
 
 from dptpu.graph.logging import RcutilsLogger
 from dptpu.graph.node import Node
+from dptpu.graph.parameter_rules import ParameterRules
 from dptpu.graph.qos import QoSProfile, ReliabilityPolicy
 from dptpu.messages import PointCloud2, ScanStatus
 from dptpu.nodes.node_main import run_node
@@ -317,10 +320,12 @@ class ViewerNode(Node):
 
     def __init__(self, node_name: str = "viewer", **node_options):
         super().__init__(node_name, **node_options)
-        host = self.declare_parameter("host", "127.0.0.1").value
-        port = self.declare_parameter("port", 8765).value
-        self.max_points = self.declare_parameter("max_points", 150000).value
-        self.color_by = self.declare_parameter("color_by", "depth").value
+        rules = ParameterRules(self)
+        host = rules.read_only("host", "127.0.0.1", description="the server's address")
+        port = rules.read_only("port", 8765, description="the server's port")
+        page = "sent to each page as it connects; restart the node to change it"
+        self.max_points = rules.read_only("max_points", 150000, description=page)
+        self.color_by = rules.read_only("color_by", "depth", description=page)
         if not 0 <= port <= 65535:
             raise ValueError(f"parameter port must be 0..65535 (0: any free port); got {port}")
         if self.max_points < 1:

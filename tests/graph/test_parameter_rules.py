@@ -23,7 +23,7 @@ def test_settable_parameter_is_applied_and_a_bad_value_refused_with_its_reason(c
     assert node.set_parameters([Parameter("frame_id", value="tool0")])[0].successful
     assert node.frame_id == "tool0"
     refused = node.set_parameters([Parameter("gain", value=1.5)])[0]
-    assert (refused.successful, refused.reason) == (False, "gain: must be within [0, 1]; got 1.5")
+    assert (refused.successful, refused.reason) == (False, "gain must be within [0, 1]; got 1.5")
     assert node.get_parameter("gain").value == 0.5 and node.applied == []
     assert node.set_parameters([Parameter("gain", value=0.25)])[0].successful
     assert node.applied == [0.25]
@@ -38,7 +38,7 @@ def test_read_only_parameter_is_refused_and_keeps_its_start_up_value(context):
 
 
 def test_the_same_check_refuses_a_bad_start_up_value(context):
-    with pytest.raises(InvalidParameterValueException, match=r"frame_id: a frame id has no leading '/'"):
+    with pytest.raises(InvalidParameterValueException, match=r"frame_id must not start with '/'"):
         _Tuned(context=context, parameter_overrides=[Parameter("frame_id", value="/tool0")])
 
 
@@ -47,8 +47,8 @@ def test_the_same_check_refuses_a_bad_start_up_value(context):
     (at_least(0), 0, -1, "must be >= 0; got -1"),
     (greater_than(0.0), 1e-9, 0.0, "must be > 0; got 0.0"),
     (one_of(("mf", "nt")), "nt", "bogus", "must be one of mf, nt; got 'bogus'"),
-    (frame_id, "base_link", "", "a frame id must not be empty"),
-    (frame_id, "base_link", "tool 0", "a frame id has no spaces; got 'tool 0'"),
+    (frame_id, "base_link", "", "must not be empty (a TF frame id)"),
+    (frame_id, "base_link", "tool 0", "must not contain spaces (a TF frame id); got 'tool 0'"),
 ])
 def test_checks_accept_the_edge_and_refuse_beyond_it(check, good, bad, reason):
     assert check(good) is None

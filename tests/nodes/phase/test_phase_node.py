@@ -131,7 +131,7 @@ def test_pattern_sequence_sets_the_layout_and_an_unknown_frequency_fails_the_sca
 
 
 def test_bad_parameters_are_refused_with_the_parameter_name(harness):
-    with pytest.raises(ValueError, match="min_modulation and saturation_level must be >= 0"):
+    with pytest.raises(ValueError, match="min_modulation must be >= 0; got -1"):
         harness.start(PhaseNode, min_modulation=-1.0)
     with pytest.raises(ValueError, match="timeout_s must be a number of seconds > 0"):
         harness.start(PhaseNode, timeout_s=0.0)
