@@ -2,7 +2,8 @@
 
 Pure logic over announcement entries (no sockets): after each scan the runtime's I/O thread
 (:mod:`dptpu.graph.runtime`) asks for the endpoints each subscription and each client wants, then connects and
-disconnects their sockets to match. A publisher of another type or of an incompatible QoS, or a server of another
+disconnects their sockets to match. A publisher the subscription's known-publisher policy refuses
+(:mod:`dptpu.graph.known_publishers`), a publisher of another type or of an incompatible QoS, or a server of another
 type, is skipped with one warning per peer on the entity's node logger.
 """
 
@@ -10,6 +11,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 
+from .known_publishers import select_publishers
 from .qos import QoSProfile, qos_compatibility
 from .transport import TransportConfig, choose_endpoint
 
@@ -39,6 +41,14 @@ def wanted_publishers(sub, candidates: list, *, same_host: Callable[[dict], bool
     is of this host (ipc endpoints are reachable).
     """
     wanted: dict[str, tuple] = {}
+    candidates, refused = select_publishers(candidates, getattr(sub, "known_publishers", None))
+    for entry, pub, reason in refused:
+        gid = str(pub.get("gid", ""))
+        if gid not in sub._warned:
+            sub._warned.add(gid)
+            sub._node.get_logger().warning(
+                f"refusing the publisher of {sub.topic_name} of node {entry.get('fqn')} (pid {entry.get('pid')}): "
+                f"{reason}")
     for entry, pub in candidates:
         gid = str(pub.get("gid", ""))
         problem = None

@@ -12,6 +12,7 @@ import threading
 import time
 import uuid
 import weakref
+from dataclasses import replace
 from typing import TYPE_CHECKING
 
 from ..messages.registry import is_registered
@@ -23,6 +24,7 @@ from .context import get_default_context
 from .discovery import snapshot_from_entries
 from .exceptions import NotInitializedException
 from .interfaces import is_service_type
+from .known_publishers import KnownPublishers
 from .logging import get_logger, set_logger_level
 from .names import (
     expand_topic_name,
@@ -192,6 +194,12 @@ class Node:
 
     def get_logger(self):
         return self._logger
+
+    def _resolve_node_name(self, name: str) -> str:
+        """A node's fully qualified name: ``name`` as is when absolute, else in this node's namespace."""
+        if not isinstance(name, str) or not name.strip("/"):
+            raise ValueError(f"a node name must be a non-empty string such as '/projector'; got {name!r}")
+        return name if name.startswith("/") else fully_qualified_name(self._namespace, name)
 
     def get_clock(self):
         return self._clock

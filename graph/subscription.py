@@ -15,6 +15,10 @@ Counters (also in the node's announcement, so ``dptpu topic`` tools can show the
 - ``malformed_count``: frames without a valid envelope, or a :class:`~dptpu.messages.DecodeError`
   (logged with the reason, at most once a second per subscription);
 - ``taken_count``: messages handed to the callback.
+
+A message that came through shared memory (:mod:`.shared_memory`) is resolved when it arrives: the segment is
+mapped and this subscription's shared lock taken, so the publisher does not write it again while the message is
+queued or its arrays are alive. A descriptor whose segment was already written again counts as lost.
 """
 
 from __future__ import annotations
@@ -28,8 +32,10 @@ import zmq
 
 from ..messages.decoder import decode
 from ..messages.wire_format import DecodeError
+from .known_publishers import KnownPublishers
 from .qos import QoSProfile, ReliabilityPolicy, pipe_high_water_mark, queue_limit
 from .sequence_tracking import SequenceTracker
+from .shared_memory import SharedMemoryError, read_message, shm_topic
 from .transport import FLAG_HISTORY, EnvelopeError, configure_client, unpack_envelope
 
 __all__ = ["Subscription", "MessageInfo"]
@@ -55,8 +61,9 @@ class Subscription:
     """
 
     def __init__(self, node, msg_type, topic_name: str, callback, qos_profile: QoSProfile, callback_group,
-                 raw: bool = False):
+                 raw: bool = False, known_publishers: KnownPublishers | None = None):
         self._node = node
+        self.known_publishers = known_publishers  # None: any publisher (known_publishers)
         self.msg_type = msg_type
         self.topic_name = topic_name
         self.callback = callback
@@ -80,6 +87,7 @@ class Subscription:
         self.malformed_count = 0
         self.taken_count = 0
         self.exception_count = 0
+        self._shm_topic = b""        # set by _open when this process may map other processes' segments
         self._socket = None          # owned by the I/O thread
         self._connected: dict = {}   # endpoint -> publisher gid (I/O thread)
         self._warned: set = set()    # publisher gids already warned about (I/O thread)
@@ -111,6 +119,9 @@ class Subscription:
         sock.setsockopt(zmq.RECONNECT_IVL_MAX, 1000)
         configure_client(sock, transport)
         sock.setsockopt(zmq.SUBSCRIBE, self.topic_name.encode("utf-8"))
+        if transport.shared_memory is not None:  # tells the publishers of this host to send descriptors
+            self._shm_topic = shm_topic(self._topic_bytes, transport.shared_memory.key)
+            sock.setsockopt(zmq.SUBSCRIBE, self._shm_topic)
         self._socket = sock
         return sock
 
@@ -124,8 +135,10 @@ class Subscription:
         except EnvelopeError as exc:
             self._malformed(str(exc))
             return False
-        if frames[0].bytes != self._topic_bytes:
-            self._malformed(f"message for topic {frames[0].bytes[:80]!r} on a socket of {self.topic_name}")
+        topic = frames[0].bytes
+        shared = topic != self._topic_bytes
+        if shared and (topic != self._shm_topic or len(frames) != 4):
+            self._malformed(f"message for topic {topic[:80]!r} on a socket of {self.topic_name}")
             return False
         if envelope.flags & FLAG_HISTORY and not self._transient:
             return False  # a TRANSIENT_LOCAL replay; a VOLATILE subscription does not want the past
@@ -142,7 +155,14 @@ class Subscription:
                     f"subscription on {self.topic_name} lost {verdict.lost} message(s) from publisher "
                     f"{envelope.gid.hex()[:8]} in transport (its pipe was full); {self.lost_count} lost so far",
                     throttle_duration_sec=5.0)
-        item = (frames[:-1], envelope)
+        if shared:
+            try:
+                item = (read_message(self._topic_bytes, frames[1], frames[2]), envelope)
+            except SharedMemoryError as exc:
+                self._lost_shared(str(exc))
+                return False
+        else:
+            item = (frames[:-1], envelope)
         with self._lock:
             if len(self._queue) >= self._limit:
                 self._queue.popleft()
@@ -157,6 +177,12 @@ class Subscription:
         self._node.get_logger().warning(
             f"malformed message on {self.topic_name} ({self.malformed_count} so far): {reason}",
             throttle_duration_sec=1.0)
+
+    def _lost_shared(self, reason: str) -> None:
+        with self._lock:
+            self.lost_count += 1
+        self._node.get_logger().warning(f"subscription on {self.topic_name} lost a message through shared memory "
+                                        f"({self.lost_count} lost so far): {reason}", throttle_duration_sec=5.0)
 
     def _forget_publisher(self, gid: bytes) -> None:
         self._sequences.forget(gid)
@@ -173,7 +199,7 @@ class Subscription:
                 return None
             frames, envelope = self._queue.popleft()
         if self.raw:
-            views = [frame.buffer for frame in frames]
+            views = [getattr(frame, "buffer", frame) for frame in frames]  # zmq.Frame, or shared-memory views
             self.taken_count += 1
             return partial(self.callback, views)
         try:

@@ -78,6 +78,7 @@ from dptpu.fpp.confidence import DEFAULT_MIN_CONFIDENCE
 from dptpu.fpp.depth_edges import DEFAULT_MAX_SLOPE, edge_points
 from dptpu.fpp.point_cloud_file import write_point_cloud
 from dptpu.fpp.triangulate import Triangulator, projector_coordinate
+from dptpu.graph.known_publishers import SOLE_PUBLISHER
 from dptpu.graph.node import Node
 from dptpu.graph.parameter_rules import ParameterRules, at_least, frame_id, greater_than, within
 from dptpu.messages import (
@@ -182,7 +183,8 @@ class CloudNode(Node):
         ]
         if self.use_camera_info:
             self._subscriptions_in.append(
-                self.create_subscription(CameraInfo, "/camera/camera_info", self.on_camera_info, LATCHED_QOS))
+                self.create_subscription(CameraInfo, "/camera/camera_info", self.on_camera_info, LATCHED_QOS,
+                                         publishers=SOLE_PUBLISHER))  # the camera's (or sim's) only
         self.decode_errors = DecodeErrorCount(*self._subscriptions_in)
         self.wait_timer = self.create_timer(self.intensity_wait_s / 4, self.on_timer)
 

@@ -54,6 +54,7 @@ import numpy as np
 
 from dptpu.fpp.scan_phase import IncrementalScanPhase, scan_phase_maps
 from dptpu.fpp.texture import texture_image
+from dptpu.graph.known_publishers import SOLE_PUBLISHER
 from dptpu.graph.node import Node
 from dptpu.graph.parameter_rules import ParameterRules, at_least
 from dptpu.graph.qos import QoSProfile, ReliabilityPolicy
@@ -123,7 +124,8 @@ class PhaseNode(Node):
         self.frame_subscription = self.create_subscription(FringeFrame, "/camera/image_raw", self.on_frame,
                                                            frame_qos)
         self.sequence_subscription = self.create_subscription(PatternSequence, "/projector/pattern_sequence",
-                                                              self.on_pattern_sequence, LATCHED_QOS)
+                                                              self.on_pattern_sequence, LATCHED_QOS,
+                                                              publishers=SOLE_PUBLISHER)  # the projector's only
         self.decode_errors = DecodeErrorCount(self.frame_subscription, self.sequence_subscription)
         self.expiry_timer = self.create_timer(min(0.25, self.timeout_s / 4), self.on_timer)
 

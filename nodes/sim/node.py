@@ -66,6 +66,7 @@ from collections import OrderedDict, deque
 import numpy as np
 
 from dptpu.fpp.frequencies import same_frequency
+from dptpu.graph.known_publishers import SOLE_PUBLISHER
 from dptpu.graph.node import Node
 from dptpu.graph.parameter_rules import ParameterRules, at_least, frame_id
 from dptpu.graph.subscription import Subscription
@@ -183,7 +184,8 @@ class SimNode(Node):
         self.truth_depth_pub = self.create_publisher(Image, "/sim/ground_truth_depth", 10)
         self.status_pub = self.create_publisher(ScanStatus, "/scanner/status", STATUS_QOS)
         self.sequence_sub = self.create_subscription(PatternSequence, "/projector/pattern_sequence",
-                                                     self.on_pattern_sequence, LATCHED_QOS)
+                                                     self.on_pattern_sequence, LATCHED_QOS,
+                                                     publishers=SOLE_PUBLISHER)  # the projector's only
         self.trigger_sub: Subscription | None = None  # created by on_wait_timer once the frames have subscribers
         if not self._info_published:  # captures and shipped renders: their rig comes with the frames
             self._publish_camera_info(self.source.rig)

@@ -1,0 +1,93 @@
+"""Known publishers: which announced publishers a subscription takes messages from.
+
+ROS 2 lets anybody publish on any topic. For a configuration topic that is one node's to say (the projector's
+PatternSequence, the camera's CameraInfo) or a topic whose messages end a run (the scan statuses a monitor
+counts), one more publisher is a fault: one forged PatternSequence with the opposite shift sign gave hundreds
+of scans reported "ok" with wrong clouds. A subscription made with ``publishers=KnownPublishers(...)`` is
+connected only to the publishers the policy accepts, decided from the graph's announcements (discovery) before
+any socket connects, so a refused publisher's messages never arrive. Each refusal is logged once per publisher.
+
+Policy (:class:`KnownPublishers`):
+
+- ``nodes``: fully qualified node names whose publishers are taken (relative names are resolved in the
+  subscribing node's namespace by ``Node.create_subscription``); empty = any node.
+- Two live nodes of one name: the older (announced start time, then pid) is the node of that name; the
+  other is refused as a conflicting second publisher.
+- ``sole``: one publishing node at most, the oldest; every other is refused while it lives. When it goes
+  away, the next oldest takes over (a respawned owner is found like any publisher).
+
+Limits (docs/reliability.md): the oldest node wins, so a stranger that was there before a respawned owner keeps
+the topic until it leaves, and on ipc any process of the same user can announce anything; what this guards
+against is a second publisher, by mistake or by a participant that joined the graph, not the user's own code.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+__all__ = ["KnownPublishers", "SOLE_PUBLISHER", "select_publishers"]
+
+
+@dataclass(frozen=True)
+class KnownPublishers:
+    """Which publishers a subscription accepts (see the module docstring).
+
+    Parameters
+    ----------
+    nodes : tuple of str
+        Fully qualified names of the nodes whose publishers are taken; empty: any node.
+    sole : bool
+        Take one publishing node only, the oldest.
+    """
+
+    nodes: tuple[str, ...] = ()
+    sole: bool = False
+
+    def __post_init__(self):
+        if isinstance(self.nodes, str):
+            raise ValueError(f"KnownPublishers.nodes must be a tuple of node names; got the string {self.nodes!r}")
+        object.__setattr__(self, "nodes", tuple(self.nodes))
+
+
+#: A configuration topic: the oldest publishing node only.
+SOLE_PUBLISHER = KnownPublishers(sole=True)
+
+
+def _age_key(entry: dict) -> tuple:
+    start = entry.get("start_time")
+    pid = entry.get("pid")
+    return (float(start) if isinstance(start, (int, float)) else float("inf"),
+            int(pid) if isinstance(pid, int) else 0, str(entry.get("gid", "")))
+
+
+def select_publishers(candidates: list, policy: KnownPublishers | None) -> tuple[list, list]:
+    """``(accepted, refused)`` of ``candidates``, the ``(entry, publisher)`` pairs of one topic.
+
+    ``refused`` holds ``(entry, publisher, reason)``; with ``policy`` None everything is accepted.
+    """
+    if policy is None or not candidates:
+        return list(candidates), []
+    accepted: list = []
+    refused: list = []
+    oldest_of_name: dict[str, dict] = {}
+    for entry, _pub in candidates:
+        name = str(entry.get("fqn"))
+        if name not in oldest_of_name or _age_key(entry) < _age_key(oldest_of_name[name]):
+            oldest_of_name[name] = entry
+    for entry, pub in candidates:
+        name = str(entry.get("fqn"))
+        if policy.nodes and name not in policy.nodes:
+            taken = ", ".join(policy.nodes)
+            refused.append((entry, pub, f"node {name} is not among the publishers it takes ({taken})"))
+        elif oldest_of_name[name] is not entry:
+            refused.append((entry, pub, f"a second node named {name} (pid {entry.get('pid')}); the one of pid "
+                                        f"{oldest_of_name[name].get('pid')} is older"))
+        else:
+            accepted.append((entry, pub))
+    if policy.sole and accepted:
+        owner = min((entry for entry, _pub in accepted), key=_age_key)
+        for entry, pub in [pair for pair in accepted if pair[0] is not owner]:
+            refused.append((entry, pub, f"node {owner.get('fqn')} (pid {owner.get('pid')}) publishes it already "
+                                        "and is its only publisher taken"))
+        accepted = [pair for pair in accepted if pair[0] is owner]
+    return accepted, refused
