@@ -141,3 +141,15 @@ class IncrementalScanPhase:
         if saturation_level is not None:
             valid &= self.brightest < saturation_level  # no image at the saturation level
         return phases, modulations, valid
+
+    def background(self) -> np.ndarray | None:
+        """Mean intensity ``A`` (H, W) float32 of the scan's complete entries (Eq. (2): ``A = mean_n I_n``),
+        averaged over the entries; None before an entry is complete."""
+        if not self.sums:
+            return None
+        starts = sorted(self.sums)
+        total = self.sums[starts[0]][2].copy()  # (H, W) float32
+        for start in starts[1:]:
+            total += self.sums[start][2]
+        total /= np.float32(len(starts))
+        return total

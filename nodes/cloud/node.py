@@ -11,13 +11,19 @@ Topics (defaults; remappable)
 topic                       type          dir   notes
 =========================== ============= ===== ==================================================================
 ``/scanner/absolute_phase`` AbsolutePhase in    reliable, depth 10
+``/scanner/texture``        Image         in    depth 4: 32FC1 texture of the same scan (stamp) becomes
+                                                 ``intensity`` (the phase node's)
 ``/scanner/intensity``      Image         in    depth 4: 32FC1 modulation of the same scan (stamp) becomes
-                                                 ``intensity`` (the unwrap node's)
+                                                 ``modulation`` (the unwrap node's)
 ``/camera/camera_info``     CameraInfo    in    transient local, only with ``use_camera_info``
-``/scanner/points``         PointCloud2   out   organized H x W; float32 x, y, z (m), intensity (DN), quality
-``/scanner/depth``          Image         out   32FC1, z in metres, NaN where invalid
-``/scanner/confidence``     Image         out   32FC1, the cloud's ``quality`` (the confidence in [0, 1] of each
-                                                 published point, 0 where none), the cloud's stamp
+``/scanner/points``         PointCloud2   out   organized H x W; float32 x, y, z (m), intensity (texture, DN),
+                                                 modulation (DN), confidence, normal_x/y/z (:mod:`.cloud_fields`)
+``/scanner/depth/image``    Image         out   32FC1, z in metres, NaN where invalid
+``/scanner/depth/camera_info`` CameraInfo out   the camera's intrinsics with each depth image's header (the ROS
+                                                 image_transport sibling)
+``/scanner/confidence/image`` Image       out   32FC1, the cloud's ``confidence`` (in [0, 1] for each published
+                                                 point, 0 where none), the cloud's stamp
+``/scanner/confidence/camera_info`` CameraInfo out as for the depth image
 ``/scanner/status``         ScanStatus    out   one per scan: ``done`` (OK, WARN) or ``failed``; ``duration_s`` =
                                                  ``header.stamp`` - the scan's stamp (its cloud's), to the ns
 =========================== ============= ===== ==================================================================
@@ -49,6 +55,11 @@ name                   default                   meaning
                                                  needs the intensity image)
 ``max_edge_slope``     4.0                       depth step between neighbours, in pixel footprints ``z / f``, above
                                                  which a point apart from both neighbours along a line is flying
+``normals``            true                      the fields normal_x/y/z (surface normals from the organized
+                                                 neighbours, after the edge filter; toward the camera)
+``normal_window_px``   3                         width of the window whose tangents make a normal (odd; 1 = the
+                                                 point's own central differences: less bias on small curved parts,
+                                                 more noise; :mod:`dptpu.fpp.organized_normals`)
 ====================== ========================= ===================================================================
 
 Read-only (fixed at start-up, ``param set`` refused): ``rig``, ``use_camera_info``, ``intensity_wait_s``. The others
@@ -58,10 +69,11 @@ refused with the reason and the old one stays.
 What is dropped is counted: counters ``points_low_confidence``, ``points_flying``, ``points_modulation_dip``,
 ``points_beside_step``, ``points_isolated`` and the scan's status reason (level OK).
 
-Fields of the cloud: ``x, y, z`` NaN where the pixel is invalid (``is_dense`` false); ``intensity`` the fringe
-modulation B of the unwrapped frequency in camera digital numbers, from ``/scanner/intensity`` (NaN when the
-scan's intensity image was not seen); ``quality`` the confidence ``AbsolutePhase.reliability`` in [0, 1] (the
-classical rounding margin or the network's confidence; 0 where there is no point). Run:
+Fields of the cloud (:mod:`dptpu.nodes.cloud.cloud_fields`): ``x, y, z`` NaN where the pixel is invalid
+(``is_dense`` false); ``intensity`` the texture (DN) from ``/scanner/texture``, ``modulation`` the fringe
+modulation B of the unwrapped frequency (DN) from ``/scanner/intensity`` (each NaN when the scan's image was not
+seen); ``confidence`` ``AbsolutePhase.reliability`` in [0, 1] (the classical rounding margin or the network's
+confidence; 0 where there is no point); ``normal_x, normal_y, normal_z``. Run:
 ``python -m dptpu.nodes.cloud --ros-args -p rig:=calibration.yaml``; design: ``docs/nodes.md``.
 """
 from __future__ import annotations
@@ -76,6 +88,7 @@ import numpy as np
 from dptpu.fpp.calibration import DeviceModel, Rig, load_rig
 from dptpu.fpp.confidence import DEFAULT_MIN_CONFIDENCE
 from dptpu.fpp.depth_edges import DEFAULT_MAX_SLOPE, edge_points
+from dptpu.fpp.organized_normals import DEFAULT_NORMAL_WINDOW_PX, organized_normals
 from dptpu.fpp.point_cloud_file import write_point_cloud
 from dptpu.fpp.triangulate import Triangulator, projector_coordinate
 from dptpu.graph.known_publishers import SOLE_PUBLISHER
@@ -92,10 +105,14 @@ from dptpu.messages import (
 from dptpu.nodes.node_main import run_node
 from dptpu.nodes.plumbing import DEFAULT_FRAME_ID, LATCHED_QOS, STATUS_QOS, DecodeErrorCount, scan_status
 
+from .cloud_fields import FIELDS, SideImages, cloud_fields
+
 __all__ = ["FIELDS", "CloudNode", "camera_points_m", "main"]
 
-FIELDS = ("x", "y", "z", "intensity", "quality")
 _INTENSITIES_KEPT = 4
+#: The images a scan waits for (topic short name -> graph topic): the phase node's texture, the unwrap node's
+#: modulation.
+_SIDE_TOPICS = {"texture": "/scanner/texture", "modulation": "/scanner/intensity"}
 #: Scans held at most while the first CameraInfo is awaited (each a full-size AbsolutePhase).
 _CAMERA_INFO_WAITING_MAX = 8
 
@@ -148,6 +165,8 @@ class CloudNode(Node):
         self.min_confidence = rules.settable("min_confidence", DEFAULT_MIN_CONFIDENCE, check=within(0.0, 1.0))
         self.drop_edges = rules.settable("drop_edges", True)
         self.max_edge_slope = rules.settable("max_edge_slope", DEFAULT_MAX_SLOPE, check=greater_than(0.0))
+        self.normals = rules.settable("normals", True, description="the fields normal_x/y/z of the next clouds")
+        self.normal_window_px = rules.settable("normal_window_px", DEFAULT_NORMAL_WINDOW_PX, check=_odd_window)
         if not rig_path:
             raise ValueError("parameter rig must name a dptpu-rig/1 calibration file (-p rig:=calibration.yaml)")
         if not self.intensity_wait_s > 0:
@@ -158,7 +177,7 @@ class CloudNode(Node):
         self._triangulators: dict[str, Triangulator] = {}
         if not self.use_camera_info:
             self._triangulator("x")  # the per-rig tables now, not in the first scan
-        self._intensities: OrderedDict[int, Image] = OrderedDict()  # scan stamp ns -> its intensity image
+        self._side_images = SideImages(_SIDE_TOPICS, _INTENSITIES_KEPT)  # the scans' texture and modulation images
         self._waiting: dict[int, tuple[AbsolutePhase, float]] = {}  # sequence_id -> (scan, deadline), monotonic s
         self._camera_info_seen = not self.use_camera_info
         self._waiting_for_camera_info: OrderedDict[int, tuple[AbsolutePhase, float]] = OrderedDict()  # same
@@ -173,14 +192,19 @@ class CloudNode(Node):
         self.points_isolated = 0
 
         self.points_publisher = self.create_publisher(PointCloud2, "/scanner/points", 10)
-        self.depth_publisher = self.create_publisher(Image, "/scanner/depth", 10)
-        self.confidence_publisher = self.create_publisher(Image, "/scanner/confidence", 10)
+        self.depth_publisher = self.create_publisher(Image, "/scanner/depth/image", 10)
+        self.depth_info_publisher = self.create_publisher(CameraInfo, "/scanner/depth/camera_info", 10)
+        self.confidence_publisher = self.create_publisher(Image, "/scanner/confidence/image", 10)
+        self.confidence_info_publisher = self.create_publisher(CameraInfo, "/scanner/confidence/camera_info", 10)
         self.status_publisher = self.create_publisher(ScanStatus, "/scanner/status", STATUS_QOS)
 
         self._subscriptions_in = [
-            self.create_subscription(AbsolutePhase, "/scanner/absolute_phase", self.on_absolute_phase, 10),
-            self.create_subscription(Image, "/scanner/intensity", self.on_intensity, _INTENSITIES_KEPT),
-        ]
+            self.create_subscription(AbsolutePhase, "/scanner/absolute_phase", self.on_absolute_phase, 10)]
+        self._side_subscriptions = {
+            name: self.create_subscription(Image, topic, lambda msg, name=name: self.on_side_image(name, msg),
+                                           _INTENSITIES_KEPT)
+            for name, topic in _SIDE_TOPICS.items()}
+        self._subscriptions_in += self._side_subscriptions.values()
         if self.use_camera_info:
             self._subscriptions_in.append(
                 self.create_subscription(CameraInfo, "/camera/camera_info", self.on_camera_info, LATCHED_QOS,
@@ -206,15 +230,18 @@ class CloudNode(Node):
         while self._waiting_for_camera_info:
             self.on_absolute_phase(self._waiting_for_camera_info.popitem(last=False)[1][0])
 
-    def on_intensity(self, msg: Image) -> None:
-        """Keep the last few scans' intensity images (by stamp); triangulate the scan that waited for this one."""
-        stamp_ns = msg.header.stamp.to_ns()
-        self._intensities[stamp_ns] = msg
-        while len(self._intensities) > _INTENSITIES_KEPT:
-            self._intensities.popitem(last=False)
+    def on_side_image(self, name: str, msg: Image) -> None:
+        """Keep the last few scans' texture or modulation images (by stamp); triangulate a scan that waited for it
+        once its other side images are in too."""
+        stamp_ns = self._side_images.add(name, msg)
         for sequence_id, (scan, _) in list(self._waiting.items()):
-            if scan.header.stamp.to_ns() == stamp_ns:
+            if scan.header.stamp.to_ns() == stamp_ns and self._side_images_in(stamp_ns):
                 self._triangulate(self._waiting.pop(sequence_id)[0])
+
+    def _side_images_in(self, stamp_ns: int) -> bool:
+        """Every side topic with a publisher delivered the image of ``stamp_ns``."""
+        return all(self._side_images.has(name, stamp_ns) or subscription.get_publisher_count() == 0
+                   for name, subscription in self._side_subscriptions.items())
 
     def on_absolute_phase(self, msg: AbsolutePhase) -> None:
         """Triangulate one scan now, or once its intensity image arrived (at most ``intensity_wait_s`` later); with
@@ -225,13 +252,13 @@ class CloudNode(Node):
                 self._fail_waiting(self._waiting_for_camera_info.popitem(last=False)[1][0],
                                    f"more than {_CAMERA_INFO_WAITING_MAX} scans waiting for the first CameraInfo")
             return
-        if msg.header.stamp.to_ns() in self._intensities or self._subscriptions_in[1].get_publisher_count() == 0:
+        if self._side_images_in(msg.header.stamp.to_ns()):
             self._triangulate(msg)
         else:
             self._waiting[msg.sequence_id] = (msg, time.monotonic() + self.intensity_wait_s)
 
     def on_timer(self) -> None:
-        """Triangulate the scans whose intensity image did not come in time (intensity NaN)."""
+        """Triangulate the scans whose texture or modulation image did not come in time (that field NaN)."""
         now_s = time.monotonic()
         for sequence_id in [i for i, (_, deadline) in self._waiting.items() if deadline <= now_s]:
             self._triangulate(self._waiting.pop(sequence_id)[0])
@@ -247,11 +274,13 @@ class CloudNode(Node):
         self._status(msg, ScanStatus.ERROR, "failed", reason)
 
     def _triangulate(self, msg: AbsolutePhase) -> None:
-        """Triangulate one scan; publish its cloud, depth image and status.
+        """Triangulate one scan; publish its cloud, depth and confidence images (each with its camera_info) and
+        status.
 
-        x, y, z are written as three contiguous planes (the triangulation's output, a planar view), then
-        interleaved with the intensity and quality into one fresh (H, W, 5) float32 cloud by one ``cv2.merge`` pass,
-        which is published without a copy; the depth image is the z plane itself (no copy).
+        x, y, z are written as three contiguous planes (the triangulation's output, a planar view), the normals as
+        three more, then all are interleaved with the texture, modulation and confidence into one fresh (H, W, 9)
+        float32 cloud by one ``cv2.merge`` pass, which is published without a copy; the depth image is the z plane
+        itself (no copy).
         """
         try:
             coord, nan_pixels, low_confidence = self._projector_coordinate(msg)
@@ -266,18 +295,26 @@ class CloudNode(Node):
             self._status(msg, ScanStatus.ERROR, "failed", reason)
             return
         header = Header(stamp=msg.header.stamp, frame_id=self.frame_id)
-        intensity = self._intensity(msg)
-        intensity_seen = intensity is not None
-        if not intensity_seen:
-            intensity = np.full(coord.shape, np.nan, dtype=np.float32)
-        edge_counts = self._drop_edges(planes, intensity if intensity_seen else None, triangulator)
-        quality = np.where(np.isfinite(planes[2]), msg.reliability, np.float32(0.0)).astype(np.float32, copy=False)
-        channels = [planes[0], planes[1], planes[2], np.ascontiguousarray(intensity, dtype=np.float32), quality]
-        cloud = cv2.merge(channels)  # (H, W, 5) float32: x y z intensity quality, one interleaving pass
-        self.points_publisher.publish(PointCloud2.from_array(cloud, FIELDS, header=header, is_dense=False))
+        stamp_ns, shape = msg.header.stamp.to_ns(), coord.shape
+        texture = self._side_images.take("texture", stamp_ns, shape)  # (H, W) float32 DN, or None
+        modulation = self._side_images.take("modulation", stamp_ns, shape)
+        edge_counts = self._drop_edges(planes, modulation, triangulator)
+        confidence = np.where(np.isfinite(planes[2]), msg.reliability, np.float32(0.0)).astype(np.float32, copy=False)
+        channels = [planes[0], planes[1], planes[2], _or_nan(texture, shape), _or_nan(modulation, shape), confidence]
+        if self.normals:
+            normals = np.empty((3, *shape), dtype=np.float32)  # (3, H, W) planes
+            organized_normals(planes.transpose(1, 2, 0), window_px=self.normal_window_px,
+                              out=normals.transpose(1, 2, 0))
+            channels += list(normals)
+        cloud = cv2.merge(channels)  # (H, W, 9) float32 (6 without normals), one interleaving pass
+        self.points_publisher.publish(PointCloud2.from_array(cloud, cloud_fields(self.normals), header=header,
+                                                             is_dense=False))
         depth_m = planes[2]  # (H, W) metres
+        camera_info = self._camera_info(header)
         self.depth_publisher.publish(Image.from_array(depth_m, "32FC1", header=header))
-        self.confidence_publisher.publish(Image.from_array(quality, "32FC1", header=header))
+        self.depth_info_publisher.publish(camera_info)
+        self.confidence_publisher.publish(Image.from_array(confidence, "32FC1", header=header))
+        self.confidence_info_publisher.publish(camera_info)
         self.scans_published += 1
         valid_points = int(np.count_nonzero(np.isfinite(depth_m)))
         notes = []  # what was dropped, counted: not a warning
@@ -292,8 +329,10 @@ class CloudNode(Node):
         if nan_pixels:
             self.pixels_nan += nan_pixels
             reasons.append(f"{nan_pixels} pixels marked valid had a non-finite absolute phase; treated as invalid")
-        if not intensity_seen:
-            reasons.append(f"no intensity image of scan {msg.sequence_id} seen: intensity NaN")
+        if texture is None:
+            reasons.append(f"no texture image of scan {msg.sequence_id} seen: intensity NaN")
+        if modulation is None:
+            reasons.append(f"no modulation image of scan {msg.sequence_id} seen: modulation NaN")
         if self.ply_dir and self.ply_every and (self.scans_published - 1) % self.ply_every == 0:
             reasons += self._snapshot(msg.sequence_id, cloud[..., :3], cloud[..., 3])
         if reasons:
@@ -370,16 +409,11 @@ class CloudNode(Node):
                              f"{rig_size[0]}x{rig_size[1]}")
         return rig_size[0] if msg.fringe_axis == "x" else rig_size[1]
 
-    def _intensity(self, msg: AbsolutePhase) -> np.ndarray | None:
-        """Modulation (H, W) float32 of the scan's unwrapped frequency (a view of its ``/scanner/intensity`` image of
-        the same stamp), None when that image was not seen or is not a 32FC1 image of the scan's size."""
-        image = self._intensities.pop(msg.header.stamp.to_ns(), None)
-        if image is None or image.encoding != "32FC1" or (image.height, image.width) != msg.absolute_phase.shape:
-            return None
-        try:
-            return image.to_array()  # (H, W) float32 view
-        except ValueError:
-            return None
+    def _camera_info(self, header: Header) -> CameraInfo:
+        """The camera's intrinsics (the rig's, or the CameraInfo's with ``use_camera_info``) with ``header``: the
+        sibling camera_info of the depth and confidence images."""
+        camera = self.rig.camera
+        return CameraInfo.from_intrinsics(camera.K, camera.dist, camera.size[0], camera.size[1], header=header)
 
     def _snapshot(self, sequence_id: int, points: np.ndarray, intensity: np.ndarray) -> list[str]:
         path = Path(self.ply_dir) / f"scan_{sequence_id:08d}.ply"
@@ -405,3 +439,15 @@ def main(argv=None) -> int:
     """``python -m dptpu.nodes.cloud --ros-args -p rig:=FILE``: run the node until Ctrl-C or SIGTERM."""
     return run_node("cloud", CloudNode, argv)
 
+
+def _odd_window(value) -> str | None:
+    """The check of ``normal_window_px``: an odd number of pixels >= 1."""
+    return None if isinstance(value, int) and value >= 1 and value % 2 == 1 else \
+        f"must be an odd number of pixels >= 1; got {value!r}"
+
+
+def _or_nan(image: np.ndarray | None, shape: tuple[int, int]) -> np.ndarray:
+    """``image`` as a contiguous (H, W) float32 plane, or NaN everywhere when the scan's image was not seen."""
+    if image is None:
+        return np.full(shape, np.nan, dtype=np.float32)
+    return np.ascontiguousarray(image, dtype=np.float32)

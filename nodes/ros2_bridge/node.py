@@ -13,7 +13,9 @@ Topics and services (defaults; the graph names are parameters)
 graph                       DDS                           dir     notes
 =========================== ============================= ======= ==========================================
 ``/scanner/points``         ``rt/scanner/points``         out     PointCloud2; ROS 2 default QoS (or sensor data)
-``/scanner/depth``          ``rt/scanner/depth``          out     Image 32FC1; as above
+``/scanner/depth/image``    ``rt/scanner/depth/image``    out     Image 32FC1; as above
+``/scanner/depth/camera_info`` (the same name, ``rt/``)   out     CameraInfo of each depth image; as above
+``/scanner/confidence/image``, ``.../camera_info``        out     Image 32FC1 and its CameraInfo; as above
 ``/camera/camera_info``     ``rt/camera/camera_info``     out     CameraInfo; latched (TRANSIENT_LOCAL, depth 1) on
                                                                   both sides
 ``/projector/start_scan``   ``rq/scanner/captureRequest`` in      DDS ``std_srvs/srv/Trigger`` service
@@ -25,8 +27,11 @@ Parameters
 ==================== ========================================= =================================================
 name                 default                                   meaning
 ==================== ========================================= =================================================
-``topics``           [/scanner/points, /scanner/depth,         graph topics republished under the same ROS name;
-                     /camera/camera_info]                      each may carry PointCloud2, Image or CameraInfo
+``topics``           [/scanner/points, /scanner/depth/image,   graph topics republished under the same ROS name;
+                     /scanner/depth/camera_info,               each may carry PointCloud2, Image or CameraInfo
+                     /scanner/confidence/image,
+                     /scanner/confidence/camera_info,
+                     /camera/camera_info]
 ``latched_topics``   [/camera/camera_info]                     of those, the ones published TRANSIENT_LOCAL
 ``qos``              "default"                                 ROS 2 profile of the other topics: ``default``
                                                                (RELIABLE, depth 10) or ``sensor_data``
@@ -38,6 +43,8 @@ name                 default                                   meaning
 ``capture_service``  "/scanner/capture"                        ROS 2 service name of the capture request ("" = none)
 ``start_service``    "/projector/start_scan"                   graph Trigger service it calls
 ==================== ========================================= =================================================
+
+Every parameter is read-only (the DDS side is made at start-up; ``param set`` is refused).
 
 Counters: ``bridged`` (per topic), ``malformed``, ``rejected`` (a message of another type than the topic's first),
 ``capture_requests``. Run: ``python -m dptpu.nodes.ros2_bridge --ros-args -p domain_id:=0 -p interface:=eth0``.
@@ -53,6 +60,7 @@ from cyclonedds.topic import Topic
 
 from dptpu.graph.interfaces import Trigger as TriggerService
 from dptpu.graph.node import Node
+from dptpu.graph.parameter_rules import ParameterRules
 from dptpu.graph.qos import QoSProfile, ReliabilityPolicy
 from dptpu.graph.services import Client
 from dptpu.messages import CameraInfo, DecodeError, Image, PointCloud2, decode
@@ -64,9 +72,12 @@ from .ros2_qos import cyclone_config_xml, ros2_qos
 
 __all__ = ["Ros2BridgeNode", "DEFAULT_TOPICS", "DEFAULT_TYPES", "main"]
 
-DEFAULT_TOPICS = ["/scanner/points", "/scanner/depth", "/camera/camera_info"]
+DEFAULT_TOPICS = ["/scanner/points", "/scanner/depth/image", "/scanner/depth/camera_info", "/scanner/confidence/image",
+                  "/scanner/confidence/camera_info", "/camera/camera_info"]
 #: Types of the default topics: their DDS writers exist from the start, so ROS 2 sees them before the first scan.
-DEFAULT_TYPES = {"/scanner/points": PointCloud2, "/scanner/depth": Image, "/camera/camera_info": CameraInfo}
+DEFAULT_TYPES = {"/scanner/points": PointCloud2, "/scanner/depth/image": Image,
+                 "/scanner/depth/camera_info": CameraInfo, "/scanner/confidence/image": Image,
+                 "/scanner/confidence/camera_info": CameraInfo, "/camera/camera_info": CameraInfo}
 _GRAPH_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.BEST_EFFORT)  # connects to any publisher
 _REQUEST_POLL_S = 0.02
 
@@ -87,14 +98,16 @@ class Ros2BridgeNode(Node):
 
     def __init__(self, node_name: str = "ros2_bridge", **node_options):
         super().__init__(node_name, **node_options)
-        topics = list(self.declare_parameter("topics", DEFAULT_TOPICS).value)
-        latched = set(self.declare_parameter("latched_topics", ["/camera/camera_info"]).value)
-        self.qos_profile = self.declare_parameter("qos", "default").value
-        domain_id = self.declare_parameter("domain_id", -1).value
-        interface = self.declare_parameter("interface", "").value
-        peers = tuple(p.strip() for p in self.declare_parameter("peers", "").value.split(",") if p.strip())
-        capture_service = self.declare_parameter("capture_service", "/scanner/capture").value
-        start_service = self.declare_parameter("start_service", "/projector/start_scan").value
+        rules = ParameterRules(self)
+        wiring = "the DDS participant, readers and writers are made at start-up; restart the node to change it"
+        topics = list(rules.read_only("topics", DEFAULT_TOPICS, description=wiring))
+        latched = set(rules.read_only("latched_topics", ["/camera/camera_info"], description=wiring))
+        self.qos_profile = rules.read_only("qos", "default", description=wiring)
+        domain_id = rules.read_only("domain_id", -1, description=wiring)
+        interface = rules.read_only("interface", "", description=wiring)
+        peers = tuple(p.strip() for p in rules.read_only("peers", "", description=wiring).split(",") if p.strip())
+        capture_service = rules.read_only("capture_service", "/scanner/capture", description=wiring)
+        start_service = rules.read_only("start_service", "/projector/start_scan", description=wiring)
         if self.qos_profile not in ("default", "sensor_data"):
             raise ValueError(f"parameter qos must be 'default' or 'sensor_data'; got {self.qos_profile!r}")
         if domain_id > 232:

@@ -30,7 +30,7 @@ def test_frames_of_the_plane_become_its_points(tmp_path, method, frequencies):
     with NodeHarness() as harness:
         harness.start(PhaseNode, timeout_s=1.0, projector_width=912, projector_height=1140)
         harness.start(UnwrapNode, method=method)
-        cloud_node = harness.start(CloudNode, rig=str(rig_path))
+        cloud_node = harness.start(CloudNode, rig=str(rig_path), normal_window_px=5)
         camera = harness.publisher(FringeFrame, "/camera/image_raw")
         points = harness.collect(PointCloud2, "/scanner/points")
         status = harness.collect(ScanStatus, "/scanner/status")
@@ -55,5 +55,18 @@ def test_frames_of_the_plane_become_its_points(tmp_path, method, frequencies):
     # and the points fit the plane n . X = d
     normal = np.array([0.12, -0.08, -1.0]) / np.linalg.norm([0.12, -0.08, -1.0])
     assert np.abs(xyz @ normal - normal @ [0.0, 0.0, 0.85]).max() < DEPTH_MAX_BOUND_M
-    intensity = clouds[1].to_array(["intensity"])
-    assert 70 < float(np.median(intensity)) < 90  # fringe modulation of f = 16, DN
+    modulation = clouds[1].to_array(["modulation"])
+    assert 70 < float(np.median(modulation)) < 90  # fringe modulation of f = 16, DN
+    # the texture (the phase node's mean intensity A of Eq. (2)) is the scene's albedo as rendered:
+    # 8 + 0.9 * albedo * 255 * offset 0.5 DN (tests/conftest.py), albedo 0.8 lit and 0.01 in the shadow; the noise
+    # of 0.5 DN and the frames' rounding average over 8 frames to 0.2 DN RMS (measured max 0.82-0.93 DN off over
+    # 19,200 pixels, 4.5 sigma)
+    texture = clouds[1].to_array(["intensity"])[..., 0]
+    expected = 8.0 + 0.9 * np.where(shadow, 0.01, 0.8) * 255 * 0.5
+    assert np.abs(texture - expected).max() < 1.5
+    # the normals of the plane from these noisy points (depth RMS 0.1 mm, 2.5 mm apart: one central difference
+    # tilts by about 1.6 deg, so 5 x 5 windows here), toward the camera: measured median 0.53, 90th percentile
+    # 0.99 deg
+    normals = clouds[1].to_array(["normal_x", "normal_y", "normal_z"])[~shadow].astype(np.float64)  # (M, 3)
+    angle_deg = np.degrees(np.arccos(np.clip(normals @ normal, -1.0, 1.0)))
+    assert np.median(angle_deg) < 1.0 and np.percentile(angle_deg, 90) < 1.5

@@ -19,7 +19,7 @@ from dptpu.nodes.cloud import CloudNode
 from dptpu.nodes.cloud.node import FIELDS
 from dptpu.nodes.harness import NodeHarness
 from dptpu.nodes.scan_monitor.node import _STAMP_MATCH_NS
-from tests.nodes.test_cloud_scene import plane_scene
+from tests.nodes.test_cloud_scene import PLANE_NORMAL, plane_scene
 
 STAMP = Time.from_ns(1_700_000_000_000_000_000)
 # Exact phase in, float32 on the wire (100 rad in float32: 4e-6 rad = 4e-5 projector px, 0.1 um of depth at
@@ -54,7 +54,7 @@ def start(harness, rig_path, **parameters):
     source = harness.publisher(AbsolutePhase, "/scanner/absolute_phase")
     intensity = harness.publisher(Image, "/scanner/intensity")
     points = harness.collect(PointCloud2, "/scanner/points")
-    depth = harness.collect(Image, "/scanner/depth")
+    depth = harness.collect(Image, "/scanner/depth/image")
     status = harness.collect(ScanStatus, "/scanner/status")
     harness.connect()
     return node, source, intensity, points, depth, status
@@ -64,21 +64,38 @@ def start(harness, rig_path, **parameters):
 def test_cloud_of_the_plane_is_in_the_camera_optical_frame_in_metres(harness, tmp_path, world_pose):
     scene = plane_scene(world_pose=world_pose)
     _node, source, intensity, points, depth, status = start(harness, save_rig(scene.rig, tmp_path / "rig.yaml"))
+    texture_source = harness.publisher(Image, "/scanner/texture")
+    depth_info = harness.collect(CameraInfo, "/scanner/depth/camera_info")
+    confidence_info = harness.collect(CameraInfo, "/scanner/confidence/camera_info")
+    harness.connect()
     modulation = np.linspace(10, 100, 120 * 160, dtype=np.float32).reshape(120, 160)
-    source.publish(absolute_phase(scene))  # before its intensity image: it waits for it (intensity_wait_s)
+    texture = np.linspace(200, 20, 120 * 160, dtype=np.float32).reshape(120, 160)
+    source.publish(absolute_phase(scene))  # before its side images: it waits for them (intensity_wait_s)
     intensity.publish(Image.from_array(modulation, "32FC1", header=Header(stamp=STAMP, frame_id="camera")))
+    texture_source.publish(Image.from_array(texture, "32FC1", header=Header(stamp=STAMP, frame_id="camera")))
     (cloud,) = harness.wait(points, 1)
     assert (cloud.height, cloud.width, cloud.is_dense) == (120, 160, False)
-    assert [f.name for f in cloud.fields] == list(FIELDS) and cloud.point_step == 20
+    assert [f.name for f in cloud.fields] == list(FIELDS) == [
+        "x", "y", "z", "intensity", "modulation", "confidence", "normal_x", "normal_y", "normal_z"]
+    assert cloud.point_step == 36
     assert (cloud.header.frame_id, cloud.header.stamp) == ("scanner_optical_frame", STAMP)
     xyz = cloud.to_array(["x", "y", "z"])  # (H, W, 3) float32
     assert xyz.dtype == np.float32
     assert np.abs(xyz - scene.points_mm * 1e-3).max() < MAX_POINT_ERROR_M
-    assert np.array_equal(cloud.to_array(["intensity"])[..., 0], modulation)
-    assert np.all(cloud.to_array(["quality"]) == np.float32(0.9))
+    assert np.array_equal(cloud.to_array(["intensity"])[..., 0], texture)
+    assert np.array_equal(cloud.to_array(["modulation"])[..., 0], modulation)
+    assert np.all(cloud.to_array(["confidence"]) == np.float32(0.9))
+    normals = cloud.to_array(["normal_x", "normal_y", "normal_z"]).astype(np.float64)  # (H, W, 3)
+    # the plane's normal (0.12, -0.08, -1), toward the camera; exact points: within 0.05 deg (measured 0.03)
+    angle_deg = np.degrees(np.arccos(np.clip(normals @ PLANE_NORMAL, -1.0, 1.0)))
+    assert angle_deg.max() < 0.05
     (image,) = harness.wait(depth, 1)
     assert image.encoding == "32FC1" and image.header.frame_id == "scanner_optical_frame"
     assert np.array_equal(image.to_array(), xyz[..., 2])
+    # the sibling camera_info of each image (ROS image_transport): same header, the rig's camera
+    for info in (harness.wait(depth_info, 1)[0], harness.wait(confidence_info, 1)[0]):
+        assert info.header == image.header and (info.width, info.height) == (160, 120)
+        assert np.array_equal(np.reshape(info.k, (3, 3)), scene.rig.camera.K)
     (ok,) = harness.wait(status, 1)
     assert (ok.level, ok.state, ok.valid_pixels, ok.total_pixels) == (ScanStatus.OK, "done", 19200, 19200)
     # the contract the scan monitor names a cloud's scan by (docs/nodes.md): status stamp - duration = scan stamp,
@@ -99,12 +116,12 @@ def test_invalid_pixels_are_nan_and_the_frame_id_is_a_parameter(harness, tmp_pat
     xyz = cloud.to_array(["x", "y", "z"])
     assert np.isnan(xyz[:, :40]).all() and np.isnan(xyz[7, 50:53]).all()
     assert np.isfinite(xyz[:, 40:]).sum() == 3 * (120 * 120 - 3)
-    assert np.isnan(cloud.to_array(["intensity"])).all()  # no intensity image of scan 1 was seen
+    assert np.isnan(cloud.to_array(["intensity", "modulation"])).all()  # no side image of scan 1 was seen
     assert cloud.header.frame_id == "tool0_scanner"
     (warn,) = harness.wait(status, 1)
     assert warn.level == ScanStatus.WARN and warn.reason == (
         "3 pixels marked valid had a non-finite absolute phase; treated as invalid; "
-        "no intensity image of scan 1 seen: intensity NaN")
+        "no texture image of scan 1 seen: intensity NaN; no modulation image of scan 1 seen: modulation NaN")
     assert warn.valid_pixels == 120 * 120 - 3 and node.pixels_nan == 3
 
 
@@ -205,7 +222,7 @@ def test_outside_rig_scan_drops_low_confidence_and_depth_edges_and_publishes_the
                          reliability=np.where(valid, result.reliability, 0).astype(np.float32), method="heterodyne")
     node, source, intensity, points, _depth, status = start(harness, save_rig(capture.rig, tmp_path / "rig.yaml"),
                                                              distortion=False)
-    confidence = harness.collect(Image, "/scanner/confidence")
+    confidence = harness.collect(Image, "/scanner/confidence/image")
     harness.connect()
     intensity.publish(Image.from_array(maps[0].modulation.astype(np.float32), "32FC1",
                                        header=Header(stamp=STAMP, frame_id="camera")))
@@ -214,7 +231,7 @@ def test_outside_rig_scan_drops_low_confidence_and_depth_edges_and_publishes_the
     (image,) = harness.wait(confidence, 1)
     (done,) = harness.wait(status, 1)
     assert image.header.stamp == cloud.header.stamp == STAMP and image.encoding == "32FC1"
-    quality = cloud.to_array(["quality"])[..., 0]
+    quality = cloud.to_array(["confidence"])[..., 0]
     assert np.array_equal(image.to_array(), quality)
     xyz_mm = cloud.to_array(["x", "y", "z"]).astype(np.float64) * 1000.0  # camera frame = world frame here
     published = np.isfinite(xyz_mm[..., 2])
@@ -228,3 +245,17 @@ def test_outside_rig_scan_drops_low_confidence_and_depth_edges_and_publishes_the
     # measured 96.3 % of the pure pixels published: the 96/95 beat amplifies the noise 96 times, so dark pixels
     # fall below min_confidence (the network, or a heterodyne tree of smaller ratios, keeps more)
     assert np.count_nonzero(published & capture.pure) >= 0.95 * capture.pure.sum()
+    # normals against the analytic surfaces (3 x 3 windows of central differences of noisy points; 96/95 heterodyne
+    # amplifies the 1.6 DN noise). Measured, median / 90th percentile: plane 0.21 / 0.42 deg; the three spheres
+    # (radius 14-15 mm, about 22 px) 1.28-1.86 / 2.9-4.2 deg, their curvature over the window and the noise
+    normals = cloud.to_array(["normal_x", "normal_y", "normal_z"]).astype(np.float64)[published]  # (M, 3)
+    _, which = capture.scene.hit(np.zeros(3), xyz_mm[published])
+    truth = capture.scene.normal(xyz_mm[published], which)
+    truth *= -np.sign(np.sum(truth * xyz_mm[published], axis=-1))[:, None]  # toward the camera
+    angle_deg = np.degrees(np.arccos(np.clip(np.sum(normals * truth, axis=-1), -1.0, 1.0)))
+    assert np.isfinite(angle_deg).mean() > 0.99
+    plane = (which == 0) & np.isfinite(angle_deg)
+    assert np.median(angle_deg[plane]) < 0.5 and np.percentile(angle_deg[plane], 90) < 1.0
+    for sphere in range(1, len(capture.scene.spheres) + 1):
+        on = (which == sphere) & np.isfinite(angle_deg)
+        assert np.median(angle_deg[on]) < 2.5 and np.percentile(angle_deg[on], 90) < 6.0

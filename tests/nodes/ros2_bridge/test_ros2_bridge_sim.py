@@ -33,7 +33,8 @@ def test_ros2_subscriber_receives_the_sim_rig_clouds_exactly(node_env, probe, tm
             assert (cloud.width, cloud.height) == (160, 120)
             assert int(np.isfinite(cloud.to_array(["z"])).sum()) > 500  # the scene is in view
             assert_same_cloud(event, cloud)
-        assert [f[0] for f in events[0]["fields"]] == ["x", "y", "z", "intensity", "quality"]
+        assert [f[0] for f in events[0]["fields"]] == [
+            "x", "y", "z", "intensity", "modulation", "confidence", "normal_x", "normal_y", "normal_z"]
     finally:
         run.close()
         stop(listener, bridge)
