@@ -21,6 +21,7 @@ camera is not connected are reported as timeouts at once.
 
 from __future__ import annotations
 
+import dataclasses
 import queue
 import threading
 import time
@@ -127,6 +128,7 @@ class Acquisition:
         self.unpaired_frames = 0
         self._last_error = "not connected yet"
         self._triggers: queue.Queue = queue.Queue()
+        self._exposure_us: queue.Queue = queue.Queue()  # new exposure times for the thread to write
         self._connected = threading.Event()
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._run, name="camera-acquisition", daemon=True)
@@ -146,7 +148,31 @@ class Acquisition:
         """Any thread: a Trigger arrived (it is stamped with its arrival time here)."""
         self._triggers.put((trigger, time.monotonic()))
 
+    def set_exposure_us(self, exposure_us: float) -> None:
+        """Any thread: write this exposure time to the camera before its next frame (and at every reconnection)."""
+        self.settings = dataclasses.replace(self.settings, exposure_us=float(exposure_us))
+        self._exposure_us.put(float(exposure_us))
+
     # --- the thread --------------------------------------------------------------------------------
+
+    def _write_settings(self, device: GenICamDevice) -> None:
+        """Write the exposure times set since the last call (the latest wins)."""
+        latest = None
+        while True:
+            try:
+                latest = self._exposure_us.get_nowait()
+            except queue.Empty:
+                break
+        if latest is None:
+            return
+        try:
+            note = device.set_exposure_us(latest)
+        except (CameraUnavailable, AttributeError, ValueError, OSError) as exc:  # GenICam's errors vary
+            note = f"cannot set exposure_us {latest}: {exc}"
+        if note:
+            self.logger.warning(f"camera: {note}")
+        else:
+            self.logger.info(f"camera: exposure time {latest:g} us")
 
     def _run(self) -> None:
         attempt = 0
@@ -192,6 +218,7 @@ class Acquisition:
     def _acquire_software(self, device: GenICamDevice) -> None:
         misses = 0
         while not self._stop.is_set():
+            self._write_settings(device)
             try:
                 trigger, _ = self._triggers.get(timeout=0.05)
             except queue.Empty:
@@ -211,6 +238,7 @@ class Acquisition:
     def _acquire_streaming(self, device: GenICamDevice) -> None:
         pairer = FramePairer(self.settings.trigger_mode, self.frame_timeout_s)
         while not self._stop.is_set():
+            self._write_settings(device)
             got = device.fetch(_FETCH_SLICE_S)
             arrived = time.monotonic()
             pairs = []

@@ -14,6 +14,7 @@ except for triggering, which a mode cannot do without (``software`` needs ``Trig
 
 from __future__ import annotations
 
+import dataclasses
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -165,6 +166,16 @@ class GenICamDevice:
         except BaseException:
             harvester.reset()
             raise
+
+    def set_exposure_us(self, exposure_us: float) -> str:
+        """Write the exposure time now (while acquiring); a note when the camera has no such feature ("" if set)."""
+        node_map = self._acquirer.remote_device.node_map
+        feature = _first_feature(node_map, ("ExposureTime", "ExposureTimeAbs"))
+        if feature is None:
+            return f"the camera has no ExposureTime feature: exposure_us {exposure_us} ignored"
+        _set(node_map, feature, float(exposure_us))
+        self.settings = dataclasses.replace(self.settings, exposure_us=float(exposure_us))
+        return ""
 
     def software_trigger(self) -> None:
         """Fire ``TriggerSoftware`` (software mode)."""

@@ -43,6 +43,9 @@ name                     default                     meaning
 ``reconnect_max_s``      5.0                         longest reconnection delay
 =======================  ==========================  ===================================================
 
+``exposure_us`` (written to the camera before its next frame) and ``frame_id`` apply at run time
+(``dptpu param set``); the others open and configure the device and are read-only.
+
 Convention: an image's stamp is the host time at which its buffer was received (producers such as
 ``viky.cti`` give no device timestamps); the exposure started up to one exposure plus the transfer
 time earlier.
@@ -54,7 +57,7 @@ from collections import deque
 
 from dptpu.fpp.calibration import load_rig
 from dptpu.graph.node import Node
-from dptpu.graph.rcl_interfaces import ParameterDescriptor
+from dptpu.graph.parameter_rules import ParameterRules, at_least, frame_id
 from dptpu.messages import CameraInfo, FringeFrame, Header, Image, ScanStatus, Time, Trigger
 from dptpu.nodes.node_main import run_node
 from dptpu.nodes.plumbing import DEFAULT_FRAME_ID, LATCHED_QOS, scan_status
@@ -71,23 +74,27 @@ class CameraNode(Node):
 
     def __init__(self, node_name: str = "camera", **kwargs):
         super().__init__(node_name, **kwargs)
+        rules = ParameterRules(self)
+        device = "opens and configures the device; restart the node to change it"
         self.settings = CameraSettings(
-            cti_paths=tuple(split_cti_paths(self.declare_parameter("cti", "").value)),
-            serial=_serial_text(self.declare_parameter("serial", "", ParameterDescriptor(dynamic_typing=True)).value),
-            device_index=self.declare_parameter("device_index", 0).value,
-            pixel_format=self.declare_parameter("pixel_format", "Mono8").value,
-            width=self.declare_parameter("width", 0).value,
-            height=self.declare_parameter("height", 0).value,
-            exposure_us=self.declare_parameter("exposure_us", 0.0).value,
-            trigger_mode=self.declare_parameter("trigger_mode", "hardware").value,
-            trigger_source=self.declare_parameter("trigger_source", "Line1").value,
-            frame_rate_hz=self.declare_parameter("frame_rate_hz", 0.0).value)
-        frame_timeout_s = self.declare_parameter("frame_timeout_s", 1.0).value
-        publish_unpaired = self.declare_parameter("publish_unpaired", False).value
-        rig_path = self.declare_parameter("rig", "").value
-        self.frame_id = self.declare_parameter("frame_id", DEFAULT_FRAME_ID).value
-        initial_s = self.declare_parameter("reconnect_initial_s", 0.5).value
-        max_s = self.declare_parameter("reconnect_max_s", 5.0).value
+            cti_paths=tuple(split_cti_paths(rules.read_only("cti", "", description=device))),
+            serial=_serial_text(rules.read_only("serial", "", description=device, dynamic_typing=True)),
+            device_index=rules.read_only("device_index", 0, description=device),
+            pixel_format=rules.read_only("pixel_format", "Mono8", description=device),
+            width=rules.read_only("width", 0, description=device),
+            height=rules.read_only("height", 0, description=device),
+            exposure_us=rules.settable("exposure_us", 0.0, check=at_least(0.0),
+                                       apply=self._set_exposure_us,
+                                       description="written to the camera before its next frame"),
+            trigger_mode=rules.read_only("trigger_mode", "hardware", description=device),
+            trigger_source=rules.read_only("trigger_source", "Line1", description=device),
+            frame_rate_hz=rules.read_only("frame_rate_hz", 0.0, description=device))
+        frame_timeout_s = rules.read_only("frame_timeout_s", 1.0, description=device)
+        publish_unpaired = rules.read_only("publish_unpaired", False, description=device)
+        rig_path = rules.read_only("rig", "", description="the CameraInfo published at start-up")
+        self.frame_id = rules.settable("frame_id", DEFAULT_FRAME_ID, check=frame_id)
+        initial_s = rules.read_only("reconnect_initial_s", 0.5, description=device)
+        max_s = rules.read_only("reconnect_max_s", 5.0, description=device)
         self.camera_info = self.rig_camera_info(rig_path) if rig_path else None
 
         self.image_pub = self.create_publisher(FringeFrame, "/camera/image_raw", 30)
@@ -109,6 +116,11 @@ class CameraNode(Node):
         self.acquisition.start()
 
     # --- callbacks ---------------------------------------------------------------------------------
+
+    def _set_exposure_us(self, exposure_us: float) -> None:
+        """``param set /camera exposure_us``: the acquisition thread writes it before the next frame."""
+        if exposure_us > 0:
+            self.acquisition.set_exposure_us(exposure_us)
 
     def on_trigger(self, trigger: Trigger) -> None:
         """A pattern is on screen: hand it to the acquisition thread to be paired with a frame."""

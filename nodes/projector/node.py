@@ -49,6 +49,9 @@ name                     default            meaning
 ``reconnect_max_s``      5.0                longest reconnection delay
 =======================  =================  ================================================================
 
+``period_s``, ``min_subscribers`` and ``frame_id`` apply at run time (``dptpu param set``); the others are loaded
+into the box or set the node up at start-up and are read-only.
+
 Convention: a Trigger's stamp is the host time at which the box's ``ACK`` line was read (the box sends it
 when the DLP's trigger output marks the pattern on screen; at 115200 baud the line takes about 1 ms).
 """
@@ -60,6 +63,7 @@ import time
 
 from dptpu.graph.interfaces import Trigger as TriggerService
 from dptpu.graph.node import Node
+from dptpu.graph.parameter_rules import ParameterRules, at_least, frame_id
 from dptpu.messages import Header, PatternEntry, PatternSequence, ScanStatus, Trigger
 from dptpu.nodes.node_main import run_node
 from dptpu.nodes.plumbing import LATCHED_QOS, scan_status
@@ -75,22 +79,24 @@ class ProjectorNode(Node):
 
     def __init__(self, node_name: str = "projector", **kwargs):
         super().__init__(node_name, **kwargs)
-        port = self.declare_parameter("port", "/dev/ttyACM0").value
-        baudrate = self.declare_parameter("baudrate", 115200).value
-        sequence_text = self.declare_parameter("sequence", "96x12,1x12").value
-        fringe_axis = self.declare_parameter("fringe_axis", "x").value
-        projector_size = self.declare_parameter("projector_size", [912, 1140]).value
-        exposure_us = self.declare_parameter("exposure_us", 8333).value
-        self.shift_sign = self.declare_parameter("shift_sign", -1).value
-        self.scans = self.declare_parameter("scans", 0).value
-        self.period_s = self.declare_parameter("period_s", 0.0).value
-        max_waiting = self.declare_parameter("max_waiting_scans", 1).value
-        self.min_subscribers = self.declare_parameter("min_subscribers", 1).value
-        self.frame_id = self.declare_parameter("frame_id", "projector").value
-        reply_timeout_s = self.declare_parameter("reply_timeout_s", 1.0).value
-        ack_timeout_s = self.declare_parameter("ack_timeout_s", 0.5).value
-        initial_s = self.declare_parameter("reconnect_initial_s", 0.5).value
-        max_s = self.declare_parameter("reconnect_max_s", 5.0).value
+        rules = ParameterRules(self)
+        box = "loaded into the trigger box at start-up; restart the node to change it"
+        port = rules.read_only("port", "/dev/ttyACM0", description=box)
+        baudrate = rules.read_only("baudrate", 115200, description=box)
+        sequence_text = rules.read_only("sequence", "96x12,1x12", description=box)
+        fringe_axis = rules.read_only("fringe_axis", "x", description=box)
+        projector_size = rules.read_only("projector_size", [912, 1140], description=box)
+        exposure_us = rules.read_only("exposure_us", 8333, description=box)
+        self.shift_sign = rules.read_only("shift_sign", -1, description="published in the PatternSequence at start-up")
+        self.scans = rules.read_only("scans", 0, description="sets the node's own scan timer up")
+        self.period_s = rules.settable("period_s", 0.0, check=at_least(0.0))
+        max_waiting = rules.read_only("max_waiting_scans", 1, description=box)
+        self.min_subscribers = rules.settable("min_subscribers", 1, check=at_least(0))
+        self.frame_id = rules.settable("frame_id", "projector", check=frame_id)
+        reply_timeout_s = rules.read_only("reply_timeout_s", 1.0, description=box)
+        ack_timeout_s = rules.read_only("ack_timeout_s", 0.5, description=box)
+        initial_s = rules.read_only("reconnect_initial_s", 0.5, description=box)
+        max_s = rules.read_only("reconnect_max_s", 5.0, description=box)
         if self.shift_sign not in (-1, 1):
             raise ValueError(f"parameter shift_sign must be -1 or +1; got {self.shift_sign}")
         if max_waiting < 1:
