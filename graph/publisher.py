@@ -15,6 +15,11 @@ A TRANSIENT_LOCAL publisher's socket is in ``XPUB_MANUAL`` mode: a newcomer's su
 effect only when the publisher, holding its lock, reads the event, subscribes that pipe and replays the
 history at once. So the replay always reaches a late subscriber before any live message (with
 automatic subscriptions, ZeroMQ could apply the subscription inside the send of a live message).
+
+When every subscriber is a process of this host that can map this one's memory, a message whose arrays hold at
+least ``DPTPU_SHM_MIN_BYTES`` goes through shared memory: its arrays are copied once into a segment of this
+publisher's pool and ZeroMQ carries the header and a descriptor (:mod:`.shared_memory`, :mod:`.segment_pool`).
+A TRANSIENT_LOCAL publisher always sends through ZeroMQ (its history is replayed to late joiners).
 """
 
 from __future__ import annotations
@@ -28,6 +33,8 @@ import zmq
 
 from ..messages.encoder import encode
 from .qos import DurabilityPolicy, QoSProfile, pipe_high_water_mark, queue_limit
+from .segment_pool import SegmentPool
+from .shared_memory import shm_topic
 from .transport import FLAG_HISTORY, bind_endpoints, configure_server, pack_envelope, remove_ipc_file
 
 __all__ = ["Publisher", "PUBLISHER_LINGER_MS"]
@@ -68,6 +75,8 @@ class Publisher:
         Where subscribers connect (announced through discovery).
     published_count : int
         Messages published so far.
+    shared_count : int
+        Of those, sent through shared memory.
     """
 
     def __init__(self, node, msg_type, topic_name: str, qos_profile: QoSProfile, callback_group=None):
@@ -86,6 +95,14 @@ class Publisher:
         self._subscriber_count = 0
         resolved = qos_profile.resolved()
         self._transient = resolved.durability == DurabilityPolicy.TRANSIENT_LOCAL
+        shared = runtime.transport.shared_memory
+        # shared memory: the subscribers of this host that can map this process's segments (shm_topic)
+        self._pool = (SegmentPool(shared, "dptpu" + topic_name.replace("/", ":"))
+                      if shared is not None and not self._transient else None)
+        self._shm_topic = shm_topic(self._topic_bytes, shared.key) if shared is not None else b""
+        self._shm_min_bytes = shared.min_bytes if shared is not None else 0
+        self._shm_subscriber_count = 0
+        self.shared_count = 0
         # (sequence number, stamp in ns, encoded frames) of the last messages, replayed to late joiners
         self._history: deque[tuple[int, int, list]] | None = (
             deque(maxlen=queue_limit(resolved)) if self._transient else None)
@@ -134,10 +151,27 @@ class Publisher:
                 self._handle_events_locked()  # replay to a newcomer before any newer message reaches it
             self._seq += 1
             stamp_ns = time.time_ns()
-            _send(sock, frames, pack_envelope(0, self._seq, stamp_ns, self.gid))
+            if self._pool is not None and len(frames) > 2:
+                self._handle_events_locked()  # current counts of subscribers (and of those who can map)
+                _send(sock, self._shared_frames(frames), pack_envelope(0, self._seq, stamp_ns, self.gid))
+            else:
+                _send(sock, frames, pack_envelope(0, self._seq, stamp_ns, self.gid))
             self.published_count += 1
             if self._history is not None:
                 self._history.append((self._seq, stamp_ns, frames))
+
+    def _shared_frames(self, frames: list) -> list:
+        """``[shm topic, header, descriptor]`` when every subscriber can map this process's segments and the
+        arrays are large enough (and the pool has room); else ``frames`` as they are."""
+        readers, pool = self._subscriber_count, self._pool
+        if pool is None or not readers or self._shm_subscriber_count < readers \
+                or sum(view.nbytes for view in frames[2:]) < self._shm_min_bytes:
+            return frames
+        descriptor = pool.write(frames[2:], readers)
+        if descriptor is None:
+            return frames  # pool full (every segment held by a subscriber): through ZeroMQ
+        self.shared_count += 1
+        return [self._shm_topic, frames[1], descriptor]
 
     def get_subscription_count(self) -> int:
         """Subscriptions connected now (as the socket has seen them join and leave)."""
@@ -180,12 +214,18 @@ class Publisher:
             if event[:1] == b"\x01":
                 if self._transient:  # XPUB_MANUAL: subscribe the pipe the event came from, now
                     sock.setsockopt(zmq.SUBSCRIBE, event[1:])
-                self._subscriber_count += 1
-                replay = True
+                if event[1:] == self._topic_bytes:
+                    self._subscriber_count += 1
+                    replay = True
+                elif event[1:] == self._shm_topic:  # a subscriber of this host that can map this one's memory
+                    self._shm_subscriber_count += 1
             elif event[:1] == b"\x00":
                 if self._transient:
                     sock.setsockopt(zmq.UNSUBSCRIBE, event[1:])
-                self._subscriber_count = max(0, self._subscriber_count - 1)
+                if event[1:] == self._topic_bytes:
+                    self._subscriber_count = max(0, self._subscriber_count - 1)
+                elif event[1:] == self._shm_topic:
+                    self._shm_subscriber_count = max(0, self._shm_subscriber_count - 1)
         if replay and self._history:
             for seq, stamp_ns, frames in self._history:
                 _send(sock, frames, pack_envelope(FLAG_HISTORY, seq, stamp_ns, self.gid))
@@ -197,6 +237,8 @@ class Publisher:
                 self._history.clear()
         if sock is not None:
             sock.close(linger=PUBLISHER_LINGER_MS)
+            if self._pool is not None:
+                self._pool.close()
             for endpoint in self.endpoints:
                 remove_ipc_file(endpoint)  # libzmq leaves the socket file behind
 
@@ -204,7 +246,7 @@ class Publisher:
         return {"topic": self.topic_name, "type": self.msg_type.TYPE_NAME, "gid": self.gid.hex(),
                 "endpoints": list(self.endpoints), "qos": self.qos_profile.to_dict(),
                 "stats": {"published_count": self.published_count,
-                          "subscription_count": self._subscriber_count}}
+                          "subscription_count": self._subscriber_count, "shared_count": self.shared_count}}
 
     def __repr__(self):
         return f"<Publisher {self.topic_name} [{self.msg_type.TYPE_NAME}]>"

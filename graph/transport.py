@@ -22,6 +22,8 @@ Configuration (environment variables, read when a context starts its runtime):
                                 every link is CurveZMQ-encrypted and clients are authenticated
 ``DPTPU_CURVE_AUTHORIZED_KEYS`` folder of the public certificates allowed to connect (required with
                                 the secret key; include every participant's, this one's too)
+``DPTPU_SHM``, ``DPTPU_SHM_*``  large messages between processes of one host through shared memory
+                                (with the ipc transport; :mod:`dptpu.graph.shared_memory`)
 ==============================  ===================================================================
 """
 
@@ -35,6 +37,8 @@ from pathlib import Path
 from typing import NamedTuple
 
 import zmq
+
+from .shared_memory import SharedMemoryConfig
 
 __all__ = [
     "Envelope", "EnvelopeError", "pack_envelope", "unpack_envelope", "ENVELOPE_SIZE",
@@ -155,12 +159,15 @@ class TransportConfig:
         Host or address written into tcp endpoints announced to others.
     curve : CurveKeys or None
         When set, every socket uses CurveZMQ.
+    shared_memory : SharedMemoryConfig or None
+        Large messages between processes of this host through shared memory (ipc transport only); None: off.
     """
 
     local_transport: str = "ipc"
     tcp_interface: str | None = None
     advertise_host: str | None = None
     curve: CurveKeys | None = None
+    shared_memory: SharedMemoryConfig | None = None
 
     @classmethod
     def from_environment(cls, env=None, *, want_tcp: bool = False) -> TransportConfig:
@@ -179,7 +186,8 @@ class TransportConfig:
         secret_file = env.get("DPTPU_CURVE_SECRET_KEY", "").strip()
         if secret_file:
             curve = CurveKeys.load(secret_file, env.get("DPTPU_CURVE_AUTHORIZED_KEYS", "").strip())
-        return cls(local, interface, advertise, curve)
+        shared = SharedMemoryConfig.from_environment(env) if local == "ipc" else None
+        return cls(local, interface, advertise, curve, shared)
 
 
 def configure_server(sock: zmq.Socket, config: TransportConfig) -> None:

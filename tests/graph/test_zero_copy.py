@@ -11,7 +11,8 @@ from dptpu.graph import Node, SingleThreadedExecutor
 from dptpu.messages import Image
 
 
-def test_image_arrives_bit_exact_as_read_only_view_of_the_frame(context):
+def test_image_arrives_bit_exact_as_read_only_view_of_the_frame(context, monkeypatch):
+    monkeypatch.setenv("DPTPU_SHM", "off")  # the ZeroMQ path (shared memory: tests/graph/test_shared_memory*.py)
     node = Node("camera", context=context)
     received = []
     node.create_subscription(Image, "image_raw", received.append, 10)

@@ -1,0 +1,204 @@
+"""A publisher's pool of shared-memory segments (the writing side of :mod:`.shared_memory`).
+
+Each segment is an anonymous memfd of this process (mode 0600), mapped read-write here and read-only by the
+subscribers, who open it through ``/proc/<pid>/fd``. :meth:`SegmentPool.write` copies a message's arrays into a
+free segment under an exclusive ``flock`` and returns the descriptor to send; a segment is free when no
+subscriber holds its shared lock and either every subscriber the descriptor went to picked it up or the lease
+has passed (:mod:`.shared_memory`). The pool takes the least recently written free segment that fits, makes a
+new one while the pool stays within its bytes, and otherwise says no (the publisher sends through ZeroMQ).
+Segments idle for :data:`IDLE_S` are closed.
+"""
+
+from __future__ import annotations
+
+import fcntl
+import mmap
+import os
+import time
+
+import numpy as np
+
+from .shared_memory import (
+    ALIGNMENT,
+    GENERATION_OFFSET,
+    HEADER_BYTES,
+    PICKUPS_OFFSET,
+    SEGMENT_MAGIC,
+    SharedMemoryConfig,
+    pack_descriptor,
+)
+
+__all__ = ["SegmentPool", "IDLE_S"]
+
+#: Seconds after its last write when a free segment is closed.
+IDLE_S = 10.0
+_PAGE = mmap.PAGESIZE
+
+
+def _aligned(nbytes: int) -> int:
+    return (nbytes + ALIGNMENT - 1) // ALIGNMENT * ALIGNMENT
+
+
+class _Segment:
+    """One memfd segment: its descriptor, read-write map, identity and the state of its last write."""
+
+    __slots__ = ("fd", "view", "array", "size", "inode", "token", "generation", "readers", "written_at")
+
+    def __init__(self, size: int, label: str):
+        self.fd = os.memfd_create(label, os.MFD_CLOEXEC)
+        try:
+            os.fchmod(self.fd, 0o600)
+            os.ftruncate(self.fd, size)
+            self.view = mmap.mmap(self.fd, size)
+        except BaseException:
+            os.close(self.fd)
+            raise
+        self.array = np.frombuffer(self.view, dtype=np.uint8)  # (size,) writable
+        self.size = size
+        self.inode = os.fstat(self.fd).st_ino
+        self.token = os.urandom(16)
+        self.generation = 0
+        self.readers = 0
+        self.written_at = float("-inf")
+        self.view[:8] = SEGMENT_MAGIC
+        self.view[8:24] = self.token
+
+    def pickups(self) -> int:
+        return int.from_bytes(self.view[PICKUPS_OFFSET:PICKUPS_OFFSET + 8], "little")
+
+    def free(self, now: float, lease_s: float) -> bool:
+        """No descriptor of it is pending (picked up by all, or the lease passed) and no reader holds it: then
+        this holds its exclusive lock (let go by :meth:`unlock`)."""
+        if self.readers > self.pickups() and now - self.written_at < lease_s:
+            return False
+        try:
+            fcntl.flock(self.fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            return False  # a subscriber still holds an array of its last message
+        return True
+
+    def unlock(self) -> None:
+        fcntl.flock(self.fd, fcntl.LOCK_UN)
+
+    def close(self) -> None:
+        del self.array
+        self.view.close()
+        os.close(self.fd)
+
+
+class SegmentPool:
+    """The segments of one publisher.
+
+    Parameters
+    ----------
+    config : SharedMemoryConfig
+        Its ``pool_bytes`` and ``lease_s``.
+    label : str
+        A name for the segments (shown in ``/proc/<pid>/maps`` as ``memfd:<label>``).
+
+    Attributes
+    ----------
+    written_count : int
+        Messages written into segments.
+    full_count : int
+        Messages refused because every segment was busy and the pool was at its bytes (sent through ZeroMQ).
+    """
+
+    def __init__(self, config: SharedMemoryConfig, label: str):
+        self._config = config
+        self._label = label[:200]
+        self._segments: list[_Segment] = []  # least recently written first
+        self._bytes = 0
+        self._next_trim = 0.0
+        self.written_count = 0
+        self.full_count = 0
+
+    @property
+    def segment_count(self) -> int:
+        return len(self._segments)
+
+    @property
+    def pool_bytes(self) -> int:
+        return self._bytes
+
+    def write(self, arrays, readers: int) -> bytes | None:
+        """Copy ``arrays`` (1-D uint8 memoryviews) into a free segment; the descriptor, or None when the pool is
+        full (then send the message through ZeroMQ).
+
+        ``readers`` is how many subscriptions the descriptor goes to (each counts its pickup in the segment).
+        """
+        sizes = [view.nbytes for view in arrays]
+        need = HEADER_BYTES + sum(_aligned(n) for n in sizes)
+        now = time.monotonic()
+        segment = self._take(need, now)
+        if segment is None:
+            self.full_count += 1
+            return None
+        try:
+            entries = []
+            offset = HEADER_BYTES
+            target = segment.array
+            for view, nbytes in zip(arrays, sizes):
+                target[offset:offset + nbytes] = np.frombuffer(view, dtype=np.uint8)
+                entries.append((offset, nbytes))
+                offset += _aligned(nbytes)
+            segment.generation += 1
+            segment.view[GENERATION_OFFSET:GENERATION_OFFSET + 8] = segment.generation.to_bytes(8, "little")
+            segment.view[PICKUPS_OFFSET:PICKUPS_OFFSET + 8] = bytes(8)
+            segment.readers = readers
+            segment.written_at = now
+        finally:
+            segment.unlock()
+        self.written_count += 1
+        return pack_descriptor(os.getpid(), segment.fd, segment.inode, segment.token, segment.generation,
+                               segment.size, entries)
+
+    def _take(self, need: int, now: float) -> _Segment | None:
+        """A free segment of ``need`` to ``2 * need`` bytes, exclusively locked, moved to the end; or a new one."""
+        if now >= self._next_trim:
+            self._trim(now)
+        lease_s = self._config.lease_s
+        for index, segment in enumerate(self._segments):
+            if need <= segment.size <= 2 * need + _PAGE and segment.free(now, lease_s):
+                self._segments.append(self._segments.pop(index))
+                return segment
+        size = (need + need // 16 + _PAGE - 1) // _PAGE * _PAGE  # some room for a message a little larger
+        if self._bytes + size > self._config.pool_bytes:
+            return self._evict_for(size, now)
+        segment = _Segment(size, self._label)
+        fcntl.flock(segment.fd, fcntl.LOCK_EX)
+        self._segments.append(segment)
+        self._bytes += size
+        return segment
+
+    def _evict_for(self, size: int, now: float) -> _Segment | None:
+        """Close free segments of other sizes until ``size`` fits in the pool; a new segment, or None."""
+        for segment in list(self._segments):
+            if self._bytes + size <= self._config.pool_bytes:
+                break
+            if segment.free(now, self._config.lease_s):
+                self._segments.remove(segment)
+                self._bytes -= segment.size
+                segment.close()
+        if self._bytes + size > self._config.pool_bytes:
+            return None
+        segment = _Segment(size, self._label)
+        fcntl.flock(segment.fd, fcntl.LOCK_EX)
+        self._segments.append(segment)
+        self._bytes += size
+        return segment
+
+    def _trim(self, now: float) -> None:
+        self._next_trim = now + 1.0
+        for segment in list(self._segments):
+            if now - segment.written_at >= IDLE_S and segment.free(now, self._config.lease_s):
+                self._segments.remove(segment)
+                self._bytes -= segment.size
+                segment.close()
+
+    def close(self) -> None:
+        """Close every segment (subscribers that still map one keep it until they let go)."""
+        for segment in self._segments:
+            segment.close()
+        self._segments.clear()
+        self._bytes = 0

@@ -1,0 +1,145 @@
+"""Large messages through shared memory between real processes (``tests/graph/nodes/shm_peer.py``).
+
+Every large message type arrives bit for bit as read-only views of the publisher's segment; a subscriber that
+cannot map (over tcp, or with ``DPTPU_SHM=off``) makes the publisher send through ZeroMQ; killing the publisher
+(``kill -9``) leaves nothing behind: no file in ``/dev/shm``, and the subscriber unmaps its segments.
+"""
+
+from __future__ import annotations
+
+import gc
+import os
+import signal
+import time
+from pathlib import Path
+
+from dptpu.graph import Node, SingleThreadedExecutor, shared_memory
+
+from .nodes.shm_peer import first_array, is_shared, large_messages, round_of, same_message
+
+TOPICS = list(large_messages(0))
+
+
+def _subscribe_all(context, received: list) -> SingleThreadedExecutor:
+    node = Node("shm_test_sub", context=context)
+    for topic, msg in large_messages(0).items():
+        node.create_subscription(type(msg), topic, lambda m, t=topic: received.append((t, m)), 10)
+    executor = SingleThreadedExecutor(context=context)
+    executor.add_node(node)
+    return executor
+
+
+def _spin_until(executor, condition, timeout: float = 30.0) -> None:
+    deadline = time.monotonic() + timeout
+    while not condition() and time.monotonic() < deadline:
+        executor.spin_once(timeout_sec=0.05)
+
+
+def _check(received, *, shared: bool) -> None:
+    expected = {}
+    for topic, msg in received:
+        index = round_of(msg)
+        expected.setdefault(index, large_messages(index))
+        assert same_message(topic, expected[index][topic], msg), topic
+        array = first_array(msg)
+        assert not array.flags.writeable
+        assert is_shared(array) == shared, topic
+
+
+def test_every_large_message_type_round_trips_exactly_through_shared_memory(context, spawn):
+    received: list = []
+    executor = _subscribe_all(context, received)
+    publisher = spawn("shm_peer", "--role", "pub", "--count", "2", "--wait-subs", "1", "--linger", "5")
+    _spin_until(executor, lambda: len(received) >= 2 * len(TOPICS))
+    report = publisher.wait_event("published", timeout=30.0)
+    assert sorted(t for t, _ in received) == sorted(TOPICS * 2)
+    _check(received, shared=True)
+    assert report["shared"] == {topic: 2 for topic in TOPICS}  # every one through a segment
+
+
+def test_falls_back_to_zeromq_when_the_peers_are_on_tcp(context, spawn, monkeypatch):
+    monkeypatch.setenv("DPTPU_TRANSPORT", "tcp")
+    received: list = []
+    executor = _subscribe_all(context, received)
+    publisher = spawn("shm_peer", "--role", "pub", "--count", "1", "--wait-subs", "1", "--linger", "5",
+                      env={"DPTPU_TRANSPORT": "tcp"})
+    _spin_until(executor, lambda: len(received) >= len(TOPICS))
+    report = publisher.wait_event("published", timeout=30.0)
+    assert sorted(t for t, _ in received) == sorted(TOPICS)
+    _check(received, shared=False)
+    assert report["shared"] == {topic: 0 for topic in TOPICS}
+
+
+def test_one_subscriber_that_cannot_map_gets_everything_through_zeromq(context, spawn):
+    received: list = []
+    executor = _subscribe_all(context, received)  # this process could map...
+    other = spawn("shm_peer", "--role", "sub", "--linger", "20", env={"DPTPU_SHM": "off"})  # ...this one cannot
+    other.wait_event("ready", timeout=20.0)
+    publisher = spawn("shm_peer", "--role", "pub", "--count", "1", "--wait-subs", "2", "--linger", "5")
+    _spin_until(executor, lambda: len(received) >= len(TOPICS))
+    report = publisher.wait_event("published", timeout=30.0)
+    _check(received, shared=False)
+    assert report["shared"] == {topic: 0 for topic in TOPICS}
+    for _ in TOPICS:
+        event = other.wait_event("received", timeout=20.0)
+        assert event["equal"] and not event["shared"]
+
+
+def _memfd_maps(pid: int) -> int:
+    return sum("memfd:dptpu" in line for line in Path(f"/proc/{pid}/maps").read_text().splitlines())
+
+
+def test_a_killed_publisher_leaves_no_segment(context, spawn):
+    before = sorted(os.listdir("/dev/shm"))
+    received: list = []
+    executor = _subscribe_all(context, received)
+    publisher = spawn("shm_peer", "--role", "pub", "--count", "1000", "--period", "0.02", "--wait-subs", "1",
+                      "--linger", "30")
+    _spin_until(executor, lambda: len(received) >= 3 * len(TOPICS))
+    os.kill(publisher.proc.pid, signal.SIGKILL)
+    publisher.proc.wait(timeout=10)
+    held = received[:len(TOPICS)]
+    _check(held, shared=True)  # what this subscriber holds stays intact after the publisher's death
+    assert _memfd_maps(os.getpid()) > 0
+    del held
+    received.clear()
+    gc.collect()
+    deadline = time.monotonic() + 10.0
+    while shared_memory.sweep_mappings() and time.monotonic() < deadline:
+        executor.spin_once(timeout_sec=0.1)  # messages still queued are taken (and dropped) meanwhile
+        received.clear()
+        gc.collect()
+    assert shared_memory.mapped_segment_count() == 0
+    assert _memfd_maps(os.getpid()) == 0  # unmapped: the kernel has freed the dead publisher's memory
+    assert sorted(os.listdir("/dev/shm")) == before
+
+
+def test_a_killed_subscriber_leaves_no_segment_and_the_publisher_goes_on(context, spawn):
+    before = sorted(os.listdir("/dev/shm"))
+    received: list = []
+    executor = _subscribe_all(context, received)
+    doomed = spawn("shm_peer", "--role", "sub", "--linger", "30")
+    doomed.wait_event("ready", timeout=20.0)
+    publisher = spawn("shm_peer", "--role", "pub", "--count", "20", "--period", "0.1", "--wait-subs", "2",
+                      "--linger", "10")
+    doomed.wait_event("received", timeout=30.0)
+    os.kill(doomed.proc.pid, signal.SIGKILL)
+    counts = dict.fromkeys(TOPICS, 0)
+    shared = dict.fromkeys(TOPICS, 0)
+
+    def take_all():  # keep none of the messages (a subscriber that holds them all fills the pool)
+        for topic, msg in received:
+            counts[topic] += 1
+            shared[topic] += is_shared(first_array(msg))
+            if round_of(msg) == 19:
+                _check([(topic, msg)], shared=True)
+        received.clear()
+        return sum(counts.values()) >= 20 * len(TOPICS)
+
+    _spin_until(executor, take_all, timeout=60.0)
+    report = publisher.wait_event("published", timeout=30.0)
+    assert counts == dict.fromkeys(TOPICS, 20)  # the survivor got every message
+    assert all(count >= 15 for count in shared.values()), shared  # through shared memory once the dead one left
+    assert report["published"] == dict.fromkeys(TOPICS, 20) and report["shared"] == shared
+    gc.collect()
+    assert sorted(os.listdir("/dev/shm")) == before

@@ -1,0 +1,174 @@
+"""The segments of the shared-memory path: generations, pickups and leases, locks of killed readers, strangers.
+
+Readers here open the segments as a subscriber does (``/proc/<pid>/fd``: a file description of their own, so the
+``flock`` rules hold between the pool and the reader even in one process); the killed reader and the stranger are
+real processes.
+"""
+
+from __future__ import annotations
+
+import gc
+import os
+import signal
+import subprocess
+import sys
+import time
+
+import numpy as np
+import pytest
+
+from dptpu.graph import shared_memory
+from dptpu.graph.segment_pool import SegmentPool
+from dptpu.graph.shared_memory import SharedMemoryConfig, StaleSegmentError, read_message, unpack_descriptor
+
+TOPIC = b"/t"
+HEADER = b"header"
+
+
+def _pool(lease_s: float = 5.0, pool_mb: float = 64) -> SegmentPool:
+    return SegmentPool(SharedMemoryConfig(lease_s=lease_s, pool_bytes=int(pool_mb * (1 << 20)), key=b"k"), "dptpu:t")
+
+
+def _payload(seed: int, nbytes: int = 300_000) -> list[memoryview]:
+    rng = np.random.default_rng(seed)
+    return [memoryview(rng.integers(0, 256, nbytes, dtype=np.uint8)), memoryview(rng.integers(0, 256, 1000,
+                                                                                             dtype=np.uint8))]
+
+
+def _read(descriptor: bytes) -> list:
+    return read_message(TOPIC, HEADER, descriptor)[2:]
+
+
+def test_message_reads_back_bit_exact_as_read_only_views():
+    pool = _pool()
+    try:
+        arrays = _payload(1)
+        views = _read(pool.write(arrays, readers=1))
+        assert [bytes(v) for v in views] == [bytes(a) for a in arrays]
+        assert all(v.readonly for v in views)
+        assert all(np.frombuffer(v, np.uint8).ctypes.data % shared_memory.ALIGNMENT == 0 for v in views)
+    finally:
+        del views
+        gc.collect()
+        pool.close()
+
+
+def test_generation_counter_refuses_a_recycled_segment():
+    pool = _pool()
+    try:
+        first = pool.write(_payload(1), readers=0)  # nobody to wait for: the segment is free again at once
+        second = pool.write(_payload(2), readers=0)
+        assert pool.segment_count == 1  # the same segment, written again
+        assert unpack_descriptor(second).generation == unpack_descriptor(first).generation + 1
+        with pytest.raises(StaleSegmentError, match="generation 2.*descriptor generation 1"):
+            _read(first)
+        assert bytes(_read(second)[0]) == bytes(_payload(2)[0])
+    finally:
+        gc.collect()
+        pool.close()
+
+
+def test_a_held_message_is_never_written_again_and_its_segment_returns_when_let_go():
+    pool = _pool(lease_s=0.0)
+    try:
+        held = _read(pool.write(_payload(1), readers=1))
+        for seed in range(2, 12):  # a slow subscriber holds the first: every later write takes another segment
+            views = _read(pool.write(_payload(seed), readers=1))
+            del views
+            gc.collect()
+        assert bytes(held[0]) == bytes(_payload(1)[0])  # untouched under the holder
+        assert pool.segment_count == 2  # the held one and the one the others took in turn
+        del held
+        gc.collect()
+        pool.write(_payload(20), readers=1)
+        pool.write(_payload(21), readers=1)
+        assert pool.segment_count == 2  # the let-go segment serves again
+    finally:
+        gc.collect()
+        pool.close()
+
+
+def test_a_descriptor_not_yet_picked_up_keeps_its_segment_until_the_lease():
+    pool = _pool(lease_s=0.3)
+    try:
+        pending = pool.write(_payload(1), readers=1)
+        pool.write(_payload(2), readers=1)
+        assert pool.segment_count == 2  # the first still waits for its subscriber
+        assert bytes(_read(pending)[0]) == bytes(_payload(1)[0])  # and it gets it, intact
+        gc.collect()
+        time.sleep(0.35)  # the second's lease passes (never picked up: dropped in transport, say)
+        pool.write(_payload(3), readers=1)
+        pool.write(_payload(4), readers=1)
+        assert pool.segment_count == 2
+    finally:
+        gc.collect()
+        pool.close()
+
+
+def test_full_pool_says_no_and_the_publisher_falls_back():
+    pool = _pool(lease_s=60.0, pool_mb=1)
+    try:
+        assert pool.write(_payload(1), readers=1) is not None
+        assert pool.write(_payload(2), readers=1) is not None
+        assert pool.write(_payload(3), readers=1) is not None
+        assert pool.write(_payload(4), readers=1) is None  # 4 x 300 kB > 1 MiB, none picked up
+        assert pool.full_count == 1 and pool.pool_bytes <= 1 << 20
+    finally:
+        pool.close()
+
+
+_HOLDER = """
+import sys, time
+from dptpu.graph.shared_memory import read_message
+views = read_message(b"/t", b"h", bytes.fromhex(sys.argv[1]))
+print("holding", flush=True)
+time.sleep(60)
+"""
+
+
+def test_a_killed_reader_releases_its_segment():
+    pool = _pool(lease_s=0.0)
+    reader = None
+    try:
+        descriptor = pool.write(_payload(1), readers=1)
+        reader = subprocess.Popen([sys.executable, "-c", _HOLDER, descriptor.hex()], stdout=subprocess.PIPE, text=True)
+        assert reader.stdout.readline().strip() == "holding"
+        pool.write(_payload(2), readers=0)
+        assert pool.segment_count == 2  # the reader holds the first
+        os.kill(reader.pid, signal.SIGKILL)
+        reader.wait(timeout=10)
+        pool.write(_payload(3), readers=0)
+        pool.write(_payload(4), readers=0)
+        assert pool.segment_count == 2  # the kernel dropped the killed reader's lock: both serve again
+    finally:
+        if reader is not None and reader.poll() is None:
+            reader.kill()
+            reader.wait()
+        pool.close()
+
+
+_STRANGER = """
+import os, sys
+os.setgid(65534)
+os.setuid(65534)
+try:
+    os.open(sys.argv[1], os.O_RDONLY)
+except PermissionError:
+    print("refused")
+else:
+    print("opened")
+"""
+
+
+@pytest.mark.skipif(os.geteuid() != 0, reason="needs root to run a process as another user (nobody)")
+def test_a_stranger_cannot_open_a_segment():
+    pool = _pool()
+    try:
+        descriptor = unpack_descriptor(pool.write(_payload(1), readers=0))
+        path = f"/proc/{os.getpid()}/fd/{descriptor.fd}"
+        assert os.stat(path).st_mode & 0o777 == 0o600
+        assert not any(name.startswith("dptpu") for name in os.listdir("/dev/shm"))  # no name anywhere
+        stranger = subprocess.run([sys.executable, "-c", _STRANGER, path], capture_output=True, text=True, timeout=30)
+        assert stranger.stdout.strip() == "refused", stranger.stderr
+    finally:
+        pool.close()
