@@ -40,7 +40,7 @@ def register(subparsers) -> None:
                           help="pixels used by the photometric fits (default 12000, a seeded random subset)")
     diagnose.add_argument("--rounds", type=int, default=3,
                           help="photometric effects found greedily, the cause first (default 3)")
-    diagnose.add_argument("--seed", type=int, default=0)
+    diagnose.add_argument("--seed", type=int, default=0, help="seed of the twin's renders (default 0)")
     diagnose.add_argument("--no-rerender", action="store_true", help="skip rendering the twins again")
     diagnose.add_argument("--out", required=True, help="output folder")
     diagnose.set_defaults(func=run_diagnose)
@@ -60,11 +60,13 @@ def register(subparsers) -> None:
     finetune.add_argument("--scenes", type=int, default=8, help="twin scenes per training set (default 8)")
     finetune.add_argument("--size", default="320x240", help="twin camera WIDTHxHEIGHT (default 320x240)")
     finetune.add_argument("--epochs", type=int, default=60, help="fine-tune epochs, the same for both (default 60)")
-    finetune.add_argument("--batch", type=int, default=4)
-    finetune.add_argument("--lr", type=float, default=3e-4)
-    finetune.add_argument("--cfpe-scenes", default="01,04,06,08")
-    finetune.add_argument("--cfpe-low", default="het12", choices=("het12", "beat123"))
-    finetune.add_argument("--seed", type=int, default=0)
+    finetune.add_argument("--batch", type=int, default=4, help="samples per step (default 4)")
+    finetune.add_argument("--lr", type=float, default=3e-4, help="AdamW learning rate (default 3e-4)")
+    finetune.add_argument("--cfpe-scenes", default="01,04,06,08", help="CFPE scenes, comma separated (default "
+                          "01,04,06,08)")
+    finetune.add_argument("--cfpe-low", default="het12", choices=("het12", "beat123"),
+                          help="CFPE low-frequency phase: het12 (default) or beat123 (sim/diagnosis/cfpe_inputs.py)")
+    finetune.add_argument("--seed", type=int, default=0, help="seed of scenes and training (default 0)")
     finetune.add_argument("--threads", type=int, default=1, help="torch and onnxruntime threads (default 1)")
     finetune.add_argument("--out", required=True, help="output folder")
     finetune.set_defaults(func=run_finetune)
