@@ -2,6 +2,7 @@
 
 - :mod:`.std`: ``Time``, ``Header``.
 - :mod:`.sensor`: ``Image``, ``CameraInfo``, ``RegionOfInterest``, ``PointField``, ``PointCloud2``.
+- :mod:`.diagnostic`: ``KeyValue``, ``DiagnosticStatus``, ``DiagnosticArray``.
 - :mod:`.scanner`: ``PatternEntry``, ``PatternSequence``, ``Trigger``, ``FringeFrame``, ``PhaseMaps``,
   ``AbsolutePhase``, ``ScanStatus``.
 - the codec: :mod:`.encoder` (``encode(topic, msg) -> frames``), :mod:`.decoder` (``decode(frames) -> (topic,
@@ -17,6 +18,7 @@ registers every message type. The wire format is specified in ``docs/messages.md
 
 from .decode_limits import DEFAULT_LIMITS, DecodeLimits
 from .decoder import decode
+from .diagnostic import DiagnosticArray, DiagnosticStatus, KeyValue
 from .encoder import encode
 from .registry import lookup, registered_types
 from .scanner import AbsolutePhase, FringeFrame, PatternEntry, PatternSequence, PhaseMaps, ScanStatus, Trigger
@@ -40,6 +42,9 @@ __all__ = [
     "PhaseMaps",
     "AbsolutePhase",
     "ScanStatus",
+    "KeyValue",
+    "DiagnosticStatus",
+    "DiagnosticArray",
     "Message",
     "encode",
     "decode",

@@ -9,9 +9,12 @@ import zmq
 from dptpu.messages import (
     AbsolutePhase,
     CameraInfo,
+    DiagnosticArray,
+    DiagnosticStatus,
     FringeFrame,
     Header,
     Image,
+    KeyValue,
     PatternEntry,
     PatternSequence,
     PhaseMaps,
@@ -82,8 +85,12 @@ def sample_messages() -> list:
                         reason="3 frames dropped", node="/scanner/phase", frames_expected=28, frames_received=25,
                         frames_dropped=3, decode_errors=1, valid_pixels=700, total_pixels=768, duration_s=0.42)
     field = PointField(name="intensity", offset=12, datatype=PointField.FLOAT32, count=1)
+    key_value = KeyValue(key="latency_ms", value="31.5")
+    diagnostic = DiagnosticStatus(level=DiagnosticStatus.WARN, name="dptpu: scan", message="scan 41: UNTRUSTED",
+                                  hardware_id="rig-7", values=[key_value, KeyValue(key="outcome", value="untrusted")])
+    diagnostics = DiagnosticArray(header=header, status=[diagnostic, DiagnosticStatus(name="dptpu: /cloud")])
     return [stamp, header, mono8, mono16, depth, rgb, roi, camera_info, field, cloud, mixed_cloud, entries[1],
-            sequence, trigger, frame, phase_maps, absolute, status]
+            sequence, trigger, frame, phase_maps, absolute, status, key_value, diagnostic, diagnostics]
 
 
 def _array_paths(msg, prefix=""):
