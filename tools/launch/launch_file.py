@@ -38,6 +38,7 @@ import re
 import sys
 from collections.abc import Mapping, Sequence
 
+from .argument_types import argument_type_problem
 from .launch_plan import (
     OUTPUT_MODES,
     LaunchArgument,
@@ -348,6 +349,10 @@ class LaunchLoader:
         if choices is not None and value not in choices:
             variables[name] = value
             raise EntryFailure(body.line, f"arg {name!r} must be one of {', '.join(choices)}; got {value!r}")
+        problem = argument_type_problem(name, default, value) if name in scope.given else None
+        if problem:  # the default's type: a value a statically typed parameter would refuse at start-up
+            variables[name] = value
+            raise EntryFailure(body.line, problem)
         variables[name] = scope.values[name] = value
 
     def include(self, scope: FileScope, body: MarkedDict, namespace: str, variables: dict[str, str]) -> None:

@@ -7,9 +7,10 @@ Screen sinks get ``[label] line``; log-file sinks get the bare line (the file is
 from __future__ import annotations
 
 import threading
+from collections import deque
 from typing import IO, TextIO
 
-__all__ = ["LineSink", "start_pipe_reader"]
+__all__ = ["LastLines", "LineSink", "start_pipe_reader"]
 
 #: Longest piece of a line copied at once; a longer line is split (memory stays bounded).
 _MAX_LINE_BYTES = 65536
@@ -29,6 +30,18 @@ class LineSink:
             self.stream.flush()
         except (OSError, ValueError):  # a closed terminal or log file must not kill the launcher
             pass
+
+
+class LastLines(LineSink):
+    """Keeps the last ``count`` lines instead of writing them (the message of a node that could not start)."""
+
+    def __init__(self, count: int = 5):
+        self.lines: deque[str] = deque(maxlen=count)
+        self.prefixed = False
+
+    def write_line(self, label: str, line: str) -> None:
+        if line.strip():
+            self.lines.append(line)
 
 
 def _copy_lines(pipe: IO[bytes], label: str, sinks: list[LineSink], lock: threading.Lock) -> None:

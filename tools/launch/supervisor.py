@@ -7,9 +7,12 @@ Life of one launch (:meth:`Supervisor.run`):
    (unless already set) and the node's ``env`` entries. Its stdout and stderr are read by two threads
    and written line by line to the launcher's stdout / stderr as ``[label] line`` (``output: screen``),
    to ``LOG_DIR/label.log`` (``output: log``) or both.
-2. When a node exits on its own: a ``required`` node stops everything (the launch then exits 1 if the
-   node's exit code was not 0); a ``respawn`` node is restarted after its backoff delay
-   (:class:`~dptpu.tools.launch.respawn.RespawnPolicy`); any other node is reported and left exited.
+2. When a node exits on its own: exit code 2 is a configuration error (the node could not start with its
+   parameters or files: ``dptpu.nodes.node_main``, as argparse) and stops everything, whatever the node's
+   ``respawn`` or ``on_exit``, since a restart would fail the same way: the launcher repeats the node's last
+   stderr line (its ``NODE: error: ...``) and exits 2. Otherwise a ``required`` node stops everything (the
+   launch then exits 1 if the node's exit code was not 0); a ``respawn`` node is restarted after its backoff
+   delay (:class:`~dptpu.tools.launch.respawn.RespawnPolicy`); any other node is reported and left exited.
    When no node is running and none is waiting to respawn, the launch ends.
 3. Shutdown (SIGINT / SIGTERM / SIGHUP to the launcher, a required node exiting, or everything having
    exited): every process group that still has a live member gets SIGINT; after ``sigint_timeout_s``
@@ -18,7 +21,8 @@ Life of one launch (:meth:`Supervisor.run`):
    process groups are signalled, helper processes a node started go too.
 
 Exit code of :meth:`Supervisor.run`: 0 after a clean shutdown or when every node has exited, 1 when a
-required node failed (exited with a non-zero code or was killed by a signal it was not sent by us).
+required node failed (exited with a non-zero code or was killed by a signal it was not sent by us), 2 when a
+node exited with a configuration error.
 """
 from __future__ import annotations
 
@@ -34,14 +38,20 @@ from pathlib import Path
 from typing import TextIO
 
 from .launch_plan import NodeLaunch
-from .output_prefix import LineSink, start_pipe_reader
+from .output_prefix import LastLines, LineSink, start_pipe_reader
 from .process_groups import group_alive, signal_group
 from .respawn import RespawnPolicy
 
-__all__ = ["Supervisor", "describe_exit", "default_log_dir", "EXIT_OK", "EXIT_REQUIRED_FAILED"]
+__all__ = ["Supervisor", "describe_exit", "default_log_dir", "EXIT_CONFIGURATION_ERROR", "EXIT_OK",
+           "EXIT_REQUIRED_FAILED"]
 
 EXIT_OK = 0
 EXIT_REQUIRED_FAILED = 1
+#: A node's exit code when it cannot start with its configuration (bad parameter, unreadable file), and the
+#: launch's then: never respawned.
+EXIT_CONFIGURATION_ERROR = 2
+#: Seconds to wait for a node's last output after it exited, before its message is repeated.
+_OUTPUT_DRAIN_S = 1.0
 #: Signals that make the launcher shut down (a second one escalates to the next stop signal).
 SHUTDOWN_SIGNALS = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
 
@@ -78,6 +88,7 @@ class _Managed:
     done: bool = False                  # exited and will not run again
     log: TextIO | None = None
     readers: list[threading.Thread] = field(default_factory=list)
+    last_errors: LastLines = field(default_factory=LastLines)  # the current process's last stderr lines
 
 
 class Supervisor:
@@ -251,10 +262,13 @@ class Supervisor:
         screen = node.output in ("screen", "both")
         if process.stdout is None or process.stderr is None:  # Popen was given stdout=PIPE, stderr=PIPE
             raise RuntimeError(f"'{node.label}' was started without output pipes")
-        streams = ((process.stdout, self._stdout or sys.stdout), (process.stderr, self._stderr or sys.stderr))
-        for pipe, stream in streams:
+        managed.last_errors = LastLines()
+        streams = ((process.stdout, self._stdout or sys.stdout, None),
+                   (process.stderr, self._stderr or sys.stderr, managed.last_errors))
+        for pipe, stream, keep in streams:
             sinks = ([LineSink(stream, prefixed=True)] if screen else []) + \
-                    ([LineSink(managed.log, prefixed=False)] if managed.log is not None else [])
+                    ([LineSink(managed.log, prefixed=False)] if managed.log is not None else []) + \
+                    ([keep] if keep is not None else [])
             managed.readers.append(start_pipe_reader(pipe, node.label, sinks, self._lock))
 
     def _on_exit(self, managed: _Managed, returncode: int | None, run_time_s: float) -> None:
@@ -263,7 +277,14 @@ class Supervisor:
         pid = managed.process.pid if managed.process is not None else None
         managed.process = None
         what = f"'{node.label}'" + (f" (pid {pid})" if pid is not None else "") + f" {describe_exit(returncode)}"
-        if node.required:
+        if returncode == EXIT_CONFIGURATION_ERROR:
+            self._exit_code = EXIT_CONFIGURATION_ERROR
+            managed.done = True
+            message = self._last_error_line(managed)
+            self._say(f"{what}, a configuration error" + (f": {message}" if message else "")
+                      + "; not respawned: stopping everything")
+            self.request_shutdown(f"'{node.label}' could not start with its configuration")
+        elif node.required:
             failed = returncode != 0
             if failed:
                 self._exit_code = EXIT_REQUIRED_FAILED
@@ -279,6 +300,13 @@ class Supervisor:
         else:
             managed.done = True
             self._say(what)
+
+    def _last_error_line(self, managed: _Managed) -> str:
+        """The last line the node's process wrote to stderr (its readers are given a moment to finish)."""
+        deadline = time.monotonic() + _OUTPUT_DRAIN_S
+        for reader in managed.readers:
+            reader.join(timeout=max(0.0, deadline - time.monotonic()))
+        return managed.last_errors.lines[-1] if managed.last_errors.lines else ""
 
     # --- shutdown -------------------------------------------------------------------------------
 

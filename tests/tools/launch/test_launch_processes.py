@@ -199,3 +199,24 @@ def test_output_log_goes_to_a_file_not_the_screen(write_file, tmp_path):
     assert "to-log" not in stdout and "[loud] to-both\n" in stdout
     assert (tmp_path / "logs" / "quiet.log").read_text() == "to-log\n"
     assert (tmp_path / "logs" / "loud.log").read_text() == "to-both\n"
+
+
+def test_a_node_with_a_configuration_error_is_not_respawned_and_stops_the_launch(write_file):
+    # the real sim node, given an integer for its DOUBLE parameter frame_rate_hz: it exits 2 with one line
+    path = write_file("misconfigured.yaml", f"""
+        launch:
+          - node: {{pkg: {FIXTURES}, exec: ticker, name: bystander}}
+          - node: {{pkg: dptpu, exec: sim, respawn: true, respawn_delay: 0.1,
+                    param: [{{name: frame_rate_hz, value: 2}}]}}
+        """)
+    launch = LaunchProcess(path)
+    try:
+        assert launch.finish(timeout_s=60.0) == 2
+        (line,) = [line for line in launch.lines if "a configuration error" in line]
+        assert re.fullmatch(r"\[launch\] 'sim' \(pid \d+\) exited with code 2, a configuration error: sim: error: "
+                            r"wrong type for parameter 'frame_rate_hz': .* setting it to INTEGER is not allowed .*; "
+                            r"not respawned: stopping everything", line), line
+        assert not [line for line in launch.lines if "respawning" in line]
+        assert "[bystander] stopping on SIGINT" in launch.lines
+    finally:
+        launch.kill_everything()
