@@ -16,6 +16,8 @@ graph                       DDS                           dir     notes
 ``/scanner/depth/image``    ``rt/scanner/depth/image``    out     Image 32FC1; as above
 ``/scanner/depth/camera_info`` (the same name, ``rt/``)   out     CameraInfo of each depth image; as above
 ``/scanner/confidence/image``, ``.../camera_info``        out     Image 32FC1 and its CameraInfo; as above
+``/diagnostics``            ``rt/diagnostics``            out     diagnostic_msgs DiagnosticArray (the scan
+                                                                  monitor's); ROS 2 default QoS
 ``/camera/camera_info``     ``rt/camera/camera_info``     out     CameraInfo; latched (TRANSIENT_LOCAL, depth 1) on
                                                                   both sides
 ``/projector/start_scan``   ``rq/scanner/captureRequest`` in      DDS ``std_srvs/srv/Trigger`` service
@@ -31,7 +33,7 @@ name                 default                                   meaning
                      /scanner/depth/camera_info,               each may carry PointCloud2, Image or CameraInfo
                      /scanner/confidence/image,
                      /scanner/confidence/camera_info,
-                     /camera/camera_info]
+                     /camera/camera_info, /diagnostics]
 ``latched_topics``   [/camera/camera_info]                     of those, the ones published TRANSIENT_LOCAL
 ``qos``              "default"                                 ROS 2 profile of the other topics: ``default``
                                                                (RELIABLE, depth 10) or ``sensor_data``
@@ -63,7 +65,7 @@ from dptpu.graph.node import Node
 from dptpu.graph.parameter_rules import ParameterRules
 from dptpu.graph.qos import QoSProfile, ReliabilityPolicy
 from dptpu.graph.services import Client
-from dptpu.messages import CameraInfo, DecodeError, Image, PointCloud2, decode
+from dptpu.messages import CameraInfo, DecodeError, DiagnosticArray, Image, PointCloud2, decode
 from dptpu.nodes.node_main import run_node
 from dptpu.nodes.plumbing import LATCHED_QOS
 
@@ -73,11 +75,12 @@ from .ros2_qos import cyclone_config_xml, ros2_qos
 __all__ = ["Ros2BridgeNode", "DEFAULT_TOPICS", "DEFAULT_TYPES", "main"]
 
 DEFAULT_TOPICS = ["/scanner/points", "/scanner/depth/image", "/scanner/depth/camera_info", "/scanner/confidence/image",
-                  "/scanner/confidence/camera_info", "/camera/camera_info"]
+                  "/scanner/confidence/camera_info", "/camera/camera_info", "/diagnostics"]
 #: Types of the default topics: their DDS writers exist from the start, so ROS 2 sees them before the first scan.
 DEFAULT_TYPES = {"/scanner/points": PointCloud2, "/scanner/depth/image": Image,
                  "/scanner/depth/camera_info": CameraInfo, "/scanner/confidence/image": Image,
-                 "/scanner/confidence/camera_info": CameraInfo, "/camera/camera_info": CameraInfo}
+                 "/scanner/confidence/camera_info": CameraInfo, "/camera/camera_info": CameraInfo,
+                 "/diagnostics": DiagnosticArray}
 _GRAPH_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.BEST_EFFORT)  # connects to any publisher
 _REQUEST_POLL_S = 0.02
 

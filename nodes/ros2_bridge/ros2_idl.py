@@ -27,13 +27,14 @@ from typing import Annotated
 import numpy as np
 from cyclonedds.idl import IdlStruct
 from cyclonedds.idl._support import Endianness
-from cyclonedds.idl.types import array, float64, int32, int64, sequence, uint8, uint32, uint64
+from cyclonedds.idl.types import array, byte, float64, int32, int64, sequence, uint8, uint32, uint64
 
-from dptpu.messages import CameraInfo, Image, PointCloud2
+from dptpu.messages import CameraInfo, DiagnosticArray, Image, PointCloud2
 
 __all__ = [
     "Time_", "Header_", "PointField_", "PointCloud2_", "Image_", "RegionOfInterest_", "CameraInfo_",
-    "Trigger_Request_", "Trigger_Response_", "CdrWriter", "CdrReader", "to_dds", "dds_type_of", "ros_topic_name",
+    "KeyValue_", "DiagnosticStatus_", "DiagnosticArray_", "Trigger_Request_", "Trigger_Response_", "CdrWriter",
+    "CdrReader", "to_dds", "dds_type_of", "ros_topic_name",
     "CDR_LE_HEADER",
 ]
 
@@ -293,6 +294,27 @@ class CameraInfo_(IdlStruct, typename="sensor_msgs::msg::dds_::CameraInfo_"):
 
 
 @dataclass
+class KeyValue_(IdlStruct, typename="diagnostic_msgs::msg::dds_::KeyValue_"):
+    key: str = ""
+    value: str = ""
+
+
+@dataclass
+class DiagnosticStatus_(IdlStruct, typename="diagnostic_msgs::msg::dds_::DiagnosticStatus_"):
+    level: byte = 0  # ``byte`` in the .msg: IDL ``octet`` (rosidl_generator_dds_idl)
+    name: str = ""
+    message: str = ""
+    hardware_id: str = ""
+    values: Annotated[Sequence[KeyValue_], sequence(KeyValue_)] = field(default_factory=list)
+
+
+@dataclass
+class DiagnosticArray_(IdlStruct, typename="diagnostic_msgs::msg::dds_::DiagnosticArray_"):
+    header: Header_ = field(default_factory=Header_)
+    status: Annotated[Sequence[DiagnosticStatus_], sequence(DiagnosticStatus_)] = field(default_factory=list)
+
+
+@dataclass
 class Trigger_Request_(IdlStruct, typename="std_srvs::srv::dds_::Trigger_Request_"):
     """``std_srvs/srv/Trigger`` request as rmw_cyclonedds sends it: request header, then the (empty) request."""
 
@@ -338,12 +360,12 @@ def to_dds(msg):
 
     Parameters
     ----------
-    msg : PointCloud2, Image or CameraInfo
+    msg : PointCloud2, Image, CameraInfo or DiagnosticArray
         A decoded ``dptpu.messages`` message.
 
     Returns
     -------
-    PointCloud2_, Image_ or CameraInfo_
+    PointCloud2_, Image_, CameraInfo_ or DiagnosticArray_
 
     Raises
     ------
@@ -370,15 +392,22 @@ def to_dds(msg):
             binning_y=int(msg.binning_y),
             roi=RegionOfInterest_(x_offset=int(roi.x_offset), y_offset=int(roi.y_offset), height=int(roi.height),
                                   width=int(roi.width), do_rectify=bool(roi.do_rectify)))
-    raise ValueError(f"the ROS 2 bridge carries sensor_msgs PointCloud2, Image and CameraInfo; got "
-                     f"{type(msg).__name__}")
+    if isinstance(msg, DiagnosticArray):
+        return DiagnosticArray_(header=_header(msg), status=[
+            DiagnosticStatus_(level=int(s.level), name=s.name, message=s.message, hardware_id=s.hardware_id,
+                              values=[KeyValue_(key=v.key, value=v.value) for v in s.values])
+            for s in msg.status])
+    raise ValueError(f"the ROS 2 bridge carries sensor_msgs PointCloud2, Image, CameraInfo and diagnostic_msgs "
+                     f"DiagnosticArray; got {type(msg).__name__}")
 
 
 def dds_type_of(msg_type) -> type[IdlStruct]:
     """The IDL class of one of our message classes (``PointCloud2`` -> ``PointCloud2_``)."""
-    types: dict[type, type[IdlStruct]] = {PointCloud2: PointCloud2_, Image: Image_, CameraInfo: CameraInfo_}
+    types: dict[type, type[IdlStruct]] = {PointCloud2: PointCloud2_, Image: Image_, CameraInfo: CameraInfo_,
+                                          DiagnosticArray: DiagnosticArray_}
     if msg_type not in types:
-        raise ValueError(f"the ROS 2 bridge carries sensor_msgs PointCloud2, Image and CameraInfo; got "
+        raise ValueError(f"the ROS 2 bridge carries sensor_msgs PointCloud2, Image, CameraInfo and diagnostic_msgs "
+                         f"DiagnosticArray; got "
                          f"{getattr(msg_type, '__name__', msg_type)}")
     return types[msg_type]
 

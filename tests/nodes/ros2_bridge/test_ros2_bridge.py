@@ -17,7 +17,7 @@ import pytest
 
 from dptpu.graph.interfaces import Trigger as TriggerService
 from dptpu.graph.qos import DurabilityPolicy, QoSProfile
-from dptpu.messages import CameraInfo, Header, PointCloud2, Time
+from dptpu.messages import CameraInfo, DiagnosticArray, DiagnosticStatus, Header, KeyValue, PointCloud2, Time
 from dptpu.nodes.harness import NodeHarness
 from dptpu.nodes.ros2_bridge import Ros2BridgeNode
 from tests.graph.conftest import NodeProcess
@@ -36,7 +36,7 @@ SUBSCRIBER = textwrap.dedent('''
     from dataclasses import dataclass, field
     from cyclonedds.domain import DomainParticipant
     from cyclonedds.idl import IdlStruct
-    from cyclonedds.idl.types import array, float64, int32, int64, sequence, uint8, uint32, uint64
+    from cyclonedds.idl.types import array, byte, float64, int32, int64, sequence, uint8, uint32, uint64
     from cyclonedds.pub import DataWriter
     from cyclonedds.qos import Policy, Qos
     from cyclonedds.sub import DataReader
@@ -95,6 +95,24 @@ SUBSCRIBER = textwrap.dedent('''
         roi: RegionOfInterest_ = field(default_factory=RegionOfInterest_)
 
     @dataclass
+    class KeyValue_(IdlStruct, typename="diagnostic_msgs::msg::dds_::KeyValue_"):
+        key: str = ""
+        value: str = ""
+
+    @dataclass
+    class DiagnosticStatus_(IdlStruct, typename="diagnostic_msgs::msg::dds_::DiagnosticStatus_"):
+        level: byte = 0
+        name: str = ""
+        message: str = ""
+        hardware_id: str = ""
+        values: sequence[KeyValue_] = field(default_factory=list)
+
+    @dataclass
+    class DiagnosticArray_(IdlStruct, typename="diagnostic_msgs::msg::dds_::DiagnosticArray_"):
+        header: Header_ = field(default_factory=Header_)
+        status: sequence[DiagnosticStatus_] = field(default_factory=list)
+
+    @dataclass
     class Trigger_Request_(IdlStruct, typename="std_srvs::srv::dds_::Trigger_Request_"):
         client_guid: uint64 = 0
         sequence_number: int64 = 0
@@ -119,6 +137,7 @@ SUBSCRIBER = textwrap.dedent('''
     points = DataReader(participant, Topic(participant, "rt/scanner/points", PointCloud2_, qos=qos()), qos=qos())
     info = DataReader(participant, Topic(participant, "rt/camera/camera_info", CameraInfo_, qos=qos(latched=True,
                       depth=1)), qos=qos(latched=True, depth=1))
+    diagnostics = DataReader(participant, Topic(participant, "rt/diagnostics", DiagnosticArray_, qos=qos()), qos=qos())
     if capture:
         requests = DataWriter(participant, Topic(participant, "rq/scanner/captureRequest", Trigger_Request_,
                                                  qos=qos()), qos=qos())
@@ -139,6 +158,13 @@ SUBSCRIBER = textwrap.dedent('''
                               "is_bigendian": sample.is_bigendian, "point_step": sample.point_step,
                               "row_step": sample.row_step, "is_dense": sample.is_dense, "path": path}), flush=True)
             clouds += 1
+        for sample in diagnostics.take(N=4):
+            if isinstance(sample, DiagnosticArray_):
+                stamp = [sample.header.stamp.sec, sample.header.stamp.nanosec]
+                print(json.dumps({"event": "diagnostics", "stamp": stamp,
+                                  "status": [[s.level, s.name, s.message, s.hardware_id,
+                                              [[v.key, v.value] for v in s.values]] for s in sample.status]}),
+                      flush=True)
         for sample in info.take(N=1):
             if isinstance(sample, CameraInfo_):
                 print(json.dumps({"event": "camera_info", "width": sample.width, "height": sample.height,
@@ -229,6 +255,11 @@ def test_bridge_republishes_points_camera_info_and_answers_capture_requests(node
 
     probe.node.create_service(TriggerService, "/projector/start_scan", start_scan)
     points = probe.publisher(PointCloud2, "/scanner/points", 10)
+    diagnostics = probe.publisher(DiagnosticArray, "/diagnostics", 10)
+    array = DiagnosticArray(header=Header(stamp=Time(sec=1_700_000_000, nanosec=5)), status=[
+        DiagnosticStatus(level=DiagnosticStatus.WARN, name="dptpu: scan", message="scan 4: UNTRUSTED (1.35 % ...)",
+                         hardware_id="rig-7", values=[KeyValue(key="wrong_share", value="0.0135")]),
+        DiagnosticStatus(level=DiagnosticStatus.OK, name="dptpu: /cloud", message="done")])
     info = probe.publisher(CameraInfo, "/camera/camera_info",
                            QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL))
     camera_info = CameraInfo.from_intrinsics(np.array([[600.0, 0, 80], [0, 601.0, 60], [0, 0, 1]]),
@@ -250,6 +281,7 @@ def test_bridge_republishes_points_camera_info_and_answers_capture_requests(node
             cloud = _test_cloud(160, 120, sequence)
             sent[(cloud.header.stamp.sec, cloud.header.stamp.nanosec)] = cloud
             points.publish(cloud)
+            diagnostics.publish(array)
             try:
                 events.append(listener.wait_event("cloud", timeout=0.5))
             except Exception:  # noqa: BLE001 -- not matched yet: publish again
@@ -257,6 +289,11 @@ def test_bridge_republishes_points_camera_info_and_answers_capture_requests(node
         assert len(events) == 3, (bridge.stderr[-2000:], listener.stderr[-2000:])
         for event in events:
             assert_same_cloud(event, sent[tuple(event["stamp"])])
+        got_diagnostics = listener.wait_event("diagnostics", timeout=10)  # the scan monitor's, as ROS 2 reads them
+        assert {k: v for k, v in got_diagnostics.items() if k in ("stamp", "status")} == {
+            "stamp": [1_700_000_000, 5], "status": [
+            [1, "dptpu: scan", "scan 4: UNTRUSTED (1.35 % ...)", "rig-7", [["wrong_share", "0.0135"]]],
+            [0, "dptpu: /cloud", "done", "", []]]}
         got_info = listener.wait_event("camera_info", timeout=10)
         assert (got_info["width"], got_info["height"], got_info["model"]) == (160, 120, "plumb_bob")
         assert got_info["k"] == [600.0, 0.0, 80.0, 0.0, 601.0, 60.0, 0.0, 0.0, 1.0]
