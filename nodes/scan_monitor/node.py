@@ -36,6 +36,8 @@ topic                         type              dir   notes
 ``/scanner/absolute_phase``   AbsolutePhase     in    ``ground_truth`` true: for the fringe-order accuracy
 ``/sim/ground_truth``         AbsolutePhase     in    ``ground_truth`` true: the sim node's truth
 ``/sim/ground_truth_depth``   Image 32FC1       in    ``ground_truth`` true: the sim node's true depth, metres
+``/diagnostics``              DiagnosticArray   out   one per reported scan: the verdict and each node's latest
+                                                      ScanStatus (:mod:`.scan_diagnostics`)
 ``/projector/trigger``        Trigger           in    ``trigger_latency`` true: subscribed once the clouds, the
                                                       statuses (and the absolute phase and truth) have publishers,
                                                       so a projector with ``min_subscribers: 2`` waits for the
@@ -63,6 +65,7 @@ name                 default  meaning
                               next scan starts when one was reported, so a slow machine is never overrun);
                               0 = start none (the projector runs its own scans)
 ``start_service``    ``/projector/start_scan``  the projector's std_srvs/Trigger service
+``hardware_id``      "dptpu"  ``hardware_id`` of every ``/diagnostics`` status (a real rig: its serial number)
 ``trigger_latency``  true     take the Triggers (every pattern's) for ``latency_from_first_trigger_ms``; false:
                               clouds and statuses only, as a robot subscribes (``dptpu bench pipeline``'s
                               throughput run: 24 messages a 2 x 12-step scan less; docs/benchmarks.md)
@@ -93,9 +96,10 @@ from dptpu.graph.parameter_rules import ParameterRules, at_least, greater_than, 
 from dptpu.graph.qos import QoSProfile
 from dptpu.graph.subscription import Subscription
 from dptpu.graph.task import Future
-from dptpu.messages import AbsolutePhase, Image, PointCloud2, ScanStatus, Trigger
+from dptpu.messages import AbsolutePhase, DiagnosticArray, Image, PointCloud2, ScanStatus, Trigger
 from dptpu.nodes.node_main import run_node
 
+from .scan_diagnostics import scan_diagnostics
 from .scan_metrics import MAX_WRONG_SHARE, MIN_COMPLETENESS, scan_metrics, trust_verdict
 
 __all__ = ["ScanMonitorNode", "main"]
@@ -144,6 +148,7 @@ class ScanMonitorNode(Node):
         self.max_wrong_share = float(rules.settable("max_wrong_share", MAX_WRONG_SHARE, check=within(0.0, 1.0)))
         self.min_completeness = float(rules.settable("min_completeness", MIN_COMPLETENESS, check=within(0.0, 1.0)))
         self.off_surface_mm = float(rules.settable("off_surface_mm", OFF_SURFACE_MM, check=at_least(0.0)))
+        self.hardware_id = rules.settable("hardware_id", "dptpu", description="hardware_id of the /diagnostics")
         if self.start_scans < 0:
             raise ValueError(f"parameter start_scans (0 = none) must be >= 0; got {self.start_scans}")
         self.records: list[dict] = []
@@ -161,6 +166,8 @@ class ScanMonitorNode(Node):
         self._orphan_clouds: list = []  # (cloud, arrival ns, arrival s) whose scan is not known yet
         self._stamp_ids: dict[int, int] = {}  # scan stamp ns -> sequence_id, from the cloud node's done statuses
 
+        self._node_statuses: dict[str, ScanStatus] = {}  # node -> its latest ScanStatus, for /diagnostics
+        self.diagnostics_pub = self.create_publisher(DiagnosticArray, "/diagnostics", 10)
         self.cloud_sub = self.create_subscription(PointCloud2, "/scanner/points", self.on_cloud, 10)
         self.status_sub = self.create_subscription(ScanStatus, "/scanner/status", self.on_status, QoSProfile(depth=200))
         self.phase_sub: Subscription | None = None
@@ -228,6 +235,7 @@ class ScanMonitorNode(Node):
             self._truth_depths.pop(next(iter(self._truth_depths)))
 
     def on_status(self, msg: ScanStatus) -> None:
+        self._node_statuses[msg.node] = msg
         scan = self._scan(msg.sequence_id)
         if scan is None:
             return
@@ -381,7 +389,11 @@ class ScanMonitorNode(Node):
         self._progress_s = time.monotonic()
         self.records.append(record)
         del self.records[:-_KEPT_RECORDS]
-        print(self._line(record), flush=True)
+        line = self._line(record)
+        print(line, flush=True)
+        self.diagnostics_pub.publish(scan_diagnostics(record, line, self._node_statuses.values(),
+                                                      stamp=self.get_clock().now().to_msg(),
+                                                      hardware_id=self.hardware_id))
         if scan.cloud is not None and self.ply_dir and self.ply_written < self.ply_count:
             self._write_ply(scan.sequence_id, scan.cloud)
         if self.summary_path and self.reported % 50 == 0:
