@@ -23,12 +23,14 @@ from scipy.optimize import minimize_scalar
 
 from dptpu.fpp.calibration import DeviceModel, Rig
 
+from .flicker import fit_drift_with_flicker
 from .forward import PixelSet, intensity_residual
 from .registration import Registration, register
+from .saturation import fit_saturation
 from .selection import delta_bic, gain
 
 __all__ = ["Candidate", "PHOTOMETRIC", "NOT_IDENTIFIABLE", "not_identifiable", "fit_photometric",
-           "fit_lens_distortion", "add_camera_k1", "fit_geometric_extra"]
+           "fit_one_parameter", "fit_lens_distortion", "add_camera_k1", "fit_geometric_extra"]
 
 
 @dataclass(frozen=True)
@@ -107,7 +109,26 @@ def _rss(pixels: PixelSet, effects, refine: int, per_pixel_gain: bool = True) ->
 
 def fit_photometric(pixels: PixelSet, candidate: Candidate, *, base=(), refine: int = 1,
                     rss_before: float | None = None) -> dict:
-    """Fit ``candidate``'s main parameter on top of ``base`` effects; returns an effect entry (report.json).
+    """Fit ``candidate`` on top of ``base`` effects; returns an effect entry (report.json).
+
+    Most candidates are one parameter on a grid (:func:`fit_one_parameter`); ``saturation`` clips after the
+    per-pixel gain (:mod:`.saturation`), and ``intensity_drift`` adds its per-frame random gain when the frames
+    show one (:mod:`.flicker`)."""
+    if rss_before is None and candidate.per_pixel_gain:
+        rss_before = _rss(pixels, list(base), refine)
+    if candidate.name == "saturation":
+        assert rss_before is not None
+        return fit_saturation(pixels, base=base, refine=refine, rss_before=rss_before)
+    entry = fit_one_parameter(pixels, candidate, base=base, refine=refine, rss_before=rss_before)
+    if candidate.name == "intensity_drift":
+        assert rss_before is not None
+        entry = fit_drift_with_flicker(pixels, entry, base=base, refine=refine, rss_before=rss_before)
+    return entry
+
+
+def fit_one_parameter(pixels: PixelSet, candidate: Candidate, *, base=(), refine: int = 1,
+                      rss_before: float | None = None) -> dict:
+    """Fit ``candidate``'s main parameter on a grid, then by a bounded Brent search, on top of ``base``.
 
     ``rss_before`` (the baseline with a per-pixel gain) is recomputed for a candidate scored with one gain."""
     n = pixels.values

@@ -1,0 +1,113 @@
+"""What the outside captures of issue 17 confused, each hidden alone and required by name.
+
+- A random per-frame flicker of the projector's brightness (``intensity_drift.sigma``) against sensor noise: the
+  flicker is one gain per frame, shared by every pixel (tests/sim/diagnosis/hidden.py's nominal plane).
+- Camera saturation (clips at one DN, so at a projected level that depends on each pixel's albedo and shading)
+  against the projector's response (bends the projected level, the same for every pixel): both on a rig the
+  project was not built on (tests/outside_rigs.py) and on a sphere of another size, with the twin's material
+  and with one the twin does not know.
+- A step-scale error of the phase shifts (a ripple at twice the fringe frequency) against lens distortion
+  (smooth over the image): on the nominal plane near the size at which the step error breaks the temporal
+  unwrapping, and on an outside rig.
+"""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from dptpu.sim.diagnosis import diagnose
+from dptpu.sim.image_formation import SequenceSpec
+from dptpu.sim.render import render_capture
+from dptpu.sim.scene_mesh import Material
+from dptpu.sim.scenes.builtin import sphere_scene
+from tests.outside_rigs import outside_rig
+
+from .hidden import render_measured
+
+TEST_PIXELS = 1000
+SEQUENCES = [SequenceSpec(96, 12), SequenceSpec(1, 12)]
+#: A material the twin's reference sphere does not have (the twin's: albedo 0.8, roughness 0.5, specular 0.1).
+OTHER_MATERIAL = Material(albedo=0.6, roughness=0.4, specular=0.2, ior=1.5)
+#: A projector that clips its own level at 0.75 of full scale (11 knots): a knee in the projected level.
+KNEE = [round(min(k / 10, 0.75), 3) for k in range(11)]
+
+
+def _entry(result, name):
+    return next(e for e in result.effects if e["name"] == name)
+
+
+def _summary(result):
+    return [(e["name"], round(e["gain"], 3), e["named"]) for e in result.effects[:4]]
+
+
+@pytest.mark.parametrize("seed, sigma", [(21, 0.01), (23, 0.02)])
+def test_flicker_is_named_as_the_drift_s_random_gain_not_sensor_noise(tmp_path, seed, sigma):
+    effect = {"intensity_drift": {"rate_per_frame": 0.0, "sigma": sigma}}
+    folder, rig = render_measured(tmp_path / "measured", "plane", effect, seed=seed)
+    result = diagnose(folder, rig, reference="plane", max_pixels=TEST_PIXELS)
+    assert result.cause == "intensity_drift", _summary(result)
+    entry = result.effects[0]
+    assert not _entry(result, "sensor_noise")["named"]
+    # the realization: the twin draws z_n for the 24 frames from the capture's seed, in frame order
+    z = np.random.default_rng(seed).normal(size=24)
+    gains = np.asarray(entry["evidence"]["frame_gains"])
+    ratio = gains / (1.0 + sigma * z)
+    assert np.std(ratio) / np.mean(ratio) < 0.05 * sigma  # each frame's gain to 5 % of the flicker
+    realized = sigma * np.std(z, ddof=1)
+    assert abs(entry["parameters"]["sigma"] - realized) < 0.05 * realized
+    assert abs(entry["parameters"]["sigma"] - sigma) < 0.2 * sigma
+    assert abs(entry["parameters"]["rate_per_frame"]) < sigma / 10  # no drift made up
+    assert entry["gain"] > 0.5
+    assert {"intensity_drift": entry["parameters"]} in result.extended_effects
+
+
+def test_sensor_noise_is_not_taken_for_flicker(tmp_path):
+    effect = {"sensor_noise": {"read_noise_dn": 2.0, "gain_dn_per_electron": 0.0}}
+    folder, rig = render_measured(tmp_path / "measured", "plane", effect, seed=24)
+    result = diagnose(folder, rig, reference="plane", max_pixels=TEST_PIXELS)
+    assert result.cause == "sensor_noise", _summary(result)
+    drift = _entry(result, "intensity_drift")
+    assert drift["parameters"]["sigma"] == 0.0 and not drift["named"]
+    assert drift["evidence"]["flicker_delta_bic_over_drift"] < 0
+
+
+def _outside_sphere(tmp_path, effect, material=None):
+    """A sphere of 40 mm on a rig the project was not built on (f = 1800 px, 150 mm, 14 deg), 160x120."""
+    rig = outside_rig(camera_focal_px=1800.0, baseline_mm=150.0, angle_deg=14.0, size=(160, 120))
+    folder = render_capture(rig, sphere_scene(rig, diameter_mm=40.0, material=material), SEQUENCES,
+                            tmp_path / "measured", effects=[effect], seed=4)
+    return diagnose(folder, rig, reference="sphere:40.0", max_pixels=TEST_PIXELS)
+
+
+@pytest.mark.parametrize("material", [None, OTHER_MATERIAL], ids=["twin_material", "other_material"])
+def test_camera_saturation_is_not_taken_for_the_projector_response(tmp_path, material):
+    exposure_gain = 1.6 if material is None else 2.2
+    result = _outside_sphere(tmp_path, {"saturation": {"exposure_gain": exposure_gain}}, material)
+    assert result.cause == "saturation", _summary(result)
+    entry = result.effects[0]
+    assert not _entry(result, "projector_response")["named"]
+    assert entry["parameters"]["level"] == pytest.approx(1.0, abs=0.01)  # the ADC's clip: full scale
+    # exposure_gain is the data's brightness over the twin's surface: the hidden gain times the albedo ratio
+    albedo_ratio = 1.0 if material is None else material.albedo / 0.8
+    truth = exposure_gain * albedo_ratio
+    assert abs(entry["parameters"]["exposure_gain"] - truth) <= 0.2 * (truth - 1.0)
+    assert entry["gain"] > 0.9
+
+
+@pytest.mark.parametrize("levels, material", [(None, OTHER_MATERIAL), (KNEE, OTHER_MATERIAL), (KNEE, None)],
+                         ids=["s_curve_other_material", "knee_other_material", "knee_twin_material"])
+def test_projector_response_is_not_taken_for_camera_saturation(tmp_path, levels, material):
+    """A knee in the projector's level flattens the fringe tops like a clip, but at the same projected level on
+    every pixel, so at a DN proportional to the pixel's brightness: the table is named, not the clip."""
+    effect = {"projector_response": {} if levels is None else {"levels": levels}}
+    result = _outside_sphere(tmp_path, effect, material)
+    assert result.cause == "projector_response", _summary(result)
+    entry = result.effects[0]
+    saturation = _entry(result, "saturation")
+    assert saturation["gain"] < 0.5 * entry["gain"]
+    assert entry["gain"] > 0.9
+    if levels is not None:  # the knee comes back where it was hidden (the table's scale is the gain's business)
+        fitted = np.asarray(entry["parameters"]["levels"])
+        x = np.linspace(0.0, 1.0, fitted.size)
+        knee_at = x[np.argmax(fitted >= fitted.max() - 1e-6)]
+        assert 0.75 <= knee_at <= 0.75 + 2.0 / (fitted.size - 1)
