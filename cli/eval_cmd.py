@@ -63,6 +63,7 @@ def _register_cloud(targets) -> None:
     cloud.add_argument("--keep-edges", action="store_true",
                        help="keep the points at depth edges (default: dropped, as dptpu triangulate does)")
     cloud.add_argument("--threads", type=int, default=None, help="onnxruntime threads")
+    cloud.add_argument("--quiet", action="store_true", help="no progress bars")
     cloud.set_defaults(func=run_cloud)
 
 
@@ -100,7 +101,8 @@ def run_cloud(args) -> int:
     args.unet = None
     models = _load_models(args)
     command = "dptpu " + " ".join(shlex.quote(a) for a in sys.argv[1:]) if len(sys.argv) > 1 else ""
-    result = run_cloud_eval(spec, args.out, models=models, cfpe_dir=cfpe_dir, command=command)
+    result = run_cloud_eval(spec, args.out, models=models, cfpe_dir=cfpe_dir, command=command,
+                            progress=not args.quiet)
     print(result.table)
     print("wrote " + ", ".join(str(p) for p in result.files.values()))
     return 0

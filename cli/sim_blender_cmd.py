@@ -1,6 +1,6 @@
 """``dptpu sim twin`` and ``dptpu sim setup-blender``: the twin's rig as Blender sees it, and Blender's environment.
 
-``dptpu sim twin --calibration CAL [--blender] [--json]`` prints the twin's rig (intrinsics, optical centres,
+``dptpu sim twin --rig RIG [--blender] [--json]`` prints the twin's rig (intrinsics, optical centres,
 baseline, angle between the optical axes) and with ``--blender`` the Blender parameters of the paper's Table 1
 for the camera and the projector (:func:`dptpu.sim.blender_params.twin_parameters`). CAL is a ``dptpu-rig/1`` or
 OpenCV rig file, a Bouguet pair ``CAM.mat,PRJ.mat``, or ``nominal``.
@@ -14,6 +14,8 @@ import json
 
 import numpy as np
 
+from dptpu.cli.conventions import add_renamed_option
+
 
 def register(sim_subparsers) -> None:
     twin = sim_subparsers.add_parser(
@@ -21,8 +23,9 @@ def register(sim_subparsers) -> None:
         description="Print the digital twin's rig from a calibration. With --blender, the Blender parameters of the "
                     "DP-TPU paper's Table 1 for camera and projector: location -R^T T (Eq. 13), XYZ Euler angles "
                     "(Eq. 14), focal length, principal point / lens shift, skew, spot size. See docs/blender.md.")
-    twin.add_argument("--calibration", required=True,
+    twin.add_argument("--rig", required=True,
                       help="dptpu-rig/1 or OpenCV rig file, 'CAM.mat,PRJ.mat' (Bouguet), or 'nominal'")
+    add_renamed_option(twin, "--calibration", "write --rig RIG (one name for a rig file in every command)")
     twin.add_argument("--blender", action="store_true", help="add the Blender parameters (Table 1)")
     twin.add_argument("--json", action="store_true", help="print JSON instead of text")
     twin.add_argument("--pixel-pitch-mm", type=float, default=None,
@@ -44,9 +47,9 @@ def run_twin(args) -> int:
     from dptpu.sim.blender_params import DEFAULT_PIXEL_PITCH_MM, twin_parameters
     from dptpu.sim.rig import load_twin_rig
 
-    rig = load_twin_rig(args.calibration)
+    rig = load_twin_rig(args.rig)
     pitch = DEFAULT_PIXEL_PITCH_MM if args.pixel_pitch_mm is None else args.pixel_pitch_mm
-    document = {"calibration": str(args.calibration), "rig": rig_summary(rig)}
+    document = {"calibration": str(args.rig), "rig": rig_summary(rig)}
     if args.blender:
         document["blender"] = twin_parameters(rig, pixel_pitch_mm=pitch)
     if args.json:

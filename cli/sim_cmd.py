@@ -1,7 +1,7 @@
 """``dptpu sim ...``: the digital twin's commands.
 
 ``dptpu sim render --rig RIG --scene SCENE --sequence 96x12,1x12 [--effects E.yaml] [--engine raycast|blender]
-[--size WxH] [--seed S] [--bit-depth 8|16] --out CAPTURE`` renders a ``dptpu-capture/1`` folder with
+[--size WIDTHxHEIGHT] [--seed S] [--bit-depth 8|16] --out CAPTURE`` renders a ``dptpu-capture/1`` folder with
 ``calibration.yaml`` and ``gt.npz`` (:func:`dptpu.sim.render.render_capture`).
 
 Other modules add sub-commands to the ``sim`` group when they are present: ``dptpu.cli.sim_blender_cmd``
@@ -33,10 +33,12 @@ def register(subparsers) -> None:
                         help="phase sequences FREQxSTEPS[:AXIS], comma separated (default 96x12,1x12); "
                              "'white' and 'black' add reference frames")
     render.add_argument("--effects", default=None, help="effects YAML (replaces the rig's effects: list)")
-    render.add_argument("--engine", choices=("raycast", "blender"), default="raycast")
+    render.add_argument("--engine", choices=("raycast", "blender"), default="raycast",
+                        help="raycast (numpy, default) or blender (Cycles; dptpu sim setup-blender first)")
     render.add_argument("--size", default=None, help="camera render size WIDTHxHEIGHT (K is rescaled)")
     render.add_argument("--seed", type=int, default=0, help="seed of the noise and random scenes (default 0)")
-    render.add_argument("--bit-depth", type=int, choices=(8, 16), default=8)
+    render.add_argument("--bit-depth", type=int, choices=(8, 16), default=8,
+                        help="bits per pixel of the written frames (default 8)")
     render.add_argument("--meshes", default=None, help="folder of meshes for random scenes")
     render.add_argument("--supersample", type=int, default=1,
                         help="raycast rays per pixel along each axis, averaged (default 1: the pixel centre)")

@@ -1,12 +1,14 @@
 """``dptpu sim dataset``: a training dataset (``dptpu-dataset/1``) rendered by the twin (docs/dataset.md).
 
     dptpu sim dataset --rig RIG [--rig RIG2 ...] --frequencies 32,48,64,80 --methods mf,mw,nt --scenes N --input-steps 3
-        --label-steps 12 --noise SIGMA... --out DIR [--shard I/N] [--workers K] [--size WxH] [--seed S]
+        --label-steps 12 --noise SIGMA,... --out DIR [--shard I/N] [--workers K] [--size WIDTHxHEIGHT] [--seed S]
         [--meshes DIR] [--quiet]
 """
 from __future__ import annotations
 
 from pathlib import Path
+
+from dptpu.cli.conventions import parse_list
 
 
 def _numbers(text: str, what: str) -> list[float]:
@@ -59,8 +61,9 @@ def register(sim_subparsers) -> None:
     parser.add_argument("--scenes", type=int, required=True, help="number of random scenes")
     parser.add_argument("--input-steps", type=int, default=3, help="phase steps of the noisy inputs (default 3)")
     parser.add_argument("--label-steps", type=int, default=12, help="phase steps of the labels (default 12)")
-    parser.add_argument("--noise", type=float, nargs="+", default=[1.5693], metavar="SIGMA",
-                        help="camera noise levels in gray levels, each rendered for every scene (default 1.5693)")
+    parser.add_argument("--noise", nargs="+", default=["1.5693"], metavar="SIGMA,...",
+                        help="camera noise levels in gray levels, comma separated, each rendered for every scene "
+                             "(default 1.5693)")
     parser.add_argument("--size", default=None, help="camera size WIDTHxHEIGHT (default: the rig's; K is rescaled)")
     parser.add_argument("--seed", type=int, default=0, help="root of the scene seeds (default 0)")
     parser.add_argument("--meshes", default=None, help="folder of meshes (e.g. Thingi10K) for the random scenes")
@@ -80,11 +83,15 @@ def run(args) -> int:
     shard = parse_shard(args.shard)
     sources = rig_sources(args.rig)
     rigs = [(name, load_twin_rig(source)) for name, source in sources]
+    if len(args.noise) > 1:  # the old space-separated spelling
+        raise ValueError(f"--noise takes one comma-separated list: --noise {','.join(args.noise)} "
+                         f"(space-separated values are no longer accepted)")
+    noise = parse_list(args.noise[0], "--noise", float)
     size = parse_size(args.size) if args.size else tuple(rigs[0][1].camera.size)
     methods = [m.strip() for m in args.methods.split(",") if m.strip()]
     spec = DatasetSpec(frequencies=tuple(_numbers(args.frequencies, "frequencies")), methods=tuple(methods),
                        scenes=args.scenes, input_steps=args.input_steps, label_steps=args.label_steps,
-                       noise=tuple(args.noise), size=size, seed=args.seed, meshes=args.meshes)
+                       noise=noise, size=size, seed=args.seed, meshes=args.meshes)
     out = write_dataset(rigs, spec, args.out, shard=shard, workers=args.workers, progress=not args.quiet)
     dataset = open_dataset(out)
     print(f"{out}: {len(dataset)} of {spec.count} samples on disk (shard {shard[0]}/{shard[1]}; "

@@ -1,14 +1,15 @@
 """``dptpu train`` and ``dptpu model export|eval|toy-data``: the DP-TPU network's command line.
 
-    dptpu train --data DIR --out models/dptpu.onnx [--epochs E --batch B --crop HxW --seed S
+    dptpu train --data DIR --out models/dptpu.onnx [--epochs E --batch B --crop-size WIDTHxHEIGHT --seed S
                 --model dptpu|unet --resume CKPT --lambda-fourier 0.1 --threads N --time-limit-min M]
     torchrun --nproc_per_node 2 -m dptpu.cli.main train ...      (data parallel, gloo on CPU)
     dptpu model export --checkpoint CKPT --out MODEL.onnx
     dptpu model eval --data DIR [--model MODEL.onnx ...] --out DIR
-    dptpu model toy-data --out DIR [--scenes N --frequencies 32,48,64,80 --methods mf,mw,nt ...]
+    dptpu model toy-data --out DIR [--scenes N --frequencies 32,48,64,80 --methods mf,mw,nt --size WIDTHxHEIGHT ...]
     dptpu model study --out DIR [--sets S1,...,S5 --methods mf,mw --scenes N --steps T ...]
 
-Thin shell over :mod:`dptpu.models`; torch is imported only by ``train`` and ``model export``.
+Thin shell over :mod:`dptpu.models`; torch is imported only by ``train`` and ``model export``. Sizes are
+``WIDTHxHEIGHT`` and lists comma separated (:mod:`dptpu.cli.conventions`).
 """
 from __future__ import annotations
 
@@ -17,22 +18,25 @@ import json
 import sys
 from pathlib import Path
 
+from dptpu.cli.conventions import add_renamed_option, parse_list, parse_size
 
-def _crop(text: str) -> tuple[int, int]:
-    try:
-        height, width = (int(v) for v in text.lower().split("x"))
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"--crop must be HxW in pixels, e.g. 64x64; got {text!r}") from None
-    if height < 1 or width < 1:
-        raise argparse.ArgumentTypeError(f"--crop must be positive; got {text!r}")
-    return height, width
+
+def _size(option: str):
+    """An argparse type: ``WIDTHxHEIGHT`` -> ``(height, width)``, the models' (rows, columns) order."""
+    def parse(text: str) -> tuple[int, int]:
+        try:
+            width, height = parse_size(text, option)
+        except ValueError as exc:
+            raise argparse.ArgumentTypeError(str(exc)) from None
+        return height, width
+    return parse
 
 
 def _floats(text: str) -> list[float]:
     try:
-        return [float(v) for v in text.split(",") if v.strip()]
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected comma-separated numbers; got {text!r}") from None
+        return list(parse_list(text, "the list", float, example="32,48,64,80"))
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
 
 
 def register(subparsers) -> None:
@@ -45,7 +49,9 @@ def register(subparsers) -> None:
     parser.add_argument("--out", required=True, type=Path, metavar="MODEL.onnx", help="ONNX file to write")
     parser.add_argument("--epochs", type=int, default=1, help="total epochs (default 1)")
     parser.add_argument("--batch", type=int, default=4, help="samples per step and process (default 4)")
-    parser.add_argument("--crop", type=_crop, default=(64, 64), metavar="HxW", help="training crop (default 64x64)")
+    parser.add_argument("--crop-size", dest="crop", type=_size("--crop-size"), default=(64, 64), metavar="WIDTHxHEIGHT",
+                        help="training crop (default 64x64)")
+    add_renamed_option(parser, "--crop", "write --crop-size WIDTHxHEIGHT (width first; --crop was HEIGHTxWIDTH)")
     parser.add_argument("--seed", type=int, default=0, help="seed of weights, crops and order (default 0)")
     parser.add_argument("--model", choices=("dptpu", "unet"), default="dptpu",
                         help="dptpu (physics priors) or unet (wrapped phases only)")
@@ -68,8 +74,9 @@ def register(subparsers) -> None:
     model = subparsers.add_parser("model", help="export, evaluate, or make toy data for the DP-TPU network")
     actions = model.add_subparsers(dest="action", metavar="ACTION", required=True)
     export = actions.add_parser("export", help="training checkpoint -> ONNX (dynamic height and width)")
-    export.add_argument("--checkpoint", required=True, type=Path, metavar="CKPT")
-    export.add_argument("--out", required=True, type=Path, metavar="MODEL.onnx")
+    export.add_argument("--checkpoint", required=True, type=Path, metavar="CKPT",
+                        help="training checkpoint (.ckpt) written by dptpu train")
+    export.add_argument("--out", required=True, type=Path, metavar="MODEL.onnx", help="ONNX file to write")
     export.set_defaults(func=run_export)
 
     evaluate = actions.add_parser("eval", help="fringe-order accuracy: classical, median, models -> table.csv")
@@ -78,19 +85,22 @@ def register(subparsers) -> None:
                           help="an exported model (repeatable); default: the shipped model, if any")
     evaluate.add_argument("--out", required=True, type=Path, metavar="DIR", help="folder for table.csv, summary.md")
     evaluate.add_argument("--threads", type=int, metavar="N", help="onnxruntime threads")
+    evaluate.add_argument("--quiet", action="store_true", help="no progress bar")
     evaluate.set_defaults(func=run_eval)
 
     toy = actions.add_parser("toy-data", help="a dptpu-dataset/1 folder of analytic step scenes (not the twin)")
-    toy.add_argument("--out", required=True, type=Path, metavar="DIR")
+    toy.add_argument("--out", required=True, type=Path, metavar="DIR", help="dataset folder to write")
     toy.add_argument("--scenes", type=int, default=2, help="scenes per (method, frequency) (default 2)")
     toy.add_argument("--frequencies", type=_floats, default=[32, 48, 64, 80], metavar="F,F,...",
                      help="high frequencies (default the paper's S4: 32,48,64,80)")
     toy.add_argument("--methods", default="mf,mw,nt", help="comma-separated of mf, mw, nt (default all)")
     toy.add_argument("--noise", type=_floats, default=[1.5693], metavar="SIGMA,...",
                      help="camera noise in gray levels (default 1.5693, the paper's 1 sigma)")
-    toy.add_argument("--shape", type=_crop, default=(96, 128), metavar="HxW", help="sample size (default 96x128)")
+    toy.add_argument("--size", dest="shape", type=_size("--size"), default=(96, 128), metavar="WIDTHxHEIGHT",
+                     help="sample size (default 128x96)")
+    add_renamed_option(toy, "--shape", "write --size WIDTHxHEIGHT (width first; --shape was HEIGHTxWIDTH)")
     toy.add_argument("--steps", type=int, default=3, help="phase steps of the inputs (default 3)")
-    toy.add_argument("--seed", type=int, default=0)
+    toy.add_argument("--seed", type=int, default=0, help="seed of the scenes and the noise (default 0)")
     toy.set_defaults(func=run_toy_data)
 
     from dptpu.experiments.study import add_study_arguments, run_study_command  # no torch at import
@@ -100,6 +110,7 @@ def register(subparsers) -> None:
                                            "and step budget, test on unseen scenes -> table.csv, boxplots, "
                                            "summary.md (dptpu.experiments.study).")
     add_study_arguments(study)
+    add_renamed_option(study, "--crop", "write --crop-size WIDTHxHEIGHT (width first; --crop was HEIGHTxWIDTH)")
     study.set_defaults(func=run_study_command)
 
 
@@ -148,7 +159,7 @@ def run_eval(args: argparse.Namespace) -> int:
     if not models and shipped_model_path() is not None:
         models = [shipped_model_path()]
     args.out.mkdir(parents=True, exist_ok=True)
-    rows = evaluate_dataset(args.data, models, threads=args.threads)
+    rows = evaluate_dataset(args.data, models, threads=args.threads, progress=not args.quiet)
     write_table(rows, args.out / "table.csv")
     summary = format_summary(rows)
     (args.out / "summary.md").write_text(

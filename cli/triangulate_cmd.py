@@ -1,6 +1,7 @@
 """``dptpu triangulate``: point cloud (PLY) of a calibrated capture folder.
 
-    dptpu triangulate --capture DIR --method heterodyne [--model PATH|none] [--min-confidence C] --out cloud.ply
+    dptpu triangulate --capture DIR --method heterodyne [--model PATH|none] [--min-confidence C] [--units mm]
+        --out cloud.ply
 
 Unwraps like ``dptpu unwrap`` (the same code path, :func:`dptpu.cli.unwrap_cmd.unwrap_from_args`: the DP-TPU network
 by default where it serves, ``--min-confidence``), turns the absolute phase into the projector coordinate
@@ -8,8 +9,8 @@ by default where it serves, ``--min-confidence``), turns the absolute phase into
 coordinate (:class:`dptpu.fpp.triangulate.Triangulator`, the capture's ``calibration`` rig file), drops the points
 at depth edges (:func:`dptpu.fpp.depth_edges.edge_points`: flying points, points beside a depth step, modulation dips,
 isolated points; off with
-``--keep-edges``) and writes the rest with open3d, in the rig's world frame and units. The summary line counts
-what was dropped and why.
+``--keep-edges``) and writes the rest with open3d, in the rig's world frame, in metres as every point-cloud file of
+dptpu (``--units mm``: millimetres). The summary line counts what was dropped and why.
 """
 from __future__ import annotations
 
@@ -18,6 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
+from dptpu.cli.conventions import add_cloud_units_option
 from dptpu.cli.unwrap_cmd import add_unwrap_arguments, summary, unwrap_from_args
 from dptpu.fpp.calibration import load_rig
 from dptpu.fpp.capture import CAPTURE_FILE, read_capture
@@ -31,11 +33,12 @@ def register(subparsers) -> None:
         "triangulate", help="point cloud (PLY) of a calibrated capture folder",
         description="Unwrap a capture folder, triangulate every valid pixel with the capture's calibration "
                     "(its 'calibration' rig file, dptpu-rig/1; required) and write the points as a PLY. "
-                    "Points are in the rig's world frame and in the rig's units (the 'units' of the rig "
-                    "file, e.g. mm), not metres.")
+                    "Points are in the rig's world frame, in metres (--units mm: millimetres), whatever the "
+                    "rig file's units.")
     add_unwrap_arguments(parser)
     parser.add_argument("--out", required=True, type=Path, metavar="cloud.ply",
-                        help="output point cloud (PLY; open3d picks the format from the suffix), rig units")
+                        help="output point cloud (PLY; open3d picks the format from the suffix)")
+    add_cloud_units_option(parser)
     parser.add_argument("--no-distortion", action="store_true",
                         help="ignore the lens distortion of camera and projector (pinhole triangulation)")
     parser.add_argument("--keep-edges", action="store_true",
@@ -59,6 +62,8 @@ def run(args: argparse.Namespace) -> int:
         if actual != tuple(expected):
             raise ValueError(f"{capture.calibration.name}: {device} size is {actual[0]}x{actual[1]} but "
                              f"the capture's {device}.size is {expected[0]}x{expected[1]}")
+    if args.out.is_dir():
+        raise ValueError(f"--out {args.out}: is a folder; expected the path of the point cloud file to write (.ply)")
     if not args.out.parent.is_dir():
         raise FileNotFoundError(f"{args.out.parent}: output folder does not exist")
 
@@ -85,7 +90,7 @@ def run(args: argparse.Namespace) -> int:
     cloud_points = points[keep]  # (M, 3)
     if cloud_points.shape[0] == 0:
         raise ValueError(f"no valid pixel to triangulate in {capture.root} ({args.method}); nothing written")
-    write_point_cloud(args.out, cloud_points, unit=rig.units)
-    print(f"{args.method}: {cloud_points.shape[0]} points ({rig.units}); {summary(unwrapping)}; {edges_note} "
+    write_point_cloud(args.out, cloud_points, unit=rig.units, file_unit=args.units)
+    print(f"{args.method}: {cloud_points.shape[0]} points ({args.units}); {summary(unwrapping)}; {edges_note} "
           f"-> {args.out}")
     return 0

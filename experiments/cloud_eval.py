@@ -29,12 +29,14 @@ from __future__ import annotations
 
 import json
 import math
+import sys
 from collections.abc import Callable, Iterable
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
 
 import numpy as np
+from tqdm import tqdm
 
 from dptpu.fpp import tpu
 from dptpu.fpp.calibration import load_rig
@@ -141,11 +143,16 @@ class CloudEvalResult:
 
 # -- twin captures -----------------------------------------------------------------------------------------------
 
-def render_eval_captures(spec: CloudEvalSpec, out_dir) -> list[dict]:
-    """Render every (rig, scene, steps, noise) capture of ``spec`` under ``out_dir``; their descriptions."""
+def render_eval_captures(spec: CloudEvalSpec, out_dir, *, progress: bool = False) -> list[dict]:
+    """Render every (rig, scene, steps, noise) capture of ``spec`` under ``out_dir``; their descriptions.
+
+    ``progress``: a tqdm bar on stderr.
+    """
     out_dir = Path(out_dir)
     captures = []
     lows = sorted({spec.low_frequency(m) for m in spec.methods}, reverse=True)
+    total = len(spec.rigs) * spec.scenes * len(spec.steps) * len(spec.noise_sigmas)
+    bar = tqdm(total=total, desc="rendering", unit="capture", disable=not progress, file=sys.stderr)
     for rig_index, eval_rig in enumerate(spec.rigs):
         rig = eval_rig.rig(spec.size)
         for scene_index in range(spec.scenes):
@@ -161,6 +168,8 @@ def render_eval_captures(spec: CloudEvalSpec, out_dir) -> list[dict]:
                                    seed=scene_seed * 10 + steps + int(10 * sigma), supersample=spec.supersample)
                     captures.append({"folder": folder, "rig": eval_rig.name, "scene": scene_seed, "steps": steps,
                                      "noise_sigma": sigma})
+                    bar.update()
+    bar.close()
     return captures
 
 
@@ -358,13 +367,15 @@ def _json_ready(value: Any) -> Any:
 
 
 def run_cloud_eval(spec: CloudEvalSpec, out_dir, *, models: Iterable[FringeOrderModel] = (), cfpe_dir=None,
-                   command: str = "") -> CloudEvalResult:
-    """Render, score and write ``cloud_eval.md`` and ``cloud_eval.json`` to ``out_dir``."""
+                   command: str = "", progress: bool = False) -> CloudEvalResult:
+    """Render, score and write ``cloud_eval.md`` and ``cloud_eval.json`` to ``out_dir`` (``progress``: tqdm bars on
+    stderr)."""
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     models = list(models)
     rows = []
-    for capture in render_eval_captures(spec, out_dir / "captures"):
+    captures = render_eval_captures(spec, out_dir / "captures", progress=progress)
+    for capture in tqdm(captures, desc="scoring", unit="capture", disable=not progress, file=sys.stderr):
         rows += score_capture(capture, spec, models)
     pooled = pool_rows(rows)
     cfpe = []

@@ -1,7 +1,7 @@
 """The paper's training-frequency study (S1-S5, Fig. 4c) and the Fourier-loss ablation, at any scale.
 
-    dptpu model study --out DIR [--sets S1,S2,S3,S4,S5] [--methods mf,mw,nt] [--scenes N --size WxH
-                      --steps T --batch B --crop HxW --seed S --ablation-seeds 0,1 ...]
+    dptpu model study --out DIR [--sets S1,S2,S3,S4,S5] [--methods mf,mw,nt] [--scenes N --size WIDTHxHEIGHT
+                      --steps T --batch B --crop-size WIDTHxHEIGHT --seed S --ablation-seeds 0,1 ...]
 
 One study is a list of :class:`StudyRun` (one DP-TPU model each) that differ only where they must:
 
@@ -443,14 +443,6 @@ def _numbers(text: str, what: str, kind=float) -> tuple:
         raise ValueError(f"--{what} must be comma-separated numbers or START:STOP:STEP; got {text!r}") from None
 
 
-def _hxw(text: str, what: str) -> tuple[int, int]:
-    try:
-        first, second = (int(v) for v in str(text).lower().split("x"))
-    except ValueError:
-        raise ValueError(f"--{what} must be two integers like 64x64; got {text!r}") from None
-    return first, second
-
-
 def add_study_arguments(parser) -> None:
     """The flags of ``dptpu model study`` (see :class:`StudyOptions`)."""
     parser.add_argument("--out", required=True, type=Path, metavar="DIR", help="study folder")
@@ -458,14 +450,14 @@ def add_study_arguments(parser) -> None:
     parser.add_argument("--methods", default="mf,mw,nt", help="classical methods, one model for all (default all)")
     parser.add_argument("--scenes", type=int, default=8, help="random scenes of the training pool (default 8)")
     parser.add_argument("--test-scenes", type=int, default=4, help="unseen scenes of the test set (default 4)")
-    parser.add_argument("--size", default="160x120", metavar="WxH", help="sample width x height (default 160x120)")
+    parser.add_argument("--size", default="160x120", metavar="WIDTHxHEIGHT", help="sample size (default 160x120)")
     parser.add_argument("--noise", default="1.5693,3.1386", metavar="SIGMA,...",
                         help="noise levels in gray levels (default the paper's 1 and 2 sigma)")
     parser.add_argument("--test-frequencies", default="16:96:4", metavar="F,F,... | START:STOP:STEP",
                         help="test high frequencies (default 16:96:4, which holds the paper's nine)")
     parser.add_argument("--steps", type=int, default=480, help="training steps per model, equal for all (default 480)")
     parser.add_argument("--batch", type=int, default=8, help="samples per step (default 8)")
-    parser.add_argument("--crop", default="64x64", metavar="HxW", help="training crop (default 64x64)")
+    parser.add_argument("--crop-size", default="64x64", metavar="WIDTHxHEIGHT", help="training crop (default 64x64)")
     parser.add_argument("--seed", type=int, default=0, help="seed of weights, crops and order (default 0)")
     parser.add_argument("--data-seed", type=int, default=100, help="scene seed of the training pool (default 100)")
     parser.add_argument("--test-seed", type=int, default=200, help="scene seed of the test set (default 200)")
@@ -486,7 +478,7 @@ def options_from_args(args) -> StudyOptions:
         out=args.out, sets=_names(args.sets, "sets"), methods=_names(args.methods, "methods"), scenes=args.scenes,
         test_scenes=args.test_scenes, size=parse_size(args.size), noise=_numbers(args.noise, "noise"),
         test_frequencies=_numbers(args.test_frequencies, "test-frequencies"), steps=args.steps, batch=args.batch,
-        crop=_hxw(args.crop, "crop"), seed=args.seed, data_seed=args.data_seed, test_seed=args.test_seed,
+        crop=parse_size(args.crop_size)[::-1], seed=args.seed, data_seed=args.data_seed, test_seed=args.test_seed,
         ablation_set=args.ablation_set, ablation_seeds=_numbers(args.ablation_seeds, "ablation-seeds", int),
         lambda_fourier=args.lambda_fourier, threads=args.threads, time_limit_min=args.time_limit_min,
         config=args.config, rig=args.rig, progress=not args.quiet)

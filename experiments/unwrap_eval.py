@@ -268,7 +268,7 @@ def run_unwrap_eval(spec: UnwrapEvalSpec, out_dir, *, models=(), data_dir=None, 
         data, spec = Path(data_dir), spec_from_dataset(data_dir)
     else:
         data = make_test_set(spec, out / "testset", workers=workers, progress=progress)
-    rows = evaluate_dataset(data, list(models), vote_baseline=vote_baseline)
+    rows = evaluate_dataset(data, list(models), vote_baseline=vote_baseline, progress=progress)
     files = {"table": write_table(rows, out / "table.csv"),
              "heatmap": write_png(accuracy_heatmap(rows), out / "heatmap.png"),
              "errors": write_png(error_versus_frequency(rows), out / "error_vs_frequency.png")}

@@ -30,11 +30,13 @@ DP-TPU paper, "Digital twin" section and Table 1 (``shared/seed/dp-tpu-paper.md`
 from __future__ import annotations
 
 import re
+import sys
 from dataclasses import dataclass
 from pathlib import Path
 
 import cv2
 import numpy as np
+from tqdm import tqdm
 
 from .calibration import DeviceModel, Rig
 from .capture import Capture, load_reference, load_sequence_images, read_capture
@@ -542,7 +544,7 @@ def _fringe_average(capture: Capture) -> np.ndarray:
     return load_sequence_images(capture, highest).astype(np.float64).mean(axis=0)
 
 
-def calibrate_from_folders(paths, board: Board, *, window_px: int = 6) -> RigCalibration:
+def calibrate_from_folders(paths, board: Board, *, window_px: int = 6, progress: bool = False) -> RigCalibration:
     """Calibrate a rig from calibration pose folders (real or twin; docs/calibration.md).
 
     Parameters
@@ -552,6 +554,8 @@ def calibrate_from_folders(paths, board: Board, *, window_px: int = 6) -> RigCal
     board : Board
     window_px : int
         Half-size of the local-homography window, camera pixels.
+    progress : bool
+        A tqdm bar over the poses on stderr.
 
     Returns
     -------
@@ -570,7 +574,7 @@ def calibrate_from_folders(paths, board: Board, *, window_px: int = 6) -> RigCal
                          f"({', '.join(map(str, folders)) or 'none'})")
     observations: list[PoseObservation] = []
     object_points = []
-    for folder in folders:
+    for folder in tqdm(folders, desc="observing poses", unit="pose", disable=not progress, file=sys.stderr):
         observation = observe_pose(folder, board, window_px=window_px)
         first = observations[0] if observations else observation
         for key in ("camera_size", "projector_size"):

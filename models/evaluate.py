@@ -16,11 +16,13 @@ Accuracy = share of valid pixels whose fringe order equals the label exactly.
 from __future__ import annotations
 
 import csv
+import sys
 from collections import defaultdict
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+from tqdm import tqdm
 
 from dptpu.fpp.dataset import list_samples, read_sample
 
@@ -63,19 +65,19 @@ def solver_names(models) -> list[str]:
 
 
 def evaluate_dataset(data_dir, models=(), *, threads: int | None = None, consensus: bool = True,
-                     vote_baseline: bool = False) -> list[Row]:
+                     vote_baseline: bool = False, progress: bool = False) -> list[Row]:
     """Accuracy rows for every (method, frequency, noise) group of ``data_dir`` and every solver.
 
     ``models`` are ONNX paths or already loaded :class:`FringeOrderModel` objects; a model runs only on the
     methods of its training set (:attr:`FringeOrderModel.trained_methods`): no row for the others.
     ``consensus``: post-process the models' orders (:func:`dptpu.models.consensus.consensus_order`);
-    ``vote_baseline``: add the solver ``classical+vote`` (module docstring).
+    ``vote_baseline``: add the solver ``classical+vote`` (module docstring); ``progress``: a tqdm bar on stderr.
     """
     loaded = [m if isinstance(m, FringeOrderModel) else FringeOrderModel.load(m, threads=threads) for m in models]
     names = solver_names(loaded)
     correct: dict = defaultdict(int)
     pixels: dict = defaultdict(int)
-    for path in list_samples(data_dir):
+    for path in tqdm(list_samples(data_dir), desc="evaluating", unit="sample", disable=not progress, file=sys.stderr):
         sample = read_sample(path)
         valid = sample.valid
         n_valid = int(valid.sum())

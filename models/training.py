@@ -22,6 +22,7 @@ from pathlib import Path
 
 import torch
 import torch.distributed as dist
+from tqdm import tqdm
 
 from .dataset_loader import FringeOrderDataset, collate, epoch_order
 from .export import export_onnx
@@ -125,24 +126,26 @@ def _distributed() -> tuple[int, int]:
 
 
 class _Progress:
-    """A one-line progress bar on stderr: epoch, step, loss, seconds per step."""
+    """Progress on stderr: a tqdm bar per epoch (steps, running loss, rate), then the epoch's summary line."""
 
     def __init__(self, enabled: bool):
         self.enabled = enabled
+        self.bar: tqdm | None = None
 
-    def update(self, epoch: int, epochs: int, step: int, steps: int, loss: float, seconds_per_step: float):
+    def update(self, epoch: int, epochs: int, step: int, steps: int, loss: float) -> None:
         if not self.enabled:
             return
-        width = 24
-        filled = int(width * step / max(steps, 1))
-        sys.stderr.write(f"\repoch {epoch}/{epochs} [{'#' * filled}{'.' * (width - filled)}] {step}/{steps} "
-                         f"loss {loss:.4f} {seconds_per_step:.2f} s/step")
-        sys.stderr.flush()
+        if self.bar is None:
+            self.bar = tqdm(total=steps, desc=f"epoch {epoch}/{epochs}", unit="step", file=sys.stderr, leave=False)
+        self.bar.set_postfix(loss=f"{loss:.4f}", refresh=False)
+        self.bar.update(1)
 
-    def end_epoch(self, text: str):
+    def end_epoch(self, text: str) -> None:
+        if self.bar is not None:
+            self.bar.close()
+            self.bar = None
         if self.enabled:
-            sys.stderr.write(f"\r{text}\n")
-            sys.stderr.flush()
+            tqdm.write(text, file=sys.stderr)
 
 
 def _save_checkpoint(path: Path, state: dict) -> None:
@@ -209,8 +212,7 @@ def train(options: TrainOptions) -> TrainResult:
             totals["loss"] += float(terms.total.detach())
             totals["mse"] += terms.mse
             totals["fourier"] += terms.fourier
-            progress.update(epoch + 1, options.epochs, step + 1, steps, totals["loss"] / (step + 1),
-                            (time.perf_counter() - epoch_start) / (step + 1))
+            progress.update(epoch + 1, options.epochs, step + 1, steps, totals["loss"] / (step + 1))
         if world > 1:  # the mean over processes (each process's loss is the mean over its own batch)
             summed = torch.tensor([totals[k] for k in ("loss", "mse", "fourier")], dtype=torch.float64)
             dist.all_reduce(summed)

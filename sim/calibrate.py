@@ -18,11 +18,13 @@ The issue's bounds (docs/calibration.md): focal lengths within 0.5 %, baseline w
 """
 from __future__ import annotations
 
+import sys
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 from scipy.spatial.transform import Rotation
+from tqdm import tqdm
 
 from dptpu.fpp.calibration import Rig
 from dptpu.fpp.capture import PhaseFrames, write_capture
@@ -105,7 +107,7 @@ def board_poses(rig: Rig, board: Board, count: int, *, seed: int = 0, max_tilt_d
 
 def render_calibration_poses(rig: Rig, out_dir, *, board: Board = DEFAULT_BOARD, count: int = 10,
                              frequency: float = 16.0, steps: int = 4, supersample: int = 2, effects=None,
-                             seed: int = 0) -> list[Path]:
+                             seed: int = 0, progress: bool = False) -> list[Path]:
     """Render ``count`` board poses in the twin as calibration pose folders ``out_dir/pose_XX/{x,y}``.
 
     Parameters
@@ -128,6 +130,8 @@ def render_calibration_poses(rig: Rig, out_dir, *, board: Board = DEFAULT_BOARD,
         Effects of image formation (default ``rig.effects``).
     seed : int
         Seed of the poses and of any noise.
+    progress : bool
+        A tqdm bar over the poses on stderr.
 
     Returns
     -------
@@ -141,7 +145,8 @@ def render_calibration_poses(rig: Rig, out_dir, *, board: Board = DEFAULT_BOARD,
     width, height = rig.camera.size
     fine = resize_camera(rig, (width * s, height * s)) if s > 1 else rig
     folders = []
-    for k, (R, T) in enumerate(board_poses(rig, board, count, seed=seed)):
+    poses = board_poses(rig, board, count, seed=seed)
+    for k, (R, T) in enumerate(tqdm(poses, desc="rendering poses", unit="pose", disable=not progress, file=sys.stderr)):
         scene = board_scene(fine, R, T, cols=board.cols, rows=board.rows, square_mm=board.square_mm)
         samples = trace(fine, scene)
         folder = out_dir / f"pose_{k:02d}"
@@ -199,8 +204,10 @@ def compare_with_truth(result: RigCalibration, truth: Rig) -> dict[str, Any]:
 
 
 def round_trip(rig: Rig, out_dir, *, board: Board = DEFAULT_BOARD, count: int = 10, frequency: float = 16.0,
-               steps: int = 4, supersample: int = 2, effects=None, seed: int = 0) -> tuple[RigCalibration, dict]:
-    """Render ``count`` poses (:func:`render_calibration_poses`), calibrate them, compare with ``rig``.
+               steps: int = 4, supersample: int = 2, effects=None, seed: int = 0,
+               progress: bool = False) -> tuple[RigCalibration, dict]:
+    """Render ``count`` poses (:func:`render_calibration_poses`), calibrate them, compare with ``rig``
+    (``progress``: tqdm bars on stderr).
 
     Returns
     -------
@@ -208,8 +215,8 @@ def round_trip(rig: Rig, out_dir, *, board: Board = DEFAULT_BOARD, count: int = 
         The calibration and :func:`compare_with_truth`'s report.
     """
     folders = render_calibration_poses(rig, out_dir, board=board, count=count, frequency=frequency, steps=steps,
-                                       supersample=supersample, effects=effects, seed=seed)
-    result = calibrate_from_folders(folders, board)
+                                       supersample=supersample, effects=effects, seed=seed, progress=progress)
+    result = calibrate_from_folders(folders, board, progress=progress)
     return result, compare_with_truth(result, rig)
 
 

@@ -24,7 +24,6 @@ from __future__ import annotations
 import os
 import re
 import sys
-import time
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import asdict, dataclass
 from multiprocessing import get_context
@@ -32,6 +31,7 @@ from pathlib import Path
 
 import numpy as np
 import yaml
+from tqdm import tqdm
 
 from dptpu.fpp.calibration import Rig, load_rig, save_rig
 from dptpu.fpp.dataset import DATASET_FORMAT, SAMPLE_RIG, sample_name
@@ -250,38 +250,6 @@ def _render_scene(job) -> int:
     return len(samples)
 
 
-class _Progress:
-    """A one-line progress bar on stderr: ``dataset [#####.....] 12/40 scenes, 3.1 scenes/min, ETA 9m02s``."""
-
-    def __init__(self, total: int, *, enabled: bool = True, stream=None):
-        self.total, self.done, self.enabled = total, 0, enabled
-        self.stream = stream or sys.stderr
-        self.start = time.perf_counter()
-        self._draw()
-
-    def step(self, count: int = 1) -> None:
-        self.done += count
-        self._draw()
-
-    def close(self) -> None:
-        if self.enabled:
-            self.stream.write("\n")
-            self.stream.flush()
-
-    def _draw(self) -> None:
-        if not self.enabled:
-            return
-        width = 30
-        filled = int(width * self.done / max(self.total, 1))
-        elapsed = time.perf_counter() - self.start
-        rate = self.done / elapsed * 60.0 if elapsed > 0 and self.done else 0.0
-        eta = (self.total - self.done) / rate * 60.0 if rate > 0 else float("nan")
-        eta_text = f"{int(eta // 60)}m{int(eta % 60):02d}s" if np.isfinite(eta) else "--"
-        self.stream.write(f"\rdataset [{'#' * filled}{'.' * (width - filled)}] {self.done}/{self.total} scenes, "
-                          f"{rate:.1f} scenes/min, ETA {eta_text}")
-        self.stream.flush()
-
-
 def write_dataset(rig, spec: DatasetSpec, out_dir, *, shard=(0, 1), workers: int = 1,
                   progress: bool = True) -> Path:
     """Render the samples of shard ``shard`` of the dataset ``spec`` into ``out_dir``.
@@ -301,7 +269,7 @@ def write_dataset(rig, spec: DatasetSpec, out_dir, *, shard=(0, 1), workers: int
     workers : int
         Processes rendering scenes in parallel (1 = in this process).
     progress : bool
-        Draw a progress bar on stderr.
+        Draw a progress bar (tqdm) on stderr.
 
     Returns
     -------
@@ -338,16 +306,13 @@ def write_dataset(rig, spec: DatasetSpec, out_dir, *, shard=(0, 1), workers: int
         if not all(p.is_file() for p in names):
             k = scene_rig(scene_index, len(rigs))
             jobs.append((str(rig_paths[k]), rigs[k][0], spec_dict, scene_index, int(index), str(samples_dir)))
-    bar = _Progress(len(jobs), enabled=progress)
-    try:
+    with tqdm(total=len(jobs), desc="dataset", unit="scene", disable=not progress, file=sys.stderr) as bar:
         if int(workers) == 1 or len(jobs) <= 1:
             for job in jobs:
                 _render_scene(job)
-                bar.step()
+                bar.update()
         else:
             with ProcessPoolExecutor(max_workers=int(workers), mp_context=get_context("spawn")) as pool:
                 for _ in pool.map(_render_scene, jobs):
-                    bar.step()
-    finally:
-        bar.close()
+                    bar.update()
     return out

@@ -155,28 +155,33 @@ def _plane_rig_and_scene(shape=(60, 80)):
     return Rig(camera=camera, projector=projector, units="mm"), scene
 
 
-def test_triangulate_writes_points_on_the_plane_in_rig_units(synthetic_capture, tmp_path, capsys):
+def test_triangulate_writes_points_on_the_plane_in_metres_or_millimetres(synthetic_capture, tmp_path, capsys):
     import open3d as o3d
 
-    rig, scene = _plane_rig_and_scene()
+    rig, scene = _plane_rig_and_scene()  # a rig file in mm
     rig_file = save_rig(rig, tmp_path / "rig.yaml")
     folder, _ = synthetic_capture([{"period": 42}, {"period": 45}, {"period": 48}], scene=scene,
                                   calibration=rig_file)
-    out = tmp_path / "cloud.ply"
+    out, out_mm = tmp_path / "cloud.ply", tmp_path / "cloud_mm.ply"
 
     code, stdout, stderr = _run(capsys, ["triangulate", "--capture", str(folder), "--method", "heterodyne",
                                          "--out", str(out)])
 
     assert code == 0, stderr
-    points = np.asarray(o3d.io.read_point_cloud(str(out)).points)  # (M, 3), mm
+    points = np.asarray(o3d.io.read_point_cloud(str(out)).points)  # (M, 3), metres: every cloud file of dptpu
     assert points.shape == (scene.lit.size, 3)
-    assert stdout.strip() == (f"heterodyne: {scene.lit.size} points (mm); model none; the shipped model does not serve "
+    assert stdout.strip() == (f"heterodyne: {scene.lit.size} points (m); model none; the shipped model does not serve "
                               f"method heterodyne; 0 pixels below the confidence threshold dropped; 0 points at depth "
                               f"edges dropped (0 flying, 0 beside a step, 0 modulation dips, 0 isolated) -> {out}")
     # Phase noise ~0.002 rad at period 42 px is ~0.01 projector px, ~0.04 mm in depth here.
-    assert np.abs(points[:, 2] - PLANE_Z_MM).max() < 0.5
-    assert points[:, 0].min() == pytest.approx(-197.5, abs=0.5)  # pixel column 0: (0 - 39.5) / 100 * 500
-    assert points[:, 0].max() == pytest.approx(197.5, abs=0.5)
+    assert np.abs(points[:, 2] - PLANE_Z_MM / 1000).max() < 0.5e-3
+    assert points[:, 0].min() == pytest.approx(-0.1975, abs=0.5e-3)  # pixel column 0: (0 - 39.5) / 100 * 0.5 m
+    assert points[:, 0].max() == pytest.approx(0.1975, abs=0.5e-3)
+
+    code, stdout, stderr = _run(capsys, ["triangulate", "--capture", str(folder), "--method", "heterodyne",
+                                         "--units", "mm", "--out", str(out_mm)])
+    assert code == 0 and " points (mm);" in stdout, stderr
+    np.testing.assert_allclose(np.asarray(o3d.io.read_point_cloud(str(out_mm)).points), 1000 * points, rtol=1e-9)
 
 
 def test_triangulate_without_calibration_exits_2(synthetic_capture, tmp_path, capsys):
@@ -199,7 +204,7 @@ def test_triangulate_rejects_a_rig_of_another_camera(synthetic_capture, tmp_path
 def test_triangulate_help_states_the_units(capsys):
     with pytest.raises(SystemExit):
         main(["triangulate", "--help"])
-    assert "rig's units" in " ".join(capsys.readouterr().out.split())
+    assert "in metres (--units mm: millimetres)" in " ".join(capsys.readouterr().out.split())
 
 
 def test_a_plain_gray_code_keeps_its_pixels_near_code_edges_by_default(synthetic_capture, tmp_path, capsys):

@@ -71,8 +71,8 @@ def tiny_study(tmp_path_factory):
     out = tmp_path_factory.mktemp("study") / "study"
     code = main(["model", "study", "--out", str(out), "--sets", "S1,S2", "--methods", "mf", "--scenes", "1",
                  "--test-scenes", "1", "--size", "96x64", "--noise", "1.5693", "--test-frequencies", "16,56,96",
-                 "--steps", "8", "--batch", "1", "--crop", "64x64", "--ablation-set", "S2", "--ablation-seeds", "0",
-                 "--config", json.dumps(TINY), "--quiet"])
+                 "--steps", "8", "--batch", "1", "--crop-size", "64x64", "--ablation-set", "S2",
+                 "--ablation-seeds", "0", "--config", json.dumps(TINY), "--quiet"])
     assert code == 0
     with (out / "table.csv").open() as handle:
         rows = list(csv.DictReader(handle))

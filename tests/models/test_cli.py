@@ -22,7 +22,7 @@ def _run(capsys, argv):
 def test_train_then_export_then_eval(tiny_dataset, tmp_path, capsys):
     out = tmp_path / "m.onnx"
     code, stdout, stderr = _run(capsys, ["train", "--data", tiny_dataset, "--out", out, "--epochs", 1, "--batch", 4,
-                                         "--crop", "32x48", "--config", json.dumps(TINY_DPTPU), "--threads", 1])
+                                         "--crop-size", "48x32", "--config", json.dumps(TINY_DPTPU), "--threads", 1])
     assert code == 0, stderr
     assert stdout.startswith("dptpu: 1 epochs,") and f"-> {out}" in stdout
     assert "epoch 1/1" in stderr  # the progress bar
@@ -53,19 +53,25 @@ def test_train_then_export_then_eval(tiny_dataset, tmp_path, capsys):
 
 
 def test_train_rejects_bad_arguments(tiny_dataset, tmp_path, capsys):
-    code, _, stderr = _run(capsys, ["train", "--data", tiny_dataset, "--out", tmp_path / "m.onnx", "--crop", "99x32",
-                                    "--config", json.dumps(TINY_DPTPU)])
+    code, _, stderr = _run(capsys, ["train", "--data", tiny_dataset, "--out", tmp_path / "m.onnx", "--crop-size",
+                                    "32x99", "--config", json.dumps(TINY_DPTPU)])
     assert code == 2 and stderr.strip().endswith("(smallest 64x64)") and stderr.count("\n") == 1
     code, _, stderr = _run(capsys, ["train", "--data", tmp_path, "--out", tmp_path / "m.onnx"])
     assert code == 2 and "no dataset.yaml" in stderr
     with pytest.raises(SystemExit) as exit_info:
-        main(["train", "--data", str(tiny_dataset), "--out", "m.onnx", "--crop", "64by64"])
+        main(["train", "--data", str(tiny_dataset), "--out", "m.onnx", "--crop-size", "64by64"])
     assert exit_info.value.code == 2
+    capsys.readouterr()
+    with pytest.raises(SystemExit) as exit_info:  # the old spelling, HEIGHTxWIDTH, is refused with the new one
+        main(["train", "--data", str(tiny_dataset), "--out", "m.onnx", "--crop", "64x32"])
+    assert exit_info.value.code == 2
+    assert capsys.readouterr().err == ("dptpu train: error: --crop is no longer accepted; write --crop-size "
+                                       "WIDTHxHEIGHT (width first; --crop was HEIGHTxWIDTH)\n")
 
 
 def test_toy_data_writes_a_dataset(tmp_path, capsys):
     code, _stdout, _ = _run(capsys, ["model", "toy-data", "--out", tmp_path / "d", "--scenes", 1, "--frequencies", "96",
-                                    "--methods", "mw", "--shape", "40x48", "--noise", "1.5693,3.1386"])
+                                    "--methods", "mw", "--size", "48x40", "--noise", "1.5693,3.1386"])
     assert code == 0
     samples = [read_sample(p) for p in list_samples(tmp_path / "d")]
     assert [(s.method, s.frequency_high, s.frequency_low, s.noise_sigma) for s in samples] == [

@@ -115,7 +115,7 @@ def test_two_ddp_processes_train_like_one_process_with_the_global_batch(tiny_dat
     env = {**os.environ, "OMP_NUM_THREADS": "1"}
     command = [sys.executable, "-m", "torch.distributed.run", "--standalone", "--nproc_per_node", "2",
                "-m", "dptpu.cli.main", "train", "--data", str(data), "--out", str(tmp_path / "ddp.onnx"),
-               "--checkpoint", str(tmp_path / "ddp.ckpt"), "--epochs", "1", "--batch", "1", "--crop", "32x32",
+               "--checkpoint", str(tmp_path / "ddp.ckpt"), "--epochs", "1", "--batch", "1", "--crop-size", "32x32",
                "--seed", "5", "--config", ('{"widths": [8, 8, 8, 8], "depths": [1, 1, 1, 1], "heads": [1, 1, 1, 2], '
                '"decoder_width": 8}'), "--threads", "1", "--quiet"]
     done = subprocess.run(command, env=env, capture_output=True, text=True, timeout=240, check=False)

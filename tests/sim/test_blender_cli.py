@@ -14,7 +14,7 @@ def _run(capsys, *argv):
 
 def test_sim_twin_json_of_the_dptpu_calibration(capsys, sphere_dir):
     calibration = f"{sphere_dir / 'CamCalibResult_real.mat'},{sphere_dir / 'PrjCalibResult_real.mat'}"
-    code, out, _ = _run(capsys, "sim", "twin", "--calibration", calibration, "--blender", "--json")
+    code, out, _ = _run(capsys, "sim", "twin", "--rig", calibration, "--blender", "--json")
     assert code == 0
     document = json.loads(out)
     camera, projector = document["blender"]["camera"], document["blender"]["projector"]
@@ -28,17 +28,17 @@ def test_sim_twin_json_of_the_dptpu_calibration(capsys, sphere_dir):
 
 
 def test_sim_twin_text_of_the_nominal_rig(capsys):
-    code, out, _ = _run(capsys, "sim", "twin", "--calibration", "nominal", "--blender")
+    code, out, _ = _run(capsys, "sim", "twin", "--rig", "nominal", "--blender")
     assert code == 0
     assert "angle between the optical axes 6.210 deg" in out
     assert "rotation_euler  [180.0000, 0.0000, 0.0000] deg" in out  # the camera frame is the world frame
     assert "spot_size" in out and "shift_x" in out
-    code, out, _ = _run(capsys, "sim", "twin", "--calibration", "nominal")
+    code, out, _ = _run(capsys, "sim", "twin", "--rig", "nominal")
     assert code == 0 and "Blender" not in out
 
 
 def test_sim_twin_bad_calibration_is_exit_code_2(capsys, tmp_path):
-    code, _, err = _run(capsys, "sim", "twin", "--calibration", str(tmp_path / "missing.yaml"))
+    code, _, err = _run(capsys, "sim", "twin", "--rig", str(tmp_path / "missing.yaml"))
     assert code == 2 and "missing.yaml" in err
 
 

@@ -72,6 +72,10 @@ def test_cli_calibrates_pose_folders_and_prints_errors_per_device(pose_folders, 
     text = capsys.readouterr().out
     assert "reprojection RMS: camera" in text and "projector" in text and "pose_07" in text
     rig = load_rig(out)
+    summary = text.strip().splitlines()[-1]  # ends with one human line: poses, file, both RMS, baseline
+    result = calibrate_from_folders([pose_folders[0].parent], DEFAULT_BOARD)
+    assert summary == (f"calibrated {len(pose_folders)} poses -> {out}: RMS camera {result.camera.rms_px:.3f} px, "
+                       f"projector {result.projector.rms_px:.3f} px; baseline {result.baseline_mm:.1f} mm")
     assert yaml.safe_load(out.read_text())["format"] == "dptpu-rig/1"
     assert rig.camera.size == SIZE and rig.projector.size == (912, 1140)
     np.testing.assert_allclose(rig.camera.R, np.eye(3))
@@ -96,8 +100,16 @@ def test_cli_twin_round_trip_prints_the_comparison(tmp_path, capsys):
     code = main(["calibrate", "--twin", "nominal", "--size", "160x120", "--poses", "3", "--supersample", "1",
                  "--board", "10x8:13", "--keep", str(tmp_path / "poses"), "--out", str(out)])
     assert code == 0
-    text = capsys.readouterr().out
+    captured = capsys.readouterr()
+    text = captured.out
     assert "camera: fx" in text and "baseline:" in text and "relative pose error" in text
+    assert text.strip().splitlines()[-1].startswith(f"calibrated 3 poses -> {out}: RMS camera ")
+    assert "against the twin: baseline error" in text.strip().splitlines()[-1]
+    assert "rendering poses: 100%" in captured.err and "observing poses: 100%" in captured.err  # tqdm bars
+    code = main(["calibrate", "--twin", "nominal", "--size", "160x120", "--poses", "3", "--supersample", "1",
+                 "--board", "10x8:13", "--out", str(tmp_path / "scratch.yaml"), "--quiet"])
+    captured = capsys.readouterr()  # without --keep, the deleted temporary folder is named nowhere
+    assert code == 0 and "dptpu-calibrate-" not in captured.out + captured.err and "%|" not in captured.err
     assert sorted(p.name for p in (tmp_path / "poses").iterdir()) == ["pose_00", "pose_01", "pose_02"]
     assert load_rig(out).camera.size == (160, 120)
     capsys.readouterr()

@@ -129,6 +129,8 @@ def test_bad_arguments_give_clear_errors(rig, tmp_path, capsys):
         (["--shard", "2/2"], "--shard must be I/N with 0 <= I < N"),
         (["--methods", "mf,xx"], "--methods must list distinct methods among mf, mw, nt"),
         (["--noise", "-1"], "--noise must list one or more sigmas >= 0"),
+        (["--noise", "1", "2"], "--noise takes one comma-separated list: --noise 1,2 (space-separated values are no "
+                                "longer accepted)"),
         (["--input-steps", "2"], "--input-steps must be >= 3"),
         (["--frequencies", "32,abc"], "--frequencies must be comma-separated numbers"),
         (["--frequencies", "1"], "--frequencies: 1 must be > 1"),
@@ -168,7 +170,7 @@ def test_cli_writes_a_dataset_with_a_progress_bar(tmp_path, capsys):
     assert code == 0
     captured = capsys.readouterr()
     assert "1 of 1 samples on disk" in captured.out
-    assert "dataset [" in captured.err and "1/1 scenes" in captured.err
+    assert "dataset: 100%" in captured.err and "1/1" in captured.err  # the tqdm bar
     sample = open_dataset(tmp_path / "set")[0]
     assert sample.method == "nt" and sample.frequency_low == 10.9
 
