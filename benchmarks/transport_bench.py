@@ -41,6 +41,16 @@ Reported ratios: ``throughput_ratio = ours / raw`` (goal >= 0.9) and ``latency_p
 ``latency_p99_ratio = ours / raw`` (goal <= 2). Both variants run in the same invocation, one after
 the other, on the same machine; compare ratios within one run only.
 
+(c) Shared memory (``shared_memory`` in the report). "Ours" is the runtime as it is configured by default: on
+    one host, over ipc, a message whose arrays hold at least ``DPTPU_SHM_MIN_BYTES`` (64 KiB) travels through
+    shared memory (``dptpu.graph.shared_memory``: one copy into the publisher's segment, the subscriber's arrays
+    are views of it). Beside it, in the same run: ours with ``DPTPU_SHM=off`` (the ZeroMQ path, as before
+    shared memory) and a ``memcpy`` of the same bytes in one process (``np.copyto`` between two preallocated
+    arrays, the sender's CPUs, the same pool of 4 arrays: what moving the bytes once costs). Ratios:
+    ``throughput_ratio`` (ours / raw pyzmq, goal >= 3 for a 7.4 MB message), ``zeromq_throughput_ratio`` (ours
+    over ZeroMQ / raw) and ``memcpy_ratio`` (ours / memcpy, goal >= 0.5: within 2x of a memcpy);
+    ``shared_count``: the messages ours sent through shared memory (0 below the threshold, e.g. ``--size small``).
+
 The processes join a private graph (a fresh ``DPTPU_DISCOVERY_DIR`` under /tmp, domain 0), so the
 benchmark never sees or disturbs another graph.
 """
@@ -72,6 +82,9 @@ WARMUP, TIMED, STOP = 0, 1, 2  # message phases
 PIPE_HWM = 100  # raw sockets get the same high-water mark as a RELIABLE subscription of the runtime
 THROUGHPUT_GOAL = 0.9
 LATENCY_GOAL = 2.0
+#: Issue 20's goals for a large message through shared memory: ours / raw pyzmq, and ours / a memcpy.
+SHARED_THROUGHPUT_GOAL = 3.0
+MEMCPY_GOAL = 0.5
 #: Defaults per --size: timed messages per round, rounds, timed round trips per round, warm-ups.
 SIZES = {
     "full": {"shape": FULL_SHAPE, "messages": 100, "rounds": 3, "round_trips": 2000, "warmup_messages": 4,
@@ -260,7 +273,7 @@ def role_ours_source(options) -> dict:
         def send(seq, phase, pool_index):
             publisher.publish(frame_stack(seq=seq, phase=phase, pool_index=pool_index, frames=pool[pool_index]))
 
-        return _run_sender(send, receive_ack, options)
+        return {**_run_sender(send, receive_ack, options), "shared_count": publisher.shared_count}
     finally:
         rclpy.try_shutdown()
 
@@ -293,6 +306,24 @@ def role_ours_sink(options) -> dict:
         return {**check.report(), "dropped_count": subscription.dropped_count}
     finally:
         rclpy.try_shutdown()
+
+
+def role_memcpy(options) -> dict:
+    """Copy the pool's arrays into a preallocated array, as many times and rounds as the senders send."""
+    pool = make_pool(options.shape)
+    target = np.empty_like(pool[0])
+    for index in range(options.warmup_messages):
+        np.copyto(target, pool[index % POOL_SIZE])
+    rounds_s = []
+    cpu_start = time.process_time()
+    for _ in range(options.rounds):
+        start = time.perf_counter()
+        for index in range(options.messages):
+            np.copyto(target, pool[index % POOL_SIZE])
+        rounds_s.append(time.perf_counter() - start)
+    cpu_s = time.process_time() - cpu_start
+    same = bool(np.array_equal(target, pool[(options.messages - 1) % POOL_SIZE]))
+    return {"rounds_s": rounds_s, "cpu_s_per_message": cpu_s / (options.rounds * options.messages), "intact": same}
 
 
 def role_raw_source(options) -> dict:
@@ -486,7 +517,7 @@ def role_raw_pong(options) -> dict:
 
 ROLES = {"ours-source": role_ours_source, "ours-sink": role_ours_sink, "raw-source": role_raw_source,
          "raw-sink": role_raw_sink, "ours-ping": role_ours_ping, "ours-pong": role_ours_pong,
-         "raw-ping": role_raw_ping, "raw-pong": role_raw_pong}
+         "raw-ping": role_raw_ping, "raw-pong": role_raw_pong, "memcpy": role_memcpy}
 
 
 # --------------------------------------------------------------------------------------------------
@@ -558,6 +589,17 @@ def _run_pair(receiver: str, sender: str, options, env: dict, folder: Path, tag:
                 process.wait()
 
 
+def _run_single(role: str, options, env: dict) -> dict:
+    """Run one child (the memcpy) and return its JSON result."""
+    process = subprocess.run(_child_command(role, options, "", ""), capture_output=True, text=True, env=env,
+                             timeout=CHILD_TIMEOUT_S)
+    lines = [line for line in process.stdout.splitlines() if line.startswith("{")]
+    if process.returncode != 0 or not lines:
+        raise RuntimeError(f"benchmark process {role} failed (exit code {process.returncode}):\n"
+                           f"{process.stderr[-3000:]}")
+    return json.loads(lines[-1])
+
+
 def _pooled(results: list[dict]) -> dict:
     """One result dict from the same role's results of several repeats: lists joined, counts added."""
     if len(results) == 1:
@@ -582,10 +624,11 @@ def _throughput_figures(sender: dict, receiver: dict, options) -> dict:
     expected = options.repeat * options.rounds * options.messages
     intact = (receiver["failures"] == 0 and receiver["sequence_gaps"] == 0 and receiver["timed"] == expected
               and receiver["full_checks"] >= options.repeat * options.warmup_messages)
+    cpu_us = sender["cpu_s_per_message"] * 1e6 + receiver.get("cpu_us_per_message", float("nan"))
     return {"mb_per_s": float(np.median(rates)), "rounds_mb_per_s": rates,
             "messages_per_s": float(np.median(rates)) * 1e6 / nbytes,
             "sender_cpu_us_per_message": sender["cpu_s_per_message"] * 1e6, "receiver": receiver,
-            "intact": bool(intact)}
+            "cpu_us_per_message": cpu_us, "cpu_mb_per_s": nbytes / cpu_us, "intact": bool(intact)}
 
 
 def _latency_figures(ping: dict, pong: dict, options) -> dict:
@@ -620,36 +663,48 @@ def measure(args) -> dict:
     repo_root = str(Path(__file__).resolve().parents[1])
     env.update({"DPTPU_DISCOVERY_DIR": str(folder / "graph"), "DPTPU_DOMAIN_ID": "0",
                 "PYTHONPATH": repo_root + os.pathsep + env.get("PYTHONPATH", "")})
-    pairs = (("raw-sink", "raw-source", "rt"), ("ours-sink", "ours-source", "ot"), ("raw-pong", "raw-ping", "rl"),
-             ("ours-pong", "ours-ping", "ol"))
-    results: dict[str, list] = {role: [] for pair in pairs for role in pair[:2]}
+    zeromq_env = dict(env, DPTPU_SHM="off")  # ours as before shared memory: every byte through ZeroMQ
+    # (receiver, sender, tag, environment): raw and ours alternate, so a load that drifts hits both alike
+    pairs = (("raw-sink", "raw-source", "rt", env), ("ours-sink", "ours-source", "ot", env),
+             ("ours-sink", "ours-source", "oz", zeromq_env), ("raw-pong", "raw-ping", "rl", env),
+             ("ours-pong", "ours-ping", "ol", env))
+    results: dict[str, dict[str, list]] = {tag: {"receiver": [], "sender": []} for *_, tag, _env in pairs}
+    copies = []
     repeats = []
     try:
-        for index in range(options.repeat):  # raw and ours alternate, so a load that drifts hits both alike
-            for receiver, sender, tag in pairs:
-                received, sent = _run_pair(receiver, sender, options, env, folder, f"{tag}{index}")
-                results[receiver].append(received)
-                results[sender].append(sent)
+        for index in range(options.repeat):
+            for receiver, sender, tag, pair_env in pairs:
+                received, sent = _run_pair(receiver, sender, options, pair_env, folder, f"{tag}{index}")
+                results[tag]["receiver"].append(received)
+                results[tag]["sender"].append(sent)
+            copies.append(_run_single("memcpy", options, env))
             if options.repeat > 1:
                 single = argparse.Namespace(**{**vars(options), "repeat": 1})
-                figures = [_throughput_figures(results[sender][-1], results[receiver][-1], single)
-                           for receiver, sender, _ in pairs[:2]]
-                times = [_latency_figures(results[sender][-1], results[receiver][-1], single)
-                         for receiver, sender, _ in pairs[2:]]
-                repeats.append({"throughput_ratio": figures[1]["mb_per_s"] / figures[0]["mb_per_s"],
-                                "latency_p50_ratio": times[1]["p50_us"] / times[0]["p50_us"],
-                                "latency_p99_ratio": times[1]["p99_us"] / times[0]["p99_us"]})
+                figures = {tag: _throughput_figures(results[tag]["sender"][-1], results[tag]["receiver"][-1], single)
+                           for tag in ("rt", "ot", "oz")}
+                times = {tag: _latency_figures(results[tag]["sender"][-1], results[tag]["receiver"][-1], single)
+                         for tag in ("rl", "ol")}
+                repeats.append({"throughput_ratio": figures["ot"]["mb_per_s"] / figures["rt"]["mb_per_s"],
+                                "zeromq_throughput_ratio": figures["oz"]["mb_per_s"] / figures["rt"]["mb_per_s"],
+                                "memcpy_ratio": figures["ot"]["mb_per_s"] / _memcpy_figures([copies[-1]],
+                                                                                             single)["mb_per_s"],
+                                "latency_p50_ratio": times["ol"]["p50_us"] / times["rl"]["p50_us"],
+                                "latency_p99_ratio": times["ol"]["p99_us"] / times["rl"]["p99_us"]})
     finally:
         shutil.rmtree(folder, ignore_errors=True)
-    pooled = {role: _pooled(values) for role, values in results.items()}
-    throughput = {"ours": _throughput_figures(pooled["ours-source"], pooled["ours-sink"], options),
-                  "raw": _throughput_figures(pooled["raw-source"], pooled["raw-sink"], options)}
-    latency = {"ours": _latency_figures(pooled["ours-ping"], pooled["ours-pong"], options),
-               "raw": _latency_figures(pooled["raw-ping"], pooled["raw-pong"], options)}
+    pooled = {tag: {side: _pooled(values) for side, values in sides.items()} for tag, sides in results.items()}
+    throughput = {name: _throughput_figures(pooled[tag]["sender"], pooled[tag]["receiver"], options)
+                  for name, tag in (("ours", "ot"), ("raw", "rt"))}
+    latency = {name: _latency_figures(pooled[tag]["sender"], pooled[tag]["receiver"], options)
+               for name, tag in (("ours", "ol"), ("raw", "rl"))}
+    zeromq = _throughput_figures(pooled["oz"]["sender"], pooled["oz"]["receiver"], options)
+    memcpy = _memcpy_figures(copies, options)
     throughput_ratio = throughput["ours"]["mb_per_s"] / throughput["raw"]["mb_per_s"]
     p50_ratio = latency["ours"]["p50_us"] / latency["raw"]["p50_us"]
     p99_ratio = latency["ours"]["p99_us"] / latency["raw"]["p99_us"]
-    intact = all(entry["intact"] for part in (throughput, latency) for entry in part.values())
+    intact = all(entry["intact"] for part in (throughput, latency) for entry in part.values()) \
+        and zeromq["intact"] and memcpy["intact"]
+    shared_ratio, memcpy_ratio = throughput_ratio, throughput["ours"]["mb_per_s"] / memcpy["mb_per_s"]
     return {
         "machine": machine(), "transport": "ipc", "size": options.size,
         "pinned": {"senders": pinned_cpus("ours-source"), "receivers": pinned_cpus("ours-sink")}
@@ -668,7 +723,29 @@ def measure(args) -> dict:
                        "warmup_messages": options.warmup_messages, **throughput},
         "latency": {"payload_bytes": PAYLOAD_BYTES, "round_trips_per_round": options.round_trips,
                     "rounds": options.rounds, "warmup_round_trips": options.warmup_round_trips, **latency},
+        "shared_memory": {
+            "shared_count": int(pooled["ot"]["sender"]["shared_count"]),
+            "messages_sent": int(options.repeat * (options.rounds * options.messages + options.warmup_messages)),
+            "throughput_ratio": shared_ratio,
+            "zeromq_throughput_ratio": zeromq["mb_per_s"] / throughput["raw"]["mb_per_s"],
+            "memcpy_ratio": memcpy_ratio,
+            # the load-robust figures: bytes over the CPU time of both processes (sender + receiver, every thread)
+            "cpu_throughput_ratio": throughput["ours"]["cpu_mb_per_s"] / throughput["raw"]["cpu_mb_per_s"],
+            "cpu_memcpy_ratio": throughput["ours"]["cpu_mb_per_s"] / memcpy["cpu_mb_per_s"],
+            "ours_zeromq": zeromq, "memcpy": memcpy,
+            "goals": {"throughput_ratio_min": SHARED_THROUGHPUT_GOAL, "memcpy_ratio_min": MEMCPY_GOAL,
+                      "throughput_met": shared_ratio >= SHARED_THROUGHPUT_GOAL,
+                      "memcpy_met": memcpy_ratio >= MEMCPY_GOAL},
+        },
     }
+
+
+def _memcpy_figures(results: list[dict], options) -> dict:
+    nbytes = int(np.prod(options.shape))
+    rates = [options.messages * nbytes / seconds / 1e6 for result in results for seconds in result["rounds_s"]]
+    cpu_us = float(np.mean([result["cpu_s_per_message"] for result in results])) * 1e6
+    return {"mb_per_s": float(np.median(rates)), "rounds_mb_per_s": rates, "cpu_us_per_message": cpu_us,
+            "cpu_mb_per_s": nbytes / cpu_us, "intact": all(result["intact"] for result in results)}
 
 
 def _receiver_cpu(figures: dict) -> str:
@@ -681,7 +758,7 @@ def _receiver_cpu(figures: dict) -> str:
 
 
 def format_report(report: dict) -> str:
-    t, lat = report["throughput"], report["latency"]
+    t, lat, shm = report["throughput"], report["latency"], report["shared_memory"]
     pinned = report["pinned"]
     placement = f"senders on CPUs {pinned['senders']}, receivers on CPUs {pinned['receivers']}, " if pinned else ""
     shape = "x".join(str(n) for n in t["shape"])
@@ -697,7 +774,18 @@ def format_report(report: dict) -> str:
         f"    ours (graph)      : {t['ours']['mb_per_s']:9.1f} MB/s  ({t['ours']['messages_per_s']:.1f} msg/s, "
         f"sender CPU {t['ours']['sender_cpu_us_per_message']:.0f} us/msg, "
         f"receiver CPU {_receiver_cpu(t['ours'])})",
-        f"    throughput_ratio  : {report['throughput_ratio']:.3f}  (goal >= {THROUGHPUT_GOAL})",
+        f"    ours over ZeroMQ  : {shm['ours_zeromq']['mb_per_s']:9.1f} MB/s  (DPTPU_SHM=off, sender CPU "
+        f"{shm['ours_zeromq']['sender_cpu_us_per_message']:.0f} us/msg, receiver CPU "
+        f"{_receiver_cpu(shm['ours_zeromq'])})",
+        f"    memcpy            : {shm['memcpy']['mb_per_s']:9.1f} MB/s  (np.copyto, one process)",
+        f"    throughput_ratio  : {report['throughput_ratio']:.3f}  (goal >= {THROUGHPUT_GOAL}; through shared "
+        f"memory >= {SHARED_THROUGHPUT_GOAL}: {shm['shared_count']} of {shm['messages_sent']} messages were)",
+        f"    over ZeroMQ / raw : {shm['zeromq_throughput_ratio']:.3f}   ours / memcpy: {shm['memcpy_ratio']:.3f}  "
+        f"(goal >= {MEMCPY_GOAL})",
+        f"    per CPU second    : raw {t['raw']['cpu_mb_per_s']:.0f}, ours {t['ours']['cpu_mb_per_s']:.0f}, "
+        f"over ZeroMQ {shm['ours_zeromq']['cpu_mb_per_s']:.0f}, memcpy {shm['memcpy']['cpu_mb_per_s']:.0f} MB; "
+        f"ours / raw "
+        f"{shm['cpu_throughput_ratio']:.2f}, ours / memcpy {shm['cpu_memcpy_ratio']:.2f} (both processes' CPU)",
         f"(b) round trip, {lat['payload_bytes']}-byte payload, {lat['ours']['round_trips']} round trips each",
         f"    raw pyzmq         : p50 {lat['raw']['p50_us']:8.1f} us  p99 {lat['raw']['p99_us']:8.1f} us",
         f"    ours (graph)      : p50 {lat['ours']['p50_us']:8.1f} us  p99 {lat['ours']['p99_us']:8.1f} us",

@@ -8,6 +8,7 @@ from __future__ import annotations
 import contextlib
 import io
 import json
+import os
 
 import pytest
 
@@ -20,10 +21,19 @@ SMALL = {"shape": [2, 48, 64], "messages": 20, "rounds": 1, "round_trips": 50, "
 
 @pytest.fixture(scope="module")
 def report():
-    """The JSON report of one ``--size small`` run, with its exit code."""
+    """The JSON report of one ``--size small`` run, with its exit code; the 6 kB messages go through shared memory
+    (``DPTPU_SHM_MIN_BYTES`` 4096, the children inherit it), the ZeroMQ variant does not."""
     buffer = io.StringIO()
-    with contextlib.redirect_stdout(buffer):
-        code = main(["bench", "transport", "--json", "--size", "small"])
+    before = os.environ.get("DPTPU_SHM_MIN_BYTES")
+    os.environ["DPTPU_SHM_MIN_BYTES"] = "4096"
+    try:
+        with contextlib.redirect_stdout(buffer):
+            code = main(["bench", "transport", "--json", "--size", "small"])
+    finally:
+        if before is None:
+            del os.environ["DPTPU_SHM_MIN_BYTES"]
+        else:
+            os.environ["DPTPU_SHM_MIN_BYTES"] = before
     return code, json.loads(buffer.getvalue())
 
 
@@ -77,10 +87,31 @@ def test_every_round_trip_came_back_with_its_payload(report, variant):
     assert 0 < entry["min_us"] <= entry["p50_us"] <= entry["p99_us"]
 
 
+def test_shared_memory_section_compares_ours_with_zeromq_and_a_memcpy(report):
+    data = report[1]
+    shared = data["shared_memory"]
+    # every message of ours through shared memory (the warm-up probes too), none of the ZeroMQ variant's
+    assert shared["shared_count"] >= shared["messages_sent"] == 20 + 4
+    assert shared["ours_zeromq"]["intact"] and shared["ours_zeromq"]["receiver"]["timed"] == 20
+    assert shared["memcpy"]["intact"] and shared["memcpy"]["mb_per_s"] > 0
+    assert shared["throughput_ratio"] == data["throughput_ratio"]
+    assert shared["memcpy_ratio"] == pytest.approx(data["ours_throughput_mb_per_s"] / shared["memcpy"]["mb_per_s"])
+    assert shared["zeromq_throughput_ratio"] == pytest.approx(shared["ours_zeromq"]["mb_per_s"]
+                                                              / data["raw_throughput_mb_per_s"])
+    ours, raw = data["throughput"]["ours"], data["throughput"]["raw"]
+    assert ours["cpu_us_per_message"] == pytest.approx(ours["sender_cpu_us_per_message"]
+                                                       + ours["receiver"]["cpu_us_per_message"])
+    assert shared["cpu_throughput_ratio"] == pytest.approx(ours["cpu_mb_per_s"] / raw["cpu_mb_per_s"])
+    goals = shared["goals"]
+    assert (goals["throughput_ratio_min"], goals["memcpy_ratio_min"]) == (3.0, 0.5)
+    assert goals["memcpy_met"] == (shared["memcpy_ratio"] >= 0.5)
+
+
 def test_text_report_names_both_variants_and_the_ratios(report):
     text = bench_cmd.load_transport_bench().format_report(report[1])
     assert "raw pyzmq PUB/SUB" in text and "ours (graph)" in text
-    assert f"throughput_ratio  : {report[1]['throughput_ratio']:.3f}  (goal >= 0.9)" in text
+    assert f"throughput_ratio  : {report[1]['throughput_ratio']:.3f}  (goal >= 0.9; through shared memory >= 3.0" \
+        in text
     assert text.endswith("messages intact: yes")
 
 
