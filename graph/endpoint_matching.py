@@ -41,7 +41,8 @@ def wanted_publishers(sub, candidates: list, *, same_host: Callable[[dict], bool
     is of this host (ipc endpoints are reachable).
     """
     wanted: dict[str, tuple] = {}
-    candidates, refused = select_publishers(candidates, getattr(sub, "known_publishers", None))
+    candidates, refused = select_publishers(candidates, getattr(sub, "known_publishers", None),
+                                             set(sub._connected.values()))
     for entry, pub, reason in refused:
         gid = str(pub.get("gid", ""))
         if gid not in sub._warned:

@@ -13,16 +13,19 @@ Policy (:class:`KnownPublishers`):
   subscribing node's namespace by ``Node.create_subscription``); empty = any node.
 - Two live nodes of one name: the older (announced start time, then pid) is the node of that name; the
   other is refused as a conflicting second publisher.
-- ``sole``: one publishing node at most, the oldest; every other is refused while it lives. When it goes
-  away, the next oldest takes over (a respawned owner is found like any publisher).
+- ``sole``: one publishing node at most: the one the subscription is connected to already, else the node of the
+  oldest publisher (its announced ``created_time``, then the node's start time); every other is refused while
+  it lives. When it goes away, the next oldest takes over (a respawned owner is found like any publisher).
 
-Limits (docs/reliability.md): the oldest node wins, so a stranger that was there before a respawned owner keeps
-the topic until it leaves, and on ipc any process of the same user can announce anything; what this guards
-against is a second publisher, by mistake or by a participant that joined the graph, not the user's own code.
+Limits (docs/reliability.md): the oldest publisher wins when nothing is connected yet, so a stranger that
+published before a respawned owner keeps the topic (for the subscriptions that start then) until it leaves;
+and on ipc any process of the same user can announce anything. What this guards against is a second
+publisher, by mistake or from a participant that joined the graph, not the user's own code.
 """
 
 from __future__ import annotations
 
+from collections.abc import Collection
 from dataclasses import dataclass
 
 __all__ = ["KnownPublishers", "SOLE_PUBLISHER", "select_publishers"]
@@ -60,10 +63,18 @@ def _age_key(entry: dict) -> tuple:
             int(pid) if isinstance(pid, int) else 0, str(entry.get("gid", "")))
 
 
-def select_publishers(candidates: list, policy: KnownPublishers | None) -> tuple[list, list]:
+def _publisher_age_key(pair: tuple) -> tuple:
+    entry, pub = pair
+    created = pub.get("created_time")
+    return (float(created) if isinstance(created, (int, float)) else float("inf"), *_age_key(entry))
+
+
+def select_publishers(candidates: list, policy: KnownPublishers | None,
+                      connected: Collection[str] = ()) -> tuple[list, list]:
     """``(accepted, refused)`` of ``candidates``, the ``(entry, publisher)`` pairs of one topic.
 
-    ``refused`` holds ``(entry, publisher, reason)``; with ``policy`` None everything is accepted.
+    ``connected``: gids (hex) of the publishers the subscription is connected to now. ``refused`` holds
+    ``(entry, publisher, reason)``; with ``policy`` None everything is accepted.
     """
     if policy is None or not candidates:
         return list(candidates), []
@@ -85,7 +96,8 @@ def select_publishers(candidates: list, policy: KnownPublishers | None) -> tuple
         else:
             accepted.append((entry, pub))
     if policy.sole and accepted:
-        owner = min((entry for entry, _pub in accepted), key=_age_key)
+        incumbent = [pair for pair in accepted if str(pair[1].get("gid", "")) in connected]
+        owner = (incumbent[0] if incumbent else min(accepted, key=_publisher_age_key))[0]
         for entry, pub in [pair for pair in accepted if pair[0] is not owner]:
             refused.append((entry, pub, f"node {owner.get('fqn')} (pid {owner.get('pid')}) publishes it already "
                                         "and is its only publisher taken"))

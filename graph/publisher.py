@@ -86,6 +86,7 @@ class Publisher:
         self.qos_profile = qos_profile
         self.callback_group = callback_group
         self.gid = uuid.uuid4().bytes
+        self.created_time = time.time()  # announced: the oldest publisher owns a sole-publisher topic
         self._topic_bytes = topic_name.encode("utf-8")
         runtime = node.context._runtime()
         self._runtime = runtime
@@ -245,7 +246,7 @@ class Publisher:
     def _announcement(self) -> dict:
         return {"topic": self.topic_name, "type": self.msg_type.TYPE_NAME, "gid": self.gid.hex(),
                 "endpoints": list(self.endpoints), "qos": self.qos_profile.to_dict(),
-                "stats": {"published_count": self.published_count,
+                "created_time": self.created_time, "stats": {"published_count": self.published_count,
                           "subscription_count": self._subscriber_count, "shared_count": self.shared_count}}
 
     def __repr__(self):

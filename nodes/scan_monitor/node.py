@@ -65,15 +65,21 @@ name                 default  meaning
                               next scan starts when one was reported, so a slow machine is never overrun);
                               0 = start none (the projector runs its own scans)
 ``start_service``    ``/projector/start_scan``  the projector's std_srvs/Trigger service
+``start_timeout_s``  2.0      a start request unanswered this long is withdrawn and sent again (a paused or
+                              restarted projector loses it), with a warning
+``status_nodes``     (below)  the nodes whose ScanStatus messages count, relative names in the monitor's
+                              namespace (default ``projector, camera, sim, phase, unwrap, cloud``); another
+                              publisher of ``/scanner/status`` is refused and logged, so it can neither fail nor
+                              end scans (docs/reliability.md)
 ``hardware_id``      "dptpu"  ``hardware_id`` of every ``/diagnostics`` status (a real rig: its serial number)
 ``trigger_latency``  true     take the Triggers (every pattern's) for ``latency_from_first_trigger_ms``; false:
                               clouds and statuses only, as a robot subscribes (``dptpu bench pipeline``'s
                               throughput run: 24 messages a 2 x 12-step scan less; docs/benchmarks.md)
 ==================== ======== ==================================================================================
 
-``ground_truth``, ``start_scans``, ``start_service`` and ``trigger_latency`` set the subscriptions and the client up
-and are read-only; the others apply at run time (``dptpu param set /scan_monitor min_completeness 0.6``), checked as
-at start-up.
+``ground_truth``, ``start_scans``, ``start_service``, ``status_nodes`` and ``trigger_latency`` set the subscriptions
+and the client up and are read-only; the others apply at run time (``dptpu param set /scan_monitor
+min_completeness 0.6``), checked as at start-up.
 """
 from __future__ import annotations
 
@@ -91,6 +97,7 @@ import dptpu.graph as rclpy
 from dptpu.fpp.cloud_accuracy import OFF_SURFACE_MM
 from dptpu.fpp.point_cloud_file import write_point_cloud
 from dptpu.graph.interfaces import Trigger as TriggerService
+from dptpu.graph.known_publishers import KnownPublishers
 from dptpu.graph.node import Node
 from dptpu.graph.parameter_rules import ParameterRules, at_least, greater_than, within
 from dptpu.graph.qos import QoSProfile
@@ -107,6 +114,7 @@ __all__ = ["ScanMonitorNode", "main"]
 _GRACE_S = 1.0  # how long a scan whose cloud arrived waits for its absolute phase and ground truth
 _KEPT_RECORDS = 200  # per-scan records kept for the summary file (totals cover every scan)
 _HEARD_RECHECK_S = 1.0  # how long a seen subscriber count of the Triggers is trusted
+_STATUS_NODES = ("projector", "camera", "sim", "phase", "unwrap", "cloud")  # ScanStatus publishers counted
 _STAMP_MATCH_NS = 1000  # a cloud's stamp and the scan stamp its cloud node's status gives (float64 s) may differ
 
 
@@ -145,6 +153,8 @@ class ScanMonitorNode(Node):
         self.start_scans = rules.read_only("start_scans", 0, description=wiring)
         start_service = rules.read_only("start_service", "/projector/start_scan", description=wiring)
         self.trigger_latency = rules.read_only("trigger_latency", True, description=wiring)
+        status_nodes = tuple(rules.read_only("status_nodes", list(_STATUS_NODES), description=wiring))
+        self.start_timeout_s = float(rules.settable("start_timeout_s", 2.0, check=greater_than(0.0)))
         self.max_wrong_share = float(rules.settable("max_wrong_share", MAX_WRONG_SHARE, check=within(0.0, 1.0)))
         self.min_completeness = float(rules.settable("min_completeness", MIN_COMPLETENESS, check=within(0.0, 1.0)))
         self.off_surface_mm = float(rules.settable("off_surface_mm", OFF_SURFACE_MM, check=at_least(0.0)))
@@ -169,7 +179,8 @@ class ScanMonitorNode(Node):
         self._node_statuses: dict[str, ScanStatus] = {}  # node -> its latest ScanStatus, for /diagnostics
         self.diagnostics_pub = self.create_publisher(DiagnosticArray, "/diagnostics", 10)
         self.cloud_sub = self.create_subscription(PointCloud2, "/scanner/points", self.on_cloud, 10)
-        self.status_sub = self.create_subscription(ScanStatus, "/scanner/status", self.on_status, QoSProfile(depth=200))
+        self.status_sub = self.create_subscription(ScanStatus, "/scanner/status", self.on_status, QoSProfile(depth=200),
+                                                 publishers=KnownPublishers(nodes=status_nodes))
         self.phase_sub: Subscription | None = None
         self.truth_sub: Subscription | None = None
         self.truth_depth_sub: Subscription | None = None
@@ -184,6 +195,8 @@ class ScanMonitorNode(Node):
         self.start_client = self.create_client(TriggerService, start_service) if self.start_scans else None
         self.scans_started = 0
         self._start_call: Future | None = None
+        self._start_call_s = 0.0  # monotonic s when _start_call was sent
+        self.start_retries = 0  # start requests withdrawn unanswered after start_timeout_s
         self._triggers_heard = False
         self._heard_checked_s = -math.inf
         self._progress_s = time.monotonic()
@@ -281,9 +294,18 @@ class ScanMonitorNode(Node):
 
     def _start_more(self) -> None:
         """Call ``start_service`` while fewer than ``start_scans`` scans are in flight."""
-        if self.start_client is None or not self._outputs_ready or self.finished or self._start_call is not None:
+        if self.start_client is None or not self._outputs_ready or self.finished:
             return
         now_s = time.monotonic()
+        if self._start_call is not None:
+            if now_s - self._start_call_s < self.start_timeout_s:
+                return
+            # the request or its answer is lost (projector paused, restarted): withdraw it, send a new one
+            self.start_client.remove_pending_request(self._start_call)
+            self._start_call = None
+            self.start_retries += 1
+            self.get_logger().warning(f"start_scan unanswered after {self.start_timeout_s:g} s; asking again "
+                                      f"({self.start_retries} retries so far)", throttle_duration_sec=5.0)
         if now_s >= self._heard_checked_s + _HEARD_RECHECK_S:  # a graph snapshot reads all peers: once a second
             # the camera (sim) must hear the Triggers too (and this monitor, when it takes them)
             heard_by = 2 if self.trigger_sub is not None else 1
@@ -297,10 +319,13 @@ class ScanMonitorNode(Node):
             self.scans_started = self.reported
         if self.scans_started - self.reported >= self.start_scans or not self.start_client.service_is_ready():
             return
-        self._start_call = self.start_client.call_async(TriggerService.Request())
-        self._start_call.add_done_callback(self._on_started)
+        self._start_call = call = self.start_client.call_async(TriggerService.Request())
+        self._start_call_s = now_s
+        call.add_done_callback(self._on_started)
 
     def _on_started(self, future) -> None:
+        if future is not self._start_call:
+            return  # a withdrawn call answered late: its scan is counted by its statuses, not here
         self._start_call = None
         try:
             response = future.result()
@@ -385,6 +410,7 @@ class ScanMonitorNode(Node):
             record.update(outcome="lost", reason=f"no cloud within {self.scan_timeout_s:g} s ({arrived})")
         self.counts[record["outcome"]] += 1
         self.reported += 1
+        self.scans_started = max(self.scans_started, self.reported)  # a withdrawn start request's scan came after all
         self._pool(record)
         self._progress_s = time.monotonic()
         self.records.append(record)
