@@ -1,14 +1,53 @@
-"""The rig launch files validate (``dptpu launch FILE --print``) and document every argument."""
+"""The rig launch files validate (``dptpu launch FILE --print``), document every argument and are ROS 2 launch YAML."""
 from __future__ import annotations
 
 import pytest
+import yaml
 
 from dptpu.cli.main import main
 from dptpu.tools.launch import load_launch_file
+from dptpu.tools.launch.installed import installed_launch_files
 from tests.launch_files.running import REPO_ROOT
 
 LAUNCH_DIR = REPO_ROOT / "launch"
-RIGS = ("sim_rig.yaml", "dlp4500_aca640.yaml", "highspeed_dmd.yaml")
+RIGS = tuple(installed_launch_files())  # every shipped top-level launch file
+#: What ROS 2's YAML front end reads (launch, launch_ros): the entities and the keys of each that the files use.
+ROS2_KEYS = {
+    "arg": {"name", "default", "description", "choice", "if", "unless"},
+    "let": {"name", "value", "if", "unless"},
+    "include": {"file", "arg", "if", "unless"},
+    "group": {"children", "scoped", "forwarding", "if", "unless"},
+    "push_ros_namespace": {"namespace", "if", "unless"},
+    "node": {"pkg", "exec", "name", "namespace", "args", "ros_args", "param", "remap", "env", "respawn",
+             "respawn_delay", "on_exit", "output", "launch-prefix", "if", "unless"},
+}
+
+
+def test_the_shipped_rigs_are_all_checked():
+    assert {"sim_rig.yaml", "dlp4500_aca640.yaml", "highspeed_dmd.yaml"} <= set(RIGS)
+
+
+def _entries(entries):
+    for entry in entries:
+        ((kind, body),) = entry.items()
+        yield kind, body
+        if kind == "group":
+            yield from _entries(body if isinstance(body, list) else body["children"])
+
+
+@pytest.mark.parametrize("path", sorted(LAUNCH_DIR.glob("*.yaml")) + sorted((LAUNCH_DIR / "parts").glob("*.yaml")),
+                         ids=lambda path: path.name)
+def test_shipped_files_use_only_ros2_keys_and_paths_ros2_resolves(path):
+    """ROS 2 resolves a relative include or parameter file against the working directory, so the files name them
+    from $(dirname) or $(find-pkg-share dptpu); nodes are pkg: dptpu's."""
+    for kind, body in _entries(yaml.safe_load(path.read_text())["launch"]):
+        assert kind in ROS2_KEYS and set(body) <= ROS2_KEYS[kind], (path.name, kind, set(body) - ROS2_KEYS[kind])
+        files = [body["file"]] if kind == "include" else \
+            [item["from"] for item in body.get("param", []) if "from" in item] if kind == "node" else []
+        for name in files:
+            assert name.startswith(("$(dirname)/", "$(find-pkg-share dptpu)/")), (path.name, name)
+        if kind == "node":
+            assert body["pkg"] == "dptpu", (path.name, body)
 
 
 @pytest.mark.parametrize("name", RIGS)
