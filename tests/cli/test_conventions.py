@@ -51,6 +51,8 @@ def test_sizes_are_width_first_and_rig_files_are_rig(path, parser):
         text = f"{action.metavar or ''} {action.help or ''}"
         if action.help != argparse.SUPPRESS:
             assert not re.search(r"\bHxW\b|\bHEIGHTxWIDTH\b", text), (path, action.option_strings)
+            if any(option.endswith("size") for option in action.option_strings):
+                assert "WIDTHxHEIGHT" in text, (path, action.option_strings)
             assert "--calibration" not in action.option_strings and "--shape" not in action.option_strings
             assert action.nargs not in ("+", "*") or not any(o in ("--noise", "--frequencies", "--methods")
                                                              for o in action.option_strings) or \
