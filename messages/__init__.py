@@ -3,6 +3,7 @@
 - :mod:`.std`: ``Time``, ``Header``.
 - :mod:`.sensor`: ``Image``, ``CameraInfo``, ``RegionOfInterest``, ``PointField``, ``PointCloud2``.
 - :mod:`.diagnostic`: ``KeyValue``, ``DiagnosticStatus``, ``DiagnosticArray``.
+- :mod:`.geometry`: ``Vector3``, ``Quaternion``, ``Transform``, ``TransformStamped``; :mod:`.tf`: ``TFMessage``.
 - :mod:`.scanner`: ``PatternEntry``, ``PatternSequence``, ``Trigger``, ``FringeFrame``, ``PhaseMaps``,
   ``AbsolutePhase``, ``ScanStatus``.
 - the codec: :mod:`.encoder` (``encode(topic, msg) -> frames``), :mod:`.decoder` (``decode(frames) -> (topic,
@@ -20,11 +21,13 @@ from .decode_limits import DEFAULT_LIMITS, DecodeLimits
 from .decoder import decode
 from .diagnostic import DiagnosticArray, DiagnosticStatus, KeyValue
 from .encoder import encode
+from .geometry import Quaternion, Transform, TransformStamped, Vector3
 from .registry import lookup, registered_types
 from .scanner import AbsolutePhase, FringeFrame, PatternEntry, PatternSequence, PhaseMaps, ScanStatus, Trigger
 from .schema import Message, message_definition
 from .sensor import CameraInfo, Image, PointCloud2, PointField, RegionOfInterest
 from .std import Header, Time
+from .tf import TFMessage
 from .wire_format import ALLOWED_DTYPES, DecodeError, EncodeError
 
 __all__ = [
@@ -45,6 +48,11 @@ __all__ = [
     "KeyValue",
     "DiagnosticStatus",
     "DiagnosticArray",
+    "Vector3",
+    "Quaternion",
+    "Transform",
+    "TransformStamped",
+    "TFMessage",
     "Message",
     "encode",
     "decode",

@@ -26,6 +26,9 @@ topic                       type          dir   notes
 ``/scanner/confidence/camera_info`` CameraInfo out as for the depth image
 ``/scanner/status``         ScanStatus    out   one per scan: ``done`` (OK, WARN) or ``failed``; ``duration_s`` =
                                                  ``header.stamp`` - the scan's stamp (its cloud's), to the ns
+``/tf_static``              TFMessage     out   latched (transient local): ``mount_frame`` -> ``frame_id`` (the
+                                                 mount transform) -> ``projector_frame`` (from the rig), metres;
+                                                 published again when one of them is set
 =========================== ============= ===== ==================================================================
 
 Parameters
@@ -60,6 +63,11 @@ name                   default                   meaning
 ``normal_window_px``   3                         width of the window whose tangents make a normal (odd; 1 = the
                                                  point's own central differences: less bias on small curved parts,
                                                  more noise; :mod:`dptpu.fpp.organized_normals`)
+``mount_frame``        "scanner_mount"           TF parent of the camera optical frame: a robot's flange
+                                                 (``tool0``, eye-in-hand) or base (eye-to-hand)
+``mount_transform``    [0, 0, 0, 0, 0, 0, 1]     the camera optical frame's pose in ``mount_frame``: ``[x, y, z,
+                                                 qx, qy, qz, qw]``, metres (``dptpu calibrate hand-eye`` writes it)
+``projector_frame``    "projector_optical_frame" TF frame of the projector (an inverse camera, same axes)
 ====================== ========================= ===================================================================
 
 Read-only (fixed at start-up, ``param set`` refused): ``rig``, ``use_camera_info``, ``intensity_wait_s``. The others
@@ -90,6 +98,7 @@ from dptpu.fpp.confidence import DEFAULT_MIN_CONFIDENCE
 from dptpu.fpp.depth_edges import DEFAULT_MAX_SLOPE, edge_points
 from dptpu.fpp.organized_normals import DEFAULT_NORMAL_WINDOW_PX, organized_normals
 from dptpu.fpp.point_cloud_file import write_point_cloud
+from dptpu.fpp.scanner_frames import IDENTITY_MOUNT, mount_pose, scanner_frames
 from dptpu.fpp.triangulate import Triangulator, projector_coordinate
 from dptpu.graph.known_publishers import SOLE_PUBLISHER
 from dptpu.graph.node import Node
@@ -101,11 +110,13 @@ from dptpu.messages import (
     Image,
     PointCloud2,
     ScanStatus,
+    TFMessage,
 )
 from dptpu.nodes.node_main import run_node
 from dptpu.nodes.plumbing import DEFAULT_FRAME_ID, LATCHED_QOS, STATUS_QOS, DecodeErrorCount, scan_status
 
 from .cloud_fields import FIELDS, SideImages, cloud_fields
+from .static_frames import tf_message
 
 __all__ = ["FIELDS", "CloudNode", "camera_points_m", "main"]
 
@@ -155,8 +166,8 @@ class CloudNode(Node):
         rules = ParameterRules(self)
         rig_path = rules.read_only("rig", "", description="a dptpu-rig/1 file; restart the node to change it")
         self.use_camera_info = rules.read_only("use_camera_info", False, description="sets the subscriptions up")
-        self.frame_id = rules.settable("frame_id", DEFAULT_FRAME_ID, check=frame_id,
-                                       description="header.frame_id of the next clouds and images")
+        self.frame_id = rules.settable("frame_id", DEFAULT_FRAME_ID, check=frame_id, apply=self._set_frame("frame_id"),
+                                       description="header.frame_id of the next clouds and images (and TF's)")
         self.distortion = rules.settable("distortion", True, apply=self._set_distortion)
         self.ply_dir = rules.settable("ply_dir", "")
         self.ply_every = rules.settable("ply_every", 0, check=at_least(0))
@@ -167,6 +178,15 @@ class CloudNode(Node):
         self.max_edge_slope = rules.settable("max_edge_slope", DEFAULT_MAX_SLOPE, check=greater_than(0.0))
         self.normals = rules.settable("normals", True, description="the fields normal_x/y/z of the next clouds")
         self.normal_window_px = rules.settable("normal_window_px", DEFAULT_NORMAL_WINDOW_PX, check=_odd_window)
+        self.mount_frame = rules.settable("mount_frame", "scanner_mount", check=frame_id,
+                                          apply=self._set_frame("mount_frame"),
+                                          description="TF parent of the camera optical frame (a robot's tool0, ...)")
+        self.mount_transform = rules.settable(
+            "mount_transform", list(IDENTITY_MOUNT), check=_mount_transform_problem,
+            apply=self._set_frame("mount_transform"),
+            description="pose of the camera optical frame in mount_frame: [x, y, z, qx, qy, qz, qw], metres")
+        self.projector_frame = rules.settable("projector_frame", "projector_optical_frame", check=frame_id,
+                                              apply=self._set_frame("projector_frame"))
         if not rig_path:
             raise ValueError("parameter rig must name a dptpu-rig/1 calibration file (-p rig:=calibration.yaml)")
         if not self.intensity_wait_s > 0:
@@ -197,6 +217,8 @@ class CloudNode(Node):
         self.confidence_publisher = self.create_publisher(Image, "/scanner/confidence/image", 10)
         self.confidence_info_publisher = self.create_publisher(CameraInfo, "/scanner/confidence/camera_info", 10)
         self.status_publisher = self.create_publisher(ScanStatus, "/scanner/status", STATUS_QOS)
+        self.tf_static_publisher = self.create_publisher(TFMessage, "/tf_static", LATCHED_QOS)
+        self._publish_static_frames()
 
         self._subscriptions_in = [
             self.create_subscription(AbsolutePhase, "/scanner/absolute_phase", self.on_absolute_phase, 10)]
@@ -211,6 +233,21 @@ class CloudNode(Node):
                                          publishers=SOLE_PUBLISHER))  # the camera's (or sim's) only
         self.decode_errors = DecodeErrorCount(*self._subscriptions_in)
         self.wait_timer = self.create_timer(self.intensity_wait_s / 4, self.on_timer)
+
+    # -- TF -------------------------------------------------------------------------------------------------
+
+    def _publish_static_frames(self) -> None:
+        """``/tf_static``: mount_frame -> frame_id (the mount transform) -> projector_frame (from the rig)."""
+        mount = mount_pose(self.mount_transform, parent=self.mount_frame, child=self.frame_id)
+        frames = scanner_frames(self.rig, mount=mount, projector_frame=self.projector_frame)
+        self.tf_static_publisher.publish(tf_message(frames, self.get_clock().now().to_msg()))
+
+    def _set_frame(self, name: str):
+        """An apply of a TF parameter: set it and publish ``/tf_static`` again."""
+        def apply(value) -> None:
+            setattr(self, name, value)
+            self._publish_static_frames()
+        return apply
 
     # -- callbacks ------------------------------------------------------------------------------------------
 
@@ -438,6 +475,11 @@ class CloudNode(Node):
 def main(argv=None) -> int:
     """``python -m dptpu.nodes.cloud --ros-args -p rig:=FILE``: run the node until Ctrl-C or SIGTERM."""
     return run_node("cloud", CloudNode, argv)
+
+
+def _mount_transform_problem(values) -> None:
+    """The check of ``mount_transform``: 7 finite numbers with a unit quaternion (ValueError says why not)."""
+    mount_pose(values, parent="mount", child="camera")
 
 
 def _odd_window(value) -> str | None:

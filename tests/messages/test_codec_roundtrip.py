@@ -20,10 +20,15 @@ from dptpu.messages import (
     PhaseMaps,
     PointCloud2,
     PointField,
+    Quaternion,
     RegionOfInterest,
     ScanStatus,
+    TFMessage,
     Time,
+    Transform,
+    TransformStamped,
     Trigger,
+    Vector3,
     decode,
     encode,
     registered_types,
@@ -89,8 +94,15 @@ def sample_messages() -> list:
     diagnostic = DiagnosticStatus(level=DiagnosticStatus.WARN, name="dptpu: scan", message="scan 41: UNTRUSTED",
                                   hardware_id="rig-7", values=[key_value, KeyValue(key="outcome", value="untrusted")])
     diagnostics = DiagnosticArray(header=header, status=[diagnostic, DiagnosticStatus(name="dptpu: /cloud")])
+    translation = Vector3(x=0.012, y=-0.25, z=1.5)
+    rotation = Quaternion(x=0.5, y=-0.5, z=0.5, w=0.5)
+    transform = Transform(translation=translation, rotation=rotation)
+    mount = TransformStamped(header=Header(stamp=stamp, frame_id="tool0"), child_frame_id="scanner_optical_frame",
+                             transform=transform)
+    tf = TFMessage(transforms=[mount, TransformStamped(header=header, child_frame_id="projector_optical_frame")])
     return [stamp, header, mono8, mono16, depth, rgb, roi, camera_info, field, cloud, mixed_cloud, entries[1],
-            sequence, trigger, frame, phase_maps, absolute, status, key_value, diagnostic, diagnostics]
+            sequence, trigger, frame, phase_maps, absolute, status, key_value, diagnostic, diagnostics, translation,
+            rotation, transform, mount, tf]
 
 
 def _array_paths(msg, prefix=""):

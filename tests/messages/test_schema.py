@@ -24,8 +24,8 @@ def test_registry_uses_ros2_names():
     assert lookup("sensor_msgs/msg/CameraInfo") is CameraInfo
     assert lookup("dptpu_msgs/msg/PhaseMaps") is PhaseMaps
     own = [name for name, cls in types.items() if cls.__module__.startswith("dptpu.messages")]
-    assert all(name.startswith(("builtin_interfaces/", "std_msgs/", "sensor_msgs/", "diagnostic_msgs/", "dptpu_msgs/"))
-               for name in own)
+    assert all(name.startswith(("builtin_interfaces/", "std_msgs/", "sensor_msgs/", "diagnostic_msgs/",
+                                "geometry_msgs/", "tf2_msgs/", "dptpu_msgs/")) for name in own)
     with pytest.raises(KeyError, match=r"unknown message type 'sensor_msgs/msg/Imu'"):
         lookup("sensor_msgs/msg/Imu")
 
