@@ -97,7 +97,7 @@ def _print_plan(plan) -> int:
         if node.respawn:
             policy.append(f"respawn (delay {node.respawn_delay_s:g} s, max {node.respawn_max_delay_s:g} s)")
         if node.required:
-            policy.append("required")
+            policy.append("on_exit: shutdown")
         policy.append(f"output: {node.output}")
         print(f"\n[{node.label}]  # {node.source}; {', '.join(policy)}")
         env = [f"{name}={shlex.quote(value)}" for name, value in node.env]
@@ -106,6 +106,17 @@ def _print_plan(plan) -> int:
 
 
 def run_launch(args) -> int:
+    """Validate and run (or print) a launch file; an invalid one prints every problem, one per line, and gives 2."""
+    from dptpu.tools.launch import LaunchFileError  # deferred: CLI start-up
+
+    try:
+        return _run_launch(args)
+    except LaunchFileError as exc:  # each problem on its own line (file:line: message), not joined into one
+        print(f"dptpu launch: error: {exc}", file=sys.stderr)
+        return 2
+
+
+def _run_launch(args) -> int:
     from dptpu.tools.launch import Supervisor, load_launch_file, parse_launch_arguments  # deferred: CLI start-up
 
     args = _parse_tail(args)

@@ -57,6 +57,22 @@ def test_invalid_file_exits_2_with_file_and_line(write_file):
     assert stdout == ""
 
 
+def test_a_file_in_the_old_dialect_lists_each_old_key_with_its_ros2_spelling_one_per_line(write_file):
+    path = write_file("old.yaml", f"""
+        launch:
+          - arg: {{name: mode, default: a, choices: [a, b]}}
+          - node: {{module: {TICKER}, required: true}}
+        """)
+    code, stdout, stderr = _run(str(path))
+    assert code == 2 and stdout == ""
+    assert stderr.splitlines() == [
+        "dptpu launch: error: 2 problems in the launch file:",
+        f"  {path}:2: arg: 'choices' is the old spelling; ROS 2 launch YAML writes 'choice', a list of {{value: ...}} "
+        f"(choice: [{{value: a}}, {{value: b}}])",
+        f"  {path}:3: node: 'module' is the old spelling; ROS 2 launch YAML writes 'pkg' and 'exec' (pkg: dptpu, "
+        f"exec: NODE runs dptpu.nodes.NODE)"]
+
+
 def test_malformed_launch_argument_exits_2(write_file):
     path = write_file("rig.yaml", "launch:\n  - arg: {name: rate, default: '1'}\n")
     code, _, stderr = _run(str(path), "rate=5")
