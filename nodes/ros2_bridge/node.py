@@ -20,6 +20,8 @@ graph                       DDS                           dir     notes
                                                                   monitor's); ROS 2 default QoS
 ``/camera/camera_info``     ``rt/camera/camera_info``     out     CameraInfo; latched (TRANSIENT_LOCAL, depth 1) on
                                                                   both sides
+``/tf_static``              ``rt/tf_static``              out     tf2_msgs TFMessage (the cloud node's frames);
+                                                                  latched, as tf2_ros' static broadcaster
 ``/projector/start_scan``   ``rq/scanner/captureRequest`` in      DDS ``std_srvs/srv/Trigger`` service
 (client)                    ``rr/scanner/captureReply``   out     ``/scanner/capture``; the reply is the projector's
 =========================== ============================= ======= ==========================================
@@ -33,8 +35,9 @@ name                 default                                   meaning
                      /scanner/depth/camera_info,               each may carry PointCloud2, Image or CameraInfo
                      /scanner/confidence/image,
                      /scanner/confidence/camera_info,
-                     /camera/camera_info, /diagnostics]
-``latched_topics``   [/camera/camera_info]                     of those, the ones published TRANSIENT_LOCAL
+                     /camera/camera_info, /diagnostics,        (or DiagnosticArray, TFMessage)
+                     /tf_static]
+``latched_topics``   [/camera/camera_info, /tf_static]         of those, the ones published TRANSIENT_LOCAL
 ``qos``              "default"                                 ROS 2 profile of the other topics: ``default``
                                                                (RELIABLE, depth 10) or ``sensor_data``
                                                                (BEST_EFFORT, depth 5)
@@ -65,7 +68,7 @@ from dptpu.graph.node import Node
 from dptpu.graph.parameter_rules import ParameterRules
 from dptpu.graph.qos import QoSProfile, ReliabilityPolicy
 from dptpu.graph.services import Client
-from dptpu.messages import CameraInfo, DecodeError, DiagnosticArray, Image, PointCloud2, decode
+from dptpu.messages import CameraInfo, DecodeError, DiagnosticArray, Image, PointCloud2, TFMessage, decode
 from dptpu.nodes.node_main import run_node
 from dptpu.nodes.plumbing import LATCHED_QOS
 
@@ -75,12 +78,14 @@ from .ros2_qos import cyclone_config_xml, ros2_qos
 __all__ = ["Ros2BridgeNode", "DEFAULT_TOPICS", "DEFAULT_TYPES", "main"]
 
 DEFAULT_TOPICS = ["/scanner/points", "/scanner/depth/image", "/scanner/depth/camera_info", "/scanner/confidence/image",
-                  "/scanner/confidence/camera_info", "/camera/camera_info", "/diagnostics"]
+                  "/scanner/confidence/camera_info", "/camera/camera_info", "/diagnostics", "/tf_static"]
+#: Of those, the ones kept for late joiners (TRANSIENT_LOCAL, depth 1) on both sides.
+DEFAULT_LATCHED = ["/camera/camera_info", "/tf_static"]
 #: Types of the default topics: their DDS writers exist from the start, so ROS 2 sees them before the first scan.
 DEFAULT_TYPES = {"/scanner/points": PointCloud2, "/scanner/depth/image": Image,
                  "/scanner/depth/camera_info": CameraInfo, "/scanner/confidence/image": Image,
                  "/scanner/confidence/camera_info": CameraInfo, "/camera/camera_info": CameraInfo,
-                 "/diagnostics": DiagnosticArray}
+                 "/diagnostics": DiagnosticArray, "/tf_static": TFMessage}
 _GRAPH_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.BEST_EFFORT)  # connects to any publisher
 _REQUEST_POLL_S = 0.02
 
@@ -104,7 +109,7 @@ class Ros2BridgeNode(Node):
         rules = ParameterRules(self)
         wiring = "the DDS participant, readers and writers are made at start-up; restart the node to change it"
         topics = list(rules.read_only("topics", DEFAULT_TOPICS, description=wiring))
-        latched = set(rules.read_only("latched_topics", ["/camera/camera_info"], description=wiring))
+        latched = set(rules.read_only("latched_topics", DEFAULT_LATCHED, description=wiring))
         self.qos_profile = rules.read_only("qos", "default", description=wiring)
         domain_id = rules.read_only("domain_id", -1, description=wiring)
         interface = rules.read_only("interface", "", description=wiring)

@@ -29,11 +29,12 @@ from cyclonedds.idl import IdlStruct
 from cyclonedds.idl._support import Endianness
 from cyclonedds.idl.types import array, byte, float64, int32, int64, sequence, uint8, uint32, uint64
 
-from dptpu.messages import CameraInfo, DiagnosticArray, Image, PointCloud2
+from dptpu.messages import CameraInfo, DiagnosticArray, Image, PointCloud2, TFMessage
 
 __all__ = [
     "Time_", "Header_", "PointField_", "PointCloud2_", "Image_", "RegionOfInterest_", "CameraInfo_",
-    "KeyValue_", "DiagnosticStatus_", "DiagnosticArray_", "Trigger_Request_", "Trigger_Response_", "CdrWriter",
+    "KeyValue_", "DiagnosticStatus_", "DiagnosticArray_", "Vector3_", "Quaternion_", "Transform_",
+    "TransformStamped_", "TFMessage_", "Trigger_Request_", "Trigger_Response_", "CdrWriter",
     "CdrReader", "to_dds", "dds_type_of", "ros_topic_name",
     "CDR_LE_HEADER",
 ]
@@ -315,6 +316,39 @@ class DiagnosticArray_(IdlStruct, typename="diagnostic_msgs::msg::dds_::Diagnost
 
 
 @dataclass
+class Vector3_(IdlStruct, typename="geometry_msgs::msg::dds_::Vector3_"):
+    x: float64 = 0.0
+    y: float64 = 0.0
+    z: float64 = 0.0
+
+
+@dataclass
+class Quaternion_(IdlStruct, typename="geometry_msgs::msg::dds_::Quaternion_"):
+    x: float64 = 0.0
+    y: float64 = 0.0
+    z: float64 = 0.0
+    w: float64 = 1.0
+
+
+@dataclass
+class Transform_(IdlStruct, typename="geometry_msgs::msg::dds_::Transform_"):
+    translation: Vector3_ = field(default_factory=Vector3_)
+    rotation: Quaternion_ = field(default_factory=Quaternion_)
+
+
+@dataclass
+class TransformStamped_(IdlStruct, typename="geometry_msgs::msg::dds_::TransformStamped_"):
+    header: Header_ = field(default_factory=Header_)
+    child_frame_id: str = ""
+    transform: Transform_ = field(default_factory=Transform_)
+
+
+@dataclass
+class TFMessage_(IdlStruct, typename="tf2_msgs::msg::dds_::TFMessage_"):
+    transforms: Annotated[Sequence[TransformStamped_], sequence(TransformStamped_)] = field(default_factory=list)
+
+
+@dataclass
 class Trigger_Request_(IdlStruct, typename="std_srvs::srv::dds_::Trigger_Request_"):
     """``std_srvs/srv/Trigger`` request as rmw_cyclonedds sends it: request header, then the (empty) request."""
 
@@ -334,6 +368,8 @@ class Trigger_Response_(IdlStruct, typename="std_srvs::srv::dds_::Trigger_Respon
 
 
 _LITTLE = Endianness.Little
+#: What :func:`to_dds` converts, for its errors.
+_CARRIED = "sensor_msgs PointCloud2, Image, CameraInfo, diagnostic_msgs DiagnosticArray and tf2_msgs TFMessage"
 
 
 def _octet_buffer(data):
@@ -360,12 +396,12 @@ def to_dds(msg):
 
     Parameters
     ----------
-    msg : PointCloud2, Image, CameraInfo or DiagnosticArray
+    msg : PointCloud2, Image, CameraInfo, DiagnosticArray or TFMessage
         A decoded ``dptpu.messages`` message.
 
     Returns
     -------
-    PointCloud2_, Image_, CameraInfo_ or DiagnosticArray_
+    PointCloud2_, Image_, CameraInfo_, DiagnosticArray_ or TFMessage_
 
     Raises
     ------
@@ -397,18 +433,24 @@ def to_dds(msg):
             DiagnosticStatus_(level=int(s.level), name=s.name, message=s.message, hardware_id=s.hardware_id,
                               values=[KeyValue_(key=v.key, value=v.value) for v in s.values])
             for s in msg.status])
-    raise ValueError(f"the ROS 2 bridge carries sensor_msgs PointCloud2, Image, CameraInfo and diagnostic_msgs "
-                     f"DiagnosticArray; got {type(msg).__name__}")
+    if isinstance(msg, TFMessage):
+        return TFMessage_(transforms=[_transform_stamped(t) for t in msg.transforms])
+    raise ValueError(f"the ROS 2 bridge carries {_CARRIED}; got {type(msg).__name__}")
+
+
+def _transform_stamped(msg) -> TransformStamped_:
+    t, q = msg.transform.translation, msg.transform.rotation
+    return TransformStamped_(header=_header(msg), child_frame_id=msg.child_frame_id, transform=Transform_(
+        translation=Vector3_(x=float(t.x), y=float(t.y), z=float(t.z)),
+        rotation=Quaternion_(x=float(q.x), y=float(q.y), z=float(q.z), w=float(q.w))))
 
 
 def dds_type_of(msg_type) -> type[IdlStruct]:
     """The IDL class of one of our message classes (``PointCloud2`` -> ``PointCloud2_``)."""
     types: dict[type, type[IdlStruct]] = {PointCloud2: PointCloud2_, Image: Image_, CameraInfo: CameraInfo_,
-                                          DiagnosticArray: DiagnosticArray_}
+                                          DiagnosticArray: DiagnosticArray_, TFMessage: TFMessage_}
     if msg_type not in types:
-        raise ValueError(f"the ROS 2 bridge carries sensor_msgs PointCloud2, Image, CameraInfo and diagnostic_msgs "
-                         f"DiagnosticArray; got "
-                         f"{getattr(msg_type, '__name__', msg_type)}")
+        raise ValueError(f"the ROS 2 bridge carries {_CARRIED}; got {getattr(msg_type, '__name__', msg_type)}")
     return types[msg_type]
 
 

@@ -17,7 +17,20 @@ import pytest
 
 from dptpu.graph.interfaces import Trigger as TriggerService
 from dptpu.graph.qos import DurabilityPolicy, QoSProfile
-from dptpu.messages import CameraInfo, DiagnosticArray, DiagnosticStatus, Header, KeyValue, PointCloud2, Time
+from dptpu.messages import (
+    CameraInfo,
+    DiagnosticArray,
+    DiagnosticStatus,
+    Header,
+    KeyValue,
+    PointCloud2,
+    Quaternion,
+    TFMessage,
+    Time,
+    Transform,
+    TransformStamped,
+    Vector3,
+)
 from dptpu.nodes.harness import NodeHarness
 from dptpu.nodes.ros2_bridge import Ros2BridgeNode
 from tests.graph.conftest import NodeProcess
@@ -113,6 +126,34 @@ SUBSCRIBER = textwrap.dedent('''
         status: sequence[DiagnosticStatus_] = field(default_factory=list)
 
     @dataclass
+    class Vector3_(IdlStruct, typename="geometry_msgs::msg::dds_::Vector3_"):
+        x: float64 = 0.0
+        y: float64 = 0.0
+        z: float64 = 0.0
+
+    @dataclass
+    class Quaternion_(IdlStruct, typename="geometry_msgs::msg::dds_::Quaternion_"):
+        x: float64 = 0.0
+        y: float64 = 0.0
+        z: float64 = 0.0
+        w: float64 = 1.0
+
+    @dataclass
+    class Transform_(IdlStruct, typename="geometry_msgs::msg::dds_::Transform_"):
+        translation: Vector3_ = field(default_factory=Vector3_)
+        rotation: Quaternion_ = field(default_factory=Quaternion_)
+
+    @dataclass
+    class TransformStamped_(IdlStruct, typename="geometry_msgs::msg::dds_::TransformStamped_"):
+        header: Header_ = field(default_factory=Header_)
+        child_frame_id: str = ""
+        transform: Transform_ = field(default_factory=Transform_)
+
+    @dataclass
+    class TFMessage_(IdlStruct, typename="tf2_msgs::msg::dds_::TFMessage_"):
+        transforms: sequence[TransformStamped_] = field(default_factory=list)
+
+    @dataclass
     class Trigger_Request_(IdlStruct, typename="std_srvs::srv::dds_::Trigger_Request_"):
         client_guid: uint64 = 0
         sequence_number: int64 = 0
@@ -138,6 +179,8 @@ SUBSCRIBER = textwrap.dedent('''
     info = DataReader(participant, Topic(participant, "rt/camera/camera_info", CameraInfo_, qos=qos(latched=True,
                       depth=1)), qos=qos(latched=True, depth=1))
     diagnostics = DataReader(participant, Topic(participant, "rt/diagnostics", DiagnosticArray_, qos=qos()), qos=qos())
+    tf_static = DataReader(participant, Topic(participant, "rt/tf_static", TFMessage_, qos=qos(latched=True,
+                           depth=1)), qos=qos(latched=True, depth=1))
     if capture:
         requests = DataWriter(participant, Topic(participant, "rq/scanner/captureRequest", Trigger_Request_,
                                                  qos=qos()), qos=qos())
@@ -165,6 +208,13 @@ SUBSCRIBER = textwrap.dedent('''
                                   "status": [[s.level, s.name, s.message, s.hardware_id,
                                               [[v.key, v.value] for v in s.values]] for s in sample.status]}),
                       flush=True)
+        for sample in tf_static.take(N=1):
+            if isinstance(sample, TFMessage_):
+                print(json.dumps({"event": "tf_static", "transforms": [
+                    [t.header.frame_id, t.child_frame_id, [t.header.stamp.sec, t.header.stamp.nanosec],
+                     [t.transform.translation.x, t.transform.translation.y, t.transform.translation.z],
+                     [t.transform.rotation.x, t.transform.rotation.y, t.transform.rotation.z, t.transform.rotation.w]]
+                    for t in sample.transforms]}), flush=True)
         for sample in info.take(N=1):
             if isinstance(sample, CameraInfo_):
                 print(json.dumps({"event": "camera_info", "width": sample.width, "height": sample.height,
@@ -266,6 +316,17 @@ def test_bridge_republishes_points_camera_info_and_answers_capture_requests(node
                                              [0.1, -0.2, 0.001, 0.002, 0.05], 160, 120)
     camera_info.header.frame_id = "scanner_optical_frame"
     info.publish(camera_info)  # latched before the bridge exists
+    tf_static = probe.publisher(TFMessage, "/tf_static",
+                                QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL))
+    mount = TransformStamped(header=Header(stamp=Time(sec=1_700_000_000, nanosec=9), frame_id="tool0"),
+                             child_frame_id="scanner_optical_frame", transform=Transform(
+                                 translation=Vector3(x=0.01, y=-0.02, z=0.15),
+                                 rotation=Quaternion(x=0.5, y=-0.5, z=0.5, w=0.5)))
+    projector = TransformStamped(header=Header(stamp=Time(sec=1_700_000_000, nanosec=9),
+                                               frame_id="scanner_optical_frame"),
+                                 child_frame_id="projector_optical_frame",
+                                 transform=Transform(translation=Vector3(x=-0.2, y=0.0, z=0.03)))
+    tf_static.publish(TFMessage(transforms=[mount, projector]))  # latched before the bridge exists too
 
     bridge = start_bridge(env, "-p", "interface:=lo", "-p", "peers:=127.0.0.1")  # its own config, not the URI's
     listener = start_subscriber(tmp_path, env, clouds=3, capture=True)
@@ -294,6 +355,11 @@ def test_bridge_republishes_points_camera_info_and_answers_capture_requests(node
             "stamp": [1_700_000_000, 5], "status": [
             [1, "dptpu: scan", "scan 4: UNTRUSTED (1.35 % ...)", "rig-7", [["wrong_share", "0.0135"]]],
             [0, "dptpu: /cloud", "done", "", []]]}
+        got_tf = listener.wait_event("tf_static", timeout=10)  # latched on both sides: a late ROS 2 reader gets it
+        assert got_tf["transforms"] == [
+            ["tool0", "scanner_optical_frame", [1_700_000_000, 9], [0.01, -0.02, 0.15], [0.5, -0.5, 0.5, 0.5]],
+            ["scanner_optical_frame", "projector_optical_frame", [1_700_000_000, 9], [-0.2, 0.0, 0.03],
+             [0.0, 0.0, 0.0, 1.0]]]
         got_info = listener.wait_event("camera_info", timeout=10)
         assert (got_info["width"], got_info["height"], got_info["model"]) == (160, 120, "plumb_bob")
         assert got_info["k"] == [600.0, 0.0, 80.0, 0.0, 601.0, 60.0, 0.0, 0.0, 1.0]
