@@ -37,6 +37,7 @@ from pathlib import Path
 
 import numpy as np
 import yaml
+from tqdm import tqdm
 
 from dptpu.fpp.dataset import DATASET_FORMAT, list_samples, open_dataset
 from dptpu.models.evaluate import evaluate_dataset
@@ -112,7 +113,7 @@ class StudyOptions:
     rig : str
         Twin rig of both datasets (``nominal`` or a rig file).
     progress : bool
-        One line per stage on stdout.
+        One line per stage on stdout, tqdm bars (rendering, models) on stderr.
     """
 
     out: Path
@@ -267,15 +268,15 @@ def plan_runs(options: StudyOptions, samples_per_frequency: int) -> list[StudyRu
 
 
 def _say(options: StudyOptions, text: str) -> None:
-    if options.progress:
-        print(f"[study {time.strftime('%H:%M:%S')}] {text}", flush=True)
+    if options.progress:  # through tqdm, so a progress bar on the terminal is redrawn below the line
+        tqdm.write(f"[study {time.strftime('%H:%M:%S')}] {text}", file=sys.stdout)
 
 
 def _render(options: StudyOptions, frequencies, scenes: int, seed: int, out: Path) -> Path:
     """A twin dataset (``dptpu sim dataset``); kept when it is already complete."""
     spec = DatasetSpec(frequencies=tuple(frequencies), methods=tuple(options.methods), scenes=scenes,
                        noise=tuple(options.noise), size=tuple(options.size), seed=seed)
-    write_dataset(load_twin_rig(options.rig), spec, out, progress=False)
+    write_dataset(load_twin_rig(options.rig), spec, out, progress=options.progress)
     dataset = open_dataset(out)
     if dataset.missing:
         raise ValueError(f"{out}: {dataset.missing} samples missing after rendering")
@@ -396,7 +397,7 @@ def run_study(options: StudyOptions, *, command: str | None = None) -> dict:
     for name in names:
         subset_dataset(pool, PAPER_SETS[name], data_dir / name)
     records = []
-    for run in runs:
+    for run in tqdm(runs, desc="study", unit="model", disable=not options.progress, file=sys.stderr):
         _say(options, f"training {run.name} (f_h {list(run.frequencies)}, lambda2 {run.lambda_fourier:g}, "
                       f"seed {run.seed}): {run.epochs} epochs = {run.steps} steps")
         record = _train(run, data_dir / run.set_name, runs_dir, options)
@@ -469,7 +470,7 @@ def add_study_arguments(parser) -> None:
     parser.add_argument("--time-limit-min", type=float, metavar="M", help="safety stop per model, minutes")
     parser.add_argument("--config", type=json.loads, metavar="JSON", help="DP-TPU architecture (DPTPUConfig keys)")
     parser.add_argument("--rig", default="nominal", help="twin rig of both datasets (default nominal)")
-    parser.add_argument("--quiet", action="store_true", help="no progress lines")
+    parser.add_argument("--quiet", action="store_true", help="no progress lines or bars")
 
 
 def options_from_args(args) -> StudyOptions:
