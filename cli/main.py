@@ -2,8 +2,8 @@
 
 Each sub-command lives in its own module of this package and exposes ``register(subparsers)``, which
 adds its parser and sets ``func`` (a callable taking the parsed ``argparse.Namespace`` and returning an
-exit code). Bad input raises ``ValueError`` (or ``FileNotFoundError``) inside the packages; here it
-becomes one line on stderr and exit code 2, never a traceback.
+exit code). Bad input raises ``ValueError`` (or an ``OSError`` such as ``FileNotFoundError``) inside the packages;
+here it becomes one line on stderr (:func:`error_line`) and exit code 2, never a traceback.
 """
 from __future__ import annotations
 
@@ -38,9 +38,19 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     try:
         return int(args.func(args) or 0)
-    except (ValueError, FileNotFoundError) as exc:
-        print(f"dptpu {args.command}: error: {exc}", file=sys.stderr)
+    except (ValueError, OSError) as exc:  # OSError: FileNotFoundError, PermissionError, IsADirectoryError, ...
+        print(f"dptpu {args.command}: error: {error_line(exc)}", file=sys.stderr)
         return 2
+
+
+def error_line(exc: BaseException) -> str:
+    """One line for a bad input: the message on one line (a YAML parser's marks included); an ``OSError`` as
+    ``FILE: reason``; an empty message as the error's type (never "")."""
+    if isinstance(exc, OSError) and exc.filename is not None and exc.strerror:
+        text = f"{exc.filename}: {exc.strerror}"
+    else:
+        text = str(exc)
+    return " ".join(text.split()) or type(exc).__name__
 
 
 if __name__ == "__main__":

@@ -21,6 +21,7 @@ import numpy as np
 from dptpu.fpp.capture import read_capture
 from dptpu.fpp.confidence import DEFAULT_MIN_CONFIDENCE, confident
 from dptpu.fpp.methods import CAPTURE_METHODS
+from dptpu.fpp.phase_direction import check_capture_phase_direction
 from dptpu.fpp.reconstruct import (
     DEFAULT_MIN_MODULATION_FRACTION,
     CaptureResult,
@@ -90,6 +91,7 @@ def unwrap_from_args(args: argparse.Namespace) -> Unwrapping:
         model, note = choose_model(model, args.model, args.method, result.wrapped_phases[0], result.quality)
     if model is not None:
         result = refine_capture_result(result, model)
+    check_capture_phase_direction(capture, result.absolute_phase, result.valid)  # a wrong phase_shift_sign
     valid, dropped = confident(result.reliability, result.valid, min_confidence)
     if dropped:
         result = dataclasses.replace(result, valid=valid, fringe_order=np.where(valid, result.fringe_order, 0),
@@ -121,6 +123,8 @@ def register(subparsers) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    if args.out.is_dir():
+        raise ValueError(f"--out {args.out}: is a folder; expected the path of the .npz file to write")
     out = args.out if args.out.suffix == ".npz" else args.out.with_name(args.out.name + ".npz")
     if not out.parent.is_dir():
         raise FileNotFoundError(f"{out.parent}: output folder does not exist")

@@ -25,13 +25,76 @@ import cv2
 import numpy as np
 import yaml
 
+from .checks import is_finite_real
 from .mat_file import read_mat
-from .rig_model import DeviceModel, Rig, checked_array
+from .rig_model import METRES_PER_UNIT, DeviceModel, Rig, checked_array
+from .text_files import read_text_file
 
-__all__ = ["RIG_FORMAT", "DeviceModel", "Rig", "load_bouguet", "load_bouguet_pair", "load_device", "load_opencv_device",
-           "load_opencv_rig", "load_rig", "save_opencv_rig", "save_rig"]
+__all__ = ["RIG_FORMAT", "DeviceModel", "Rig", "check_physical_device", "check_physical_rig", "load_bouguet",
+           "load_bouguet_pair", "load_device", "load_opencv_device", "load_opencv_rig", "load_rig", "save_opencv_rig",
+           "save_rig"]
 
 RIG_FORMAT = "dptpu-rig/1"
+#: Largest width or height of a device, pixels (no camera or projector panel comes near it).
+MAX_SIDE_PX = 100_000
+#: Largest focal length as a multiple of the device's larger side (a field of view of about 0.06 degrees).
+MAX_FOCAL_PER_SIDE = 1000.0
+#: Largest magnitude of a distortion coefficient (real lenses stay far below; beyond it the model is noise).
+MAX_DISTORTION = 1000.0
+#: Largest distance of a device from the world origin, metres (a bench-top or robot rig is within metres).
+MAX_DISTANCE_M = 1000.0
+
+
+# --- physical plausibility ------------------------------------------------------------------------------
+
+def check_physical_device(device: DeviceModel, where: str) -> DeviceModel:
+    """Refuse a device no lens and panel can have: non-positive or absurd focal lengths, a principal point far
+    off the panel, absurd distortion or size. ``where`` (e.g. ``"rig.yaml: camera"``) starts the message.
+
+    Raises
+    ------
+    ValueError
+        Naming the field, its value and the range expected.
+    """
+    width, height = device.size
+    side = max(width, height)
+    if side > MAX_SIDE_PX:
+        raise ValueError(f"{where}.size must be at most {MAX_SIDE_PX} pixels a side; got {list(device.size)}")
+    K = device.K
+    for name, value in (("fx (K[0][0])", K[0, 0]), ("fy (K[1][1])", K[1, 1])):
+        if not 0 < value <= MAX_FOCAL_PER_SIDE * side:
+            raise ValueError(f"{where}: focal length {name} must be in (0, {MAX_FOCAL_PER_SIDE:g} x the larger side "
+                             f"= {MAX_FOCAL_PER_SIDE * side:g}] pixels; got {value:g}")
+    if abs(K[0, 1]) > K[0, 0]:
+        raise ValueError(f"{where}: skew K[0][1] must be at most fx = {K[0, 0]:g} in magnitude; got {K[0, 1]:g}")
+    for name, value, extent in (("cx (K[0][2])", K[0, 2], width), ("cy (K[1][2])", K[1, 2], height)):
+        if not -extent <= value <= 2 * extent:
+            raise ValueError(f"{where}: principal point {name} must lie within one panel size of the panel, "
+                             f"[{-extent}, {2 * extent}] pixels; got {value:g}")
+    if np.any(np.abs(device.dist) > MAX_DISTORTION):
+        raise ValueError(f"{where}: distortion coefficients (k1 k2 p1 p2 k3) must be within +-{MAX_DISTORTION:g}; "
+                         f"got {device.dist.tolist()}")
+    return device
+
+
+def check_physical_rig(rig: Rig, source) -> Rig:
+    """:func:`check_physical_device` for both devices, known ``units``, devices within :data:`MAX_DISTANCE_M` of
+    the origin and apart (a baseline > 0: coinciding centres cannot triangulate). ``source`` names the file."""
+    if rig.units not in METRES_PER_UNIT:
+        raise ValueError(f"{source}: units must be one of {', '.join(METRES_PER_UNIT)}; got {rig.units!r}")
+    for name in ("camera", "projector"):
+        device = check_physical_device(getattr(rig, name), f"{source}: {name}")
+        with np.errstate(over="ignore"):  # an absurd T overflows to inf, which the check refuses
+            distance_m = float(np.linalg.norm(device.center)) * rig.scale_to_m
+        if not distance_m <= MAX_DISTANCE_M:
+            raise ValueError(f"{source}: {name} centre -R^T T lies {distance_m:g} m from the world origin; expected at "
+                             f"most {MAX_DISTANCE_M:g} m (is T in {rig.units}?)")
+    with np.errstate(over="ignore", invalid="ignore"):
+        baseline = float(np.linalg.norm(rig.camera.center - rig.projector.center))
+    if not baseline > 0:
+        raise ValueError(f"{source}: camera and projector centres coincide (baseline 0 {rig.units}); a rig needs the "
+                         f"projector beside the camera to triangulate")
+    return rig
 
 
 # --- Bouguet toolbox ------------------------------------------------------------------------------------
@@ -87,7 +150,7 @@ def load_bouguet_pair(camera_path, projector_path, *, camera_size=None, projecto
         projector = _projector_from_all_views(camera_path, projector_path, camera, projector)
     elif relative_pose != "view":
         raise ValueError(f"relative_pose must be 'view' or 'all-views'; got {relative_pose!r}")
-    return Rig(camera=camera, projector=projector, units=units)
+    return check_physical_rig(Rig(camera=camera, projector=projector, units=units), f"{camera_path} + {projector_path}")
 
 
 def _projector_from_all_views(camera_path, projector_path, camera: DeviceModel,
@@ -135,9 +198,16 @@ def _device_from_dict(entry, where: str) -> DeviceModel:
     for key in ("size", "K", "dist", "R", "T"):
         if key not in entry:
             raise ValueError(f"{where}: missing key '{key}'")
+    dist, size = entry["dist"], entry["size"]
+    if not isinstance(dist, list) or len(dist) not in (4, 5) or not all(is_finite_real(v) for v in dist):
+        raise ValueError(f"{where}.dist must be a list of 4 or 5 finite numbers [k1, k2, p1, p2, k3]; got {dist!r}")
+    if (not isinstance(size, list) or len(size) != 2
+            or not all(isinstance(v, int) and not isinstance(v, bool) and 0 < v <= MAX_SIDE_PX for v in size)):
+        raise ValueError(f"{where}.size must be [width, height], two integers in [1, {MAX_SIDE_PX}] pixels; "
+                         f"got {size!r}")
     try:
-        return DeviceModel(K=entry["K"], dist=entry["dist"], R=entry["R"], T=entry["T"], size=entry["size"])
-    except ValueError as exc:
+        return DeviceModel(K=entry["K"], dist=dist, R=entry["R"], T=entry["T"], size=tuple(size))
+    except (ValueError, TypeError) as exc:
         raise ValueError(f"{where}: {exc}") from None
 
 
@@ -155,13 +225,15 @@ def load_rig(path) -> Rig:
     path = Path(path)
     if not path.exists():
         raise FileNotFoundError(f"{path}: no such rig file")
-    text = path.read_text(errors="replace")
+    if not path.is_file():
+        raise ValueError(f"{path}: a rig file must be a file (dptpu-rig/1 or OpenCV FileStorage YAML); got a folder")
+    text = read_text_file(path, "a rig file (dptpu-rig/1 or OpenCV FileStorage YAML)")
     if text.lstrip().startswith("%YAML:1.0") or "!!opencv-matrix" in text:
         return load_opencv_rig(path)
     try:
         document = yaml.safe_load(text)
     except yaml.YAMLError as exc:
-        raise ValueError(f"{path}: not valid YAML ({exc})") from None
+        raise ValueError(f"{path}: not valid YAML ({' '.join(str(exc).split())})") from None
     if not isinstance(document, dict):
         raise ValueError(f"{path}: a rig file must be a mapping with format: {RIG_FORMAT}")
     if document.get("format") != RIG_FORMAT:
@@ -175,8 +247,7 @@ def load_rig(path) -> Rig:
     rig = Rig(camera=_device_from_dict(document["camera"], f"{path}: camera"),
               projector=_device_from_dict(document["projector"], f"{path}: projector"),
               units=str(document.get("units", "mm")), effects=tuple(effects))
-    _ = rig.scale_to_m  # ValueError for units other than m, cm, mm, um
-    return rig
+    return check_physical_rig(rig, path)
 
 
 # --- OpenCV FileStorage --------------------------------------------------------------------------------
@@ -245,7 +316,7 @@ def load_opencv_rig(path, *, camera_size=None, projector_size=None, units=None) 
                                 T=R_cp @ camera.T + T_cp, size=projector_size)
     except ValueError as exc:
         raise ValueError(f"{path}: {exc}") from None
-    return Rig(camera=camera, projector=projector, units=units or file_units or "mm")
+    return check_physical_rig(Rig(camera=camera, projector=projector, units=units or file_units or "mm"), path)
 
 
 def save_opencv_rig(rig: Rig, path) -> Path:

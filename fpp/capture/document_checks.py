@@ -9,7 +9,10 @@ from typing import NoReturn
 from ..checks import is_finite_real
 from .model import format_number
 
-__all__ = ["DocumentChecker"]
+__all__ = ["DocumentChecker", "MAX_SIDE_PX"]
+
+#: Largest width or height of a camera or projector, pixels (no sensor or panel comes near it).
+MAX_SIDE_PX = 100_000
 
 
 class DocumentChecker:
@@ -42,15 +45,18 @@ class DocumentChecker:
             self.fail(f"{key} must be > 0; got {format_number(value)}")
         return value
 
-    def integer(self, value, key: str, *, minimum: int) -> int:
-        if isinstance(value, bool) or not isinstance(value, numbers.Integral) or value < minimum:
-            self.fail(f"{key} must be an integer >= {minimum}; got {value!r}")
+    def integer(self, value, key: str, *, minimum: int, maximum: int | None = None) -> int:
+        if (isinstance(value, bool) or not isinstance(value, numbers.Integral) or value < minimum
+                or (maximum is not None and value > maximum)):
+            bound = f">= {minimum}" if maximum is None else f"in [{minimum}, {maximum}]"
+            self.fail(f"{key} must be an integer {bound}; got {value!r}")
         return int(value)
 
     def size(self, value, key: str) -> tuple[int, int]:
         if (not isinstance(value, (list, tuple)) or len(value) != 2
-                or any(isinstance(v, bool) or not isinstance(v, numbers.Integral) or v < 1 for v in value)):
-            self.fail(f"{key} must be [width, height] in pixels (two positive integers); got {value!r}")
+                or any(isinstance(v, bool) or not isinstance(v, numbers.Integral) or not 1 <= v <= MAX_SIDE_PX
+                       for v in value)):
+            self.fail(f"{key} must be [width, height] in pixels (two integers in [1, {MAX_SIDE_PX}]); got {value!r}")
         return int(value[0]), int(value[1])
 
     def file_name(self, value, key: str) -> str:

@@ -6,6 +6,7 @@ from pathlib import Path
 
 import yaml
 
+from ..text_files import read_text_file
 from .document_checks import DocumentChecker
 from .model import (
     BIT_DEPTHS,
@@ -23,7 +24,12 @@ from .model import (
     format_number,
 )
 
-__all__ = ["read_capture", "parse_capture", "resolve_path"]
+__all__ = ["read_capture", "parse_capture", "resolve_path", "MAX_STEPS", "MAX_GRAY_BITS"]
+
+#: Most phase steps of one sequence (the paper's labels use 12; hundreds would already be unusual).
+MAX_STEPS = 1000
+#: Most Gray-code bits: 2**24 code steps, more than any projector has pixels along an axis.
+MAX_GRAY_BITS = 24
 
 
 def read_capture(path) -> Capture:
@@ -55,10 +61,11 @@ def read_capture(path) -> Capture:
         yaml_path = yaml_path / CAPTURE_FILE
     if not yaml_path.is_file():
         raise FileNotFoundError(f"{yaml_path}: no such file (a capture folder needs a {CAPTURE_FILE})")
+    text = read_text_file(yaml_path, f"a {CAPTURE_FILE} ({CAPTURE_FORMAT}, docs/capture-format.md)")
     try:
-        document = yaml.safe_load(yaml_path.read_text())
+        document = yaml.safe_load(text)
     except yaml.YAMLError as exc:
-        raise ValueError(f"{yaml_path}: not valid YAML ({exc})") from None
+        raise ValueError(f"{yaml_path}: not valid YAML ({' '.join(str(exc).split())})") from None
     return parse_capture(document, yaml_path.parent.resolve(), str(yaml_path))
 
 
@@ -141,24 +148,30 @@ def _parse_sequence(spec: DocumentChecker, raw, index: int, root: Path, extent: 
     raw = spec.mapping(raw, where)
     kind = raw.get("kind", "phase")
     if kind == "phase":
-        return _parse_phase_sequence(spec, raw, index, root)
+        return _parse_phase_sequence(spec, raw, index, root, extent)
     if kind == "graycode":
         return _parse_graycode_sequence(spec, raw, index, root, extent)
     spec.fail(f"{where}.kind must be 'phase' (the default) or 'graycode'; got {kind!r}")
 
 
-def _parse_phase_sequence(spec: DocumentChecker, raw: dict, index: int, root: Path) -> PhaseSequence:
+def _parse_phase_sequence(spec: DocumentChecker, raw: dict, index: int, root: Path, extent: int) -> PhaseSequence:
     where = f"sequences[{index}]"
     has_frequency, has_period = raw.get("frequency") is not None, raw.get("period") is not None
     if has_frequency == has_period:
         spec.fail(f"{where}: give exactly one of 'frequency' and 'period'; got "
                   f"{'both' if has_frequency else 'neither'}")
     frequency = period = None
-    if has_frequency:
+    if has_frequency:  # a fringe period of fewer than 2 projector pixels cannot be projected (Nyquist)
         frequency = spec.positive(raw["frequency"], f"{where}.frequency")
+        if frequency > extent / 2:
+            spec.fail(f"{where}.frequency must be at most {format_number(extent / 2)} (a period of 2 projector "
+                      f"pixels over the extent {extent} along the fringe axis); got {frequency:g}")
     else:
         period = spec.positive(raw["period"], f"{where}.period")
-    steps = spec.integer(spec.require(raw, "steps", f"{where}.steps"), f"{where}.steps", minimum=3)
+        if period < 2:
+            spec.fail(f"{where}.period must be at least 2 projector pixels; got {period:g}")
+    steps = spec.integer(spec.require(raw, "steps", f"{where}.steps"), f"{where}.steps", minimum=3,
+                         maximum=MAX_STEPS)
     declared = f"frequency {format_number(frequency)}" if has_frequency else f"period {format_number(period)}"
     label = f"sequence {index} ({declared})"
     images = spec.file_list(spec.require(raw, "images", f"{where}.images"), f"{where}.images")
@@ -175,7 +188,7 @@ def _parse_phase_sequence(spec: DocumentChecker, raw: dict, index: int, root: Pa
 
 def _parse_graycode_sequence(spec: DocumentChecker, raw: dict, index: int, root: Path, extent: int) -> GraycodeSequence:
     where = f"sequences[{index}]"
-    bits = spec.integer(spec.require(raw, "bits", f"{where}.bits"), f"{where}.bits", minimum=1)
+    bits = spec.integer(spec.require(raw, "bits", f"{where}.bits"), f"{where}.bits", minimum=1, maximum=MAX_GRAY_BITS)
     period = spec.positive(spec.require(raw, "period", f"{where}.period"), f"{where}.period")
     label = f"sequence {index} (graycode, period {format_number(period)})"
     if 2**bits * period < extent:

@@ -226,7 +226,7 @@ def test_bad_values_are_named(tmp_path, key, value, message):
 def test_steps_below_three(tmp_path):
     _write_small(tmp_path)
     _edit_yaml(tmp_path, lambda d: d["sequences"][1].update(steps=2, images=d["sequences"][1]["images"][:2]))
-    with pytest.raises(ValueError, match=r"sequences\[1\]\.steps must be an integer >= 3; got 2"):
+    with pytest.raises(ValueError, match=r"sequences\[1\]\.steps must be an integer in \[3, 1000\]; got 2"):
         read_capture(tmp_path)
 
 
