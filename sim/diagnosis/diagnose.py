@@ -21,6 +21,7 @@ import numpy as np
 from dptpu.fpp.calibration import Rig
 from dptpu.sim.scenes import load_scene
 
+from .calibration_fit import NOT_IDENTIFIABLE_ON_SCENE, fit_calibration_error
 from .candidates import (
     NOT_IDENTIFIABLE,
     PHOTOMETRIC,
@@ -36,6 +37,7 @@ from .noise import fit_sensor_noise
 from .phase_candidates import PHASE_VISIBLE, fit_phase_candidate
 from .pixels import DEFAULT_MAX_PIXELS, erode_mask, reference_pixels, self_reference_pixels
 from .reference import Reference, load_scene_reference, parse_reference
+from .recentred_orders import recentred_absolute_phase
 from .registration import Registration, register_robust
 from .response import fit_response
 from .scene_registration import fit_scene_lens_distortion, register_scene
@@ -70,6 +72,7 @@ class Diagnosis:
     extended_effects: list = field(default_factory=list)
     material: object = None
     additional: list = field(default_factory=list)
+    corrected_rig: Rig | None = None
 
     @property
     def named(self) -> list:
@@ -115,6 +118,26 @@ def _response_entry(pixels, entries, *, refine: int, rss_before: float) -> dict:
     return entry
 
 
+def _recentre_orders(measured: Measured, rig: Rig, reference: Reference, fit_mask, registration):
+    """When the registration cannot explain the decoded coordinate (fringe orders off the twin's, or an RMS
+    over a tenth of a period), decode the orders again about the data's own MF centre (:mod:`.recentred_orders`)
+    and keep that decoding if it registers better."""
+    period_px = measured.extent / measured.frequency
+    if registration.order_errors == 0.0 and registration.rms_px <= 0.1 * period_px:
+        return registration
+    recentred = recentred_absolute_phase(measured, np.isfinite(measured.absolute_phase))
+    if recentred is None:
+        return registration
+    phase, _ = recentred
+    original = measured.absolute_phase
+    measured.absolute_phase = phase
+    again = register_robust(rig, reference, measured.projector_x, fit_mask, period_px=period_px)
+    if again.rms_px < registration.rms_px:
+        return again
+    measured.absolute_phase = original
+    return registration
+
+
 def _reference_material(reference: Reference, rig: Rig):
     if reference.kind == "scene":
         return None  # a traced scene carries its own materials
@@ -156,6 +179,10 @@ def diagnose(measured, rig: Rig | None, *, reference=None, self_reference: bool 
     if not isinstance(measured, Measured):
         measured = load_measured(measured, frequency=frequency, decode=not self_reference)
     rig = None if rig is None else replace(rig, effects=())
+    # the calibration error needs a reference object (a self-reference diagnosis does not report it)
+    calibration = not_identifiable("calibration_error", "self-reference: no reference object")
+    with_calibration: Registration | None = None
+    calibration_pixels = None
     if self_reference:
         if not measured.has_frames:
             raise ValueError(f"{measured.source}: --self-reference needs raw frames (a capture folder)")
@@ -183,6 +210,7 @@ def diagnose(measured, rig: Rig | None, *, reference=None, self_reference: bool 
         else:
             registration = register_robust(rig, reference, measured.projector_x, fit_mask,
                                            period_px=measured.extent / measured.frequency)
+            registration = _recentre_orders(measured, rig, reference, fit_mask, registration)
         if registration.order_errors:  # unwrap the measured phase with the twin's orders instead
             period = 2.0 * np.pi
             model = registration.model_x * 2.0 * np.pi * measured.frequency / measured.extent
@@ -194,6 +222,14 @@ def diagnose(measured, rig: Rig | None, *, reference=None, self_reference: bool 
             lens, with_lens = fit_lens_distortion(rig, reference, measured.projector_x, registration)
         lens["named"] = significant(lens)
         entries = [lens]
+        if reference.kind == "scene":
+            calibration = not_identifiable("calibration_error", NOT_IDENTIFIABLE_ON_SCENE)
+            with_calibration = registration
+        else:
+            calibration, with_calibration = fit_calibration_error(rig, reference, measured.projector_x,
+                                                                  registration)
+            calibration["named"] = significant(calibration)
+        entries.append(calibration)
         if outside_vocabulary and reference.kind != "scene":
             for extra in fit_geometric_extra(rig, reference, measured.projector_x, registration):
                 extra["named"] = False
@@ -205,6 +241,10 @@ def diagnose(measured, rig: Rig | None, *, reference=None, self_reference: bool 
                                              max_pixels=max_pixels, seed=seed)
             lens_pixels, _ = reference_pixels(measured, with_lens.rig, reference, with_lens.pose, material,
                                               index=pixels.index, motion=False)
+            if calibration["evidence"]["parameters"]:
+                calibration_pixels, _ = reference_pixels(measured, with_calibration.rig, reference,
+                                                         with_calibration.pose, material, index=pixels.index,
+                                                         motion=False)
         else:  # a phase file: the photometric effects a 12-step phase shows, judged on the phase
 
             for candidate in PHASE_VISIBLE if phase_candidates else ():
@@ -223,6 +263,11 @@ def diagnose(measured, rig: Rig | None, *, reference=None, self_reference: bool 
             lens_residual, _, lens_model = intensity_residual(lens_pixels, (), refine=refine)
             rescore_in_intensity(lens, rss0, float(sum(np.sum(r * r) for r in lens_residual)), pixels.values)
             lens["named"] = significant(lens)
+        if calibration_pixels is not None:  # the same for the calibration error
+            calibration_residual, _, calibration_model = intensity_residual(calibration_pixels, (), refine=refine)
+            rescore_in_intensity(calibration, rss0, float(sum(np.sum(r * r) for r in calibration_residual)),
+                                 pixels.values)
+            calibration["named"] = significant(calibration)
         for candidate in candidates:
             entry = fit_photometric(pixels, candidate, refine=refine, rss_before=rss0)
             entry["named"] = significant(entry)
@@ -237,6 +282,8 @@ def diagnose(measured, rig: Rig | None, *, reference=None, self_reference: bool 
         best = max(deterministic, key=lambda e: e["gain"]) if deterministic else None
         if best is not None and best["name"] == "lens_distortion":
             residual_after, model_after = lens_residual, lens_model
+        elif best is not None and best["name"] == "calibration_error":
+            residual_after, model_after = calibration_residual, calibration_model
         else:
             base = [effect_entry(best)] if best is not None else []
             for _ in range(max(int(rounds), 1) - 1):  # greedy: what else, on top of the effects found so far
@@ -267,17 +314,21 @@ def diagnose(measured, rig: Rig | None, *, reference=None, self_reference: bool 
             noise["evidence"]["excess_variance_dn2"] > NOISE_OVER_SYSTEMATIC * systematic)
         entries.append(noise)
     geometry = None
-    if registration is not None:
-        geometry = with_lens if lens["named"] else registration
+    if registration is not None:  # the geometric effect that explains most, or the registration
+        geometric = [(e["gain"], fitted) for e, fitted in ((lens, with_lens), (calibration, with_calibration))
+                     if e["named"] and fitted is not None]
+        geometry = max(geometric, key=lambda g: g[0])[1] if geometric else registration
     deterministic = sorted([e for e in entries if e["named"] and e["name"] != "sensor_noise"],
                            key=lambda e: -e["gain"])
     noise_named = [e for e in entries if e["named"] and e["name"] == "sensor_noise"]
     rest = sorted([e for e in entries if not e["named"]], key=lambda e: -e["evidence"]["delta_bic"])
     ranked = deterministic + noise_named + rest
     cause = ranked[0]["name"] if ranked and ranked[0]["named"] else "none"
+    corrected_rig = with_calibration.rig if with_calibration is not None and calibration["named"] else None
     extended = [effect_entry(deterministic[0])] if deterministic else []
     extended += [effect_entry(e) for e in additional] + [effect_entry(e) for e in noise_named]
     return Diagnosis(cause=cause, effects=ranked, measured=measured, rig=rig, reference=reference,
                      registration=registration, geometry=geometry, pixels=pixels, pixel_mask=mask,
                      residual_before=residual_before, residual_after=residual_after, model_before=model_before,
-                     extended_effects=extended, material=material, additional=additional)
+                     extended_effects=extended, material=material, additional=additional,
+                     corrected_rig=corrected_rig)

@@ -97,7 +97,7 @@ def _rerender(diagnosis, extended_effects) -> dict[str, Any]:
         twin = render_twin(rig, reference, geometry.pose, diagnosis.material, measured.sequences, **kwargs)
         reference_frame = diagnosis.pixels.motion_reference_frame if diagnosis.pixels is not None else 0.0
         extended = render_twin(extended_rig, reference, extended_pose, diagnosis.material, measured.sequences,
-                               effects=[e for e in effects if e.name != "lens_distortion"],
+                               effects=[e for e in effects if e.name not in ("lens_distortion", "calibration_error")],
                                reference_frame=reference_frame, **kwargs)
         out["intensity_rms_dn"] = {"twin": _intensity_rms(measured.frames, twin, mask),
                                    "extended_twin": _intensity_rms(measured.frames, extended, mask)}
@@ -130,6 +130,26 @@ def _rerender(diagnosis, extended_effects) -> dict[str, Any]:
             out.setdefault("sphere_radius", {})[label] = radius
         out["sphere_rms_um"] = rms
         out["sphere_pixels"] = int(both.sum())
+        # the whole sphere, edge band included: each on its own valid pixels
+        whole = {}
+        for label, x in (("measured", x_measured), ("twin", x_twin), ("extended_twin", x_extended)):
+            whole[label], _ = sphere_rms_um(rig, x, np.isfinite(x), axis=axis, mm_per_unit=1e-3 / rig.scale_to_m)
+        out["sphere_rms_um_whole"] = whole
+    return out
+
+
+def _corrected_sphere(diagnosis) -> dict:
+    """The measured sphere reconstructed with the given and with the corrected rig: sphere-fit RMS (um) and
+    radius (rig units), on the interior (edge band left out) and on every valid pixel."""
+    measured, rig = diagnosis.measured, diagnosis.rig
+    interior = diagnosis.registration.mask & np.isfinite(measured.projector_x)
+    out: dict[str, Any] = {"certified_radius": diagnosis.reference.sphere_diameter / 2.0}
+    for region, mask in (("interior", interior), ("whole", measured.valid)):
+        for label, calibration in (("given", rig), ("corrected", diagnosis.corrected_rig)):
+            rms, radius = sphere_rms_um(calibration, measured.projector_x, mask, axis=measured.fringe_axis,
+                                        mm_per_unit=1e-3 / rig.scale_to_m)
+            out.setdefault(f"sphere_rms_um_{region}", {})[label] = rms
+            out.setdefault(f"sphere_radius_{region}", {})[label] = radius
     return out
 
 
@@ -152,6 +172,11 @@ def write_report(diagnosis, out_dir, *, rerender: bool = True) -> dict:
         path = out_dir / "extended_effects.yaml"
         path.write_text(yaml.safe_dump({"effects": extended}, sort_keys=False))
     report["extended_rig"] = str(path)
+    if diagnosis.corrected_rig is not None:  # the fitted calibration_error: the rig the data were taken with
+        corrected = save_rig(replace(diagnosis.corrected_rig, effects=()), out_dir / "corrected_rig.yaml")
+        report["corrected_rig"] = str(corrected)
+        if reference.kind == "sphere":
+            report["corrected_calibration"] = _corrected_sphere(diagnosis)
     report["reference"] = reference.label
     report["measured"] = str(measured.source)
     decomposition = {}
@@ -203,6 +228,7 @@ def write_report(diagnosis, out_dir, *, rerender: bool = True) -> dict:
         again = _rerender(diagnosis, extended)
         if "sphere_rms_um" in again:
             report["sphere_rms_um"] = again.pop("sphere_rms_um")
+            report["sphere_rms_um_whole"] = again.pop("sphere_rms_um_whole")
         report["rerender"] = again
     report["figures"] = figures
     report = json_ready(report)

@@ -3,6 +3,8 @@
 - ``lens_distortion``: coefficients (k1 k2 p1 p2 k3) added to the camera's and the projector's distortion in the
   render only; the capture's calibration keeps the rig's own, so the data hold distortion the calibration does
   not model (a triangulated plane bends; the error grows with the radius in the image).
+- ``calibration_error``: the rig the frames were taken with differs from the calibration written with them
+  (:mod:`dptpu.sim.effects.calibration`); applied before ``lens_distortion``.
 - ``motion``: rigid motion between frames; frame ``g`` (0-based over the whole capture, sequences in order) sees
   the meshes rotated by ``g * angular_deg_per_frame`` (Euler x, y, z, degrees) about their common centroid and
   translated by ``g * velocity_per_frame`` (rig units). Ground truth is frame 0's.
@@ -17,13 +19,18 @@ from dptpu.fpp.calibration import DeviceModel, Rig
 from dptpu.sim.scene_mesh import SceneMesh
 from dptpu.sim.scenes.scene import euler_xyz_deg
 
+from .calibration import miscalibrated_rig
 from .registry import find_effect
 
 __all__ = ["render_rig", "moved_meshes", "has_motion"]
 
 
 def render_rig(rig: Rig, effects) -> Rig:
-    """The rig the renderer traces: ``rig`` with the ``lens_distortion`` effect's coefficients added."""
+    """The rig the renderer traces: ``rig`` changed by ``calibration_error``, with the ``lens_distortion``
+    effect's coefficients added."""
+    error = find_effect(effects, "calibration_error")
+    if error is not None:
+        rig = miscalibrated_rig(rig, error.params)
     effect = find_effect(effects, "lens_distortion")
     if effect is None:
         return rig

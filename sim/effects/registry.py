@@ -33,7 +33,7 @@ __all__ = ["STAGES", "EFFECTS", "EffectSpec", "Effect", "parse_effects", "load_e
 
 STAGES = ("pattern", "geometry", "camera", "phase")
 _KINDS = {"num": "a number", "pos": "a number > 0", "nonneg": "a number >= 0", "int0": "an integer >= 0",
-          "vec3": "a list of 3 numbers", "vec5": "a list of 5 numbers (k1 k2 p1 p2 k3)",
+          "vec2": "a list of 2 numbers", "vec3": "a list of 3 numbers", "vec5": "a list of 5 numbers (k1 k2 p1 p2 k3)",
           "list": "a list of numbers"}
 
 
@@ -88,6 +88,13 @@ _SPECS = [
     EffectSpec("lens_distortion", "geometry", {"camera": ("vec5", [0.0] * 5), "projector": ("vec5", [0.0] * 5)},
                "distortion coefficients added to the rig's in the render only (present in the data, absent "
                "from the calibration written with the capture)"),
+    EffectSpec("calibration_error", "geometry",
+               {"rotation_deg": ("vec3", [0.0, 0.0, 0.0]), "translation": ("vec3", [0.0, 0.0, 0.0]),
+                "camera_focal_scale": ("pos", 1.0), "projector_focal_scale": ("pos", 1.0),
+                "camera_principal_px": ("vec2", [0.0, 0.0]), "projector_principal_px": ("vec2", [0.0, 0.0])},
+               "the rig the frames were taken with differs from the calibration written with them: the projector "
+               "turned (rotation vector, deg) and moved (rig units) in its own frame, focal lengths scaled, "
+               "principal points moved (px); render only"),
     EffectSpec("motion", "geometry", {"velocity_per_frame": ("vec3", [0.0, 0.0, 0.0]),
                                       "angular_deg_per_frame": ("vec3", [0.0, 0.0, 0.0])},
                "the scene moves rigidly between frames: frame g (0-based over the whole capture) is traced with "
@@ -124,7 +131,7 @@ def _value(where: str, kind: str, value):
         if isinstance(value, bool) or not isinstance(value, numbers.Integral) or value < 0:
             raise ValueError(f"{where}: must be {expected}; got {value!r}")
         return int(value)
-    size = {"vec3": 3, "vec5": 5}.get(kind)
+    size = {"vec2": 2, "vec3": 3, "vec5": 5}.get(kind)
     if not isinstance(value, (list, tuple)) or (size is not None and len(value) != size) or not all(
             isinstance(v, numbers.Real) and not isinstance(v, bool) and math.isfinite(v) for v in value):
         raise ValueError(f"{where}: must be {expected}; got {value!r}")
