@@ -17,6 +17,8 @@ import sys
 import threading
 from contextlib import contextmanager
 
+from dptpu.cli.conventions import parse_list
+
 
 def register(subparsers) -> None:
     record = subparsers.add_parser(
@@ -43,7 +45,8 @@ def register(subparsers) -> None:
     play.add_argument("file", metavar="FILE.mcap", help="the MCAP file to play")
     play.add_argument("-r", "--rate", type=float, default=1.0, help="speed factor (default 1.0; 2 = twice as fast)")
     play.add_argument("-l", "--loop", action="store_true", help="play again from the start until Ctrl-C")
-    play.add_argument("--topics", nargs="+", default=None, metavar="TOPIC", help="play only these topics")
+    play.add_argument("--topics", nargs="+", default=None, metavar="TOPIC,...",
+                      help="play only these topics, comma separated (e.g. /scanner/points,/scanner/depth)")
     play.add_argument("-d", "--delay", type=float, default=0.0, metavar="S",
                       help="seconds to wait after creating the publishers (default 0)")
     play.add_argument("--wait-for-subscribers", type=float, default=0.0, metavar="S",
@@ -112,8 +115,14 @@ def run_play(args) -> int:
             print(f"[play] no subscription on {topic} after {args.wait_for_subscribers:g} s; playing anyway",
                   file=sys.stderr, flush=True)
 
+    topics = None
+    if args.topics is not None:
+        if len(args.topics) > 1:  # the old space-separated spelling
+            raise ValueError(f"--topics takes one comma-separated list: --topics {','.join(args.topics)} "
+                             f"(space-separated topics are no longer accepted)")
+        topics = list(parse_list(args.topics[0], "--topics", str, example="/scanner/points,/scanner/depth"))
     with _stop_on_signals() as stop:
-        result = play(args.file, rate=args.rate, loop=args.loop, topics=args.topics, delay_s=args.delay,
+        result = play(args.file, rate=args.rate, loop=args.loop, topics=topics, delay_s=args.delay,
                       wait_for_subscribers_s=args.wait_for_subscribers, stop_event=stop, domain_id=args.domain_id,
                       on_ready=ready)
     print(f"published {result.total} message(s) in {result.duration_s:.1f} s"

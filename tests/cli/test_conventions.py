@@ -54,9 +54,10 @@ def test_sizes_are_width_first_and_rig_files_are_rig(path, parser):
             if any(option.endswith("size") for option in action.option_strings):
                 assert "WIDTHxHEIGHT" in text, (path, action.option_strings)
             assert "--calibration" not in action.option_strings and "--shape" not in action.option_strings
-            assert action.nargs not in ("+", "*") or not any(o in ("--noise", "--frequencies", "--methods")
-                                                             for o in action.option_strings) or \
-                path == ("dptpu", "sim", "dataset")  # its --noise refuses a second value (test below)
+            # an option's list is one comma-separated value; the two that take several refuse a second (tests below)
+            assert action.nargs not in ("+", "*") or not action.option_strings or \
+                (path, tuple(action.option_strings)) in ((("dptpu", "sim", "dataset"), ("--noise",)),
+                                                         (("dptpu", "play"), ("--topics",)))
 
 
 @pytest.mark.parametrize(("argv", "expected"), [
@@ -85,6 +86,14 @@ def test_sim_dataset_noise_is_one_comma_separated_list(tmp_path, capsys):
     assert code == 2
     assert capsys.readouterr().err == ("dptpu sim: error: --noise takes one comma-separated list: --noise "
                                        "1.5693,3.1386 (space-separated values are no longer accepted)\n")
+
+
+def test_play_topics_is_one_comma_separated_list(tmp_path, capsys):
+    code = main(["play", str(tmp_path / "scan.mcap"), "--topics", "/scanner/points", "/scanner/depth"])
+    assert code == 2
+    assert capsys.readouterr().err == ("dptpu play: error: --topics takes one comma-separated list: --topics "
+                                       "/scanner/points,/scanner/depth (space-separated topics are no longer "
+                                       "accepted)\n")
 
 
 def test_parse_size_and_parse_list():
