@@ -274,9 +274,11 @@ def floor_ms_per_scan(*, steps: int, size: str, repeats: int = 30) -> dict:
     (``triangulate``, :meth:`~dptpu.fpp.triangulate.Triangulator.camera_points` of the sim rig's rig at ``size``),
     the (H, W, 5) cloud and its depth image (``assemble``), and both sent to one subscriber (``transport_out``,
     both sides). No Python between processes, no messages but the frames and the outputs: a lower bound of
-    the graph's CPU per scan. The frames are an analytic ramp across the projector (64 and 1 periods), so the
-    triangulation converges as on a real scene. Median of ``repeats`` timings of each part (``time.process_time``,
-    every thread).
+    the graph's CPU per scan (``total``). ``total_shared_memory`` moves the bytes as the shared-memory path does at
+    the least, one copy each way (``copy_in``, ``copy_out``: ``np.copyto`` into a preallocated array) instead of
+    through ZeroMQ: the floor of a graph whose large messages go through shared memory. The frames are an
+    analytic ramp across the projector (64 and 1 periods), so the triangulation converges as on a real scene.
+    Median of ``repeats`` timings of each part (``time.process_time``, every thread).
     """
     import cv2
     import zmq
@@ -310,6 +312,15 @@ def floor_ms_per_scan(*, steps: int, size: str, repeats: int = 30) -> dict:
         for _ in arrays:
             receiver.recv(copy=False)
 
+    copies: dict = {}
+
+    def copy_once(arrays):  # what the shared-memory path costs at least: the writer's one copy into a segment
+        for index, array in enumerate(arrays):
+            target = copies.get((index, array.shape, array.dtype))
+            if target is None:
+                target = copies[(index, array.shape, array.dtype)] = np.empty_like(array)
+            np.copyto(target, array)
+
     frames = [frame for stack in stacks for frame in stack]
     state = {}
 
@@ -339,7 +350,8 @@ def floor_ms_per_scan(*, steps: int, size: str, repeats: int = 30) -> dict:
 
     parts = {"transport_in": lambda: transfer(frames), "phase": phase_step, "unwrap": unwrap_step,
              "triangulate": triangulate_step, "assemble": assemble_step,
-             "transport_out": lambda: transfer([state["cloud"], state["depth"]])}
+             "transport_out": lambda: transfer([state["cloud"], state["depth"]]),
+             "copy_in": lambda: copy_once(frames), "copy_out": lambda: copy_once([state["cloud"], state["depth"]])}
     times = {name: [] for name in parts}
     try:
         for _ in range(repeats + 2):  # two warm-ups
@@ -352,11 +364,42 @@ def floor_ms_per_scan(*, steps: int, size: str, repeats: int = 30) -> dict:
         receiver.close(linger=0)
         context.term()
     figures = {name: round(1e3 * float(np.median(values[2:])), 2) for name, values in times.items()}
-    figures["total"] = round(sum(figures.values()), 2)
+    work = sum(figures[name] for name in ("phase", "unwrap", "triangulate", "assemble"))
+    figures["total"] = round(work + figures["transport_in"] + figures["transport_out"], 2)
+    figures["total_shared_memory"] = round(work + figures["copy_in"] + figures["copy_out"], 2)
     figures["cores_2_scans_per_s_max"] = round(2000.0 / figures["total"], 1)
     figures.update(steps=steps, frames=2 * steps, size=size, valid_pixels=int(np.count_nonzero(
         np.isfinite(state["depth"]))))
     return figures
+
+
+def measure_floor(step: int, size: str) -> dict:
+    """:func:`floor_ms_per_scan` with the allocator as every node sets it."""
+    from dptpu.nodes.node_main import keep_freed_memory
+
+    keep_freed_memory()  # as every node does
+    return floor_ms_per_scan(steps=step, size=size)
+
+
+#: The graph's CPU a scan over the floor: issue 20's goal.
+FLOOR_RATIO_GOAL = 1.3
+
+
+def attach_floor(result: dict, floor: dict) -> None:
+    """Add the floor measured beside ``result`` and the graph's CPU a scan over it (``cpu_over_floor``: over the
+    shared-memory floor, ``cpu_over_zeromq_floor``: over the floor with ZeroMQ transfers)."""
+    cpu = (result.get("cpu_ms_per_scan") or {}).get("total")
+    result["floor_ms_per_scan"] = floor
+    result["cpu_over_floor"] = round(cpu / floor["total_shared_memory"], 3) if cpu else None
+    result["cpu_over_zeromq_floor"] = round(cpu / floor["total"], 3) if cpu else None
+    result["cpu_over_floor_goal"] = FLOOR_RATIO_GOAL
+
+
+def _floor_line(f: dict) -> str:
+    return (f"2 x {f['steps']}-step floor: {f['total_shared_memory']:.1f} ms CPU a scan with shared memory, "
+            f"{f['total']:.1f} with ZeroMQ (at most {f['cores_2_scans_per_s_max']} scans/s on 2 cores): "
+            + ", ".join(f"{k} {f[k]:.2f}" for k in ("transport_in", "copy_in", "phase", "unwrap", "triangulate",
+                                                     "assemble", "transport_out", "copy_out")))
 
 
 def dptpu_model(explicit: str | None) -> str | None:
@@ -386,19 +429,11 @@ def run(args) -> int:
               f"{args.latency_load}", file=sys.stderr)
         return 2
     if args.floor:
-        from dptpu.nodes.node_main import keep_freed_memory
-
-        keep_freed_memory()  # as every node does
         report = {"benchmark": "pipeline-floor", "machine": {"cpus": os.cpu_count(), "platform": platform.platform(),
                                                             "python": platform.python_version(),
                                                             "load_average": list(os.getloadavg())},
-                  "floors": [floor_ms_per_scan(steps=step, size=args.size) for step in steps]}
-        print(json.dumps(report, indent=1) if args.json else "\n".join(
-            f"2 x {f['steps']}-step floor: {f['total']:.1f} ms CPU a scan (at most {f['cores_2_scans_per_s_max']} "
-            f"scans/s on 2 cores): " + ", ".join(f"{k} {f[k]:.2f}" for k in ("transport_in", "phase", "unwrap",
-                                                                            "triangulate", "assemble",
-                                                                            "transport_out"))
-            for f in report["floors"]))
+                  "floors": [measure_floor(step, args.size) for step in steps]}
+        print(json.dumps(report, indent=1) if args.json else "\n".join(_floor_line(f) for f in report["floors"]))
         return 0
     model = dptpu_model(args.model)
     models = ["none"] + ([model] if model and not args.classical_only else [])
@@ -414,6 +449,15 @@ def run(args) -> int:
                       f"latency p50 {r['latency_ms_p50']:7.1f} "
                       f"ms  p99 {r['latency_ms_p99']:7.1f} ms  camera_limit_ratio {r['camera_limit_ratio']:.3f} "
                       f"({r['scans_timed']} scans, {r['scans_failed']} failed, {r['scans_lost']} lost)", flush=True)
+        if not args.no_floor:  # the floor beside the graph, in the same run (after this step count's graph runs)
+            floor = measure_floor(step, args.size)
+            for r in results:
+                if r["frames_per_scan"] == 2 * step:
+                    attach_floor(r, floor)
+            if not args.json:
+                print(_floor_line(floor) + "; graph CPU / floor: " + ", ".join(
+                    f"{r['configuration']} {r['cpu_over_floor']:.2f}" for r in results
+                    if r["frames_per_scan"] == 2 * step and r.get("cpu_over_floor") is not None), flush=True)
     report = {"benchmark": "pipeline", "machine": {"cpus": os.cpu_count(), "platform": platform.platform(),
                                                    "python": platform.python_version(),
                                                    "load_average": list(os.getloadavg())},
@@ -439,6 +483,8 @@ def add_arguments(parser) -> None:
     parser.add_argument("--model", default=None, help="DP-TPU .onnx model (default: the shipped one, if any)")
     parser.add_argument("--classical-only", action="store_true", help="skip DP-TPU even when a model exists")
     parser.add_argument("--timeout", type=float, default=600.0, help="seconds per launch (default 600)")
+    parser.add_argument("--no-floor", action="store_true",
+                        help="do not measure the floor beside the graph (measured by default, after each step count)")
     parser.add_argument("--floor", action="store_true",
                         help="no graph: the CPU per scan of the work no graph can take away (frames in, phase, "
                              "unwrap, triangulation, cloud and depth out), in one process")

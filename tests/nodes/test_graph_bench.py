@@ -38,6 +38,14 @@ def test_bench_pipeline_reports_one_object_per_configuration(capsys):
             assert sum(threads.values()) <= processes[name] + 20.0 / cpu["scans"]
         assert result["camera_limit_ratio"] == pytest.approx(result["scans_per_s"] / result["camera_limit_scans_per_s"],
                                                              rel=1e-2)
+        # the floor, measured in the same run: the work's parts, with ZeroMQ transfers or shared memory's copies
+        floor = result["floor_ms_per_scan"]
+        assert floor["steps"] == 3 and floor["size"] == "96x72" and floor["valid_pixels"] > 0.9 * 96 * 72
+        work = sum(floor[k] for k in ("phase", "unwrap", "triangulate", "assemble"))
+        assert floor["total"] == pytest.approx(work + floor["transport_in"] + floor["transport_out"], abs=0.02)
+        assert floor["total_shared_memory"] == pytest.approx(work + floor["copy_in"] + floor["copy_out"], abs=0.02)
+        if cpu["total"]:
+            assert result["cpu_over_floor"] == pytest.approx(cpu["total"] / floor["total_shared_memory"], rel=1e-2)
 
 
 def test_bench_pipeline_refuses_unknown_steps(capsys):
