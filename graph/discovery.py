@@ -97,7 +97,10 @@ def domain_directory(domain_id=None, *, base=None) -> Path:
 
 
 def ensure_private_directory(path: Path) -> Path:
-    """Create ``path`` (mode 0700) if needed and check it belongs to this user and is not group/world writable.
+    """Create ``path`` (mode 0700) if needed, check it belongs to this user and make it private (0700).
+
+    An existing folder of the user that others could only read or enter (e.g. 0755 from a ``mkdir``) is made 0700:
+    the announcements name every endpoint and the ipc socket files are inside.
 
     Raises
     ------
@@ -110,9 +113,11 @@ def ensure_private_directory(path: Path) -> Path:
     if info.st_uid != os.getuid():
         raise PermissionError(f"discovery folder {str(path)!r} belongs to uid {info.st_uid}, not to this user "
                               f"({os.getuid()}); set DPTPU_DISCOVERY_DIR to a folder of yours")
-    if info.st_mode & (stat.S_IWGRP | stat.S_IWOTH):
+    if info.st_mode & (stat.S_IWGRP | stat.S_IWOTH):  # others may have put or swapped files in it already
         raise PermissionError(f"discovery folder {str(path)!r} is writable by others (mode "
                               f"{oct(info.st_mode & 0o777)}); chmod 700 it")
+    if info.st_mode & (stat.S_IRWXG | stat.S_IRWXO):
+        os.chmod(path, 0o700)
     return path
 
 

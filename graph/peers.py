@@ -129,6 +129,8 @@ class PeerExchange:
             if transport.curve is not None:
                 client.curve_secretkey = transport.curve.secret
                 client.curve_publickey = transport.curve.public
+            if not key and transport.curve is not None:  # a peer without a listed key shares this host's pair
+                key = transport.curve.public
             connect(client, address, transport, key.decode("ascii") if key else None)
             self._clients.append(client)
 

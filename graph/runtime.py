@@ -50,6 +50,7 @@ from .lease import IO, POLLING, SocketLease, drain_socket
 from .logging import get_logger
 from .peers import PeerExchange, peers_from_environment
 from .services import ServiceHost
+from .shared_memory import sweep_mappings
 from .transport import MAX_IPC_PATH_BYTES, TransportConfig, connect, remove_ipc_file
 
 if TYPE_CHECKING:  # node imports the runtime (through context): Node is named for the type checker only
@@ -72,9 +73,12 @@ class GraphRuntime:
         self.domain_id = domain_id
         self.logger = get_logger("dptpu.graph")
         peer_config = peers if peers is not None else peers_from_environment()
-        self.transport = TransportConfig.from_environment(want_tcp=peer_config is not None)
         ensure_private_directory(base_directory())  # the base too: nobody else may swap what is inside
         self.directory = ensure_private_directory(domain_directory(domain_id))
+        self.transport = TransportConfig.from_environment(want_tcp=peer_config is not None, key_dir=self.directory)
+        if self.transport.insecure_tcp:
+            self.logger.warning(f"tcp endpoints on {self.transport.tcp_interface} without CurveZMQ (DPTPU_CURVE=off): "
+                                "anyone who can reach them may read every topic, publish and call services")
         self.ipc_dir = self._ipc_directory()
         self.host, self.boot_id = host_identity()
         self.pid = os.getpid()
@@ -537,6 +541,7 @@ class GraphRuntime:
     def _refresh_stats(self) -> None:
         for publisher in list(self._publishers):
             self._guard(publisher._service_events)  # subscriber counts
+        sweep_mappings()  # unmap other processes' shared-memory segments no message here holds any more
         with self._lock:
             for gid, node in list(self._nodes.items()):
                 if self._written_stats.get(gid) != node._stats_signature():

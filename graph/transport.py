@@ -22,6 +22,9 @@ Configuration (environment variables, read when a context starts its runtime):
                                 every link is CurveZMQ-encrypted and clients are authenticated
 ``DPTPU_CURVE_AUTHORIZED_KEYS`` folder of the public certificates allowed to connect (required with
                                 the secret key; include every participant's, this one's too)
+``DPTPU_CURVE``                 ``on`` (default): tcp without the two variables above uses the user's key
+                                pair in the discovery folder (:mod:`dptpu.graph.curve_keys`), made when
+                                absent; ``off``: tcp without CurveZMQ (a warning says who can then connect)
 ``DPTPU_SHM``, ``DPTPU_SHM_*``  large messages between processes of one host through shared memory
                                 (with the ipc transport; :mod:`dptpu.graph.shared_memory`)
 ==============================  ===================================================================
@@ -161,6 +164,8 @@ class TransportConfig:
         When set, every socket uses CurveZMQ.
     shared_memory : SharedMemoryConfig or None
         Large messages between processes of this host through shared memory (ipc transport only); None: off.
+    insecure_tcp : bool
+        tcp endpoints without CurveZMQ (``DPTPU_CURVE=off``): the runtime warns.
     """
 
     local_transport: str = "ipc"
@@ -168,10 +173,13 @@ class TransportConfig:
     advertise_host: str | None = None
     curve: CurveKeys | None = None
     shared_memory: SharedMemoryConfig | None = None
+    insecure_tcp: bool = False
 
     @classmethod
-    def from_environment(cls, env=None, *, want_tcp: bool = False) -> TransportConfig:
-        """Read the ``DPTPU_*`` variables (see the module docstring); ``want_tcp`` binds tcp too (peers)."""
+    def from_environment(cls, env=None, *, want_tcp: bool = False, key_dir: Path | None = None) -> TransportConfig:
+        """Read the ``DPTPU_*`` variables (see the module docstring); ``want_tcp`` binds tcp too (peers);
+        ``key_dir``: the domain's discovery folder, where tcp's default CurveZMQ keys are kept (None: no default
+        keys, tcp without Curve unless configured)."""
         env = os.environ if env is None else env
         local = env.get("DPTPU_TRANSPORT", "ipc").strip().lower() or "ipc"
         if local not in ("ipc", "tcp"):
@@ -184,10 +192,17 @@ class TransportConfig:
             advertise = _socket.gethostname() if interface in ("0.0.0.0", "*") else interface
         curve = None
         secret_file = env.get("DPTPU_CURVE_SECRET_KEY", "").strip()
+        switch = env.get("DPTPU_CURVE", "on").strip().lower() or "on"
+        if switch not in ("on", "off"):
+            raise ValueError(f"DPTPU_CURVE must be 'on' or 'off'; got {switch!r}")
         if secret_file:
             curve = CurveKeys.load(secret_file, env.get("DPTPU_CURVE_AUTHORIZED_KEYS", "").strip())
+        elif interface is not None and switch == "on" and key_dir is not None:
+            from .curve_keys import ensure_domain_keys  # deferred: only with tcp
+
+            curve = CurveKeys.load(*ensure_domain_keys(key_dir))
         shared = SharedMemoryConfig.from_environment(env) if local == "ipc" else None
-        return cls(local, interface, advertise, curve, shared)
+        return cls(local, interface, advertise, curve, shared, insecure_tcp=interface is not None and curve is None)
 
 
 def configure_server(sock: zmq.Socket, config: TransportConfig) -> None:

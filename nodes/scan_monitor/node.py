@@ -66,7 +66,10 @@ name                 default  meaning
                               0 = start none (the projector runs its own scans)
 ``start_service``    ``/projector/start_scan``  the projector's std_srvs/Trigger service
 ``start_timeout_s``  2.0      a start request unanswered this long is withdrawn and sent again (a paused or
-                              restarted projector loses it), with a warning
+                              restarted projector loses it), with a warning. After a LOST scan the next start
+                              waits until a late message of that scan shows the pipeline moves again, or for
+                              a back-off (``scan_timeout_s``, doubling up to 4x), so a paused node costs the
+                              scans in flight, not one per ``scan_timeout_s``
 ``status_nodes``     (below)  the nodes whose ScanStatus messages count, relative names in the monitor's
                               namespace (default ``projector, camera, sim, phase, unwrap, cloud``); another
                               publisher of ``/scanner/status`` is refused and logged, so it can neither fail nor
@@ -197,6 +200,11 @@ class ScanMonitorNode(Node):
         self._start_call: Future | None = None
         self._start_call_s = 0.0  # monotonic s when _start_call was sent
         self.start_retries = 0  # start requests withdrawn unanswered after start_timeout_s
+        # after a LOST scan, no new start until its late messages show the pipeline moves again, or a back-off
+        # (scan_timeout_s, doubling to 4x) passed: a paused node costs the scans in flight, not one per timeout
+        self._lost_hold: int | None = None  # sequence_id of that LOST scan
+        self._hold_until_s = 0.0
+        self._hold_s = 0.0
         self._triggers_heard = False
         self._heard_checked_s = -math.inf
         self._progress_s = time.monotonic()
@@ -317,7 +325,8 @@ class ScanMonitorNode(Node):
             self.get_logger().warning(f"{self.scans_started - self.reported} started scan(s) never showed up; "
                                       "starting new ones")
             self.scans_started = self.reported
-        if self.scans_started - self.reported >= self.start_scans or not self.start_client.service_is_ready():
+        if self.scans_started - self.reported >= self.start_scans or not self.start_client.service_is_ready() \
+                or now_s < self._hold_until_s:
             return
         self._start_call = call = self.start_client.call_async(TriggerService.Request())
         self._start_call_s = now_s
@@ -342,6 +351,9 @@ class ScanMonitorNode(Node):
     def _scan(self, sequence_id: int) -> _Scan | None:
         """The pending record of ``sequence_id`` (made on first sight); None once it was reported."""
         if self.finished or sequence_id in self._done_ids:
+            if sequence_id == self._lost_hold:  # a late message of the LOST scan: the pipeline moves again
+                self._lost_hold, self._hold_until_s = None, 0.0
+                self.get_logger().info(f"scan {sequence_id} (reported lost) came on late: starting scans again")
             return None
         scan = self._pending.get(sequence_id)
         if scan is None:
@@ -409,6 +421,11 @@ class ScanMonitorNode(Node):
             arrived = ", ".join(f"{node} {state}" for node, state in scan.seen.items()) or "no status"
             record.update(outcome="lost", reason=f"no cloud within {self.scan_timeout_s:g} s ({arrived})")
         self.counts[record["outcome"]] += 1
+        if record["outcome"] == "lost":
+            self._hold_s = min(2.0 * self._hold_s if self._hold_s else self.scan_timeout_s, 4.0 * self.scan_timeout_s)
+            self._lost_hold, self._hold_until_s = scan.sequence_id, time.monotonic() + self._hold_s
+        else:
+            self._lost_hold, self._hold_until_s, self._hold_s = None, 0.0, 0.0
         self.reported += 1
         self.scans_started = max(self.scans_started, self.reported)  # a withdrawn start request's scan came after all
         self._pool(record)

@@ -75,3 +75,18 @@ def test_domain_id_comes_from_argument_then_environment():
         resolve_domain_id(None, env={"ROS_DOMAIN_ID": "x"})
     with pytest.raises(ValueError, match="domain_id must be an integer in 0..232; got 300"):
         resolve_domain_id(300)
+
+
+def test_discovery_folder_is_made_private_and_one_others_may_write_is_refused(tmp_path):
+    # ipc stays private to the user: the announcements name every endpoint, the socket files are inside
+    readable = tmp_path / "readable"
+    readable.mkdir(mode=0o755)
+    os.chmod(readable, 0o755)
+    assert (ensure_private_directory(readable).stat().st_mode & 0o777) == 0o700
+    fresh = ensure_private_directory(tmp_path / "fresh" / "domain-0")
+    assert (fresh.stat().st_mode & 0o777) == 0o700
+    shared = tmp_path / "shared"
+    shared.mkdir()
+    os.chmod(shared, 0o777)
+    with pytest.raises(PermissionError, match="writable by others"):
+        ensure_private_directory(shared)
