@@ -332,7 +332,7 @@ class ScanMonitorNode(Node):
         self._start_call_s = now_s
         call.add_done_callback(self._on_started)
 
-    def _on_started(self, future) -> None:
+    def _on_started(self, future: Future) -> None:
         if future is not self._start_call:
             return  # a withdrawn call answered late: its scan is counted by its statuses, not here
         self._start_call = None
