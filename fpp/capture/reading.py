@@ -125,6 +125,10 @@ def parse_capture(document, root: Path, source: str) -> Capture:
         references=references, calibration=calibration, ground_truth=ground_truth,
         extras={k: v for k, v in document.items() if k not in TOP_LEVEL_KEYS},
     )
+    folders = [p for p in _listed_files(capture) if p.is_dir()]
+    if folders:
+        names = ", ".join(_display(root, p) for p in folders)
+        raise ValueError(f"{source}: {len(folders)} listed file(s) are folders, not files: {names}")
     missing = [p for p in _listed_files(capture) if not p.is_file()]
     if missing:
         names = ", ".join(_display(root, p) for p in missing)

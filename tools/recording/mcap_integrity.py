@@ -20,9 +20,9 @@ import struct
 import zlib
 from pathlib import Path
 
-from mcap.exceptions import McapError
+from mcap.exceptions import EndOfFile, InvalidMagic, McapError
 from mcap.records import Chunk, DataEnd, Footer
-from mcap.stream_reader import CRCValidationError, StreamReader, breakup_chunk
+from mcap.stream_reader import MAGIC_SIZE, CRCValidationError, StreamReader, breakup_chunk
 
 __all__ = ["find_corruption", "check_summary_crc", "PARSE_ERRORS", "reason"]
 
@@ -74,8 +74,12 @@ def find_corruption(path: str | Path) -> str | None:
             except CRCValidationError as error:
                 return (f"data section (bytes 0 to the DataEnd record at byte offset {offset}): its CRC-32 does not "
                         f"match (stored 0x{error.expected:08x}, computed 0x{error.actual:08x})")
+            except InvalidMagic:
+                return "byte offset 0: no MCAP magic (not an MCAP file)"
+            except EndOfFile:
+                return f"record at byte offset {offset or MAGIC_SIZE}: the file ends inside it (truncated)"
             except PARSE_ERRORS as error:
-                return f"record at byte offset {offset}: {reason(error)}"
+                return f"record at byte offset {offset or MAGIC_SIZE}: {reason(error)}"
             if isinstance(record, Chunk):
                 problem = _chunk_problem(record)
                 if problem is not None:
