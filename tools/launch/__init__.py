@@ -1,17 +1,18 @@
-"""Launch: YAML launch files shaped like ROS 2's YAML front end, and a supervisor for the node processes.
+"""Launch: ROS 2 launch YAML files (a documented subset of its front end), and a supervisor for the node processes.
 
 Typical use (what ``dptpu launch FILE name:=value`` does)::
 
     from dptpu.tools.launch import Supervisor, load_launch_file
 
-    plan = load_launch_file("launch/sim_rig.yaml", {"rate": "10"})   # LaunchFileError names file:line
+    plan = load_launch_file("launch/sim_rig.yaml", {"scans": "10"})  # LaunchFileError names file:line
     for node in plan.nodes:
         print(node.label, node.command)                             # the resolved ROS 2 command lines
-    exit_code = Supervisor(plan.nodes).run()                        # until Ctrl-C or a required node fails
+    exit_code = Supervisor(plan.nodes).run()                        # until Ctrl-C or an on_exit: shutdown node exits
 
 Modules: :mod:`.launch_file` (read a file and its includes), :mod:`.launch_values` (the keys of an entry),
 :mod:`.node_entries` (``node`` entries), :mod:`.launch_plan` (the result and the problems),
-:mod:`.substitutions` (``$(var)``, ``$(env)``), :mod:`.command_line` (``--ros-args`` as launch_ros builds it),
+:mod:`.substitutions` (``$(var)``, ``$(env)``, ``$(find-pkg-share dptpu)``),
+:mod:`.command_line` (``--ros-args`` as launch_ros builds it),
 :mod:`.supervisor` (processes, output, respawn, shutdown), :mod:`.respawn` (backoff), :mod:`.process_groups`,
 :mod:`.output_prefix`, :mod:`.marked_yaml` (YAML with line numbers), :mod:`.python_modules` (``python -m``
 lookups), :mod:`.installed` (the launch files installed with the package).

@@ -67,7 +67,7 @@ class NodeLaunch:
     remaps : ``(from, to)`` pairs.
     env : ``(NAME, value)`` pairs set on top of the launcher's environment.
     respawn, respawn_delay_s, respawn_max_delay_s : restart on exit, first delay and backoff cap (seconds).
-    required : when it exits, everything stops (and the launch fails if its exit code is not 0).
+    required : ``on_exit: shutdown``: when it exits, everything stops (and the launch fails if its exit code is not 0).
     output : ``screen``, ``log`` or ``both``.
     """
 
