@@ -60,6 +60,7 @@ name                default                      meaning
 """
 from __future__ import annotations
 
+import math
 import time
 from collections import OrderedDict, deque
 
@@ -261,6 +262,10 @@ class SimNode(Node):
                 self._scans_seen.popitem(last=False)
             if self.publish_truth:
                 self._publish_truth(trigger, index)
+        refused = _trigger_problem(trigger)
+        if refused is not None:
+            self._unknown(trigger, scene, refused)
+            return
         stack = scene.stack(trigger.frequency, trigger.steps)
         if stack is None or trigger.step >= stack.shape[0]:
             self._unknown(trigger, scene)
@@ -285,11 +290,13 @@ class SimNode(Node):
             reliability=truth.reliability, method=f"ground_truth:{self.source.scenes[index].name}"))
         self.truth_depth_pub.publish(Image.from_array(truth.depth_m, "32FC1", header=header))
 
-    def _unknown(self, trigger: Trigger, scene: SimScene) -> None:
+    def _unknown(self, trigger: Trigger, scene: SimScene, refused: str | None = None) -> None:
+        """Log (throttled) and report once per scan a Trigger that gets no frame: one the source lacks, or one
+        refused for ``refused`` (:func:`_trigger_problem`)."""
         self.triggers_unknown += 1
+        why = refused or f"scene {scene.name} has {self.source.describe_sequences()}"
         reason = (f"sim: no frame for pattern {trigger.pattern_index} of scan {trigger.sequence_id} "
-                  f"(f={trigger.frequency:g}, step {trigger.step} of {trigger.steps}); scene {scene.name} has "
-                  f"{self.source.describe_sequences()}")
+                  f"(f={trigger.frequency:g}, step {trigger.step} of {trigger.steps}); {why}")
         self.get_logger().warning(f"{reason} ({self.triggers_unknown} so far)", throttle_duration_sec=1.0)
         if self._scans_seen.get(trigger.sequence_id):
             return
@@ -331,3 +338,14 @@ def main(argv=None) -> int:
     """``python -m dptpu.nodes.sim [--ros-args ...]``: run the node until Ctrl-C or SIGTERM (2: bad parameters)."""
     return run_node("sim", SimNode, argv)
 
+
+def _trigger_problem(trigger: Trigger) -> str | None:
+    """Why a Trigger cannot name a frame (None when it can): ``steps`` 0 ("unknown" on the wire) or a step outside
+    ``[0, steps)``, a frequency that is not a finite positive number."""
+    if trigger.steps < 1:
+        return f"refused: Trigger.steps is {trigger.steps} (unknown); the sim needs N >= 1 to pick the frame"
+    if not 0 <= trigger.step < trigger.steps:
+        return f"refused: Trigger.step {trigger.step} is outside [0, steps = {trigger.steps})"
+    if not (math.isfinite(trigger.frequency) and trigger.frequency > 0):
+        return f"refused: Trigger.frequency must be a finite number > 0; got {trigger.frequency!r}"
+    return None

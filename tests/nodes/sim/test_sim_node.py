@@ -174,3 +174,21 @@ def test_raycast_source_announces_its_rig_before_rendering():
     source = load_source("raycast", rig="nominal", size="64x48", scenes="plane", sequence=SEQUENCE, on_rig=on_rig)
     assert seen == [((64, 48), pytest.approx(2600 * 64 / 640))]
     assert source.rig.camera.size == (64, 48)
+
+
+def test_a_trigger_with_zero_steps_is_refused_with_its_reason_and_the_next_scan_is_served():
+    """Trigger.steps = 0 ("unknown" on the wire) once raised ZeroDivisionError in the callback (issue 19)."""
+    header = Header(stamp=Time.from_ns(1_700_000_000_000_000_000), frame_id="projector")
+    broken = [Trigger(header=header, sequence_id=4, pattern_index=0, pattern_count=8, frequency=16.0, steps=0, step=0),
+              Trigger(header=header, sequence_id=4, pattern_index=1, pattern_count=8, frequency=float("nan"), steps=4,
+                      step=1)]
+    with NodeHarness() as harness:
+        frames, _, _, status = _run(harness, PARAMS, broken + _triggers(5), frames_expected=8)
+        node = harness.nodes[0]
+        harness.spin_until(lambda: len(status) >= 1, 5.0)
+    (failed,) = status.messages  # one report for scan 4, the later refusals of the same scan only logged
+    assert (failed.sequence_id, failed.level, failed.state) == (4, ScanStatus.ERROR, "failed")
+    assert failed.reason == ("sim: no frame for pattern 0 of scan 4 (f=16, step 0 of 0); refused: Trigger.steps is 0 "
+                             "(unknown); the sim needs N >= 1 to pick the frame")
+    assert node.triggers_unknown == 2 and node.frames_published == 8
+    assert {m.trigger.sequence_id for m in frames.messages} == {5}
