@@ -4,7 +4,9 @@ The test runs ``DPTPU_SOAK_SCANS`` scans (default the full 1,000: about 80 s on 
 under the brief's 3 minutes; set e.g. ``DPTPU_SOAK_SCANS=200`` for a quicker run; figures in docs/scanner.md) at
 160x120 with two scans in flight. Every node's ``VmRSS`` is sampled twice a second; the bound is the brief's: after
 the warm-up (the first fifth of the scans) no process grows by more than 10 % (median of the first three samples
-after the warm-up against the median of the last three).
+after the warm-up against the median of the last three); ``DPTPU_SOAK_GROWTH`` sets another. Issue 19's soak, 5,000
+scans within 1 %, is ``DPTPU_SOAK_SCANS=5000 DPTPU_SOAK_GROWTH=0.01`` (``-s`` prints the per-process figures;
+docs/reliability.md).
 """
 from __future__ import annotations
 
@@ -17,7 +19,7 @@ from tests.launch_files.running import SIM_RIG, LaunchRun, rss_kib
 from tests.nodes.test_graph_sim_rig import SMALL
 
 SCANS = int(os.environ.get("DPTPU_SOAK_SCANS", "1000"))
-GROWTH_BOUND = 0.10
+GROWTH_BOUND = float(os.environ.get("DPTPU_SOAK_GROWTH", "0.10"))
 NODES = ("projector", "sim", "phase", "unwrap", "cloud", "scan_monitor")
 
 
