@@ -8,7 +8,8 @@
 - ``dptpu play FILE.mcap [--rate R] [--loop] [--topics T...] [--delay S] [--wait-for-subscribers S]``
   publishes the recorded messages on their topics with the recorded timing divided by ``--rate``.
 
-The file format (ROS 2 CDR for sensor_msgs, ``dptpu-msgpack`` for dptpu_msgs) is in ``docs/recording.md``.
+The file format (every channel ROS 2 CDR with a ``ros2msg`` schema and ``offered_qos_profiles``) is in
+``docs/recording.md``.
 """
 from __future__ import annotations
 

@@ -100,7 +100,7 @@ class _Writer:
             self.align(values.dtype.itemsize)
             self.parts.append(bytes(self.head))
             self.head = bytearray()
-            self.parts.append(memoryview(np.ascontiguousarray(values)).cast("B"))
+            self.parts.append(np.ascontiguousarray(values).data.cast("B"))
             self.offset += values.nbytes
 
     def getvalue(self) -> bytes:

@@ -1,20 +1,13 @@
 """Write and read MCAP recordings of our messages (no graph needed).
 
-One MCAP channel per topic; a topic carries one message type. Two encodings share the file
-(``docs/recording.md``):
+One MCAP channel per topic; a topic carries one message type. Every channel is ROS 2 CDR (``docs/recording.md``):
+schema encoding ``ros2msg`` (the type's ROS 2 form, :func:`dptpu.messages.ros2_definitions.ros2_message_definition`:
+the ROS types as ROS 2 defines them, the scanner's ``dptpu_msgs`` types as their shipped ``.msg`` files), message
+encoding ``cdr`` (:func:`dptpu.messages.cdr.encode_cdr`), and channel metadata ``offered_qos_profiles``
+(:mod:`.offered_qos`), so ``ros2 bag`` and Foxglove read the whole file. Files of earlier builds, whose scanner
+channels are ``dptpu-msgpack`` (:mod:`.msgpack_records`), are still read.
 
-==========================  ==================  ===================  ==========================================
-types                       schema encoding     message encoding     written with
-==========================  ==================  ===================  ==========================================
-``sensor_msgs/msg/Image``,  ``ros2msg``         ``cdr``              ``mcap_ros2.writer.Writer`` (ROS 2 CDR):
-``CameraInfo``,                                                      opens in ``ros2 bag`` and Foxglove
-``PointCloud2`` (any ROS
-type, :func:`is_ros2_type`)
-``dptpu_msgs/msg/*``        ``dptpu-msgpack``   ``dptpu-msgpack``    our wire codec's frames
-                                                                     (:mod:`.msgpack_records`)
-==========================  ==================  ===================  ==========================================
-
-Both round-trip bit-exactly: ``read_mcap`` gives back messages equal (``==``, arrays bit for bit) to
+Messages round-trip bit-exactly: ``read_mcap`` gives back messages equal (``==``, arrays bit for bit) to
 those written. Times are integer nanoseconds since the Unix epoch.
 
 Example::
@@ -27,7 +20,6 @@ Example::
 
 from __future__ import annotations
 
-import io
 import os
 import threading
 from collections import Counter
@@ -38,22 +30,22 @@ from typing import IO, NamedTuple
 
 from mcap.exceptions import McapError
 from mcap.reader import make_reader
-from mcap.records import Schema
 from mcap.well_known import MessageEncoding, SchemaEncoding
 from mcap.writer import LIBRARY_IDENTIFIER as MCAP_LIBRARY_IDENTIFIER
 from mcap.writer import CompressionType
 from mcap.writer import Writer as McapWriter
-from mcap_ros2 import __version__ as MCAP_ROS2_VERSION
 from mcap_ros2.decoder import DecoderFactory
-from mcap_ros2.writer import Writer as Ros2Writer
 
 from dptpu.messages import DEFAULT_LIMITS, DecodeLimits, lookup
+from dptpu.messages.cdr import decode_cdr, encode_cdr
+from dptpu.messages.ros2_definitions import ros2_message_definition
 from dptpu.messages.schema import Message
 
 from . import msgpack_records
 from .mcap_integrity import PARSE_ERRORS, check_summary_crc, find_corruption
 from .mcap_integrity import reason as _reason
-from .ros2_cdr import from_ros2, is_ros2_type, ros2_schema_text, to_ros2_dict
+from .offered_qos import DEFAULT_OFFERED_QOS, offered_qos_profiles
+from .ros2_cdr import from_ros2, is_ros2_type
 
 __all__ = ["McapRecordWriter", "RecordedMessage", "ChannelSummary", "McapReadError", "read_mcap", "describe_mcap",
            "read_metadata", "verify_mcap", "COMPRESSIONS"]
@@ -61,8 +53,10 @@ __all__ = ["McapRecordWriter", "RecordedMessage", "ChannelSummary", "McapReadErr
 #: Chunk compressions a writer accepts.
 COMPRESSIONS = {"zstd": CompressionType.ZSTD, "lz4": CompressionType.LZ4, "none": CompressionType.NONE}
 _UINT64_MAX = 2**64 - 1
-#: The Header record's library field (what mcap-ros2-support writes, and ours).
-_LIBRARY = f"{MCAP_LIBRARY_IDENTIFIER} mcap-ros2-support/{MCAP_ROS2_VERSION} dptpu"
+#: The Header record's library field.
+_LIBRARY = f"{MCAP_LIBRARY_IDENTIFIER} dptpu"
+#: Channel metadata key of the offered QoS (rosbag2's).
+OFFERED_QOS_KEY = "offered_qos_profiles"
 
 
 class McapReadError(ValueError):
@@ -121,13 +115,12 @@ class ChannelSummary:
 @dataclass
 class _Channel:
     cls: type[Message]
-    ros2_schema: Schema | None = None  # mcap Schema record of a CDR channel
-    channel_id: int = -1  # mcap channel id of a dptpu-msgpack channel
+    channel_id: int
     count: int = 0
 
 
 class McapRecordWriter:
-    """Writes messages to an MCAP file: ROS types as ROS 2 CDR, scanner types as ``dptpu-msgpack``.
+    """Writes messages to an MCAP file, every channel ROS 2 CDR with a ``ros2msg`` schema.
 
     Parameters
     ----------
@@ -141,10 +134,10 @@ class McapRecordWriter:
 
     Notes
     -----
-    The file starts with the ``ros2`` profile header (written by ``mcap_ros2.writer.Writer``), so a
-    file holding only ROS types is a plain ROS 2 bag. :meth:`close` writes the summary (schemas,
-    channels, statistics, chunk indexes); a file that was never closed lacks it (``mcap recover``
-    repairs it). :meth:`write` is thread-safe.
+    The file starts with the ``ros2`` profile header: every channel is ``cdr`` with a ``ros2msg`` schema and
+    ``offered_qos_profiles`` metadata (:meth:`offer_qos`; ROS 2's default profile otherwise), a ROS 2 bag.
+    :meth:`close` writes the summary (schemas, channels, statistics, chunk indexes); a file that was never
+    closed lacks it (``mcap recover`` repairs it). :meth:`write` is thread-safe.
     """
 
     def __init__(self, output, *, compression: str = "zstd", chunk_size_bytes: int = 1 << 20):
@@ -165,10 +158,9 @@ class McapRecordWriter:
         self._mcap = McapWriter(self._stream, chunk_size=chunk_size_bytes, compression=COMPRESSIONS[compression],
                                 enable_crcs=True, enable_data_crcs=True)
         self._mcap.start(profile="ros2", library=_LIBRARY)
-        self._ros2 = _ros2_writer_over(self._mcap)
         self._channels: dict[str, _Channel] = {}
-        self._ros2_schemas: dict[type[Message], Schema] = {}
-        self._msgpack_schema_ids: dict[type[Message], int] = {}
+        self._schema_ids: dict[type[Message], int] = {}
+        self._offered_qos: dict[str, str] = {}  # topic -> offered_qos_profiles YAML
         self._lock = threading.Lock()
         self._closed = False
 
@@ -202,21 +194,21 @@ class McapRecordWriter:
         if not isinstance(msg, Message) or not hasattr(type(msg), "TYPE_NAME"):
             raise ValueError(f"msg must be a message (e.g. sensor_msgs Image); got {type(msg).__name__}")
         cls = type(msg)
-        ros2 = is_ros2_type(cls)
-        payload = to_ros2_dict(msg) if ros2 else msgpack_records.pack_message(msg)  # checks first
+        payload = encode_cdr(msg)  # checks first
         with self._lock:
             if self._closed:
                 raise ValueError("cannot write: the MCAP writer is closed")
-            channel = self._channel(topic, cls, ros2)
-            if ros2:
-                if channel.ros2_schema is None:  # _channel registers it for every CDR channel
-                    raise RuntimeError(f"topic {topic!r} has no ros2msg schema")
-                self._ros2.write_message(topic, channel.ros2_schema, payload, log_time=log_time_ns,
-                                         publish_time=publish_time_ns, sequence=channel.count % 2**32)
-            else:
-                self._mcap.add_message(channel_id=channel.channel_id, log_time=log_time_ns, data=payload,
-                                       publish_time=publish_time_ns, sequence=channel.count % 2**32)
+            channel = self._channel(topic, cls)
+            self._mcap.add_message(channel_id=channel.channel_id, log_time=log_time_ns, data=payload,
+                                   publish_time=publish_time_ns, sequence=channel.count % 2**32)
             channel.count += 1
+
+    def offer_qos(self, topic: str, profile: dict) -> None:
+        """Record ``profile`` (``QoSProfile.to_dict()``) as ``topic``'s ``offered_qos_profiles``; before the
+        topic's first message (a later call has no effect on a channel already written)."""
+        yaml = offered_qos_profiles(profile)  # checks first
+        with self._lock:
+            self._offered_qos[topic] = yaml
 
     @property
     def message_counts(self) -> dict[str, int]:
@@ -232,7 +224,7 @@ class McapRecordWriter:
         with self._lock:
             if self._closed:
                 raise ValueError("cannot write: the MCAP writer is closed")
-            self._ros2.add_metadata(name, data)
+            self._mcap.add_metadata(name, data)
 
     def close(self) -> None:
         """Write the summary and close the file (a stream given by the caller is flushed, not closed).
@@ -244,7 +236,7 @@ class McapRecordWriter:
                 return
             self._closed = True
             try:
-                self._ros2.finish()
+                self._mcap.finish()
             finally:
                 if self._owns_stream:
                     self._stream.close()
@@ -264,42 +256,20 @@ class McapRecordWriter:
 
     # -- channels --------------------------------------------------------------------------------
 
-    def _channel(self, topic: str, cls: type[Message], ros2: bool) -> _Channel:
+    def _channel(self, topic: str, cls: type[Message]) -> _Channel:
         channel = self._channels.get(topic)
         if channel is not None:
             if channel.cls is not cls:
                 raise ValueError(f"topic {topic!r} is recorded as {channel.cls.TYPE_NAME}; got a {cls.TYPE_NAME}")
             return channel
-        channel = _Channel(cls)
-        if ros2:
-            schema = self._ros2_schemas.get(cls)
-            if schema is None:
-                schema = self._ros2_schemas[cls] = self._ros2.register_msgdef(cls.TYPE_NAME, ros2_schema_text(cls))
-            channel.ros2_schema = schema  # mcap_ros2 registers the cdr channel on the first message
-        else:
-            schema_id = self._msgpack_schema_ids.get(cls)
-            if schema_id is None:
-                schema_id = self._msgpack_schema_ids[cls] = self._mcap.register_schema(
-                    name=cls.TYPE_NAME, encoding=msgpack_records.ENCODING, data=msgpack_records.schema_data(cls))
-            channel.channel_id = self._mcap.register_channel(topic=topic, message_encoding=msgpack_records.ENCODING,
-                                                             schema_id=schema_id)
-        self._channels[topic] = channel
+        schema_id = self._schema_ids.get(cls)
+        if schema_id is None:
+            schema_id = self._schema_ids[cls] = self._mcap.register_schema(
+                name=cls.TYPE_NAME, encoding=SchemaEncoding.ROS2, data=ros2_message_definition(cls).encode())
+        qos = self._offered_qos.get(topic) or offered_qos_profiles(DEFAULT_OFFERED_QOS)
+        channel = self._channels[topic] = _Channel(cls, self._mcap.register_channel(
+            topic=topic, message_encoding=MessageEncoding.CDR, schema_id=schema_id, metadata={OFFERED_QOS_KEY: qos}))
         return channel
-
-
-def _ros2_writer_over(mcap_writer: McapWriter) -> Ros2Writer:
-    """An ``mcap_ros2.writer.Writer`` (the ROS 2 CDR encoders) that writes through ``mcap_writer``.
-
-    mcap-ros2-support builds its own ``mcap.writer.Writer`` without the data section CRC and keeps it as
-    ``Writer._writer``; it is built on a throwaway buffer and pointed at ours. Fails clearly if a release
-    renames the attribute.
-    """
-    ros2 = Ros2Writer(io.BytesIO(), compression=CompressionType.NONE)
-    if not hasattr(ros2, "_writer"):
-        raise RuntimeError("this mcap-ros2-support release does not keep its mcap writer as Writer._writer; "
-                           "dptpu's recorder needs it to add dptpu-msgpack channels (tested with 0.6.0)")
-    ros2._writer = mcap_writer
-    return ros2
 
 
 def _check_time(name: str, value) -> int:
@@ -520,8 +490,9 @@ def _readable_reason(schema, channel) -> str | None:
         cls = lookup(schema.name)
     except KeyError:
         return f"topic {channel.topic!r} has type {schema.name!r}, which dptpu has no message type for"
-    if not is_ros2_type(cls):
-        return f"topic {channel.topic!r} holds {schema.name} as ROS 2 CDR; dptpu records that type as dptpu-msgpack"
+    if not is_ros2_type(cls) and bytes(schema.data) != ros2_message_definition(cls).encode():
+        return (f"topic {channel.topic!r} holds {schema.name} of another definition than this build's (its ros2msg "
+                "schema differs from dptpu.messages.ros2_definitions')")
     return None
 
 
@@ -542,11 +513,13 @@ def _converter(path: Path, schema, channel, ros2_decoders: DecoderFactory, limit
             raise McapReadError(f"cannot read {path}: topic {topic!r}: {error}") from None
         return lambda data: msgpack_records.unpack_message(topic, data, cls, limits=limits)
     cls = lookup(schema.name)
+    if bytes(schema.data) == ros2_message_definition(cls).encode():  # our own form: the numpy decoder
+        return lambda data: decode_cdr(cls, data)
     try:
-        decode_cdr = ros2_decoders.decoder_for(channel.message_encoding, schema)
+        decode_ros2 = ros2_decoders.decoder_for(channel.message_encoding, schema)
     except (McapError, ValueError, NotImplementedError) as error:
         raise McapReadError(f"cannot read {path}: topic {topic!r}: its ros2msg schema {schema.name} does not "
                             f"parse ({error})") from None
-    if decode_cdr is None:  # mcap_ros2 has no decoder for this encoding (_readable_reason checked it)
+    if decode_ros2 is None:  # mcap_ros2 has no decoder for this encoding (_readable_reason checked it)
         raise McapReadError(f"cannot read {path}: topic {topic!r}: no decoder for {channel.message_encoding!r}")
-    return lambda data: from_ros2(cls, decode_cdr(data))
+    return lambda data: from_ros2(cls, decode_ros2(data))

@@ -163,6 +163,7 @@ class Recorder:
                                        f"{', '.join(types)}; expected one registered message type")
                 continue
             qos = recording_qos([info.qos for info in publishers])
+            self._writer.offer_qos(topic, _offered_profile(publishers, qos))
             msg_type = lookup(types[0])
             self._subscriptions[topic] = self._node.create_subscription(
                 msg_type, topic, self._callback(topic), qos)
@@ -199,6 +200,16 @@ class Recorder:
         """Store each subscribed topic's QoS in the metadata record :data:`TOPIC_QOS_METADATA`."""
         self._writer.add_metadata(TOPIC_QOS_METADATA,
                                   {topic: json.dumps(qos.to_dict()) for topic, qos in self._qos.items()})
+
+
+def _offered_profile(publishers, chosen: QoSProfile) -> dict:
+    """The QoS the channel says was offered: the first publisher's history and depth (ROS 2's default when
+    unknown), the reliability and durability every publisher offers (:func:`recording_qos`)."""
+    known = [info.qos.resolved() for info in publishers if info.qos is not None]
+    profile = known[0].to_dict() if known else {"history": "keep_last", "depth": 10}
+    chosen_dict = chosen.to_dict()
+    profile.update(reliability=chosen_dict["reliability"], durability=chosen_dict["durability"])
+    return profile
 
 
 def _check_topics(topics) -> list[str]:

@@ -7,9 +7,12 @@ import numpy as np
 from dptpu.messages import (
     AbsolutePhase,
     CameraInfo,
+    DiagnosticArray,
+    DiagnosticStatus,
     FringeFrame,
     Header,
     Image,
+    KeyValue,
     PatternEntry,
     PatternSequence,
     PhaseMaps,
@@ -20,6 +23,8 @@ from dptpu.messages import (
     Time,
     Trigger,
 )
+from dptpu.messages.geometry import Quaternion, Transform, TransformStamped, Vector3
+from dptpu.messages.tf import TFMessage
 
 STAMP = Time(sec=1_700_000_000, nanosec=123_456_789)
 HEADER = Header(stamp=STAMP, frame_id="scanner_optical_frame")
@@ -92,4 +97,17 @@ def sample_messages() -> dict[str, object]:
         "/debug/roi": RegionOfInterest(x_offset=1, y_offset=2, height=3, width=4, do_rectify=True),
         "/debug/point_field": PointField(name="x", offset=0, datatype=PointField.FLOAT32, count=1),
         "/debug/pattern_entry": PatternEntry(frequency=10.9, steps=3, phase_offset=-0.5),
+        "/diagnostics": DiagnosticArray(header=HEADER, status=[DiagnosticStatus(
+            level=DiagnosticStatus.WARN, name="dptpu: scan", message="scan 41: UNTRUSTED", hardware_id="rig-7",
+            values=[KeyValue(key="wrong_share", value="0.0135")])]),
+        "/debug/diagnostic_status": DiagnosticStatus(name="dptpu: /cloud"),
+        "/debug/key_value": KeyValue(key="k", value="v"),
+        "/debug/vector3": Vector3(x=1.5, y=-2.0, z=1e-9),
+        "/debug/quaternion": Quaternion(x=0.5, y=0.5, z=0.5, w=0.5),
+        "/debug/transform": Transform(translation=Vector3(z=0.25)),
+        "/debug/transform_stamped": TransformStamped(header=HEADER, child_frame_id="projector"),
+        "/tf_static": TFMessage(transforms=[TransformStamped(
+            header=Header(stamp=STAMP, frame_id="tool0"), child_frame_id="scanner_optical_frame",
+            transform=Transform(translation=Vector3(x=0.05, y=-0.01, z=0.1),
+                                rotation=Quaternion(x=0.0, y=0.0, z=0.38268343236508984, w=0.9238795325112867)))]),
     }

@@ -206,36 +206,39 @@ def test_summary_lists_channels_schemas_and_counts(tmp_path):
         assert reader.get_header().profile == "ros2"
         summary = reader.get_summary()
     schemas = {schema.name: schema for schema in summary.schemas.values()}
+    # every channel ROS 2 CDR with a ros2msg schema and rosbag2's offered_qos_profiles: ROS 2's tools read it all
     assert {name: schema.encoding for name, schema in schemas.items()} == {
         "sensor_msgs/msg/Image": "ros2msg", "sensor_msgs/msg/PointCloud2": "ros2msg",
-        "sensor_msgs/msg/CameraInfo": "ros2msg", "dptpu_msgs/msg/Trigger": "dptpu-msgpack",
-        "dptpu_msgs/msg/PhaseMaps": "dptpu-msgpack"}
+        "sensor_msgs/msg/CameraInfo": "ros2msg", "dptpu_msgs/msg/Trigger": "ros2msg",
+        "dptpu_msgs/msg/PhaseMaps": "ros2msg"}
     channels = {channel.topic: channel for channel in summary.channels.values()}
-    assert {topic: channel.message_encoding for topic, channel in channels.items()} == {
-        "/camera/image_raw": "cdr", "/scanner/points": "cdr", "/camera/camera_info": "cdr",
-        "/projector/trigger": "dptpu-msgpack", "/scanner/phase": "dptpu-msgpack"}
+    assert {channel.message_encoding for channel in channels.values()} == {"cdr"}
+    assert all(channel.metadata["offered_qos_profiles"].startswith("- history: 1\n  depth: 10\n  reliability: 1\n"
+                                                                    "  durability: 2\n")
+               for channel in channels.values())  # ROS 2's default profile: nothing else was offered
     counts = summary.statistics.channel_message_counts
     assert {topic: counts[channel.id] for topic, channel in channels.items()} == plan
     assert summary.statistics.message_count == 11 and summary.statistics.schema_count == 5
-    schema = msgpack.unpackb(schemas["dptpu_msgs/msg/PhaseMaps"].data)
-    assert (schema["format"], schema["format_version"], schema["type"], schema["version"], schema["wire"]) == (
-        "dptpu-msgpack", 1, "dptpu_msgs/msg/PhaseMaps", PhaseMaps.SCHEMA_VERSION, 1)
-    assert "float32[] phases  # shape (F, H, W), row-major" in schema["definition"]
+    definition = schemas["dptpu_msgs/msg/PhaseMaps"].data.decode()
+    assert "uint32 height\nuint32 width\nfloat32[] phases\nfloat32[] modulation\nbool[] valid\n" in definition
     described = {channel.topic: channel for channel in describe_mcap(path)}
     assert {topic: channel.message_count for topic, channel in described.items()} == plan
     assert described["/projector/trigger"].type_name == "dptpu_msgs/msg/Trigger"
     assert all(channel.readable for channel in described.values())
 
 
-def test_scanner_record_is_a_msgpack_list_of_the_codec_frames(recording):
+def test_scanner_record_is_cdr_that_mcap_ros2_reads_from_the_schema(recording):
+    """An independent reader (mcap-ros2-support's, as Foxglove and rosbag2 read) decodes a scanner channel from
+    the file alone: the flattened maps with their height and width."""
     path, samples = recording
     with open(path, "rb") as stream:
-        [(_, channel, message)] = list(make_reader(stream).iter_messages(topics=["/scanner/phase"]))
-    frames = msgpack.unpackb(message.data)
-    assert channel.message_encoding == "dptpu-msgpack" and len(frames) == 4  # header + 3 arrays
-    header = msgpack.unpackb(frames[0], ext_hook=lambda code, data: (code, data))
-    assert header["type"] == "dptpu_msgs/msg/PhaseMaps" and header["arrays"][0] == ["<f4", [2, 6, 8]]
-    assert frames[1] == samples["/scanner/phase"].phases.tobytes()
+        reader = make_reader(stream, decoder_factories=[DecoderFactory()])
+        [(_, channel, _, decoded)] = list(reader.iter_decoded_messages(topics=["/scanner/phase"]))
+    phase = samples["/scanner/phase"]
+    assert channel.message_encoding == "cdr" and (decoded.height, decoded.width) == (6, 8)
+    assert np.array_equal(np.array(decoded.phases, np.float32).reshape(2, 6, 8), phase.phases)
+    assert np.array_equal(np.array(decoded.valid, bool).reshape(6, 8), phase.valid)
+    assert list(decoded.frequencies) == list(phase.frequencies)
 
 
 # --------------------------------------------------------------------------------------------------
@@ -381,3 +384,25 @@ def test_msgpack_schema_round_trips_through_parse():
     with pytest.raises(ValueError, match="dptpu-msgpack schema named 'dptpu_msgs/msg/Trigger' describes type "
                                          "'dptpu_msgs/msg/PhaseMaps'"):
         msgpack_records.parse_schema_data("dptpu_msgs/msg/Trigger", msgpack_records.schema_data(PhaseMaps))
+
+
+def test_offered_qos_is_rosbag2s_yaml_and_refuses_unknown_policies(tmp_path):
+    from dptpu.tools.recording.offered_qos import offered_qos_profiles
+
+    text = offered_qos_profiles({"history": "keep_last", "depth": 1, "reliability": "best_effort",
+                                 "durability": "transient_local"})
+    assert text.startswith("- history: 1\n  depth: 1\n  reliability: 2\n  durability: 1\n  deadline:\n"
+                           "    sec: 2147483647\n    nsec: 4294967295\n")
+    assert text.endswith("  liveliness: 1\n  liveliness_lease_duration:\n    sec: 2147483647\n"
+                         "    nsec: 4294967295\n  avoid_ros_namespace_conventions: false\n")
+    with pytest.raises(ValueError, match="QoS reliability must be one of reliable, best_effort; got 'fast'"):
+        offered_qos_profiles({"reliability": "fast"})
+    path = tmp_path / "offered.mcap"
+    with McapRecordWriter(path) as writer:
+        writer.offer_qos("/camera/camera_info", {"history": "keep_last", "depth": 1, "reliability": "reliable",
+                                                 "durability": "transient_local"})
+        writer.write("/camera/camera_info", sample_messages()["/camera/camera_info"], T0_NS)
+    with open(path, "rb") as stream:
+        (channel,) = make_reader(stream).get_summary().channels.values()
+    assert channel.metadata["offered_qos_profiles"].startswith("- history: 1\n  depth: 1\n  reliability: 1\n"
+                                                               "  durability: 1\n")

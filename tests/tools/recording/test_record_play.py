@@ -17,6 +17,7 @@ import time
 from pathlib import Path
 
 import pytest
+from mcap.reader import make_reader
 
 from dptpu.cli.main import main as dptpu_main
 from dptpu.graph.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
@@ -76,6 +77,11 @@ def test_record_then_play_end_to_end(tmp_path):
         qos = read_metadata(first)[TOPIC_QOS_METADATA]
         assert '"durability": "transient_local"' in qos[CAMERA_INFO_TOPIC]
         assert '"durability": "volatile"' in qos["/camera/image_raw"]
+        with open(first, "rb") as stream:  # and as rosbag2 reads it: each channel's offered_qos_profiles
+            offered = {channel.topic: channel.metadata["offered_qos_profiles"]
+                       for channel in make_reader(stream).get_summary().channels.values()}
+        assert "  reliability: 1\n  durability: 1\n" in offered[CAMERA_INFO_TOPIC]  # reliable, transient local
+        assert "  reliability: 1\n  durability: 2\n" in offered["/camera/image_raw"]  # reliable, volatile
         image_times = [r.log_time_ns for r in records if r.topic == "/camera/image_raw"]
         first_gaps_s = [(b - a) / 1e9 for a, b in zip(image_times, image_times[1:])]
         assert all(0.5 * GAP_S < gap < 3 * GAP_S for gap in first_gaps_s), first_gaps_s
