@@ -9,6 +9,8 @@ Topics (defaults; remappable)
 topic                       type          dir   notes
 =========================== ============= ===== ===============================================
 ``/scanner/phase``          PhaseMaps     in    reliable, depth 10
+``/camera/camera_info``     CameraInfo    in    transient local, its sole publisher: the camera size a PhaseMaps must
+                                                have (a scan of another size is refused before it is unwrapped)
 ``/scanner/absolute_phase`` AbsolutePhase out   reliable, depth 10; the highest (or ``high_frequency``)
 ``/scanner/intensity``      Image         out   reliable, depth 10; 32FC1: the modulation B (DN) of the unwrapped
                                                 frequency, the scan's stamp; published just before its AbsolutePhase
@@ -37,6 +39,9 @@ name                default   meaning
 ``min_confidence``  0.2       pixels whose confidence (``AbsolutePhase.reliability``: the classical rounding margin,
                               or the network's confidence; :mod:`dptpu.fpp.confidence`) is lower are invalid;
                               counted (``pixels_low_confidence``, the scan's status reason); 0 keeps all
+``max_pixels``      12582912  the most pixels (H x W) of a PhaseMaps unwrapped while no CameraInfo has given the
+                              camera's size (4096 x 3072); a larger scan is refused, so that one forged or wrong
+                              message cannot grow the node to many times its memory
 =================== ========= ===================================================================================
 
 Every parameter applies from the next scan (``dptpu param set /unwrap method nt``), checked as at start-up
@@ -59,15 +64,18 @@ from dptpu.fpp import tpu
 from dptpu.fpp.confidence import DEFAULT_MIN_CONFIDENCE, confident
 from dptpu.fpp.frequencies import select_frequencies
 from dptpu.fpp.methods import PHASE_SEQUENCE_METHODS
+from dptpu.graph.known_publishers import SOLE_PUBLISHER
 from dptpu.graph.node import Node
 from dptpu.graph.parameter_rules import ParameterRules, at_least, within
-from dptpu.messages import AbsolutePhase, Image, PhaseMaps, ScanStatus
+from dptpu.messages import AbsolutePhase, CameraInfo, Image, PhaseMaps, ScanStatus
 from dptpu.nodes.node_main import run_node
-from dptpu.nodes.plumbing import STATUS_QOS, DecodeErrorCount, scan_status
+from dptpu.nodes.plumbing import LATCHED_QOS, STATUS_QOS, DecodeErrorCount, scan_status
 
 __all__ = ["UnwrapNode", "load_model", "main", "refined"]
 
 _TWO_PI = 2.0 * np.pi
+#: Default ``max_pixels``: a 4096 x 3072 (12.6 MP) camera, the largest a scan is unwrapped at without a CameraInfo.
+DEFAULT_MAX_PIXELS = 4096 * 3072
 
 
 class UnwrapNode(Node):
@@ -86,6 +94,8 @@ class UnwrapNode(Node):
         self.high_frequency = rules.settable("high_frequency", 0.0, check=at_least(0.0))
         self.low_frequency = rules.settable("low_frequency", 0.0, check=at_least(0.0))
         self.min_confidence = rules.settable("min_confidence", DEFAULT_MIN_CONFIDENCE, check=within(0.0, 1.0))
+        self.max_pixels = rules.settable("max_pixels", DEFAULT_MAX_PIXELS, check=at_least(1))
+        self.camera_shape: tuple[int, int] | None = None  # (H, W) from /camera/camera_info
         self.consensus = rules.settable("consensus", False, check=self._check_consensus,
                                         apply=self._apply_model_setup)
         self._prepared: _ModelSetup | None = None
@@ -101,9 +111,16 @@ class UnwrapNode(Node):
         self.status_publisher = self.create_publisher(ScanStatus, "/scanner/status", STATUS_QOS)
 
         self.phase_subscription = self.create_subscription(PhaseMaps, "/scanner/phase", self.on_phase_maps, 10)
+        self.info_subscription = self.create_subscription(CameraInfo, "/camera/camera_info", self.on_camera_info,
+                                                          LATCHED_QOS, publishers=SOLE_PUBLISHER)  # the camera's
         self.decode_errors = DecodeErrorCount(self.phase_subscription)
 
     # -- callbacks ------------------------------------------------------------------------------------------
+
+    def on_camera_info(self, msg: CameraInfo) -> None:
+        """The camera's size: every later PhaseMaps must have it."""
+        if msg.height > 0 and msg.width > 0:
+            self.camera_shape = (int(msg.height), int(msg.width))
 
     def on_phase_maps(self, msg: PhaseMaps) -> None:
         """Unwrap one scan; a scan the method cannot unwrap is reported, and the node goes on."""
@@ -194,6 +211,7 @@ class UnwrapNode(Node):
     def _unwrap(self, msg: PhaseMaps):
         """``(Unwrapped, index of the high frequency, NaN pixels marked valid, why no model)``; ValueError for
         unusable maps."""
+        self._check_shape(msg.valid.shape)  # before any buffer of the scan's size is allocated
         indices = select_frequencies(self.method, msg.frequencies, high=self.high_frequency or None,
                                      low=self.low_frequency or None, options=("high_frequency", "low_frequency"))
         phases = [msg.phases[i] for i in indices]  # (H, W) float32 each
@@ -225,6 +243,19 @@ class UnwrapNode(Node):
                                                   consensus=self.consensus)
             result = refined(result, phases[0].astype(np.float64), order, confidence)
         return result, indices[0], nan_pixels, note
+
+    def _check_shape(self, shape: tuple[int, ...]) -> None:
+        """ValueError for a scan that is not the camera's size (once a CameraInfo gave it) or has more than
+        ``max_pixels`` pixels (before)."""
+        height, width = shape
+        if self.camera_shape is not None:
+            if (height, width) != self.camera_shape:
+                raise ValueError(f"the maps are {width}x{height} but /camera/camera_info says the camera is "
+                                 f"{self.camera_shape[1]}x{self.camera_shape[0]}; refused before unwrapping")
+        elif height * width > self.max_pixels:
+            raise ValueError(f"the maps are {width}x{height} = {height * width} pixels, more than max_pixels "
+                             f"{self.max_pixels} (no CameraInfo has given the camera's size); refused before "
+                             f"unwrapping")
 
     def _status(self, msg, level, state, reason, started_s, **counts) -> None:
         self.status_publisher.publish(scan_status(

@@ -8,8 +8,9 @@ import numpy as np
 import pytest
 
 from dptpu.fpp.tpu import unwrap_mf, unwrap_mf_float32
-from dptpu.messages import AbsolutePhase, Header, Image, PhaseMaps, ScanStatus, Time
+from dptpu.messages import AbsolutePhase, CameraInfo, Header, Image, PhaseMaps, ScanStatus, Time
 from dptpu.nodes.harness import NodeHarness
+from dptpu.nodes.plumbing import LATCHED_QOS
 from dptpu.nodes.unwrap import UnwrapNode
 from dptpu.nodes.unwrap.node import load_model
 from tests.nodes.test_cloud_scene import plane_scene
@@ -101,6 +102,39 @@ def test_scans_the_method_cannot_use_are_reported_and_the_node_goes_on(harness, 
     source.publish(phase_maps(scene, (32.0, 1.0), sequence_id=3))
     (result,) = harness.wait(absolute, 1)
     assert result.sequence_id == 3 and node.scans_rejected == 2 and node.scans_published == 1
+
+
+def test_a_scan_of_another_size_than_the_camera_is_refused_before_it_is_unwrapped(harness, scene):
+    """One 2000x2000 PhaseMaps used to leave the node at 4x its memory (issue 19): with the camera's CameraInfo a scan
+    of any other size is refused with the reason, and the next right-sized scan is unwrapped."""
+    node, source, absolute, status = start(harness, method="mf")
+    height, width = scene.lit.shape
+    info = harness.publisher(CameraInfo, "/camera/camera_info", LATCHED_QOS)
+    info.publish(CameraInfo(height=height, width=width))
+    harness.spin_until(lambda: node.camera_shape == (height, width), 10.0)
+    big = PhaseMaps(header=Header(stamp=Time.from_ns(1), frame_id="scanner_optical_frame"), sequence_id=7,
+                    fringe_axis="x", projector_width=912, projector_height=1140, frequencies=np.array([16.0, 1.0]),
+                    phases=np.zeros((2, 400, 500), np.float32), modulation=np.zeros((2, 400, 500), np.float32),
+                    valid=np.ones((400, 500), bool))
+    source.publish(big)
+    (failed,) = harness.wait(status, 1)
+    assert (failed.sequence_id, failed.state) == (7, "failed")
+    assert failed.reason == (f"cannot unwrap scan 7 (mf): the maps are 500x400 but /camera/camera_info says the "
+                             f"camera is {width}x{height}; refused before unwrapping")
+    source.publish(phase_maps(scene, (16.0, 1.0), sequence_id=8))
+    (result,) = harness.wait(absolute, 1)
+    assert result.sequence_id == 8 and node.scans_rejected == 1
+
+
+def test_without_camera_info_max_pixels_bounds_the_scan(harness, scene):
+    height, width = scene.lit.shape
+    node, source, absolute, status = start(harness, method="mf", max_pixels=height * width - 1)
+    source.publish(phase_maps(scene, (16.0, 1.0), sequence_id=1))
+    (failed,) = harness.wait(status, 1)
+    assert failed.reason == (f"cannot unwrap scan 1 (mf): the maps are {width}x{height} = {height * width} pixels, "
+                             f"more than max_pixels {height * width - 1} (no CameraInfo has given the camera's "
+                             f"size); refused before unwrapping")
+    assert not absolute.messages
 
 
 def test_the_unwrapped_frequencys_modulation_goes_out_as_the_clouds_intensity_image(harness, scene):
