@@ -1,10 +1,10 @@
 """``dptpu calibrate``: a rig file from checkerboard calibration poses (real captures or the twin's).
 
     dptpu calibrate POSE_DIRS... --board COLSxROWS:SQUARE_MM --out rig.yaml
-    dptpu calibrate --twin RIG [--poses N] [--size WIDTHxHEIGHT] --board ... --out rig.yaml [--keep DIR]
+    dptpu calibrate --twin --rig RIG [--poses N] [--size WIDTHxHEIGHT] --board ... --out rig.yaml [--keep DIR]
 
 A pose folder holds the captures ``x/`` and ``y/`` (docs/calibration.md); a folder of pose folders stands for all
-of them. With ``--twin`` the poses are rendered in the twin of ``RIG`` first and the result is compared with it
+of them. With ``--twin`` the poses are rendered in the twin of ``--rig RIG`` first and the result is compared with it
 (the round trip of :mod:`dptpu.sim.calibrate`). Shows progress bars (tqdm, stderr; ``--quiet``: none), prints the
 reprojection error of each device (overall and per pose), writes a ``dptpu-rig/1`` file (world = camera frame, mm)
 and ends with a one-line summary.
@@ -30,8 +30,10 @@ def register(subparsers) -> None:
     parser.add_argument("--window", type=int, default=6,
                         help="half-size in camera pixels of the local homography around each corner (default 6)")
     twin = parser.add_argument_group("twin round trip (instead of POSE_DIRs)")
-    twin.add_argument("--twin", metavar="RIG", help="render the poses in the twin of RIG (rig file, "
-                                                    "'CAM.mat,PRJ.mat' or 'nominal') and compare the result with it")
+    twin.add_argument("--twin", action="store_true",
+                      help="render the poses in the twin of --rig and compare the result with it")
+    twin.add_argument("--rig", metavar="RIG", help="the twin's rig: dptpu-rig/1 or OpenCV file, 'CAM.mat,PRJ.mat' "
+                                                   "(Bouguet) or 'nominal'")
     twin.add_argument("--poses", type=int, default=10, help="board poses to render (default 10)")
     twin.add_argument("--size", default=None, help="camera size WIDTHxHEIGHT for the render (default: the rig's)")
     twin.add_argument("--frequency", type=float, default=16.0, help="fringe frequency of both directions (default 16)")
@@ -49,12 +51,19 @@ def run(args) -> int:
     from dptpu.fpp.rig_calibration import calibrate_from_folders, parse_board
 
     board = parse_board(args.board)
+    if args.twin and args.rig is None and len(args.pose_dirs) == 1:  # the old spelling --twin RIG
+        raise ValueError(f"--twin takes no value now: write --twin --rig {args.pose_dirs[0]} (one name for a rig "
+                         f"file in every command)")
     if args.twin:
         if args.pose_dirs:
-            raise ValueError("give either POSE_DIRs or --twin RIG, not both")
+            raise ValueError("give either POSE_DIRs or --twin --rig RIG, not both")
+        if args.rig is None:
+            raise ValueError("--twin needs --rig RIG (the twin's rig file, 'CAM.mat,PRJ.mat' or 'nominal')")
         return _run_twin(args, board)
+    if args.rig is not None:
+        raise ValueError("--rig names the twin's rig: give it with --twin (real poses need no rig)")
     if not args.pose_dirs:
-        raise ValueError("give calibration pose folders (POSE_DIR...) or --twin RIG")
+        raise ValueError("give calibration pose folders (POSE_DIR...) or --twin --rig RIG")
     result = calibrate_from_folders(args.pose_dirs, board, window_px=args.window, progress=not args.quiet)
     _print_errors(result)
     save_rig(result.rig, args.out)
@@ -68,7 +77,7 @@ def _run_twin(args, board) -> int:
     from dptpu.sim.calibrate import format_report, round_trip
     from dptpu.sim.rig import load_twin_rig
 
-    rig = load_twin_rig(args.twin, size=args.size)
+    rig = load_twin_rig(args.rig, size=args.size)
     width, height = rig.camera.size
     where = f" -> {args.keep}" if args.keep else " (in a temporary folder)"
     print(f"rendering {args.poses} board poses in the twin ({width}x{height}){where}", file=sys.stderr)

@@ -97,7 +97,7 @@ def test_cli_rejects_missing_folders_and_too_few_poses(pose_folders, tmp_path, c
 
 def test_cli_twin_round_trip_prints_the_comparison(tmp_path, capsys):
     out = tmp_path / "rig.yaml"
-    code = main(["calibrate", "--twin", "nominal", "--size", "160x120", "--poses", "3", "--supersample", "1",
+    code = main(["calibrate", "--twin", "--rig", "nominal", "--size", "160x120", "--poses", "3", "--supersample", "1",
                  "--board", "10x8:13", "--keep", str(tmp_path / "poses"), "--out", str(out)])
     assert code == 0
     captured = capsys.readouterr()
@@ -106,13 +106,16 @@ def test_cli_twin_round_trip_prints_the_comparison(tmp_path, capsys):
     assert text.strip().splitlines()[-1].startswith(f"calibrated 3 poses -> {out}: RMS camera ")
     assert "against the twin: baseline error" in text.strip().splitlines()[-1]
     assert "rendering poses: 100%" in captured.err and "observing poses: 100%" in captured.err  # tqdm bars
-    code = main(["calibrate", "--twin", "nominal", "--size", "160x120", "--poses", "3", "--supersample", "1",
+    code = main(["calibrate", "--twin", "--rig", "nominal", "--size", "160x120", "--poses", "3", "--supersample", "1",
                  "--board", "10x8:13", "--out", str(tmp_path / "scratch.yaml"), "--quiet"])
     captured = capsys.readouterr()  # without --keep, the deleted temporary folder is named nowhere
     assert code == 0 and "dptpu-calibrate-" not in captured.out + captured.err and "%|" not in captured.err
     assert sorted(p.name for p in (tmp_path / "poses").iterdir()) == ["pose_00", "pose_01", "pose_02"]
     assert load_rig(out).camera.size == (160, 120)
     capsys.readouterr()
-    assert main(["calibrate", str(tmp_path / "poses"), "--twin", "nominal", "--board", "10x8:13",
+    assert main(["calibrate", str(tmp_path / "poses"), "--twin", "--rig", "nominal", "--board", "10x8:13",
                  "--out", str(out)]) == 2
-    assert "either POSE_DIRs or --twin RIG" in capsys.readouterr().err
+    assert "either POSE_DIRs or --twin --rig RIG" in capsys.readouterr().err
+    assert main(["calibrate", "--twin", "nominal", "--board", "10x8:13", "--out", str(out)]) == 2  # the old spelling
+    assert capsys.readouterr().err == ("dptpu calibrate: error: --twin takes no value now: write --twin --rig nominal "
+                                       "(one name for a rig file in every command)\n")
