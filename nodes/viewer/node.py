@@ -25,9 +25,16 @@ name             default         meaning
 ``port``         8765            TCP port (0: any free port; the URL is logged)
 ``max_points``   150000          clouds are decimated by a whole stride so at most this many pixels are sent
 ``color_by``     "depth"         first colouring of the page: ``depth`` (z) or ``intensity`` (a button switches)
+``idle_timeout_s`` 30.0          a connection that sends no request, or a page that answers no ping, for this
+                                 long is closed (pings go out every third of it)
+``max_pages``    16              open WebSocket pages at most; one more is refused (503)
 ================ =============== ==============================================================================
 
 Every parameter is read-only (the server and the page's settings are made at start-up; ``param set`` is refused).
+
+Access (:mod:`dptpu.nodes.viewer.access`): every request must carry the server's own address as ``Host`` (DNS
+rebinding), and a WebSocket upgrade with an ``Origin`` must come from the viewer's page (cross-site WebSocket
+hijacking); both refusals are 403 and logged. Idle connections are closed after ``idle_timeout_s``.
 
 Run: ``python -m dptpu.nodes.viewer --ros-args -p port:=8765``, then open ``http://127.0.0.1:8765/``.
 """
@@ -35,8 +42,10 @@ from __future__ import annotations
 
 import json
 import math
+import socket
 import struct
 import threading
+import time
 from collections import deque
 from functools import partial
 from http import HTTPStatus
@@ -52,6 +61,7 @@ from dptpu.graph.qos import QoSProfile, ReliabilityPolicy
 from dptpu.messages import PointCloud2, ScanStatus
 from dptpu.nodes.node_main import run_node
 
+from .access import allowed_hosts, host_problem, origin_problem
 from .websocket import (
     OP_BINARY,
     OP_CLOSE,
@@ -198,7 +208,15 @@ class _Handler(BaseHTTPRequestHandler):
     def log_message(self, format, *args):  # BaseHTTPRequestHandler's signature
         self.server.node_logger.debug("http: " + format % args)
 
+    def setup(self):  # StreamRequestHandler's hook: the socket's timeout before any request line is read
+        self.timeout = self.server.idle_timeout_s
+        super().setup()
+
     def do_GET(self):  # BaseHTTPRequestHandler's name
+        problem = host_problem(self.headers.get("Host"), self.server.allowed_hosts)
+        if problem is not None:
+            self._refuse(HTTPStatus.FORBIDDEN, problem)
+            return
         path = self.path.split("?", 1)[0]
         if path == "/ws":
             self._websocket()
@@ -216,10 +234,28 @@ class _Handler(BaseHTTPRequestHandler):
         self.end_headers()
         self.wfile.write(body)
 
+    def _refuse(self, status: HTTPStatus, problem: str) -> None:
+        self.server.node_logger.warning(f"viewer: refused a request from {self.client_address[0]}: {problem}",
+                                        throttle_duration_sec=5.0)
+        self.send_error(status, problem)
+
     def _websocket(self) -> None:
         if self.headers.get("Upgrade", "").lower() != "websocket":
             self.send_error(HTTPStatus.BAD_REQUEST, "/ws is a WebSocket endpoint (Upgrade: websocket)")
             return
+        problem = origin_problem(self.headers.get("Origin"), self.server.allowed_hosts)
+        if problem is not None:
+            self._refuse(HTTPStatus.FORBIDDEN, problem)
+            return
+        if not self.server.pages.acquire(blocking=False):
+            self._refuse(HTTPStatus.SERVICE_UNAVAILABLE, f"{self.server.max_pages} pages are open already (max_pages)")
+            return
+        try:
+            self._upgrade()
+        finally:
+            self.server.pages.release()
+
+    def _upgrade(self) -> None:
         try:
             accept = accept_key(self.headers.get("Sec-WebSocket-Key", ""))
         except ValueError as exc:
@@ -231,7 +267,7 @@ class _Handler(BaseHTTPRequestHandler):
         self.send_header("Sec-WebSocket-Accept", accept)
         self.end_headers()
         self.close_connection = True
-        _Session(self.server, self.rfile, self.wfile, self.connection).run()
+        _Session(self.server, self.rfile, self.wfile, self.connection, self.server.idle_timeout_s).run()
 
 
 class _ViewerServer(ThreadingHTTPServer):
@@ -240,22 +276,29 @@ class _ViewerServer(ThreadingHTTPServer):
     daemon_threads = True
 
     def __init__(self, address: tuple[str, int], broadcast: _Broadcast, static_files: dict[str, Path],
-                 node_logger: RcutilsLogger):
+                 node_logger: RcutilsLogger, *, idle_timeout_s: float, max_pages: int):
         super().__init__(address, _Handler)
         self.broadcast = broadcast
         self.static_files = static_files
         self.node_logger = node_logger
+        self.idle_timeout_s = idle_timeout_s
+        self.max_pages = max_pages
+        self.pages = threading.BoundedSemaphore(max_pages)
+        self.allowed_hosts = allowed_hosts(address[0], self.server_address[1])
 
 
 class _Session:
     """One page: this thread sends clouds and statuses; a reader thread answers pings and sees the close."""
 
-    def __init__(self, server: _ViewerServer, rfile, wfile, connection):
+    def __init__(self, server: _ViewerServer, rfile, wfile, connection, idle_timeout_s: float):
         self.broadcast: _Broadcast = server.broadcast
         self.logger = server.node_logger
         self.rfile, self.wfile, self.connection = rfile, wfile, connection
         self.send_lock = threading.Lock()
         self.open = True
+        # a read (or a send) that waits this long ends the page: a live browser answers the pings long before
+        self.ping_interval_s = idle_timeout_s / 3.0
+        connection.settimeout(idle_timeout_s)
 
     def send(self, opcode: int, payload) -> None:
         with self.send_lock:
@@ -292,11 +335,16 @@ class _Session:
     def run(self) -> None:
         threading.Thread(target=self.read_loop, daemon=True, name="viewer-ws-reader").start()
         sent_cloud, sent_status = 0, 0
+        next_ping_s = time.monotonic() + self.ping_interval_s
         try:
             self.send(OP_TEXT, self.broadcast.config.encode("utf-8"))
             while True:
+                if time.monotonic() >= next_ping_s:
+                    self.send(OP_PING, b"")
+                    next_ping_s = time.monotonic() + self.ping_interval_s
                 with self.broadcast.cond:
-                    self.broadcast.cond.wait_for(partial(self._news_since, sent_cloud, sent_status), timeout=5.0)
+                    self.broadcast.cond.wait_for(partial(self._news_since, sent_cloud, sent_status),
+                                                 timeout=min(5.0, max(0.0, next_ping_s - time.monotonic())))
                     if not self.open or self.broadcast.closed:
                         break
                     statuses = [text for number, text in self.broadcast.statuses if number > sent_status]
@@ -313,6 +361,10 @@ class _Session:
             pass
         finally:
             self.open = False
+            try:
+                self.connection.shutdown(socket.SHUT_RDWR)  # ends the reader thread's read at once
+            except OSError:
+                pass
 
 
 class ViewerNode(Node):
@@ -326,12 +378,18 @@ class ViewerNode(Node):
         page = "sent to each page as it connects; restart the node to change it"
         self.max_points = rules.read_only("max_points", 150000, description=page)
         self.color_by = rules.read_only("color_by", "depth", description=page)
+        idle_timeout_s = rules.read_only("idle_timeout_s", 30.0, description="closing idle connections")
+        max_pages = rules.read_only("max_pages", 16, description="open WebSocket pages at most")
         if not 0 <= port <= 65535:
             raise ValueError(f"parameter port must be 0..65535 (0: any free port); got {port}")
         if self.max_points < 1:
             raise ValueError(f"parameter max_points must be >= 1; got {self.max_points}")
         if self.color_by not in ("depth", "intensity"):
             raise ValueError(f"parameter color_by must be 'depth' or 'intensity'; got {self.color_by!r}")
+        if not idle_timeout_s > 0:
+            raise ValueError(f"parameter idle_timeout_s must be > 0 seconds; got {idle_timeout_s}")
+        if max_pages < 1:
+            raise ValueError(f"parameter max_pages must be >= 1; got {max_pages}")
         static_files = {p.name: p for p in STATIC_DIR.iterdir() if p.is_file()}
         if "index.html" not in static_files:
             raise OSError(f"the viewer's page is missing: {STATIC_DIR / 'index.html'} (a broken install?)")
@@ -340,7 +398,8 @@ class ViewerNode(Node):
         self.broadcast = _Broadcast(json.dumps({"type": "config", "color_by": self.color_by,
                                                 "max_points": self.max_points}))
 
-        self.server = _ViewerServer((host, port), self.broadcast, static_files, self.get_logger())
+        self.server = _ViewerServer((host, port), self.broadcast, static_files, self.get_logger(),
+                                    idle_timeout_s=float(idle_timeout_s), max_pages=int(max_pages))
         self.port = self.server.server_address[1]
         self.url = f"http://{host}:{self.port}/"
         self._server_thread = threading.Thread(target=self.server.serve_forever, kwargs={"poll_interval": 0.2},

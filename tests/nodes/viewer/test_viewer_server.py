@@ -8,6 +8,7 @@ import json
 import os
 import socket
 import struct
+import threading
 import time
 import urllib.error
 import urllib.request
@@ -168,3 +169,72 @@ def test_viewer_refuses_bad_parameters_naming_them(spawn_node):
     viewer = spawn_node("dptpu.nodes.viewer", "--ros-args", "-p", "port:=70000")
     assert viewer.wait(timeout=30) == 2
     assert "viewer: error: parameter port must be 0..65535 (0: any free port); got 70000" in viewer.stderr
+
+
+def _raw_request(port: int, request: str) -> bytes:
+    with socket.create_connection(("127.0.0.1", port), timeout=20) as sock:
+        sock.sendall(request.encode())
+        return sock.makefile("rb").readline()
+
+
+def _upgrade(port: int, host: str, origin: str | None) -> str:
+    key = base64.b64encode(os.urandom(16)).decode()
+    origin_line = f"Origin: {origin}\r\n" if origin is not None else ""
+    return (f"GET /ws HTTP/1.1\r\nHost: {host}\r\n{origin_line}Upgrade: websocket\r\nConnection: Upgrade\r\n"
+            f"Sec-WebSocket-Key: {key}\r\nSec-WebSocket-Version: 13\r\n\r\n")
+
+
+def test_foreign_host_and_origin_are_refused_and_the_own_page_is_served():
+    """DNS rebinding (a foreign Host) and cross-site WebSocket hijacking (a foreign Origin) get 403 (issue 19)."""
+    with NodeHarness() as harness:
+        viewer = harness.start(ViewerNode, port=0)
+        port = viewer.port
+        assert _raw_request(port, f"GET / HTTP/1.1\r\nHost: evil.example:{port}\r\n\r\n").startswith(b"HTTP/1.1 403")
+        assert _raw_request(port, "GET / HTTP/1.1\r\n\r\n").startswith(b"HTTP/1.1 403")  # no Host at all
+        assert _raw_request(port, f"GET / HTTP/1.1\r\nHost: localhost:{port}\r\n\r\n").startswith(b"HTTP/1.1 200")
+        assert _raw_request(port, _upgrade(port, f"127.0.0.1:{port}", "http://evil.example")).startswith(
+            b"HTTP/1.1 403")
+        assert _raw_request(port, _upgrade(port, f"127.0.0.1:{port}", f"http://127.0.0.1:{port + 1}")).startswith(
+            b"HTTP/1.1 403")  # another local server's page
+        for origin in (f"http://127.0.0.1:{port}", f"http://localhost:{port}", None):
+            assert _raw_request(port, _upgrade(port, f"127.0.0.1:{port}", origin)).startswith(b"HTTP/1.1 101")
+
+
+def _viewer_threads() -> int:
+    return sum(1 for t in threading.enumerate() if t.name.startswith(("viewer-ws", "Thread-")) and t.is_alive())
+
+
+def test_idle_connections_are_closed_and_their_threads_end():
+    """300 idle connections once left 274 threads (issue 19): a socket that never sends a request, and a
+    WebSocket page that never answers a ping, are closed after idle_timeout_s."""
+    with NodeHarness() as harness:
+        viewer = harness.start(ViewerNode, port=0, idle_timeout_s=1.0, max_pages=2)
+        port = viewer.port
+        before = _viewer_threads()
+        silent = [socket.create_connection(("127.0.0.1", port), timeout=20) for _ in range(20)]
+        pages = [socket.create_connection(("127.0.0.1", port), timeout=20) for _ in range(2)]
+        for page in pages:
+            page.sendall(_upgrade(port, f"127.0.0.1:{port}", None).encode())
+            assert page.makefile("rb").readline().startswith(b"HTTP/1.1 101")
+        # a third page is refused while both are open
+        assert _raw_request(port, _upgrade(port, f"127.0.0.1:{port}", None)).startswith(b"HTTP/1.1 503")
+        deadline = time.monotonic() + 30
+        closed = set()
+        while len(closed) < len(silent) + len(pages) and time.monotonic() < deadline:
+            for index, sock in enumerate(silent + pages):
+                sock.settimeout(0.2)
+                try:
+                    while sock.recv(65536):  # a page gets its config and pings first; b"" = closed by the server
+                        pass
+                    closed.add(index)
+                except TimeoutError:
+                    pass
+                except OSError:
+                    closed.add(index)
+        assert len(closed) == len(silent) + len(pages)
+        harness.spin_until(lambda: _viewer_threads() <= before, 10.0)
+        assert _viewer_threads() <= before
+        # once they are gone a page is accepted again
+        assert _raw_request(port, _upgrade(port, f"127.0.0.1:{port}", None)).startswith(b"HTTP/1.1 101")
+        for sock in silent + pages:
+            sock.close()
