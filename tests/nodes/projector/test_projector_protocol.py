@@ -118,3 +118,21 @@ def test_emulator_refuses_start_before_load_and_during_a_scan_and_aborts_on_faul
     assert any(line.startswith(b"ERR BADCMD unknown command") for line in lines)
     assert [line for line in lines if line.startswith((b"ACK", b"ABORT", b"DONE"))] == [
         b"ACK 1 0\n", b"ACK 1 1\n", b"ABORT 1 2 DLP_FAULT pattern 2 not confirmed by the DLP\n"]
+
+
+def test_emulator_keeps_a_bounded_command_history_over_thousands_of_scans():
+    """The loop:// projector's memory grew linearly (+3 % over 6000 scans, issue 19): the emulator kept every
+    command. It keeps the last COMMANDS_KEPT, and every scan is still answered."""
+    from dptpu.nodes.projector.emulator import COMMANDS_KEPT
+
+    box = TriggerBoxEmulator(start_delay_s=0.0)
+    box.receive(b"LOAD x 912 1140 1000 4x3", 0.0)
+    now, done = 0.0, 0
+    for scan in range(1, 6001):
+        box.receive(f"START {scan}".encode(), now)
+        while box.next_due() is not None:
+            now = box.next_due()
+            done += sum(line.startswith(b"DONE") for line in box.due(now))
+    assert done == 6000
+    assert len(box.commands) == COMMANDS_KEPT
+    assert box.commands[-1] == parse_command(b"START 6000")
