@@ -206,7 +206,8 @@ def _device_from_dict(entry, where: str) -> DeviceModel:
         raise ValueError(f"{where}.size must be [width, height], two integers in [1, {MAX_SIDE_PX}] pixels; "
                          f"got {size!r}")
     try:
-        return DeviceModel(K=entry["K"], dist=dist, R=entry["R"], T=entry["T"], size=tuple(size))
+        return DeviceModel(K=entry["K"], dist=np.asarray(dist, dtype=np.float64), R=entry["R"], T=entry["T"],
+                           size=(size[0], size[1]))
     except (ValueError, TypeError) as exc:
         raise ValueError(f"{where}: {exc}") from None
 

@@ -46,15 +46,15 @@ class DocumentChecker:
         return value
 
     def integer(self, value, key: str, *, minimum: int, maximum: int | None = None) -> int:
-        if (isinstance(value, bool) or not isinstance(value, numbers.Integral) or value < minimum
-                or (maximum is not None and value > maximum)):
+        if (isinstance(value, bool) or not isinstance(value, numbers.Integral) or int(value) < minimum
+                or (maximum is not None and int(value) > maximum)):
             bound = f">= {minimum}" if maximum is None else f"in [{minimum}, {maximum}]"
             self.fail(f"{key} must be an integer {bound}; got {value!r}")
         return int(value)
 
     def size(self, value, key: str) -> tuple[int, int]:
         if (not isinstance(value, (list, tuple)) or len(value) != 2
-                or any(isinstance(v, bool) or not isinstance(v, numbers.Integral) or not 1 <= v <= MAX_SIDE_PX
+                or any(isinstance(v, bool) or not isinstance(v, numbers.Integral) or not 1 <= int(v) <= MAX_SIDE_PX
                        for v in value)):
             self.fail(f"{key} must be [width, height] in pixels (two integers in [1, {MAX_SIDE_PX}]); got {value!r}")
         return int(value[0]), int(value[1])

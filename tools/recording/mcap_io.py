@@ -53,6 +53,10 @@ __all__ = ["McapRecordWriter", "RecordedMessage", "ChannelSummary", "McapReadErr
 #: Chunk compressions a writer accepts.
 COMPRESSIONS = {"zstd": CompressionType.ZSTD, "lz4": CompressionType.LZ4, "none": CompressionType.NONE}
 _UINT64_MAX = 2**64 - 1
+#: What reading a damaged or foreign file can raise (the mcap library's parsers, decompressors, the file itself).
+_READ_ERRORS: tuple[type[BaseException], ...] = (*PARSE_ERRORS, OSError)
+#: What turning a record's bytes into a message can raise.
+_DECODE_ERRORS: tuple[type[BaseException], ...] = (*PARSE_ERRORS, NotImplementedError, IndexError, TypeError)
 #: The Header record's library field.
 _LIBRARY = f"{MCAP_LIBRARY_IDENTIFIER} dptpu"
 #: Channel metadata key of the offered QoS (rosbag2's).
@@ -329,7 +333,7 @@ def read_mcap(path, *, topics: Iterable[str] | None = None, skip_unknown: bool =
                 item = next(iterator)
             except StopIteration:
                 return
-            except (*PARSE_ERRORS, OSError) as error:
+            except _READ_ERRORS as error:
                 problem = find_corruption(path)
                 if problem is not None:
                     raise McapReadError(f"cannot read {path}: corrupt: {problem}") from None
@@ -346,7 +350,7 @@ def read_mcap(path, *, topics: Iterable[str] | None = None, skip_unknown: bool =
                                     "skip_unknown=True or choose topics")
             try:
                 msg = converter(record.data)
-            except (*PARSE_ERRORS, NotImplementedError, IndexError, TypeError) as error:
+            except _DECODE_ERRORS as error:
                 raise McapReadError(f"cannot read {path}: message on {channel.topic!r} at log time "
                                     f"{record.log_time} ns: {error}") from None
             yield RecordedMessage(channel.topic, msg, record.log_time)
@@ -380,7 +384,7 @@ def describe_mcap(path) -> list[ChannelSummary]:
                     channels[channel.id] = channel
                     if schema is not None:
                         schemas[schema.id] = schema
-        except (*PARSE_ERRORS, OSError) as error:
+        except _READ_ERRORS as error:
             raise McapReadError(f"cannot read {path}: {_reason(error)}") from None
     out = []
     for channel_id, channel in channels.items():
@@ -412,7 +416,7 @@ def read_metadata(path) -> dict[str, dict[str, str]]:
         try:
             for record in reader.iter_metadata():
                 out.setdefault(record.name, {}).update(record.metadata)
-        except (*PARSE_ERRORS, OSError) as error:
+        except _READ_ERRORS as error:
             raise McapReadError(f"cannot read {path}: {_reason(error)}") from None
     return out
 
@@ -472,7 +476,7 @@ def _topic_list(topics) -> list[str]:
 def _open_reader(path: Path, stream, *, validate_crcs: bool = False):
     try:
         return make_reader(stream, validate_crcs=validate_crcs)
-    except (*PARSE_ERRORS, OSError) as error:
+    except _READ_ERRORS as error:
         raise McapReadError(f"cannot read {path}: not an MCAP file ({_reason(error)})") from None
 
 
