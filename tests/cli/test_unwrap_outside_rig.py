@@ -59,7 +59,8 @@ def test_triangulate_applies_the_same_model_and_drops_edges(noisy_mw_capture, tm
     assert main(["triangulate", "--capture", str(folder), "--method", "mw", "--no-distortion", "--out", str(out)]) == 0
     stdout = capsys.readouterr().out
     assert f"model {shipped_model_path()}" in stdout and "points at depth edges dropped" in stdout
-    points = np.asarray(o3d.io.read_point_cloud(str(out)).points)  # (M, 3) mm, world = camera frame here
+    points = 1000.0 * np.asarray(o3d.io.read_point_cloud(str(out)).points)  # (M, 3) m in the file -> mm; world =
+    # camera frame here
     off = capture.scene.distance_mm(points) > 1.0
     assert off.mean() <= 0.001  # measured 0.0 - 0.03 % on five outside rigs (docs/nodes.md)
     assert points.shape[0] >= 0.95 * capture.pure.sum()
