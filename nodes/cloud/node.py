@@ -24,6 +24,9 @@ topic                       type          dir   notes
 ``/scanner/confidence/image`` Image       out   32FC1, the cloud's ``confidence`` (in [0, 1] for each published
                                                  point, 0 where none), the cloud's stamp
 ``/scanner/confidence/camera_info`` CameraInfo out as for the depth image
+``~/capture_and_save``      Trigger (srv)       the last scan's cloud (PLY/PCD, metres) and frames (a capture
+                                                 folder) to ``save_dir`` (:mod:`.capture_service`: its parameters
+                                                 ``save_dir``, ``save_format``, ``save_frames`` and topics)
 ``/scanner/status``         ScanStatus    out   one per scan: ``done`` (OK, WARN) or ``failed``; ``duration_s`` =
                                                  ``header.stamp`` - the scan's stamp (its cloud's), to the ns
 ``/tf_static``              TFMessage     out   latched (transient local): ``mount_frame`` -> ``frame_id`` (the
@@ -115,6 +118,7 @@ from dptpu.messages import (
 from dptpu.nodes.node_main import run_node
 from dptpu.nodes.plumbing import DEFAULT_FRAME_ID, LATCHED_QOS, STATUS_QOS, DecodeErrorCount, scan_status
 
+from .capture_service import CaptureAndSave
 from .cloud_fields import FIELDS, SideImages, cloud_fields
 from .static_frames import tf_message
 
@@ -232,6 +236,7 @@ class CloudNode(Node):
                 self.create_subscription(CameraInfo, "/camera/camera_info", self.on_camera_info, LATCHED_QOS,
                                          publishers=SOLE_PUBLISHER))  # the camera's (or sim's) only
         self.decode_errors = DecodeErrorCount(*self._subscriptions_in)
+        self.capture = CaptureAndSave(self, rules, rig_path)  # ~/capture_and_save: the last scan to disk
         self.wait_timer = self.create_timer(self.intensity_wait_s / 4, self.on_timer)
 
     # -- TF -------------------------------------------------------------------------------------------------
@@ -344,8 +349,9 @@ class CloudNode(Node):
                               out=normals.transpose(1, 2, 0))
             channels += list(normals)
         cloud = cv2.merge(channels)  # (H, W, 9) float32 (6 without normals), one interleaving pass
-        self.points_publisher.publish(PointCloud2.from_array(cloud, cloud_fields(self.normals), header=header,
-                                                             is_dense=False))
+        cloud_msg = PointCloud2.from_array(cloud, cloud_fields(self.normals), header=header, is_dense=False)
+        self.points_publisher.publish(cloud_msg)
+        self.capture.keep(msg.sequence_id, cloud_msg, msg.fringe_axis)  # what ~/capture_and_save writes
         depth_m = planes[2]  # (H, W) metres
         camera_info = self._camera_info(header)
         self.depth_publisher.publish(Image.from_array(depth_m, "32FC1", header=header))

@@ -1,0 +1,71 @@
+"""The cloud node's ~/capture_and_save: phase -> unwrap -> cloud in one harness (real sockets), then the service
+writes the last scan's cloud (PLY and PCD, metres) and its frames as a dptpu-capture/1 folder that reads back."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from dptpu.fpp.calibration import load_rig, save_rig
+from dptpu.fpp.capture import PhaseSequence, load_sequence_images, read_capture
+from dptpu.graph.interfaces import Trigger as TriggerService
+from dptpu.messages import FringeFrame, PointCloud2
+from dptpu.nodes.cloud import CloudNode
+from dptpu.nodes.harness import NodeHarness, fringe_frames
+from dptpu.nodes.phase import PhaseNode
+from dptpu.nodes.unwrap import UnwrapNode
+from tests.nodes.test_cloud_scene import plane_scene
+
+
+def _call(harness, client) -> object:
+    future = client.call_async(TriggerService.Request())
+    assert harness.spin_until(future.done, timeout_s=30.0)
+    return future.result()
+
+
+@pytest.mark.parametrize("save_format", ["ply", "pcd"])
+def test_the_last_scan_is_saved_as_a_cloud_in_metres_and_a_capture_folder(tmp_path, save_format):
+    import open3d as o3d
+
+    scene = plane_scene()
+    rig_path = save_rig(scene.rig, tmp_path / "rig.yaml")
+    frequencies = (16.0, 1.0)
+    stacks = [scene.frames(f, seed=index) for index, f in enumerate(frequencies)]
+    with NodeHarness() as harness:
+        harness.start(PhaseNode, timeout_s=1.0, projector_width=912, projector_height=1140)
+        harness.start(UnwrapNode, method="mf")
+        cloud_node = harness.start(CloudNode, rig=str(rig_path), save_dir=str(tmp_path / "saved"),
+                                   save_format=save_format)
+        camera = harness.publisher(FringeFrame, "/camera/image_raw")
+        points = harness.collect(PointCloud2, "/scanner/points")
+        client = harness.probe.create_client(TriggerService, "/cloud/capture_and_save")
+        harness.connect()
+        # the frames go to the phase node and to the cloud node (it keeps the last scans' frames)
+        assert harness.spin_until(lambda: camera.get_subscription_count() >= 2, timeout_s=15.0)
+        assert harness.spin_until(client.service_is_ready, timeout_s=15.0)
+        nothing = _call(harness, client)
+        assert (nothing.success, nothing.message) == (False, "no scan to save yet: no cloud was published")
+        for frame in fringe_frames(stacks, frequencies, sequence_id=7):
+            camera.publish(frame)
+        (cloud,) = harness.wait(points, 1)
+        answer = _call(harness, client)
+    folder = tmp_path / "saved" / "scan_00000007"
+    assert answer.success, answer.message
+    assert answer.message == (f"saved scan 7: {folder / f'cloud.{save_format}'} (19200 points, metres) and "
+                              f"{folder / 'capture'} (8 frames)")
+    assert cloud_node.capture.saved == 1
+    written = np.asarray(o3d.io.read_point_cloud(str(folder / f"cloud.{save_format}")).points)  # (M, 3) metres
+    xyz = cloud.to_array(["x", "y", "z"]).reshape(-1, 3)
+    assert np.abs(written - xyz[np.isfinite(xyz).all(axis=1)]).max() < 1e-6
+    capture = read_capture(folder / "capture")
+    assert [(s.frequency, s.steps) for s in capture.sequences if isinstance(s, PhaseSequence)] == [(16.0, 4),
+                                                                                                   (1.0, 4)]
+    for sequence, stack in zip(capture.sequences, stacks):
+        assert np.array_equal(load_sequence_images(capture, sequence), stack)  # the frames, bit for bit
+    assert (capture.projector_size, capture.fringe_axis, capture.phase_shift_sign) == ((912, 1140), "x", -1)
+    assert np.array_equal(load_rig(capture.calibration).camera.K, scene.rig.camera.K)
+
+
+def test_a_bad_save_format_is_refused_naming_the_choices(tmp_path):
+    rig_path = save_rig(plane_scene().rig, tmp_path / "rig.yaml")
+    with NodeHarness() as harness, pytest.raises(ValueError, match="save_format"):
+        harness.start(CloudNode, rig=str(rig_path), save_format="obj")
