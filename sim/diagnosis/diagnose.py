@@ -119,23 +119,27 @@ def _response_entry(pixels, entries, *, refine: int, rss_before: float) -> dict:
 
 
 def _recentre_orders(measured: Measured, rig: Rig, reference: Reference, fit_mask, registration):
-    """When the registration cannot explain the decoded coordinate (fringe orders off the twin's, or an RMS
-    over a tenth of a period), decode the orders again about the data's own MF centre (:mod:`.recentred_orders`)
-    and keep that decoding if it registers better."""
+    """When the data's phases share a bias that eats the MF rounding margin (the centre of the MF rounding over a
+    quarter turn, :mod:`.recentred_orders`), or the registration cannot explain the decoded coordinate (orders
+    off the twin's, an RMS over a tenth of a period), decode the orders again about that centre, shifted by
+    -1, 0 and +1 order everywhere (the centre fixes the orders up to one common order), and keep the decoding
+    that registers best."""
     period_px = measured.extent / measured.frequency
-    if registration.order_errors == 0.0 and registration.rms_px <= 0.1 * period_px:
-        return registration
     recentred = recentred_absolute_phase(measured, np.isfinite(measured.absolute_phase))
     if recentred is None:
         return registration
-    phase, _ = recentred
-    original = measured.absolute_phase
-    measured.absolute_phase = phase
-    again = register_robust(rig, reference, measured.projector_x, fit_mask, period_px=period_px)
-    if again.rms_px < registration.rms_px:
-        return again
-    measured.absolute_phase = original
-    return registration
+    phase, centre = recentred
+    broken = registration.order_errors > 0.0 or registration.rms_px > 0.1 * period_px
+    if not broken and abs(centre) <= 0.25 * np.pi:
+        return registration
+    best, best_phase = registration, measured.absolute_phase
+    for shift in (0, 1, -1):
+        measured.absolute_phase = phase + 2.0 * np.pi * shift
+        again = register_robust(rig, reference, measured.projector_x, fit_mask, period_px=period_px)
+        if again.rms_px < best.rms_px:
+            best, best_phase = again, measured.absolute_phase
+    measured.absolute_phase = best_phase
+    return best
 
 
 def _reference_material(reference: Reference, rig: Rig):

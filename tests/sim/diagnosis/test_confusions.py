@@ -18,8 +18,10 @@ import pytest
 from dptpu.sim.diagnosis import diagnose
 from dptpu.sim.image_formation import SequenceSpec
 from dptpu.sim.render import render_capture
+from dptpu.sim.rig import load_twin_rig
 from dptpu.sim.scene_mesh import Material
-from dptpu.sim.scenes.builtin import sphere_scene
+from dptpu.sim.scenes import load_scene
+from dptpu.sim.scenes.builtin import plane_scene, sphere_scene
 from tests.outside_rigs import outside_rig
 
 from .hidden import render_measured
@@ -111,3 +113,37 @@ def test_projector_response_is_not_taken_for_camera_saturation(tmp_path, levels,
         x = np.linspace(0.0, 1.0, fitted.size)
         knee_at = x[np.argmax(fitted >= fitted.max() - 1e-6)]
         assert 0.75 <= knee_at <= 0.75 + 2.0 / (fitted.size - 1)
+
+
+def _nominal(tmp_path, scene, effects, seed):
+    rig = load_twin_rig("nominal", size="160x120")
+    folder = render_capture(rig, load_scene(scene, rig), SEQUENCES, tmp_path / "measured", effects=effects,
+                            seed=seed)
+    return diagnose(folder, rig, reference="plane" if scene == "plane" else "sphere:50.8082",
+                    max_pixels=TEST_PIXELS)
+
+
+@pytest.mark.parametrize("scene, scale, read_noise_dn", [("plane", 1.011, 1.0), ("sphere", 0.989, 0.0),
+                                                         ("sphere", 1.012, 0.0)])
+def test_step_scale_error_at_the_mf_margin_is_not_taken_for_lens_distortion(tmp_path, scene, scale, read_noise_dn):
+    """A 1.1-1.2 % step-scale error biases both phases by ~0.03 rad, 0.44-0.5 of an MF order at 96/1: the noise
+    rounds regions (or the whole image) one order off. Decoded about the data's own MF centre, and with the one
+    common order that registers best, the step error is named with its scale, not a smooth lens distortion."""
+    effects = [{"phase_shift_error": {"scale": scale, "sigma_rad": 0.0}}]
+    if read_noise_dn:
+        effects.append({"sensor_noise": {"read_noise_dn": read_noise_dn, "gain_dn_per_electron": 0.0}})
+    result = _nominal(tmp_path, scene, effects, seed=3)
+    assert result.cause == "phase_shift_error", _summary(result)
+    assert abs(result.effects[0]["parameters"]["scale"] - scale) <= 0.2 * abs(scale - 1.0)
+    assert result.registration.rms_px < 0.05  # projector px: the twin's orders, no region a period off
+    assert not _entry(result, "lens_distortion")["named"]
+
+
+def test_lens_distortion_on_an_outside_rig_stays_lens_distortion(tmp_path):
+    rig = outside_rig(camera_focal_px=1800.0, baseline_mm=150.0, angle_deg=14.0, size=(160, 120))
+    folder = render_capture(rig, plane_scene(rig), SEQUENCES, tmp_path / "measured",
+                            effects=[{"lens_distortion": {"camera": [-0.3, 0.0, 0.0, 0.0, 0.0]}}], seed=5)
+    result = diagnose(folder, rig, reference="plane", max_pixels=TEST_PIXELS)
+    assert result.cause == "lens_distortion", _summary(result)
+    assert abs(result.effects[0]["parameters"]["camera"][0] + 0.3) <= 0.2 * 0.3
+    assert not _entry(result, "phase_shift_error")["named"]
