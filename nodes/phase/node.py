@@ -43,7 +43,7 @@ name                    default  meaning
 ``min_modulation`` and ``saturation_level`` apply from the next scan (``dptpu param set``), checked as at start-up;
 the others are read-only (``param set`` is refused; restart the node to change them).
 
-Run: ``python -m dptpu.nodes.phase --ros-args -p timeout_s:=1.0``, or ``module: dptpu.nodes.phase`` in a
+Run: ``python -m dptpu.nodes.phase --ros-args -p timeout_s:=1.0``, or ``pkg: dptpu, exec: phase`` in a
 launch file. Conventions: ``docs/messages.md``; node design: ``docs/nodes.md``.
 """
 from __future__ import annotations
