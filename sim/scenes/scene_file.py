@@ -34,6 +34,7 @@ import numpy as np
 import yaml
 
 from dptpu.fpp.calibration import Rig
+from dptpu.fpp.text_files import read_text_file
 from dptpu.sim.rig import working_point
 from dptpu.sim.scene_mesh import Material
 
@@ -79,10 +80,11 @@ def load_scene_file(path, rig: Rig) -> Scene:
     path = Path(path)
     if not path.is_file():
         raise FileNotFoundError(f"{path}: no such scene file")
+    text = read_text_file(path, "a scene YAML file (docs/twin.md)")
     try:
-        document = yaml.safe_load(path.read_text())
+        document = yaml.safe_load(text)
     except yaml.YAMLError as exc:
-        raise ValueError(f"{path}: not valid YAML ({exc})") from None
+        raise ValueError(f"{path}: not valid YAML ({' '.join(str(exc).split())})") from None
     return parse_scene(document, rig, source=str(path), root=path.parent, default_name=path.stem)
 
 
