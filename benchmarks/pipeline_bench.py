@@ -272,19 +272,21 @@ def floor_ms_per_scan(*, steps: int, size: str, repeats: int = 30) -> dict:
     :func:`dptpu.fpp.phase.sequence_sums`, :func:`~dptpu.fpp.phase.maps_from_sums`), Eq. (5) (``unwrap``,
     :func:`dptpu.fpp.tpu.unwrap_mf_float32`), the triangulation with both lens distortions into float32 metres
     (``triangulate``, :meth:`~dptpu.fpp.triangulate.Triangulator.camera_points` of the sim rig's rig at ``size``),
-    the (H, W, 5) cloud and its depth image (``assemble``), and both sent to one subscriber (``transport_out``,
-    both sides). No Python between processes, no messages but the frames and the outputs: a lower bound of
-    the graph's CPU per scan (``total``). ``total_shared_memory`` moves the bytes as the shared-memory path does at
-    the least, one copy each way (``copy_in``, ``copy_out``: ``np.copyto`` into a preallocated array) instead of
-    through ZeroMQ: the floor of a graph whose large messages go through shared memory. The frames are an
-    analytic ramp across the projector (64 and 1 periods), so the triangulation converges as on a real scene.
-    Median of ``repeats`` timings of each part (``time.process_time``, every thread).
+    the (H, W, 9) cloud as the cloud node builds it (x, y, z, texture, modulation, confidence and the normals of
+    :func:`dptpu.fpp.organized_normals.organized_normals`) with its depth and confidence images (``assemble``), all
+    three sent to one subscriber (``transport_out``, both sides). No Python between processes, no messages but the
+    frames and the outputs: a lower bound of the graph's CPU per scan (``total``). ``total_shared_memory`` moves the
+    bytes as the shared-memory path does at the least, one copy each way (``copy_in``, ``copy_out``: ``np.copyto``
+    into a preallocated array) instead of through ZeroMQ: the floor of a graph whose large messages go through
+    shared memory. The frames are an analytic ramp across the projector (64 and 1 periods), so the triangulation
+    converges as on a real scene. Median of ``repeats`` timings of each part (``time.process_time``, every thread).
     """
     import cv2
     import zmq
 
     from dptpu.fpp import phase as fpp_phase
     from dptpu.fpp import tpu
+    from dptpu.fpp.organized_normals import organized_normals
     from dptpu.fpp.triangulate import Triangulator, projector_coordinate
     from dptpu.sim.rig import load_twin_rig
 
@@ -342,16 +344,20 @@ def floor_ms_per_scan(*, steps: int, size: str, repeats: int = 30) -> dict:
         coord = projector_coordinate(result.absolute_phase, 64.0, extent)
         state["xyz"] = [triangulator.camera_points(coord, scale=rig.scale_to_m, dtype=np.float32)]
 
-    def assemble_step():
+    def assemble_step():  # as the cloud node does: texture, modulation, confidence and normals beside x, y, z
         xyz = state["xyz"][0]
         channels = [np.ascontiguousarray(xyz[..., k]) for k in range(3)]
-        state["cloud"] = cv2.merge([*channels, state["maps"][0].modulation, state["unwrapped"].reliability])
-        state["depth"] = channels[2]
+        confidence = np.where(np.isfinite(channels[2]), state["unwrapped"].reliability, np.float32(0.0))
+        normals = organized_normals(xyz)  # (H, W, 3)
+        state["cloud"] = cv2.merge([*channels, state["maps"][0].background, state["maps"][0].modulation,
+                                    confidence.astype(np.float32, copy=False), *cv2.split(normals)])  # (H, W, 9)
+        state["depth"], state["confidence"] = channels[2], confidence
 
     parts = {"transport_in": lambda: transfer(frames), "phase": phase_step, "unwrap": unwrap_step,
              "triangulate": triangulate_step, "assemble": assemble_step,
-             "transport_out": lambda: transfer([state["cloud"], state["depth"]]),
-             "copy_in": lambda: copy_once(frames), "copy_out": lambda: copy_once([state["cloud"], state["depth"]])}
+             "transport_out": lambda: transfer([state["cloud"], state["depth"], state["confidence"]]),
+             "copy_in": lambda: copy_once(frames),
+             "copy_out": lambda: copy_once([state["cloud"], state["depth"], state["confidence"]])}
     times = {name: [] for name in parts}
     try:
         for _ in range(repeats + 2):  # two warm-ups

@@ -281,7 +281,10 @@ def read_message(topic: bytes, header, descriptor_frame) -> list:
         A malformed descriptor, or a segment that is gone (its publisher exited) or is not the one named.
     """
     descriptor = unpack_descriptor(descriptor_frame)
-    mapping = _acquire(descriptor)
+    try:
+        mapping = _acquire(descriptor)
+    except OSError as exc:  # a lock or a read of the segment's header failed: the message cannot be trusted
+        raise SharedMemoryError(f"segment {descriptor.inode} of process {descriptor.pid}: {exc}") from None
     base = np.frombuffer(mapping.view, dtype=np.uint8)  # read-only (the map is PROT_READ)
     weakref.finalize(base, _release, mapping)
     frames = [memoryview(topic), getattr(header, "buffer", header)]

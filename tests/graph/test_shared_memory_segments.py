@@ -172,3 +172,29 @@ def test_a_stranger_cannot_open_a_segment():
         assert stranger.stdout.strip() == "refused", stranger.stderr
     finally:
         pool.close()
+
+
+def test_a_forged_descriptor_is_refused_without_blocking(tmp_path):
+    from dptpu.graph.shared_memory import SharedMemoryError, pack_descriptor
+
+    regular = tmp_path / "file"
+    regular.write_bytes(bytes(4096))
+    fifo = tmp_path / "fifo"
+    os.mkfifo(fifo)
+    fds = [os.open(regular, os.O_RDONLY), os.open(fifo, os.O_RDONLY | os.O_NONBLOCK)]
+    try:
+        for fd in fds:
+            inode = os.fstat(fd).st_ino
+            forged = pack_descriptor(os.getpid(), fd, inode, bytes(16), 1, 4096, [(64, 100)])
+            started = time.monotonic()
+            with pytest.raises(SharedMemoryError, match="is not the segment the descriptor names"):
+                read_message(TOPIC, HEADER, forged)
+            assert time.monotonic() - started < 5.0  # a FIFO is opened without blocking
+        gone = pack_descriptor(2**22 + 12345, 3, 1, bytes(16), 1, 4096, [(64, 100)])  # no such process
+        with pytest.raises(SharedMemoryError, match="cannot open segment"):
+            read_message(TOPIC, HEADER, gone)
+        with pytest.raises(SharedMemoryError, match="names bytes 64..5000 of a segment of 4096"):
+            read_message(TOPIC, HEADER, pack_descriptor(os.getpid(), fds[0], 1, bytes(16), 1, 4096, [(64, 4936)]))
+    finally:
+        for fd in fds:
+            os.close(fd)
