@@ -62,6 +62,9 @@ def _register_cloud(targets) -> None:
                        help="drop pixels of lower confidence, as dptpu triangulate (default its default; 0 keeps all)")
     cloud.add_argument("--keep-edges", action="store_true",
                        help="keep the points at depth edges (default: dropped, as dptpu triangulate does)")
+    cloud.add_argument("--keep-islands", action="store_true",
+                       help="keep the islands of a wrong fringe order (default: dropped, as dptpu triangulate does; "
+                            "docs/nodes.md 'Order islands')")
     cloud.add_argument("--threads", type=int, default=None, help="onnxruntime threads")
     cloud.add_argument("--quiet", action="store_true", help="no progress bars")
     cloud.set_defaults(func=run_cloud)
@@ -91,7 +94,7 @@ def run_cloud(args) -> int:
                          methods=tuple(m.strip() for m in args.methods.split(",") if m.strip()),
                          supersample=args.supersample, seed=DEFAULT_SEED if args.seed is None else args.seed,
                          cfpe_scenes=tuple(s.strip() for s in args.cfpe_scenes.split(",") if s.strip()),
-                         edges=not args.keep_edges,
+                         edges=not args.keep_edges, islands=not args.keep_islands,
                          **({} if args.min_confidence is None else {"min_confidence": args.min_confidence}))
     cfpe_dir = None
     if spec.cfpe_scenes and (args.cfpe is None or args.cfpe.lower() != "none"):

@@ -8,9 +8,10 @@ by default where it serves, ``--min-confidence``), turns the absolute phase into
 ``x_p = phi * W_p / (2 pi f)``, intersects each valid camera ray with the projector plane of that
 coordinate (:class:`dptpu.fpp.triangulate.Triangulator`, the capture's ``calibration`` rig file), drops the points
 at depth edges (:func:`dptpu.fpp.depth_edges.edge_points`: flying points, points beside a depth step, modulation dips,
-isolated points; off with
-``--keep-edges``) and writes the rest with open3d, in the rig's world frame, in metres as every point-cloud file of
-dptpu (``--units mm``: millimetres). The summary line counts what was dropped and why.
+isolated points; off with ``--keep-edges``) and the islands of a wrong fringe order
+(:func:`dptpu.fpp.order_islands.order_islands`; off with ``--keep-islands``) and writes the rest with open3d, in the
+rig's world frame, in metres as every point-cloud file of dptpu (``--units mm``: millimetres). The summary line
+counts what was dropped and why.
 """
 from __future__ import annotations
 
@@ -24,6 +25,7 @@ from dptpu.cli.unwrap_cmd import add_unwrap_arguments, summary, unwrap_from_args
 from dptpu.fpp.calibration import load_rig
 from dptpu.fpp.capture import CAPTURE_FILE, read_capture
 from dptpu.fpp.depth_edges import DEFAULT_MAX_SLOPE, edge_points
+from dptpu.fpp.order_islands import order_islands
 from dptpu.fpp.point_cloud_file import write_point_cloud
 from dptpu.fpp.triangulate import Triangulator, projector_coordinate
 
@@ -48,6 +50,9 @@ def register(subparsers) -> None:
                         help="depth step between neighbours, in pixel footprints, above which a point standing "
                              "apart from both neighbours along a line is a flying point "
                              f"(default {DEFAULT_MAX_SLOPE:g})")
+    parser.add_argument("--keep-islands", action="store_true",
+                        help="keep the islands of a wrong fringe order (regions whole orders off from the surface "
+                             "around them; docs/nodes.md 'Order islands')")
     parser.set_defaults(func=run)
 
 
@@ -87,10 +92,15 @@ def run(args: argparse.Namespace) -> int:
         edges_note = (f"{counts['total']} points at depth edges dropped ({counts['flying']} flying, "
                       f"{counts['beside_step']} beside a step, {counts['modulation_dip']} modulation dips, "
                       f"{counts['isolated']} isolated)")
+    islands_note = "islands of a wrong order kept"
+    if not args.keep_islands:
+        islands = order_islands(result.absolute_phase, result.modulation, result.valid).islands & keep
+        keep &= ~islands
+        islands_note = f"{int(np.count_nonzero(islands))} points on islands of a wrong order dropped"
     cloud_points = points[keep]  # (M, 3)
     if cloud_points.shape[0] == 0:
         raise ValueError(f"no valid pixel to triangulate in {capture.root} ({args.method}); nothing written")
     write_point_cloud(args.out, cloud_points, unit=rig.units, file_unit=args.units)
-    print(f"{args.method}: {cloud_points.shape[0]} points ({args.units}); {summary(unwrapping)}; {edges_note} "
-          f"-> {args.out}")
+    print(f"{args.method}: {cloud_points.shape[0]} points ({args.units}); {summary(unwrapping)}; {edges_note}; "
+          f"{islands_note} -> {args.out}")
     return 0

@@ -13,7 +13,9 @@ and on the real CFPE captures (issue #16).
    (:func:`dptpu.models.refine.refine_capture_result`, the model of ``--model``, on the methods it was trained
    for); the pixels whose confidence is below ``min_confidence`` dropped (:func:`dptpu.fpp.confidence.confident`);
    triangulation; the points at depth edges dropped (:func:`dptpu.fpp.depth_edges.edge_points`: flying points,
-   modulation dips, isolated points; ``edges=False`` keeps them). The published points are the finite ones left.
+   modulation dips, isolated points; ``edges=False`` keeps them) and the islands of a wrong order
+   (:func:`dptpu.fpp.order_islands.order_islands`; ``islands=False`` keeps them). The published points are the
+   finite ones left.
 3. **Scores** (:func:`dptpu.fpp.cloud_accuracy.cloud_accuracy`, the scan monitor's definition): the share of
    published points with a wrong order or off the true surface, and the share of the truly valid pixels published,
    pooled over rigs and scenes.
@@ -44,6 +46,7 @@ from dptpu.fpp.capture import read_capture
 from dptpu.fpp.cloud_accuracy import OFF_SURFACE_MM, cloud_accuracy, order_shift
 from dptpu.fpp.confidence import DEFAULT_MIN_CONFIDENCE, confident
 from dptpu.fpp.depth_edges import edge_points
+from dptpu.fpp.order_islands import order_islands
 from dptpu.fpp.reconstruct import CaptureResult, unwrap_capture
 from dptpu.fpp.triangulate import Triangulator, projector_coordinate
 from dptpu.models.inference import FringeOrderModel
@@ -112,6 +115,7 @@ class CloudEvalSpec:
     off_surface_mm: float = OFF_SURFACE_MM
     min_confidence: float = DEFAULT_MIN_CONFIDENCE
     edges: bool = True  # drop the points at depth edges (dptpu triangulate's default)
+    islands: bool = True  # drop the islands of a wrong fringe order (dptpu triangulate's default)
 
     def __post_init__(self):
         if not self.rigs or self.scenes < 1 or not self.steps or not self.noise_sigmas or not self.methods:
@@ -174,12 +178,13 @@ def render_eval_captures(spec: CloudEvalSpec, out_dir, *, progress: bool = False
 
 
 def published_cloud(result: CaptureResult, rig: Rig, extent_px: int, axis: str, *,
-                    min_confidence: float = DEFAULT_MIN_CONFIDENCE, edges: bool = True) -> tuple[np.ndarray, np.ndarray,
-                                                                                               dict[str, int]]:
+                    min_confidence: float = DEFAULT_MIN_CONFIDENCE, edges: bool = True,
+                    islands: bool = True) -> tuple[np.ndarray, np.ndarray, dict[str, int]]:
     """``(published (H, W) bool, depth (H, W), dropped counts)`` of an unwrapped capture, as ``dptpu triangulate``
     publishes it: the valid pixels of at least ``min_confidence`` triangulated, the finite points kept but those at
-    depth edges (``edges``); depth = camera ``z`` in the rig's units, NaN where nothing is published. ``dropped``:
-    ``{"low_confidence": n, "edges": n}``."""
+    depth edges (``edges``) and those on islands of a wrong order (``islands``, :func:`dptpu.fpp.order_islands.
+    order_islands`); depth = camera ``z`` in the rig's units, NaN where nothing is published. ``dropped``:
+    ``{"low_confidence": n, "edges": n, "islands": n}``."""
     valid, low_confidence = confident(result.reliability, result.valid, min_confidence)
     x_p = projector_coordinate(np.where(valid, result.absolute_phase, np.nan), result.frequency, extent_px)
     points = Triangulator(rig, axis=axis).points(x_p)  # (H, W, 3) world
@@ -192,8 +197,13 @@ def published_cloud(result: CaptureResult, rig: Rig, extent_px: int, axis: str, 
         dropped = edge_points(depth, focal_px, result.modulation).dropped & published
         at_edges = int(np.count_nonzero(dropped))
         published &= ~dropped
-        depth = np.where(published, depth, np.nan)
-    return published, depth, {"low_confidence": low_confidence, "edges": at_edges}
+    on_islands = 0
+    if islands:
+        island = order_islands(result.absolute_phase, result.modulation, valid).islands & published
+        on_islands = int(np.count_nonzero(island))
+        published &= ~island
+    depth = np.where(published, depth, np.nan)
+    return published, depth, {"low_confidence": low_confidence, "edges": at_edges, "islands": on_islands}
 
 
 Publisher = Callable[..., tuple[np.ndarray, np.ndarray, dict[str, int]]]
@@ -223,7 +233,8 @@ def score_capture(capture: dict, spec: CloudEvalSpec, models: Iterable[FringeOrd
                                 refine_capture_result(classical, model)))
         for solver, result in solvers:
             published, depth, dropped = publish(result, rig, extent, loaded.fringe_axis,
-                                                min_confidence=spec.min_confidence, edges=spec.edges)
+                                                min_confidence=spec.min_confidence, edges=spec.edges,
+                                                islands=spec.islands)
             accuracy = cloud_accuracy(published, truly_valid,
                                       shift=np.where(truly_valid, order_shift(result.absolute_phase, truth_phase),
                                                      np.nan),
@@ -232,7 +243,7 @@ def score_capture(capture: dict, spec: CloudEvalSpec, models: Iterable[FringeOrd
             rows.append({"rig": capture["rig"], "scene": capture["scene"], "steps": capture["steps"],
                          "noise_sigma": capture["noise_sigma"], "method": method, "solver": solver,
                          **accuracy.as_dict(), "dropped_low_confidence": dropped["low_confidence"],
-                         "dropped_at_edges": dropped["edges"]})
+                         "dropped_at_edges": dropped["edges"], "dropped_on_islands": dropped["islands"]})
     return rows
 
 
@@ -244,10 +255,10 @@ def pool_rows(rows: list[dict]) -> list[dict]:
         entry = pooled.setdefault(key, {"steps": key[0], "noise_sigma": key[1], "method": key[2], "solver": key[3],
                                         "captures": 0, "published": 0, "truly_valid": 0, "published_truly_valid": 0,
                                         "wrong": 0, "wrong_order": 0, "off_surface": 0, "dropped_low_confidence": 0,
-                                        "dropped_at_edges": 0})
+                                        "dropped_at_edges": 0, "dropped_on_islands": 0})
         entry["captures"] += 1
         for name in ("published", "truly_valid", "published_truly_valid", "wrong", "wrong_order", "off_surface",
-                     "dropped_low_confidence", "dropped_at_edges"):
+                     "dropped_low_confidence", "dropped_at_edges", "dropped_on_islands"):
             entry[name] += row[name]
     for entry in pooled.values():
         entry["wrong_share"] = entry["wrong"] / entry["published"] if entry["published"] else float("nan")
@@ -332,7 +343,8 @@ def format_table(pooled: list[dict], cfpe: list[dict], spec: CloudEvalSpec) -> s
              f"{spec.supersample} supersampling; wrong = wrong order or more than max({spec.off_surface_mm:g} mm, "
              "6 sigma) off the true depth, per published point; complete = published / truly valid pixels. "
              f"Published as `dptpu triangulate` does: confidence >= {spec.min_confidence:g}, "
-             + ("points at depth edges dropped." if spec.edges else "points at depth edges kept."), "",
+             + ("points at depth edges dropped" if spec.edges else "points at depth edges kept")
+             + (", islands of a wrong order dropped." if spec.islands else ", islands of a wrong order kept."), "",
              "| steps | noise | method | " + " | ".join(f"{s} wrong % | {s} complete %" for s in solvers) + " |",
              "|---|---|---|" + "---|---|" * len(solvers)]
     by_key: dict[tuple, dict[str, dict]] = {}

@@ -1,0 +1,184 @@
+"""Islands of a wrong fringe order: regions whole orders off from the surface around them, found in the phase alone.
+
+A wrong fringe order rarely comes alone. Where the temporal prior is weak (low modulation, the low frequency's noise
+amplified ``f_h / f_l`` times), DP-TPU and the classical methods alike put a whole patch of a surface one order (or
+more) off, and the network's neighbour consensus makes the patch self-consistent: every pixel of it agrees with its
+neighbours, its own margin and its prior can both be high, and the confidence of :mod:`dptpu.fpp.confidence` does
+not see it. Its border does: the absolute phase ``Phi`` of a smooth surface changes by less than ``pi`` between
+neighbouring pixels (the condition of spatial unwrapping, Itoh's), so a patch whole orders off meets the surface
+around it with a jump of ``2 pi s`` (give or take that small change, ``s`` its order error) all along its border,
+while the fringe modulation runs on unbroken across it, as on any smooth surface.
+
+:func:`order_islands` finds such patches:
+
+1. **Regions.** Neighbouring valid pixels (4-connected) are linked where ``|Phi_b - Phi_a| < pi``; the connected
+   components of these links are the order-consistent regions (``scipy.sparse.csgraph.connected_components``).
+2. **Borders.** Each unlinked neighbour pair joins two regions; ``s = Round((Phi_R - Phi_Q) / 2 pi)`` is the order
+   step of the pair, ``R`` the smaller region. A pair is *smooth* where neither pixel's modulation ``B`` dips below
+   ``min_modulation_ratio`` times the brightest modulation within two pixels: at an occlusion the two surfaces'
+   phasors mix and ``B`` dips, and the phase jump there is any value.
+3. **Islands.** A region ``R`` is an island where, towards some larger region ``Q``, at least ``min_pairs`` border
+   pairs and a share ``min_share`` of all their border pairs are smooth with one and the same step ``s != 0``:
+   ``R`` is a patch of ``Q``'s surface ``s`` orders off. The smaller side is the one called wrong, and it is dropped,
+   not shifted: a depth step that happens to be one fringe period deep would look the same, and a dropped patch
+   costs completeness where a shifted one could cost precision.
+
+A real depth step between two surfaces looks like an island border where the step is about the same whole number
+of periods deep along its whole length and the surfaces' modulation does not dip at the edge: an object before a
+plane, its face parallel to the plane, can. The share and the modulation test keep such borders rare, and
+``max_island_share`` keeps whole objects out: a wrong-order patch is a small part of a surface, an object seen whole
+is not (``docs/nodes.md``, "Order islands", has the measurements). The rule uses no length, focal length, frequency
+or noise level: only the phase's own ``2 pi``, the modulation's ratio and a share of the image.
+
+Parameters and why:
+
+- ``min_share`` (default :data:`DEFAULT_MIN_SHARE` = 0.8): an island's border is ``s`` orders off on (nearly)
+  every pair; an occlusion's phase jump varies along the edge. The fifth of the pairs left over is for the noisy
+  and mixed pixels of a border.
+- ``min_pairs`` (default :data:`DEFAULT_MIN_PAIRS` = 3): a lone wrong pixel has four border pairs; fewer than
+  three agreeing pairs are too few to call a border.
+- ``max_island_share`` (default :data:`DEFAULT_MAX_ISLAND_SHARE` = 0.01): no region of more than 1 % of the valid
+  pixels is an island. The network's wrong patches on the shipped Blender scenes held 0.1-0.6 % of a scan's pixels;
+  the objects of the outside rigs' scenes whose border with the background plane looked like an island's held
+  1.4-20 %.
+- ``min_modulation_ratio`` (default :data:`DEFAULT_MIN_MODULATION_RATIO` = 0.5): a mixed pixel at an occlusion
+  keeps less than half of its brighter neighbour's modulation (two phasors of random relative phase); noise and
+  shading change ``B`` by far less between neighbours.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+from scipy.sparse import coo_matrix
+from scipy.sparse.csgraph import connected_components
+
+__all__ = ["DEFAULT_MAX_ISLAND_SHARE", "DEFAULT_MIN_MODULATION_RATIO", "DEFAULT_MIN_PAIRS", "DEFAULT_MIN_SHARE",
+           "OrderIslands", "order_islands"]
+
+#: Share of a border's pairs that must be smooth with one common nonzero order step.
+DEFAULT_MIN_SHARE = 0.8
+#: A region holding more than this share of the valid pixels is never called an island.
+DEFAULT_MAX_ISLAND_SHARE = 0.01
+#: Border pairs needed to call a region an island.
+DEFAULT_MIN_PAIRS = 3
+#: A border pair is smooth where both pixels keep this fraction of the brightest modulation within two pixels.
+DEFAULT_MIN_MODULATION_RATIO = 0.5
+
+_TWO_PI = 2.0 * np.pi
+
+
+@dataclass(frozen=True)
+class OrderIslands:
+    """What :func:`order_islands` found.
+
+    Attributes
+    ----------
+    islands : ndarray (H, W) bool
+        Valid pixels in a region whole orders off from a larger neighbouring region.
+    step : ndarray (H, W) int8
+        The island's order minus its neighbour's, as its border says (0 off the islands): the island's order
+        would be right if lowered by ``step``.
+    regions : int
+        Order-consistent regions among the valid pixels.
+    island_regions : int
+        Regions called islands.
+    """
+
+    islands: np.ndarray
+    step: np.ndarray
+    regions: int
+    island_regions: int
+
+
+def _neighbour_pairs(valid: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Flat indices ``(a, b)`` of the horizontally and vertically neighbouring pixel pairs, both valid."""
+    height, width = valid.shape
+    index = np.arange(height * width).reshape(height, width)
+    a = np.concatenate([index[:, :-1].ravel(), index[:-1, :].ravel()])
+    b = np.concatenate([index[:, 1:].ravel(), index[1:, :].ravel()])
+    flat = valid.ravel()
+    both = flat[a] & flat[b]
+    return a[both], b[both]
+
+
+def order_islands(absolute_phase: np.ndarray, modulation: np.ndarray, valid: np.ndarray, *,
+                  min_share: float = DEFAULT_MIN_SHARE, min_pairs: int = DEFAULT_MIN_PAIRS,
+                  min_modulation_ratio: float = DEFAULT_MIN_MODULATION_RATIO,
+                  max_island_share: float = DEFAULT_MAX_ISLAND_SHARE) -> OrderIslands:
+    """Regions of ``absolute_phase`` whole fringe orders off from a larger neighbouring region (module docstring).
+
+    Parameters
+    ----------
+    absolute_phase : ndarray (H, W)
+        ``Phi`` in radians (Eq. (3)); read where ``valid`` only.
+    modulation : ndarray (H, W)
+        Fringe modulation ``B`` of the same sequence, any intensity unit.
+    valid : ndarray (H, W) bool
+        Pixels with an order (e.g. after the confidence threshold).
+    min_share, min_pairs, min_modulation_ratio
+        See the module docstring.
+    """
+    phi = np.asarray(absolute_phase, dtype=np.float64)
+    valid = np.asarray(valid, dtype=bool) & np.isfinite(phi)
+    if phi.ndim != 2 or phi.shape != valid.shape or np.shape(modulation) != phi.shape:
+        raise ValueError(f"absolute_phase, modulation and valid must be (H, W) of one shape; got {phi.shape}, "
+                         f"{np.shape(modulation)}, {valid.shape}")
+    if not (0.0 < min_share <= 1.0 and min_pairs >= 1 and 0.0 <= min_modulation_ratio <= 1.0
+            and 0.0 < max_island_share <= 1.0):
+        raise ValueError(f"need 0 < min_share <= 1, min_pairs >= 1, 0 <= min_modulation_ratio <= 1, "
+                         f"0 < max_island_share <= 1; got {min_share}, {min_pairs}, {min_modulation_ratio}, "
+                         f"{max_island_share}")
+    pixels = phi.size
+    a, b = _neighbour_pairs(valid)
+    flat_phi = phi.ravel()
+    difference = flat_phi[b] - flat_phi[a]
+    linked = np.abs(difference) < np.pi
+    graph = coo_matrix((np.ones(int(np.count_nonzero(linked)), dtype=np.int8), (a[linked], b[linked])),
+                       shape=(pixels, pixels))
+    _, labels = connected_components(graph, directed=False)
+    sizes = np.bincount(labels, weights=valid.ravel().astype(np.float64))
+    region_count = int(np.count_nonzero(sizes))
+
+    # the border pairs, each seen from its smaller region R towards the larger Q
+    a, b, difference = a[~linked], b[~linked], difference[~linked]
+    label_a, label_b = labels[a], labels[b]
+    a_smaller = sizes[label_a] < sizes[label_b]
+    small = np.where(a_smaller, label_a, label_b)
+    large = np.where(a_smaller, label_b, label_a)
+    step = np.rint(np.where(a_smaller, -difference, difference) / _TWO_PI)  # order of R minus order of Q
+    unequal = (sizes[small] < sizes[large]) & (sizes[small] <= max_island_share * np.count_nonzero(valid))
+
+    b_map = np.where(valid, np.nan_to_num(np.asarray(modulation, dtype=np.float32)), 0.0).astype(np.float32)
+    brightest = cv2.dilate(b_map, np.ones((5, 5), np.uint8)).ravel()
+    flat_b = b_map.ravel()
+    with np.errstate(invalid="ignore", divide="ignore"):
+        smooth = np.minimum(flat_b[a], flat_b[b]) >= min_modulation_ratio * np.maximum(brightest[a], brightest[b])
+
+    # per border (R, Q): all its pairs, and the most common nonzero step among its smooth pairs
+    key = small.astype(np.int64) * labels.size + large.astype(np.int64)
+    border, border_index = np.unique(key[unequal], return_inverse=True)
+    total = np.bincount(border_index, minlength=border.size)
+    candidate = (smooth & (step != 0))[unequal]
+    stepped = np.stack([border_index[candidate], step[unequal][candidate].astype(np.int64)], axis=1)
+    agreeing = np.zeros(border.size, dtype=np.int64)
+    border_step = np.zeros(border.size, dtype=np.int64)
+    if stepped.size:
+        pair, count = np.unique(stepped, axis=0, return_counts=True)  # (border, step) rows, sorted by border
+        order = np.lexsort((count, pair[:, 0]))
+        last = np.r_[np.flatnonzero(np.diff(pair[order, 0])), order.size - 1]  # each border's most common step
+        agreeing[pair[order[last], 0]] = count[order[last]]
+        border_step[pair[order[last], 0]] = pair[order[last], 1]
+    island_border = np.flatnonzero((agreeing >= min_pairs) & (agreeing >= min_share * total))
+    # a region with several island borders takes the step of its longest one
+    island_region = border[island_border] // labels.size
+    longest = np.zeros(sizes.size, dtype=np.int64)
+    np.maximum.at(longest, island_region, agreeing[island_border])
+    chosen = agreeing[island_border] == longest[island_region]
+    region_step = np.zeros(sizes.size, dtype=np.int64)
+    region_step[island_region[chosen]] = border_step[island_border[chosen]]
+    island_step = np.where(valid, region_step[labels].reshape(valid.shape), 0).astype(np.int8)
+    islands = island_step != 0
+    return OrderIslands(islands=islands, step=island_step, regions=region_count,
+                        island_regions=int(np.count_nonzero(region_step)))
