@@ -3,7 +3,7 @@
 ``dptpu twin diagnose --measured PATH --rig RIG [--reference sphere:DIAMETER_MM | plane | scene:FILE]
 [--self-reference] [--frequency F] --out DIR`` (:mod:`dptpu.sim.diagnosis`, docs/sim-to-real.md): registration,
 residuals and their decomposition (PNG figures), candidate effects ranked by BIC, the extended rig, the re-render and
-``report.json`` / ``report.md``.
+``report.json`` / ``report.md``; a progress bar on stderr (``--quiet``: none) and a short summary on stdout.
 
 ``dptpu twin finetune --measured DATA --extended RIG --model BASE --out DIR``
 (:mod:`dptpu.experiments.downstream`): the downstream gain of the extended twin on measured data.
@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import json
 import sys
+from pathlib import Path
 
 
 def register(subparsers) -> None:
@@ -42,6 +43,7 @@ def register(subparsers) -> None:
                           help="photometric effects found greedily, the cause first (default 3)")
     diagnose.add_argument("--seed", type=int, default=0, help="seed of the twin's renders (default 0)")
     diagnose.add_argument("--no-rerender", action="store_true", help="skip rendering the twins again")
+    diagnose.add_argument("--quiet", action="store_true", help="no progress bar on stderr")
     diagnose.add_argument("--out", required=True, help="output folder")
     diagnose.set_defaults(func=run_diagnose)
 
@@ -74,9 +76,12 @@ def register(subparsers) -> None:
 
 def run_diagnose(args) -> int:
     # imported when the command runs, not at start-up: keeps `dptpu --help` fast
+    from tqdm import tqdm
+
     from dptpu.sim.diagnosis import diagnose
     from dptpu.sim.diagnosis.measured import load_measured
     from dptpu.sim.diagnosis.report import write_report
+    from dptpu.sim.diagnosis.summary import human_summary
     from dptpu.sim.rig import load_twin_rig
 
     if args.self_reference and args.reference:
@@ -100,16 +105,21 @@ def run_diagnose(args) -> int:
         elif (width, height) != (shape[1], shape[0]):
             raise ValueError(f"{args.rig}: camera size {rig.camera.size[0]}x{rig.camera.size[1]} does not match the "
                              f"measured data's {shape[1]}x{shape[0]}")
-    result = diagnose(measured, rig, reference=args.reference, self_reference=args.self_reference,
-                      max_pixels=args.max_pixels, seed=args.seed, outside_vocabulary=True,
-                      rounds=args.rounds)
-    report = write_report(result, args.out, rerender=not args.no_rerender)
-    summary = {"cause": report["cause"], "extended_rig": report["extended_rig"],
-               "effects": [{"name": e["name"], "gain": e["gain"], "named": e["evidence"]["named"]}
-                           for e in report["effects"]]}
-    if "sphere_rms_um" in report:
-        summary["sphere_rms_um"] = report["sphere_rms_um"]
-    print(json.dumps(summary, indent=2))
+    with tqdm(unit="step", file=sys.stderr, disable=args.quiet,
+              bar_format="diagnose: step {n_fmt} [{elapsed}] {desc}") as bar:
+
+        def progress(label: str) -> None:
+            bar.set_description_str(label, refresh=False)
+            bar.update(1)
+
+        result = diagnose(measured, rig, reference=args.reference, self_reference=args.self_reference,
+                          max_pixels=args.max_pixels, seed=args.seed, outside_vocabulary=True,
+                          rounds=args.rounds, progress=progress)
+        progress("writing the report" if args.no_rerender else "rendering the twins again, writing the report")
+        report = write_report(result, args.out, rerender=not args.no_rerender)
+        progress("done")
+    print(human_summary(report, result.extended_effects))
+    print(f"report: {Path(args.out) / 'report.json'}, {Path(args.out) / 'report.md'}")
     return 0
 
 

@@ -14,6 +14,7 @@
 """
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -142,6 +143,10 @@ def _recentre_orders(measured: Measured, rig: Rig, reference: Reference, fit_mas
     return best
 
 
+def _quiet(_: str) -> None:
+    """No progress report."""
+
+
 def _reference_material(reference: Reference, rig: Rig):
     if reference.kind == "scene":
         return None  # a traced scene carries its own materials
@@ -151,7 +156,8 @@ def _reference_material(reference: Reference, rig: Rig):
 
 def diagnose(measured, rig: Rig | None, *, reference=None, self_reference: bool = False, frequency=None,
              max_pixels: int = DEFAULT_MAX_PIXELS, seed: int = 0, candidates=PHOTOMETRIC,
-             outside_vocabulary: bool = False, rounds: int = 1, phase_candidates: bool = True) -> Diagnosis:
+             outside_vocabulary: bool = False, rounds: int = 1, phase_candidates: bool = True,
+             progress: Callable[[str], None] | None = None) -> Diagnosis:
     """Diagnose ``measured`` (a path or :class:`Measured`) against the twin of ``rig``.
 
     Parameters
@@ -179,8 +185,12 @@ def diagnose(measured, rig: Rig | None, *, reference=None, self_reference: bool 
     rounds : int
         Photometric effects found greedily: after the cause, each further round fits the remaining candidates
         on top of the effects found so far and adds the best significant one (``Diagnosis.additional``).
+    progress : callable, optional
+        Called with the name of each step as it starts (``dptpu twin diagnose`` shows them in a progress bar).
     """
+    step = progress if progress is not None else _quiet
     if not isinstance(measured, Measured):
+        step("reading the data")
         measured = load_measured(measured, frequency=frequency, decode=not self_reference)
     rig = None if rig is None else replace(rig, effects=())
     # the calibration error needs a reference object (a self-reference diagnosis does not report it)
@@ -208,6 +218,7 @@ def diagnose(measured, rig: Rig | None, *, reference=None, self_reference: bool 
         reference = load_scene_reference(reference, rig)
         # the silhouette's mixed pixels are the edge band of the decomposition, not evidence for an effect
         fit_mask = erode_mask(measured.valid, EDGE_BAND_PX)
+        step("registering the reference")
         if reference.kind == "scene":
             registration = register_scene(rig, reference, measured.projector_x, fit_mask,
                                           period_px=measured.extent / measured.frequency)
@@ -220,6 +231,7 @@ def diagnose(measured, rig: Rig | None, *, reference=None, self_reference: bool 
             model = registration.model_x * 2.0 * np.pi * measured.frequency / measured.extent
             phase = measured.absolute_phase
             measured.absolute_phase = phase + period * np.round((model - phase) / period)
+        step("lens_distortion")
         if reference.kind == "scene":
             lens, with_lens = fit_scene_lens_distortion(rig, reference, measured.projector_x, registration)
         else:
@@ -230,6 +242,7 @@ def diagnose(measured, rig: Rig | None, *, reference=None, self_reference: bool 
             calibration = not_identifiable("calibration_error", NOT_IDENTIFIABLE_ON_SCENE)
             with_calibration = registration
         else:
+            step("calibration_error")
             calibration, with_calibration = fit_calibration_error(rig, reference, measured.projector_x,
                                                                   registration)
             calibration["named"] = significant(calibration)
@@ -252,6 +265,7 @@ def diagnose(measured, rig: Rig | None, *, reference=None, self_reference: bool 
         else:  # a phase file: the photometric effects a 12-step phase shows, judged on the phase
 
             for candidate in PHASE_VISIBLE if phase_candidates else ():
+                step(candidate.name)
                 entry = fit_phase_candidate(measured, rig, reference, material, registration, candidate)
                 entry["named"] = significant(entry)
                 entries.append(entry)
@@ -273,14 +287,17 @@ def diagnose(measured, rig: Rig | None, *, reference=None, self_reference: bool 
                                  pixels.values)
             calibration["named"] = significant(calibration)
         for candidate in candidates:
+            step(candidate.name)
             entry = fit_photometric(pixels, candidate, refine=refine, rss_before=rss0)
             entry["named"] = significant(entry)
             entries.append(entry)
         if registration is not None:
+            step("motion")
             motion = fit_motion(pixels, identifiable_directions(rig, reference, registration.pose), refine=refine,
                                 rss_before=rss0)
             motion["named"] = significant(motion)
             entries.append(motion)
+        step("projector_response")
         entries.append(_response_entry(pixels, entries, refine=refine, rss_before=rss0))
         deterministic = [e for e in entries if e["named"]]
         best = max(deterministic, key=lambda e: e["gain"]) if deterministic else None
@@ -293,6 +310,7 @@ def diagnose(measured, rig: Rig | None, *, reference=None, self_reference: bool 
             for _ in range(max(int(rounds), 1) - 1):  # greedy: what else, on top of the effects found so far
                 if not base:
                     break
+                step(f"round {len(base) + 1}: effects on top of {', '.join(next(iter(b)) for b in base)}")
                 chosen = {next(iter(b)) for b in base}
                 if chosen & set(RESPONSE_ALTERNATIVES):  # one projector response model at a time
                     chosen |= set(RESPONSE_ALTERNATIVES)
@@ -308,6 +326,7 @@ def diagnose(measured, rig: Rig | None, *, reference=None, self_reference: bool 
                 additional.append(top)
                 base.append(effect_entry(top))
             residual_after, _, model_after = intensity_residual(pixels, base, refine=refine)
+        step("sensor_noise")
         noise = fit_sensor_noise(residual_after, model_after)
         # noise is named only when the excess variance is random: far more than any deterministic candidate
         # can explain (a small systematic misfit also raises the residual above quantization)

@@ -66,8 +66,13 @@ def test_flicker_is_named_as_the_drift_s_random_gain_not_sensor_noise(tmp_path, 
 def test_sensor_noise_is_not_taken_for_flicker(tmp_path):
     effect = {"sensor_noise": {"read_noise_dn": 2.0, "gain_dn_per_electron": 0.0}}
     folder, rig = render_measured(tmp_path / "measured", "plane", effect, seed=24)
-    result = diagnose(folder, rig, reference="plane", max_pixels=TEST_PIXELS)
+    steps: list[str] = []
+    result = diagnose(folder, rig, reference="plane", max_pixels=TEST_PIXELS, progress=steps.append)
     assert result.cause == "sensor_noise", _summary(result)
+    # the progress the CLI shows: every step once, in the order they run
+    assert steps[:3] == ["reading the data", "registering the reference", "lens_distortion"]
+    assert {"saturation", "intensity_drift", "motion", "projector_response"} <= set(steps)
+    assert steps[-1] == "sensor_noise" and len(steps) == len(set(steps))
     drift = _entry(result, "intensity_drift")
     assert drift["parameters"]["sigma"] == 0.0 and not drift["named"]
     assert drift["evidence"]["flicker_delta_bic_over_drift"] < 0

@@ -55,6 +55,24 @@ def test_cli_extended_rig_holds_the_fitted_effect_and_its_render_matches(gamma_s
     assert report["residual_rms_dn"]["extended_twin"] < 0.1 * report["residual_rms_dn"]["twin"]
 
 
+def test_cli_summary_gives_the_cause_its_gain_and_the_sphere_rms(gamma_sphere):
+    from dptpu.sim.diagnosis.summary import human_summary
+
+    _, out, _ = gamma_sphere
+    report = json.loads((out / "report.json").read_text())
+    extended = [effect.as_entry() for effect in parse_effects(list(load_rig(report["extended_rig"]).effects))]
+    lines = human_summary(report, extended).splitlines()
+    assert lines[0] == "cause: projector_gamma"
+    cause = report["effects"][0]
+    gamma_line = next(line for line in lines if line.strip().startswith("projector_gamma"))
+    assert f"gain {cause['gain']:.3f}" in gamma_line
+    assert f"gamma={cause['parameters']['gamma']:.4g}" in gamma_line
+    rms = report["sphere_rms_um"]
+    assert (f"sphere-fit RMS, interior: measured {rms['measured']:.4g} / twin {rms['twin']:.4g} / extended twin "
+            f"{rms['extended_twin']:.4g} um") in lines
+    assert lines[-1] == f"extended rig: {report['extended_rig']}" or "corrected calibration" in lines[-1]
+
+
 @pytest.mark.parametrize("argv, message", [
     (["--reference", "cone:3"], "--reference must be"),
     (["--reference", "sphere:-2"], "diameter > 0"),
