@@ -203,6 +203,8 @@ class ScanMonitorNode(Node):
         # after a LOST scan, no new start until its late messages show the pipeline moves again, or a back-off
         # (scan_timeout_s, doubling to 4x) passed: a paused node costs the scans in flight, not one per timeout
         self._lost_hold: int | None = None  # sequence_id of that LOST scan
+        self._starter: frozenset = frozenset()  # (pid, start time) of the node serving start_service
+        self._starter_checked_s = -math.inf
         self._hold_until_s = 0.0
         self._hold_s = 0.0
         self._triggers_heard = False
@@ -280,6 +282,7 @@ class ScanMonitorNode(Node):
 
     def on_timer(self) -> None:
         """Report the scans that waited too long; take Triggers once the pipeline's outputs are there."""
+        self._check_starter()
         if not self._outputs_ready and self.cloud_sub.get_publisher_count() \
                 and self.status_sub.get_publisher_count() \
                 and all(sub is None or sub.get_publisher_count() for sub in (self.phase_sub, self.truth_sub)):
@@ -332,6 +335,30 @@ class ScanMonitorNode(Node):
         self._start_call_s = now_s
         call.add_done_callback(self._on_started)
 
+    def _check_starter(self) -> None:
+        """Once a second: has the node serving ``start_service`` restarted? A new projector numbers its scans from 1
+        again, and the ids this monitor reported recently would make it take the new scans for late messages of
+        old ones: forget them."""
+        now_s = time.monotonic()
+        if self.start_client is None or now_s < self._starter_checked_s + _HEARD_RECHECK_S:
+            return
+        self._starter_checked_s = now_s
+        graph = self._graph()  # the runtime's entries: no file is read
+        service = graph.services.get(self.start_client.srv_name)
+        servers = set(service.servers) if service is not None else set()
+        starter = frozenset((node.pid, node.start_time) for node in graph.nodes
+                            if node.fully_qualified_name in servers)
+        if starter and self._starter and not starter & self._starter:
+            self.get_logger().warning(f"{self.start_client.srv_name} is served by a new process (pid "
+                                      f"{', '.join(str(pid) for pid, _ in sorted(starter))}): its scan ids start "
+                                      f"again; {len(self._pending)} scan(s) in flight reported lost")
+            for scan in list(self._pending.values()):
+                self._report(scan)
+            self._done_ids.clear()
+            self.scans_started = self.reported
+        if starter:
+            self._starter = starter
+
     def _on_started(self, future: Future) -> None:
         if future is not self._start_call:
             return  # a withdrawn call answered late: its scan is counted by its statuses, not here
@@ -352,7 +379,7 @@ class ScanMonitorNode(Node):
         """The pending record of ``sequence_id`` (made on first sight); None once it was reported."""
         if self.finished or sequence_id in self._done_ids:
             if sequence_id == self._lost_hold:  # a late message of the LOST scan: the pipeline moves again
-                self._lost_hold, self._hold_until_s = None, 0.0
+                self._lost_hold, self._hold_until_s, self._hold_s = None, 0.0, 0.0
                 self.get_logger().info(f"scan {sequence_id} (reported lost) came on late: starting scans again")
             return None
         scan = self._pending.get(sequence_id)

@@ -54,13 +54,12 @@ def correct(line: str, outcome: str) -> bool:
     return float(line.split("fringe orders ")[1].split(" %")[0]) / 100.0 >= ORDER_ACCURACY_BOUND
 
 
-def _run_of_correct(run: LaunchRun, after: int) -> tuple[bool, int]:
-    """``(five correct in a row seen, scans reported not correct)`` among the scans after sequence id ``after``."""
+def _run_of_correct(run: LaunchRun, reported_before: int) -> tuple[bool, int]:
+    """``(five correct in a row seen, scans reported not correct)`` among the scans reported after the first
+    ``reported_before`` (by position: a new projector numbers its scans from 1 again)."""
     streak = 0
     bad = 0
-    for sequence_id, _scene, outcome, line in run.scans():
-        if sequence_id <= after:
-            continue
+    for _sequence_id, _scene, outcome, line in run.scans()[reported_before:]:
         if correct(line, outcome):
             streak += 1
             if streak >= IN_A_ROW:
@@ -77,6 +76,7 @@ def inject(run: LaunchRun, node: str, fault: str, seconds: float, *, timeout: fl
     processes_before = len(run.pids(node))
     scans = run.scans()
     last_before = max((s[0] for s in scans), default=0)
+    reported_before = len(scans)
     start = time.monotonic()
     if fault == "kill":
         os.killpg(pid, signal.SIGKILL)
@@ -87,10 +87,10 @@ def inject(run: LaunchRun, node: str, fault: str, seconds: float, *, timeout: fl
         os.killpg(pid, signal.SIGCONT)
         label = f"SIGSTOP {seconds:g} s"
     resumed = time.monotonic()
-    run.wait_for(lambda lines: _run_of_correct(run, last_before)[0], timeout,
+    run.wait_for(lambda lines: _run_of_correct(run, reported_before)[0], timeout,
                  f"{IN_A_ROW} correct scans in a row after {label} of {node}")
     done = time.monotonic()
-    return Recovery(node, label, last_before, done - start, done - resumed, _run_of_correct(run, last_before)[1],
+    return Recovery(node, label, last_before, done - start, done - resumed, _run_of_correct(run, reported_before)[1],
                     len(run.pids(node)) > processes_before)
 
 
