@@ -61,6 +61,10 @@ name                   default                   meaning
                                                  needs the intensity image)
 ``max_edge_slope``     4.0                       depth step between neighbours, in pixel footprints ``z / f``, above
                                                  which a point apart from both neighbours along a line is flying
+``drop_order_islands`` true                      drop the islands of a wrong fringe order (:func:`dptpu.fpp.
+                                                 order_islands.order_islands`: regions whole orders off from the
+                                                 surface around them; the modulation test needs the intensity
+                                                 image, without it every border pair counts as smooth)
 ``normals``            true                      the fields normal_x/y/z (surface normals from the organized
                                                  neighbours, after the edge filter; toward the camera)
 ``normal_window_px``   3                         width of the window whose tangents make a normal (odd; 1 = the
@@ -78,7 +82,7 @@ apply from the next scan (``dptpu param set /cloud frame_id base_link``), checke
 refused with the reason and the old one stays.
 
 What is dropped is counted: counters ``points_low_confidence``, ``points_flying``, ``points_modulation_dip``,
-``points_beside_step``, ``points_isolated`` and the scan's status reason (level OK).
+``points_beside_step``, ``points_isolated``, ``points_on_islands`` and the scan's status reason (level OK).
 
 Fields of the cloud (:mod:`dptpu.nodes.cloud.cloud_fields`): ``x, y, z`` NaN where the pixel is invalid
 (``is_dense`` false); ``intensity`` the texture (DN) from ``/scanner/texture``, ``modulation`` the fringe
@@ -99,6 +103,7 @@ import numpy as np
 from dptpu.fpp.calibration import DeviceModel, Rig, load_rig
 from dptpu.fpp.confidence import DEFAULT_MIN_CONFIDENCE
 from dptpu.fpp.depth_edges import DEFAULT_MAX_SLOPE, edge_points
+from dptpu.fpp.order_islands import order_islands
 from dptpu.fpp.organized_normals import DEFAULT_NORMAL_WINDOW_PX, organized_normals
 from dptpu.fpp.point_cloud_file import write_point_cloud
 from dptpu.fpp.scanner_frames import IDENTITY_MOUNT, mount_pose, scanner_frames
@@ -162,7 +167,8 @@ class CloudNode(Node):
 
     Counters: ``scans_published``, ``scans_rejected``, ``ply_written``, ``pixels_nan`` (pixels marked valid whose
     absolute phase was NaN or inf), ``points_low_confidence``, ``points_flying``, ``points_beside_step``,
-    ``points_modulation_dip``, ``points_isolated`` (dropped; a point may count under several edge reasons).
+    ``points_modulation_dip``, ``points_isolated`` (dropped; a point may count under several edge reasons),
+    ``points_on_islands``.
     """
 
     def __init__(self, node_name: str = "cloud", **node_options):
@@ -180,6 +186,7 @@ class CloudNode(Node):
         self.min_confidence = rules.settable("min_confidence", DEFAULT_MIN_CONFIDENCE, check=within(0.0, 1.0))
         self.drop_edges = rules.settable("drop_edges", True)
         self.max_edge_slope = rules.settable("max_edge_slope", DEFAULT_MAX_SLOPE, check=greater_than(0.0))
+        self.drop_order_islands = rules.settable("drop_order_islands", True)
         self.normals = rules.settable("normals", True, description="the fields normal_x/y/z of the next clouds")
         self.normal_window_px = rules.settable("normal_window_px", DEFAULT_NORMAL_WINDOW_PX, check=_odd_window)
         self.mount_frame = rules.settable("mount_frame", "scanner_mount", check=frame_id,
@@ -214,6 +221,7 @@ class CloudNode(Node):
         self.points_beside_step = 0
         self.points_modulation_dip = 0
         self.points_isolated = 0
+        self.points_on_islands = 0
 
         self.points_publisher = self.create_publisher(PointCloud2, "/scanner/points", 10)
         self.depth_publisher = self.create_publisher(Image, "/scanner/depth/image", 10)
@@ -341,6 +349,7 @@ class CloudNode(Node):
         texture = self._side_images.take("texture", stamp_ns, shape)  # (H, W) float32 DN, or None
         modulation = self._side_images.take("modulation", stamp_ns, shape)
         edge_counts = self._drop_edges(planes, modulation, triangulator)
+        on_islands = self._drop_islands(planes, msg.absolute_phase, np.isfinite(coord), modulation)
         confidence = np.where(np.isfinite(planes[2]), msg.reliability, np.float32(0.0)).astype(np.float32, copy=False)
         channels = [planes[0], planes[1], planes[2], _or_nan(texture, shape), _or_nan(modulation, shape), confidence]
         if self.normals:
@@ -368,6 +377,8 @@ class CloudNode(Node):
             notes.append(f"{edge_counts['total']} points at depth edges dropped ({edge_counts['flying']} flying, "
                          f"{edge_counts['beside_step']} beside a step, {edge_counts['modulation_dip']} modulation "
                          f"dips, {edge_counts['isolated']} isolated)")
+        if on_islands:
+            notes.append(f"{on_islands} points on islands of a wrong fringe order dropped")
         reasons = []
         if nan_pixels:
             self.pixels_nan += nan_pixels
@@ -406,6 +417,20 @@ class CloudNode(Node):
         self.points_modulation_dip += counts["modulation_dip"]
         self.points_isolated += counts["isolated"]
         return counts
+
+    def _drop_islands(self, planes: np.ndarray, absolute_phase: np.ndarray, valid: np.ndarray,
+                      modulation: np.ndarray | None) -> int:
+        """Blank (NaN) the points in ``planes`` (3, H, W) on islands of a wrong fringe order, found among the
+        ``valid`` pixels (those with an order, before the edge filter); how many (counter too)."""
+        if not self.drop_order_islands:
+            return 0
+        b = np.ones(valid.shape, np.float32) if modulation is None else modulation
+        island = order_islands(absolute_phase, b, valid).islands
+        np.logical_and(island, np.isfinite(planes[2]), out=island)
+        planes[:, island] = np.nan
+        count = int(np.count_nonzero(island))
+        self.points_on_islands += count
+        return count
 
     def _triangulator(self, axis: str) -> Triangulator:
         """The rig's triangulation tables for ``axis`` (rays, projector distortion), made once per rig, and one

@@ -259,3 +259,34 @@ def test_outside_rig_scan_drops_low_confidence_and_depth_edges_and_publishes_the
     for sphere in range(1, len(capture.scene.spheres) + 1):
         on = (which == sphere) & np.isfinite(angle_deg)
         assert np.median(angle_deg[on]) < 2.5 and np.percentile(angle_deg[on], 90) < 6.0
+
+
+@pytest.mark.parametrize("drop", [True, False])
+def test_a_patch_one_fringe_order_off_is_dropped_as_an_island(harness, tmp_path, scene, drop):
+    """A 10 x 12 pixel patch of the plane one order off (as a network's wrong patch: self-consistent, a 2 pi jump
+    all around, the modulation unbroken): its points are not published, and counted; drop_order_islands false
+    publishes them, 2 pi of phase off the plane."""
+    node, source, intensity, points, _depth, status = start(harness, save_rig(scene.rig, tmp_path / "rig.yaml"),
+                                                            drop_order_islands=drop, intensity_wait_s=5.0)
+    msg = absolute_phase(scene)
+    patch = np.zeros(msg.absolute_phase.shape, bool)
+    patch[50:60, 70:82] = True
+    msg.absolute_phase[patch] += np.float32(2 * np.pi)
+    source.publish(msg)
+    intensity.publish(Image.from_array(np.full(patch.shape, 60.0, np.float32), "32FC1",
+                                       header=Header(stamp=STAMP, frame_id="camera")))
+    (cloud,) = harness.wait(points, 1)
+    z = cloud.to_array(["z"])[..., 0]
+    around = np.zeros(patch.shape, bool)
+    around[48:62, 68:84] = True  # the patch and the two pixels around it, beside its depth step
+    if drop:
+        assert np.isnan(z[patch]).all() and np.isfinite(z[~around]).all()
+        assert node.points_on_islands == 80  # 120 less the patch's rim of 40, which the edge filter took first
+        (done,) = harness.wait(status, 1)
+        assert "80 points on islands of a wrong fringe order dropped" in done.reason
+    else:
+        inner = np.zeros(patch.shape, bool)
+        inner[51:59, 71:81] = True  # the patch but its rim (beside the step: the edge filter's)
+        assert np.isfinite(z[inner]).all() and np.isfinite(z[~around]).all() and node.points_on_islands == 0
+        depth_step = np.nanmedian(z[inner]) - np.nanmedian(z[45:65, 90:100])
+        assert abs(depth_step) > 0.01  # published one fringe period (tens of mm) off the plane
