@@ -360,7 +360,7 @@ def test_reader_refuses_other_schema_versions_and_malformed_records(tmp_path):
     good = msgpack_records.pack_message(sample_messages()["/projector/trigger"])
     _raw_scanner_file(tmp_path / "v9.mcap", {"version": 9}, good)
     with pytest.raises(McapReadError, match="schema version mismatch for dptpu_msgs/msg/Trigger: the file has "
-                                            "version 9, this build has 1"):
+                                            f"version 9, this build has {Trigger.SCHEMA_VERSION}"):
         list(read_mcap(tmp_path / "v9.mcap"))
     _raw_scanner_file(tmp_path / "ok.mcap", {}, good)
     assert [record.message for record in read_mcap(tmp_path / "ok.mcap")] == [sample_messages()["/projector/trigger"]]
