@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import zipfile
 from collections.abc import Sequence
 
 import cv2
@@ -104,13 +105,22 @@ def load_ground_truth(capture: Capture) -> GroundTruth:
     if capture.ground_truth is None:
         raise ValueError(f"{capture.root / CAPTURE_FILE}: the capture declares no ground_truth")
     path = capture.ground_truth
-    with np.load(path) as data:
-        missing = [k for k in GROUND_TRUTH_KEYS if k not in data.files]
-        if missing:
-            raise ValueError(f"{path.name}: missing key(s) {missing}; a ground-truth npz holds "
-                             f"projector_x (H, W) float32 and valid (H, W) bool; got {sorted(data.files)}")
-        projector_x = np.asarray(data["projector_x"], dtype=np.float32)
-        valid = np.asarray(data["valid"])
+    if not zipfile.is_zipfile(path):  # np.load would take other bytes for a pickle, or a single .npy array
+        raise ValueError(f"{path}: not a ground-truth .npz (a zip archive of .npy arrays, np.savez)")
+    try:
+        with np.load(path, allow_pickle=False) as data:
+            missing = [k for k in GROUND_TRUTH_KEYS if k not in data.files]
+            if missing:
+                raise ValueError(f"{path.name}: missing key(s) {missing}; a ground-truth npz holds "
+                                 f"projector_x (H, W) float32 and valid (H, W) bool; got {sorted(data.files)}")
+            projector_x = np.asarray(data["projector_x"], dtype=np.float32)
+            valid = np.asarray(data["valid"])
+    except (OSError, EOFError, zipfile.BadZipFile) as exc:  # not a zip, cut short, a folder, unreadable
+        raise ValueError(f"{path}: not a readable ground-truth .npz ({str(exc) or type(exc).__name__})") from None
+    except ValueError as exc:
+        if str(exc).startswith(path.name):
+            raise
+        raise ValueError(f"{path}: not a readable ground-truth .npz ({exc})") from None
     for name, array in (("projector_x", projector_x), ("valid", valid)):
         if array.shape != capture.image_shape:
             raise ValueError(f"{path.name}: {name} must have the camera's shape (H, W) = "

@@ -330,6 +330,16 @@ def test_ground_truth_of_the_wrong_shape(tmp_path):
         load_ground_truth(read_capture(tmp_path))
 
 
+def test_ground_truth_that_is_not_an_npz_names_the_file(tmp_path):
+    """np.load took other bytes for a pickle and failed with a message about pickles, naming no file (issue 19)."""
+    capture, _ = _write_small(tmp_path)
+    _edit_yaml(tmp_path, lambda d: d.update(ground_truth="gt.npz"))
+    for content in (b"garbage\n", b"PK\x03\x04 cut short"):
+        (tmp_path / "gt.npz").write_bytes(content)
+        with pytest.raises(ValueError, match=r"gt\.npz: not a (readable )?ground-truth \.npz"):
+            load_ground_truth(read_capture(tmp_path))
+
+
 def test_write_capture_rejects_mixed_frame_formats(tmp_path):
     rng = np.random.default_rng(0)
     with pytest.raises(ValueError, match=r"all frames of a capture must share one dtype and size"):
