@@ -85,6 +85,25 @@ def test_one_subscriber_that_cannot_map_gets_everything_through_zeromq(context, 
         assert event["equal"] and not event["shared"]
 
 
+def test_a_slow_subscriber_never_reads_a_segment_being_written_again(spawn):
+    slow = spawn("shm_peer", "--role", "sub", "--delay", "0.05", "--linger", "30")
+    slow.wait_event("ready", timeout=20.0)
+    publisher = spawn("shm_peer", "--role", "pub", "--count", "12", "--period", "0.005", "--wait-subs", "1",
+                      "--linger", "10")
+    report = publisher.wait_event("published", timeout=30.0)
+    assert report["shared"] == dict.fromkeys(TOPICS, 12)  # all through shared memory, far faster than it reads
+    events = []
+    deadline = time.monotonic() + 30.0
+    while time.monotonic() < deadline:  # it reads what its queues kept (depth 10: the oldest were dropped)
+        try:
+            events.append(slow.wait_event("received", timeout=2.0))
+        except AssertionError:
+            break
+    assert len(events) >= 10 * len(TOPICS) // 2
+    assert all(event["equal"] and event["shared"] for event in events)  # each one read after 50 ms, intact
+    assert max(event["round"] for event in events) == 11
+
+
 def _memfd_maps(pid: int) -> int:
     return sum("memfd:dptpu" in line for line in Path(f"/proc/{pid}/maps").read_text().splitlines())
 

@@ -4,7 +4,8 @@
 each, publishes ``--count`` rounds (round ``r`` is ``large_messages(r)``, ``--period`` s apart), prints
 ``{"event": "published", "shared": {topic: shared_count}, "published": {topic: published_count}}``, lingers.
 ``--role sub``: subscribes to every topic and prints ``{"event": "received", "topic", "round", "equal",
-"shared"}`` per message (``equal``: bit for bit the message of that round). Prints ``{"event": "ready"}`` first.
+"shared"}`` per message (``equal``: bit for bit the message of that round, checked after ``--delay`` s).
+Prints ``{"event": "ready"}`` first.
 """
 
 import argparse
@@ -95,6 +96,7 @@ def main(argv=None):
     parser.add_argument("--period", type=float, default=0.0)
     parser.add_argument("--wait-subs", type=int, default=1)
     parser.add_argument("--linger", type=float, default=30.0)
+    parser.add_argument("--delay", type=float, default=0.0, help="sub: seconds each callback takes (a slow one)")
     options = parser.parse_args(rclpy.remove_ros_args(argv)[1:])
     rclpy.init(args=argv)
     node = rclpy.create_node(f"shm_{options.role}")
@@ -117,6 +119,7 @@ def main(argv=None):
             expected: dict = {}
 
             def on_message(topic, msg):
+                time.sleep(options.delay)  # a slow subscriber: the publisher goes on writing meanwhile
                 index = round_of(msg)
                 if index not in expected:
                     expected[index] = large_messages(index)
