@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 import zipfile
 from collections.abc import Sequence
 
@@ -50,6 +51,8 @@ def load_image(capture: Capture, path) -> np.ndarray:
     path = resolve_path(capture.root, str(path))
     if not path.is_file():
         raise FileNotFoundError(f"{path}: no such image file")
+    if not os.access(path, os.R_OK):  # OpenCV returns None for it as for a broken file: say which it is
+        raise ValueError(f"{path}: cannot read the image (permission denied)")
     image = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
     if image is None:
         raise ValueError(f"{path.name}: not an image OpenCV can read ({path})")
