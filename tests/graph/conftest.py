@@ -118,7 +118,7 @@ def private_domain_env(monkeypatch, prefix: str, domain_id: int):
     folder = tempfile.mkdtemp(prefix=prefix, dir="/tmp")
     values = {"DPTPU_DISCOVERY_DIR": folder, "DPTPU_DOMAIN_ID": str(domain_id)}
     for name in ("ROS_DOMAIN_ID", "DPTPU_TRANSPORT", "DPTPU_TCP_INTERFACE", "DPTPU_CURVE_SECRET_KEY",
-                 "DPTPU_CURVE_AUTHORIZED_KEYS", "DPTPU_PEERS", "DPTPU_DISCOVERY_PORT"):
+                 "DPTPU_CURVE_AUTHORIZED_KEYS", "DPTPU_CURVE", "DPTPU_PEERS", "DPTPU_DISCOVERY_PORT"):
         monkeypatch.delenv(name, raising=False)
     for name, value in values.items():
         monkeypatch.setenv(name, value)
