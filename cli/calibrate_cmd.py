@@ -2,12 +2,18 @@
 
     dptpu calibrate POSE_DIRS... --board COLSxROWS:SQUARE_MM --out rig.yaml
     dptpu calibrate --twin --rig RIG [--poses N] [--size WIDTHxHEIGHT] --board ... --out rig.yaml [--keep DIR]
+    dptpu calibrate hand-eye VIEWS.yaml --rig RIG --board COLSxROWS:SQUARE_MM --out mount.yaml
 
 A pose folder holds the captures ``x/`` and ``y/`` (docs/calibration.md); a folder of pose folders stands for all
 of them. With ``--twin`` the poses are rendered in the twin of ``--rig RIG`` first and the result is compared with it
 (the round trip of :mod:`dptpu.sim.calibrate`). Shows progress bars (tqdm, stderr; ``--quiet``: none), prints the
 reprojection error of each device (overall and per pose), writes a ``dptpu-rig/1`` file (world = camera frame, mm)
 and ends with a one-line summary.
+
+``hand-eye``: where the scanner sits on a robot (eye-in-hand) or beside it (eye-to-hand), from a ``dptpu-hand-eye/1``
+views file (the flange pose at each board capture; :mod:`dptpu.fpp.hand_eye_file`) and the camera model of the
+scanner's ``--rig`` (:mod:`dptpu.fpp.hand_eye`); writes the cloud node's ``mount_frame`` and ``mount_transform`` as a
+ROS 2 parameter file (its ``/tf_static``, docs/ros2.md).
 """
 from __future__ import annotations
 
@@ -23,17 +29,19 @@ def register(subparsers) -> None:
                     "vertical and horizontal fringes at the board corners, then the pair (docs/calibration.md).")
     parser.add_argument("pose_dirs", nargs="*", metavar="POSE_DIR",
                         help="calibration pose folders (each with x/ and y/ dptpu-capture/1 folders), or folders "
-                             "of them")
+                             "of them; or 'hand-eye VIEWS.yaml' for a hand-eye calibration (below)")
     parser.add_argument("--board", required=True,
                         help="COLSxROWS:SQUARE_MM: inner corners and square edge, e.g. 10x8:13")
-    parser.add_argument("--out", required=True, help="rig file to write (dptpu-rig/1 YAML)")
+    parser.add_argument("--out", required=True,
+                        help="rig file to write (dptpu-rig/1 YAML); with hand-eye: the mount file (ROS 2 parameters)")
     parser.add_argument("--window", type=int, default=6,
                         help="half-size in camera pixels of the local homography around each corner (default 6)")
     twin = parser.add_argument_group("twin round trip (instead of POSE_DIRs)")
     twin.add_argument("--twin", action="store_true",
                       help="render the poses in the twin of --rig and compare the result with it")
     twin.add_argument("--rig", metavar="RIG", help="the twin's rig: dptpu-rig/1 or OpenCV file, 'CAM.mat,PRJ.mat' "
-                                                   "(Bouguet) or 'nominal'")
+                                                   "(Bouguet) or 'nominal'; with hand-eye: the scanner's rig file "
+                                                   "(its camera's intrinsics and distortion)")
     twin.add_argument("--poses", type=int, default=10, help="board poses to render (default 10)")
     twin.add_argument("--size", default=None, help="camera size WIDTHxHEIGHT for the render (default: the rig's)")
     twin.add_argument("--frequency", type=float, default=16.0, help="fringe frequency of both directions (default 16)")
@@ -41,6 +49,10 @@ def register(subparsers) -> None:
     twin.add_argument("--seed", type=int, default=0, help="seed of the board poses (default 0)")
     twin.add_argument("--keep", metavar="DIR",
                       help="write the rendered pose folders here (default: a temporary folder, deleted at the end)")
+    hand_eye = parser.add_argument_group("hand-eye calibration (dptpu calibrate hand-eye VIEWS.yaml --rig RIG --board "
+                                         "... --out mount.yaml)")
+    hand_eye.add_argument("--camera-frame", default="",
+                          help="also write the cloud's frame_id (the camera optical frame; default: leave it)")
     parser.add_argument("--quiet", action="store_true", help="no progress bars")
     parser.set_defaults(func=run)
 
@@ -51,6 +63,8 @@ def run(args) -> int:
     from dptpu.fpp.rig_calibration import calibrate_from_folders, parse_board
 
     board = parse_board(args.board)
+    if args.pose_dirs and args.pose_dirs[0] == "hand-eye":
+        return _run_hand_eye(args, board)
     if args.twin and args.rig is None and len(args.pose_dirs) == 1:  # the old spelling --twin RIG
         raise ValueError(f"--twin takes no value now: write --twin --rig {args.pose_dirs[0]} (one name for a rig "
                          f"file in every command)")
@@ -92,6 +106,49 @@ def _run_twin(args, board) -> int:
     print(summary_line(result, args.out) + f"; against the twin: baseline error {baseline['error_mm']:.3f} mm, "
           f"focal error camera {report['camera']['focal_error_percent']:.2f} %, projector "
           f"{report['projector']['focal_error_percent']:.2f} %")
+    return 0
+
+
+def _run_hand_eye(args, board) -> int:
+    # imported when the command runs, not at start-up: keeps `dptpu --help` fast
+    import numpy as np
+    from scipy.spatial.transform import Rotation
+    from tqdm import tqdm
+
+    from dptpu.fpp.calibration import load_rig
+    from dptpu.fpp.hand_eye import calibrate_hand_eye
+    from dptpu.fpp.hand_eye_file import load_board_image, read_hand_eye_views, write_mount_file
+    from dptpu.fpp.rig_calibration import find_board_corners
+
+    if len(args.pose_dirs) != 2:
+        raise ValueError(f"dptpu calibrate hand-eye takes one views file (dptpu-hand-eye/1); got "
+                         f"{len(args.pose_dirs) - 1}: {' '.join(args.pose_dirs[1:]) or 'none'}")
+    if args.twin:
+        raise ValueError("--twin is a rig calibration's; hand-eye takes a views file and --rig")
+    if not args.rig:
+        raise ValueError("dptpu calibrate hand-eye needs --rig RIG (the scanner's rig file: the camera's model)")
+    views = read_hand_eye_views(args.pose_dirs[1])
+    camera = load_rig(args.rig).camera
+    corners = []
+    for capture in tqdm(views.captures, desc="finding the board", unit="view", disable=args.quiet, file=sys.stderr):
+        image = load_board_image(capture)
+        if (image.shape[1], image.shape[0]) != tuple(camera.size):
+            raise ValueError(f"{capture}: the image is {image.shape[1]}x{image.shape[0]}; the rig's camera is "
+                             f"{camera.size[0]}x{camera.size[1]}")
+        corners.append(find_board_corners(image, board, where=str(capture)))
+    result = calibrate_hand_eye(views.flange_poses, corners, board, camera, setup=views.setup)
+    write_mount_file(args.out, result, views, camera_frame=args.camera_frame)
+    parent = views.flange_frame if views.setup == "eye-in-hand" else views.base_frame
+    x_mm = result.mount[:3, 3] * 1e3
+    rpy = Rotation.from_matrix(result.mount[:3, :3]).as_euler("xyz", degrees=True)
+    print("initial values (reprojection RMS): " + ", ".join(
+        f"{name} {rms:.3f} px" for name, rms in sorted(result.initial_rms_px.items(), key=lambda item: item[1])))
+    for capture, rms in zip(views.captures, result.view_rms_px):
+        print(f"  {capture.name}: {rms:.4f} px")
+    print(f"camera optical frame in {parent}: x {x_mm[0]:.3f} mm, y {x_mm[1]:.3f} mm, z {x_mm[2]:.3f} mm; "
+          f"roll {rpy[0]:.4f}, pitch {rpy[1]:.4f}, yaw {rpy[2]:.4f} deg (fixed axes x, y, z)")
+    print(f"hand-eye ({views.setup}) from {len(corners)} views -> {args.out}: reprojection RMS {result.rms_px:.3f} px "
+          f"(worst view {float(np.max(result.view_rms_px)):.3f} px); mount_frame {parent}")
     return 0
 
 
