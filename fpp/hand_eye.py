@@ -38,6 +38,7 @@ from dataclasses import dataclass, field
 
 import cv2
 import numpy as np
+from numpy.typing import ArrayLike
 from scipy.optimize import least_squares
 from scipy.spatial.transform import Rotation
 
@@ -57,7 +58,7 @@ _AX_ZB = {"shah": cv2.CALIB_ROBOT_WORLD_HAND_EYE_SHAH, "li": cv2.CALIB_ROBOT_WOR
 MIN_VIEWS = 3
 
 
-def rigid(R: np.ndarray, t: np.ndarray) -> np.ndarray:
+def rigid(R: np.ndarray, t: ArrayLike) -> np.ndarray:
     """The 4x4 matrix ``[[R, t], [0, 1]]``."""
     out = np.eye(4)
     out[:3, :3], out[:3, 3] = R, np.asarray(t, dtype=np.float64).reshape(3)

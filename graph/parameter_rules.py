@@ -55,7 +55,7 @@ class ParameterRules:
         The node whose parameters these are; create the rules before declaring any parameter through them.
     """
 
-    def __init__(self, node):
+    def __init__(self, node) -> None:
         self._node = node
         self._rules: dict[str, _Rule] = {}
         node.add_on_set_parameters_callback(self._check)
