@@ -20,6 +20,8 @@ When every subscriber is a process of this host that can map this one's memory, 
 least ``DPTPU_SHM_MIN_BYTES`` goes through shared memory: its arrays are copied once into a segment of this
 publisher's pool and ZeroMQ carries the header and a descriptor (:mod:`.shared_memory`, :mod:`.segment_pool`).
 A TRANSIENT_LOCAL publisher always sends through ZeroMQ (its history is replayed to late joiners).
+A writer that fills its arrays in place can borrow them in a segment (:meth:`Publisher.borrow_loaned_arrays`, as
+rclpy's ``borrow_loaned_message``): publishing a message made of them copies nothing.
 """
 
 from __future__ import annotations
@@ -29,6 +31,7 @@ import time
 import uuid
 from collections import deque
 
+import numpy as np
 import zmq
 
 from ..messages.encoder import encode
@@ -104,6 +107,7 @@ class Publisher:
         self._shm_min_bytes = shared.min_bytes if shared is not None else 0
         self._shm_subscriber_count = 0
         self.shared_count = 0
+        self._loans: dict[tuple, tuple] = {}  # ((address, nbytes) of each array) -> (segment, entries, arrays)
         # (sequence number, stamp in ns, encoded frames) of the last messages, replayed to late joiners
         self._history: deque[tuple[int, int, list]] | None = (
             deque(maxlen=queue_limit(resolved)) if self._transient else None)
@@ -154,7 +158,9 @@ class Publisher:
             stamp_ns = time.time_ns()
             if self._pool is not None and len(frames) > 2:
                 self._handle_events_locked()  # current counts of subscribers (and of those who can map)
-                _send(sock, self._shared_frames(frames), pack_envelope(0, self._seq, stamp_ns, self.gid))
+                loan = self._loans.pop(_addresses(frames), None) if self._loans else None
+                head = self._shared_frames(frames) if loan is None else self._loaned_frames(frames, loan)
+                _send(sock, head, pack_envelope(0, self._seq, stamp_ns, self.gid))
             else:
                 _send(sock, frames, pack_envelope(0, self._seq, stamp_ns, self.gid))
             self.published_count += 1
@@ -173,6 +179,62 @@ class Publisher:
             return frames  # pool full (every segment held by a subscriber): through ZeroMQ
         self.shared_count += 1
         return [self._shm_topic, frames[1], descriptor]
+
+    def _loaned_frames(self, frames: list, loan: tuple) -> list:
+        """``[shm topic, header, descriptor]`` of a message made of loaned arrays (no copy); or, when a subscriber
+        cannot map, the frames with the arrays copied out, and the segment taken back."""
+        segment, entries, arrays = loan
+        for array in arrays:
+            array.flags.writeable = False  # the message's now: a subscriber may be reading it
+        readers, pool = self._subscriber_count, self._pool
+        if pool is None:
+            return frames
+        if not readers or self._shm_subscriber_count < readers:
+            copied = [*frames[:2], *(bytes(view) for view in frames[2:])]  # the segment goes back to the pool
+            pool.cancel_loan(segment)
+            return copied
+        self.shared_count += 1
+        return [self._shm_topic, frames[1], pool.publish_loan(segment, entries, readers)]
+
+    def borrow_loaned_arrays(self, specs) -> list[np.ndarray]:
+        """Writable arrays in one shared-memory segment, to fill in place and publish without a copy.
+
+        As rclpy's ``borrow_loaned_message``: build the message from exactly these arrays, in this order (e.g.
+        ``cv2.merge(channels, dst=cloud)`` then ``PointCloud2.from_array(cloud, ...)``) and :meth:`publish` it;
+        the arrays are read-only from then on. Without shared memory (off, over tcp, a TRANSIENT_LOCAL
+        publisher, a full pool) they are plain arrays and the message goes as any other. Give back arrays that
+        will not be published with :meth:`return_loaned_arrays`.
+
+        Parameters
+        ----------
+        specs : sequence of (shape, dtype)
+            One entry per array, in the order the message's encoding lists them.
+
+        Returns
+        -------
+        list of ndarray
+            C-contiguous, uninitialized, each starting at a 64-byte boundary.
+        """
+        specs = [(tuple(int(n) for n in shape), np.dtype(dtype)) for shape, dtype in specs]
+        sizes = [int(np.prod(shape)) * dtype.itemsize for shape, dtype in specs]
+        with self._lock:
+            loan = self._pool.loan(sizes) if self._pool is not None and self._socket is not None else None
+            if loan is None:
+                return [np.empty(shape, dtype) for shape, dtype in specs]
+            segment, entries = loan
+            arrays = [segment.array[offset:offset + nbytes].view(dtype).reshape(shape)
+                      for (offset, nbytes), (shape, dtype) in zip(entries, specs)]
+            key = tuple((array.ctypes.data, nbytes) for array, (_, nbytes) in zip(arrays, entries))
+            self._loans[key] = (segment, entries, arrays)
+        return arrays
+
+    def return_loaned_arrays(self, arrays) -> None:
+        """Give back arrays of :meth:`borrow_loaned_arrays` that will not be published (nothing for plain ones)."""
+        key = tuple((array.ctypes.data, array.nbytes) for array in arrays)
+        with self._lock:
+            loan = self._loans.pop(key, None)
+            if loan is not None and self._pool is not None:
+                self._pool.cancel_loan(loan[0])
 
     def get_subscription_count(self) -> int:
         """Subscriptions connected now (as the socket has seen them join and leave)."""
@@ -236,6 +298,7 @@ class Publisher:
             sock, self._socket = self._socket, None
             if self._history is not None:
                 self._history.clear()
+            self._loans.clear()
         if sock is not None:
             sock.close(linger=PUBLISHER_LINGER_MS)
             if self._pool is not None:
@@ -251,3 +314,8 @@ class Publisher:
 
     def __repr__(self):
         return f"<Publisher {self.topic_name} [{self.msg_type.TYPE_NAME}]>"
+
+
+def _addresses(frames: list) -> tuple:
+    """``((address, nbytes), ...)`` of a message's array frames: the key of a loan made of exactly them."""
+    return tuple((np.frombuffer(view, dtype=np.uint8).ctypes.data, view.nbytes) for view in frames[2:])

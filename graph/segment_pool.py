@@ -42,7 +42,7 @@ def _aligned(nbytes: int) -> int:
 class _Segment:
     """One memfd segment: its descriptor, read-write map, identity and the state of its last write."""
 
-    __slots__ = ("fd", "view", "array", "size", "inode", "token", "generation", "readers", "written_at")
+    __slots__ = ("fd", "view", "array", "size", "inode", "token", "generation", "readers", "written_at", "loaned")
 
     def __init__(self, size: int, label: str):
         self.fd = os.memfd_create(label, os.MFD_CLOEXEC)
@@ -60,6 +60,7 @@ class _Segment:
         self.generation = 0
         self.readers = 0
         self.written_at = float("-inf")
+        self.loaned = False  # lent to a writer that fills it in place (exclusively locked until it is published)
         self.view[:8] = SEGMENT_MAGIC
         self.view[8:24] = self.token
 
@@ -69,7 +70,7 @@ class _Segment:
     def free(self, now: float, lease_s: float) -> bool:
         """No descriptor of it is pending (picked up by all, or the lease passed) and no reader holds it: then
         this holds its exclusive lock (let go by :meth:`unlock`)."""
-        if self.readers > self.pickups() and now - self.written_at < lease_s:
+        if self.loaned or (self.readers > self.pickups() and now - self.written_at < lease_s):
             return False
         try:
             fcntl.flock(self.fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
@@ -82,7 +83,10 @@ class _Segment:
 
     def close(self) -> None:
         del self.array
-        self.view.close()
+        try:
+            self.view.close()
+        except BufferError:
+            pass  # a writer still holds a loaned array of it: the map goes with the last such array
         os.close(self.fd)
 
 
@@ -152,6 +156,40 @@ class SegmentPool:
         self.written_count += 1
         return pack_descriptor(os.getpid(), segment.fd, segment.inode, segment.token, segment.generation,
                                segment.size, entries)
+
+    def loan(self, sizes) -> tuple | None:
+        """A free segment for arrays of ``sizes`` bytes, held for a writer that fills it in place: ``(segment,
+        entries)`` with each array's ``(offset, nbytes)``, or None when the pool is full. Then
+        :meth:`publish_loan` or :meth:`cancel_loan`."""
+        need = HEADER_BYTES + sum(_aligned(n) for n in sizes)
+        segment = self._take(need, time.monotonic())
+        if segment is None:
+            self.full_count += 1
+            return None
+        segment.loaned = True
+        entries, offset = [], HEADER_BYTES
+        for nbytes in sizes:
+            entries.append((offset, nbytes))
+            offset += _aligned(nbytes)
+        return segment, entries
+
+    def publish_loan(self, segment: _Segment, entries, readers: int) -> bytes:
+        """The descriptor of a loaned segment the writer has filled (the arrays are not copied)."""
+        segment.generation += 1
+        segment.view[GENERATION_OFFSET:GENERATION_OFFSET + 8] = segment.generation.to_bytes(8, "little")
+        segment.view[PICKUPS_OFFSET:PICKUPS_OFFSET + 8] = bytes(8)
+        segment.readers = readers
+        segment.written_at = time.monotonic()
+        segment.loaned = False
+        segment.unlock()
+        self.written_count += 1
+        return pack_descriptor(os.getpid(), segment.fd, segment.inode, segment.token, segment.generation,
+                               segment.size, entries)
+
+    def cancel_loan(self, segment: _Segment) -> None:
+        """Take back a loaned segment that was not published."""
+        segment.loaned = False
+        segment.unlock()
 
     def _take(self, need: int, now: float) -> _Segment | None:
         """A free segment of ``need`` to ``2 * need`` bytes, exclusively locked, moved to the end; or a new one."""

@@ -13,6 +13,9 @@ import signal
 import time
 from pathlib import Path
 
+import numpy as np
+import pytest
+
 from dptpu.graph import Node, SingleThreadedExecutor, shared_memory
 
 from .nodes.shm_peer import first_array, is_shared, large_messages, round_of, same_message
@@ -162,3 +165,34 @@ def test_a_killed_subscriber_leaves_no_segment_and_the_publisher_goes_on(context
     assert report["published"] == dict.fromkeys(TOPICS, 20) and report["shared"] == shared
     gc.collect()
     assert sorted(os.listdir("/dev/shm")) == before
+
+
+@pytest.mark.parametrize("subscriber_shm", ["auto", "off"])
+def test_loaned_arrays_are_published_without_a_copy_or_copied_out_for_a_subscriber_that_cannot_map(
+        context, spawn, subscriber_shm):
+    from dptpu.messages import Image
+
+    subscriber = spawn("shm_peer", "--role", "sub", "--linger", "20", env={"DPTPU_SHM": subscriber_shm})
+    subscriber.wait_event("ready", timeout=20.0)
+    node = Node("loaner", context=context)
+    publisher = node.create_publisher(Image, "/shm/mono16", 10)
+    assert publisher.wait_for_subscriptions(1, timeout_sec=20.0)
+
+    def no_copy(*args, **kwargs):
+        raise AssertionError("a loaned message was copied into a segment")
+
+    publisher._pool.write = no_copy
+    for index in range(3):
+        expected = large_messages(index)["/shm/mono16"]
+        (pixels,) = publisher.borrow_loaned_arrays([((480, 640), np.uint16)])
+        np.copyto(pixels, expected.to_array())  # the writer fills the loaned array in place
+        publisher.publish(Image.from_array(pixels, "mono16", header=expected.header))
+        assert not pixels.flags.writeable  # the subscribers' now
+        event = subscriber.wait_event("received", timeout=20.0)
+        assert (event["topic"], event["round"], event["equal"]) == ("/shm/mono16", index, True)
+        assert event["shared"] == (subscriber_shm == "auto")
+    assert publisher.shared_count == (3 if subscriber_shm == "auto" else 0)
+    assert publisher._pool.segment_count <= 2  # a segment copied out (or let go by the reader) serves again
+    (unused,) = publisher.borrow_loaned_arrays([((480, 640), np.uint16)])
+    publisher.return_loaned_arrays([unused])
+    assert not publisher._loans
