@@ -12,7 +12,8 @@ while the fringe modulation runs on unbroken across it, as on any smooth surface
 :func:`order_islands` finds such patches:
 
 1. **Regions.** Neighbouring valid pixels (4-connected) are linked where ``|Phi_b - Phi_a| < pi``; the connected
-   components of these links are the order-consistent regions (``scipy.sparse.csgraph.connected_components``).
+   components of these links are the order-consistent regions (OpenCV's connected components on a grid of pixels
+   and links).
 2. **Borders.** Each unlinked neighbour pair joins two regions; ``s = Round((Phi_R - Phi_Q) / 2 pi)`` is the order
    step of the pair, ``R`` the smaller region. A pair is *smooth* where neither pixel's modulation ``B`` dips below
    ``min_modulation_ratio`` times the brightest modulation within two pixels: at an occlusion the two surfaces'
@@ -51,8 +52,6 @@ from dataclasses import dataclass
 
 import cv2
 import numpy as np
-from scipy.sparse import coo_matrix
-from scipy.sparse.csgraph import connected_components
 
 __all__ = ["DEFAULT_MAX_ISLAND_SHARE", "DEFAULT_MIN_MODULATION_RATIO", "DEFAULT_MIN_PAIRS", "DEFAULT_MIN_SHARE",
            "OrderIslands", "order_islands"]
@@ -92,15 +91,42 @@ class OrderIslands:
     island_regions: int
 
 
-def _neighbour_pairs(valid: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Flat indices ``(a, b)`` of the horizontally and vertically neighbouring pixel pairs, both valid."""
-    height, width = valid.shape
-    index = np.arange(height * width).reshape(height, width)
-    a = np.concatenate([index[:, :-1].ravel(), index[:-1, :].ravel()])
-    b = np.concatenate([index[:, 1:].ravel(), index[1:, :].ravel()])
-    flat = valid.ravel()
-    both = flat[a] & flat[b]
-    return a[both], b[both]
+def _order_regions(phi: np.ndarray, valid: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Order-consistent regions and the broken neighbour pairs between them.
+
+    The pixel grid is drawn at twice its resolution: pixel ``(r, c)`` at ``(2r, 2c)``, the link to its right
+    neighbour at ``(2r, 2c + 1)``, to the one below at ``(2r + 1, 2c)``, each set where both pixels are valid and
+    ``|Phi_b - Phi_a| < pi``; OpenCV's 4-connected components of that grid are exactly the components of the links.
+
+    Returns
+    -------
+    labels : ndarray (H, W) int32
+        Region of each pixel, 0 where not valid.
+    a, b : ndarray (P,) int64
+        Flat indices of the valid neighbour pairs whose link is broken (``|Phi_b - Phi_a| >= pi``).
+    difference : ndarray (P,) float64
+        ``Phi_b - Phi_a`` of those pairs.
+    """
+    height, width = phi.shape
+    with np.errstate(invalid="ignore"):
+        right = phi[:, 1:] - phi[:, :-1]  # (H, W-1)
+        down = phi[1:, :] - phi[:-1, :]  # (H-1, W)
+        pair_right = valid[:, 1:] & valid[:, :-1]
+        pair_down = valid[1:, :] & valid[:-1, :]
+        link_right = pair_right & (np.abs(right) < np.pi)
+        link_down = pair_down & (np.abs(down) < np.pi)
+    grid = np.zeros((2 * height - 1, 2 * width - 1), dtype=np.uint8)
+    grid[::2, ::2] = valid
+    grid[::2, 1::2] = link_right
+    grid[1::2, ::2] = link_down
+    _, grid_labels = cv2.connectedComponents(grid, connectivity=4, ltype=cv2.CV_32S)
+    labels = np.ascontiguousarray(grid_labels[::2, ::2])
+    rows_r, cols_r = np.nonzero(pair_right & ~link_right)
+    rows_d, cols_d = np.nonzero(pair_down & ~link_down)
+    a = np.concatenate([rows_r * width + cols_r, rows_d * width + cols_d]).astype(np.int64)
+    b = np.concatenate([rows_r * width + cols_r + 1, (rows_d + 1) * width + cols_d]).astype(np.int64)
+    difference = np.concatenate([right[rows_r, cols_r], down[rows_d, cols_d]])
+    return labels, a, b, difference
 
 
 def order_islands(absolute_phase: np.ndarray, modulation: np.ndarray, valid: np.ndarray, *,
@@ -130,19 +156,13 @@ def order_islands(absolute_phase: np.ndarray, modulation: np.ndarray, valid: np.
         raise ValueError(f"need 0 < min_share <= 1, min_pairs >= 1, 0 <= min_modulation_ratio <= 1, "
                          f"0 < max_island_share <= 1; got {min_share}, {min_pairs}, {min_modulation_ratio}, "
                          f"{max_island_share}")
-    pixels = phi.size
-    a, b = _neighbour_pairs(valid)
-    flat_phi = phi.ravel()
-    difference = flat_phi[b] - flat_phi[a]
-    linked = np.abs(difference) < np.pi
-    graph = coo_matrix((np.ones(int(np.count_nonzero(linked)), dtype=np.int8), (a[linked], b[linked])),
-                       shape=(pixels, pixels))
-    _, labels = connected_components(graph, directed=False)
-    sizes = np.bincount(labels, weights=valid.ravel().astype(np.float64))
+    label_image, a, b, difference = _order_regions(phi, valid)
+    labels = label_image.ravel()
+    sizes = np.bincount(labels).astype(np.float64)
+    sizes[0] = 0.0  # label 0: the pixels without an order
     region_count = int(np.count_nonzero(sizes))
 
     # the border pairs, each seen from its smaller region R towards the larger Q
-    a, b, difference = a[~linked], b[~linked], difference[~linked]
     label_a, label_b = labels[a], labels[b]
     a_smaller = sizes[label_a] < sizes[label_b]
     small = np.where(a_smaller, label_a, label_b)
@@ -151,7 +171,7 @@ def order_islands(absolute_phase: np.ndarray, modulation: np.ndarray, valid: np.
     unequal = (sizes[small] < sizes[large]) & (sizes[small] <= max_island_share * np.count_nonzero(valid))
 
     b_map = np.where(valid, np.nan_to_num(np.asarray(modulation, dtype=np.float32)), 0.0).astype(np.float32)
-    brightest = cv2.dilate(b_map, np.ones((5, 5), np.uint8)).ravel()
+    brightest = cv2.dilate(b_map, np.ones((5, 5), np.uint8)).ravel()  # (H*W,) within two pixels
     flat_b = b_map.ravel()
     with np.errstate(invalid="ignore", divide="ignore"):
         smooth = np.minimum(flat_b[a], flat_b[b]) >= min_modulation_ratio * np.maximum(brightest[a], brightest[b])
@@ -178,7 +198,7 @@ def order_islands(absolute_phase: np.ndarray, modulation: np.ndarray, valid: np.
     chosen = agreeing[island_border] == longest[island_region]
     region_step = np.zeros(sizes.size, dtype=np.int64)
     region_step[island_region[chosen]] = border_step[island_border[chosen]]
-    island_step = np.where(valid, region_step[labels].reshape(valid.shape), 0).astype(np.int8)
+    island_step = region_step[label_image].astype(np.int8)  # label 0 (no order) never has a step
     islands = island_step != 0
     return OrderIslands(islands=islands, step=island_step, regions=region_count,
                         island_regions=int(np.count_nonzero(region_step)))
