@@ -26,9 +26,13 @@ from .schema import Message, array, message, nested, nested_list, scalar, sequen
 from .sensor import Image
 from .std import Header
 
-__all__ = ["PatternEntry", "PatternSequence", "Trigger", "FringeFrame", "PhaseMaps", "AbsolutePhase", "ScanStatus"]
+__all__ = ["PATTERN_KINDS", "REFERENCE_KINDS", "PatternEntry", "PatternSequence", "Trigger", "FringeFrame",
+           "PhaseMaps", "AbsolutePhase", "ScanStatus"]
 
 FRINGE_AXES = ("x", "y")
+#: What a pattern is: one of an N-step phase-shifted set, or a reference frame (the projector full on, full off).
+PATTERN_KINDS = ("phase", "white", "black")
+REFERENCE_KINDS = ("white", "black")
 
 
 def _check_fringe_axis(owner: str, fringe_axis: str) -> None:
@@ -40,12 +44,15 @@ def _extent_px(fringe_axis: str, projector_width: int, projector_height: int) ->
     return projector_width if fringe_axis == "x" else projector_height
 
 
-@message("dptpu_msgs/msg/PatternEntry", version=1)
+@message("dptpu_msgs/msg/PatternEntry", version=2)
 class PatternEntry(Message):
-    """One ``N``-step phase-shifted fringe pattern set of a :class:`PatternSequence`.
+    """One ``N``-step phase-shifted fringe pattern set of a :class:`PatternSequence`, or one reference frame.
 
     Attributes
     ----------
+    kind : str
+        ``"phase"`` (default): a fringe set; ``"white"`` or ``"black"``: one frame with the projector full on or
+        full off (the texture, :mod:`dptpu.fpp.texture`), ``frequency`` and ``period`` 0 and ``steps`` 1.
     frequency : float
         Fringe periods across the projector extent along the fringe axis (> 0; may be rational, e.g.
         10.9), or 0 when the entry is given by ``period``.
@@ -62,12 +69,28 @@ class PatternEntry(Message):
     period: float = scalar("float64")
     steps: int = scalar("uint32")
     phase_offset: float = scalar("float64")
+    kind: str = scalar("string", default="phase")
+
+    @property
+    def is_reference(self) -> bool:
+        """A white or black reference frame, not a fringe set."""
+        return self.kind in REFERENCE_KINDS
 
     def frequency_for(self, extent_px: float) -> float:
-        """Periods across ``extent_px`` projector pixels: ``frequency``, or ``extent_px / period``."""
+        """Periods across ``extent_px`` projector pixels: ``frequency``, or ``extent_px / period`` (0 for a
+        reference frame)."""
+        if self.is_reference:
+            return 0.0
         return float(self.frequency) if self.frequency > 0 else float(extent_px) / float(self.period)
 
     def check_consistency(self) -> None:
+        if self.kind not in PATTERN_KINDS:
+            raise ValueError(f"PatternEntry.kind must be one of {', '.join(PATTERN_KINDS)}; got {self.kind!r}")
+        if self.is_reference:
+            if self.frequency != 0 or self.period != 0 or self.steps != 1:
+                raise ValueError(f"a {self.kind} PatternEntry is one frame without fringes: frequency 0, period 0, "
+                                 f"steps 1; got {self.frequency}, {self.period}, {self.steps}")
+            return
         if not (math.isfinite(self.frequency) and math.isfinite(self.period) and self.frequency >= 0
                 and self.period >= 0 and (self.frequency > 0) != (self.period > 0)):
             raise ValueError("PatternEntry needs exactly one of frequency (periods across the extent) and period "
@@ -79,7 +102,7 @@ class PatternEntry(Message):
             raise ValueError(f"PatternEntry.phase_offset must be finite; got {self.phase_offset}")
 
 
-@message("dptpu_msgs/msg/PatternSequence", version=1)
+@message("dptpu_msgs/msg/PatternSequence", version=2)
 class PatternSequence(Message):
     """The fringe patterns of one scan, in projection order: entry by entry, step ``n = 0..N-1`` each.
 
@@ -121,7 +144,7 @@ class PatternSequence(Message):
         return sum(entry.steps for entry in self.entries)
 
     def frequencies(self) -> list[float]:
-        """Frequency of every entry (periods across the extent), in entry order."""
+        """Frequency of every entry (periods across the extent; 0 for a reference frame), in entry order."""
         return [entry.frequency_for(self.extent_px) for entry in self.entries]
 
     def locate(self, pattern_index: int) -> tuple[int, int]:
@@ -145,7 +168,7 @@ class PatternSequence(Message):
                              f"({self.projector_width}, {self.projector_height})")
 
 
-@message("dptpu_msgs/msg/Trigger", version=1)
+@message("dptpu_msgs/msg/Trigger", version=2)
 class Trigger(Message):
     """The projector shows one pattern: published when it is on screen, so the camera may expose.
 
@@ -165,6 +188,8 @@ class Trigger(Message):
         ``N`` of this pattern's entry (>= 3), or 0 if unknown.
     step : int
         Phase step ``n`` in ``[0, N)``: the pattern is ``A + B cos(phi + shift_sign*2*pi*n/N)``.
+    kind : str
+        ``"phase"`` (default), or ``"white"`` / ``"black"`` for a reference frame (``frequency`` 0, ``steps`` 1).
     """
 
     header: Header = nested(Header)
@@ -174,8 +199,11 @@ class Trigger(Message):
     frequency: float = scalar("float64")
     steps: int = scalar("uint32")
     step: int = scalar("uint32")
+    kind: str = scalar("string", default="phase")
 
     def check_consistency(self) -> None:
+        if self.kind not in PATTERN_KINDS:
+            raise ValueError(f"Trigger.kind must be one of {', '.join(PATTERN_KINDS)}; got {self.kind!r}")
         if self.pattern_count and self.pattern_index >= self.pattern_count:
             raise ValueError(f"Trigger.pattern_index must be < pattern_count {self.pattern_count}; "
                              f"got {self.pattern_index}")
@@ -183,7 +211,7 @@ class Trigger(Message):
             raise ValueError(f"Trigger.step must be < steps {self.steps}; got {self.step}")
 
 
-@message("dptpu_msgs/msg/FringeFrame", version=1)
+@message("dptpu_msgs/msg/FringeFrame", version=2)
 class FringeFrame(Message):
     """One camera frame of a fringe pattern and the trigger it answers.
 

@@ -19,6 +19,7 @@ import numpy as np
 from dptpu.fpp.capture import PhaseFrames, write_capture
 from dptpu.fpp.point_cloud_file import write_point_cloud
 from dptpu.messages import FringeFrame, PatternSequence, PointCloud2
+from dptpu.messages.scanner import REFERENCE_KINDS
 
 __all__ = ["CLOUD_FORMATS", "RecentScanFrames", "SavedScan", "save_scan"]
 
@@ -111,8 +112,12 @@ def _write_frames(folder: Path, frames: list[FringeFrame], layout: PatternSequen
                   projector_size: tuple[int, int], fringe_axis: str) -> None:
     """The frames as phase sequences, entry by entry in projection order (the triggers' frequency and steps)."""
     entries: list[tuple[float, int, list]] = []  # (frequency, steps, images by step)
+    references = {}  # "white" / "black" -> (H, W)
     for frame in frames:
         trigger = frame.trigger
+        if trigger.kind in REFERENCE_KINDS:
+            references[trigger.kind] = frame.image.to_array()
+            continue
         if not entries or all(image is not None for image in entries[-1][2]):  # the last entry is complete
             if not trigger.steps:
                 raise ValueError(f"frame of pattern {trigger.pattern_index} has no steps: cannot lay out the capture")
@@ -126,9 +131,10 @@ def _write_frames(folder: Path, frames: list[FringeFrame], layout: PatternSequen
     if any(image is None for _, _, images in entries for image in images) or (expected and len(frames) != expected):
         raise ValueError(f"{len(frames)} of the scan's {expected or 'unknown number of'} frames were received: "
                          "not whole phase sequences")
-    offsets = [entry.phase_offset for entry in layout.entries] if layout is not None else []
+    offsets = [entry.phase_offset for entry in layout.entries if not entry.is_reference] if layout is not None else []
     sequences = [PhaseFrames(images=np.stack(images), frequency=frequency,
                              phase_offset=float(offsets[index]) if index < len(offsets) else 0.0)
                  for index, (frequency, _, images) in enumerate(entries)]
     write_capture(folder, sequences=sequences, projector_size=tuple(projector_size), fringe_axis=fringe_axis,
-                  phase_shift_sign=int(layout.shift_sign) if layout is not None else -1, calibration=rig_path or None)
+                  phase_shift_sign=int(layout.shift_sign) if layout is not None else -1, calibration=rig_path or None,
+                  references=references or None)

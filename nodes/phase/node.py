@@ -18,9 +18,10 @@ topic                           type              dir   notes
 ``/projector/pattern_sequence`` PatternSequence   in    transient local, depth 1: the scan layout (optional)
 ``/scanner/phase``              PhaseMaps         out   reliable, depth 10
 ``/scanner/texture``            Image             out   reliable, depth 10; 32FC1, the scan's texture in DN
-                                                        (:mod:`dptpu.fpp.texture`: the mean intensity ``A`` of
-                                                        Eq. (2) over the entries), published just before its
-                                                        PhaseMaps with the same header
+                                                        (:mod:`dptpu.fpp.texture`: the white frame minus the black
+                                                        one when the sequence has them, else the mean intensity
+                                                        ``A`` of Eq. (2) over the entries), published just before
+                                                        its PhaseMaps with the same header
 ``/scanner/status``             ScanStatus        out   one per scan: ``processing`` (OK) or ``failed``
 =============================== ================= ===== ==============================================
 
@@ -157,7 +158,7 @@ class PhaseNode(Node):
             return
         frame = FrameInfo(sequence_id=trigger.sequence_id, pattern_index=trigger.pattern_index,
                           pattern_count=trigger.pattern_count, frequency=trigger.frequency, steps=trigger.steps,
-                          step=trigger.step, image=image, stamp_ns=msg.image.header.stamp.to_ns())
+                          step=trigger.step, image=image, stamp_ns=msg.image.header.stamp.to_ns(), kind=trigger.kind)
         self._frame_id = msg.image.header.frame_id or DEFAULT_FRAME_ID
         events = self.assembler.add(frame, now_s)
         slot = self.assembler.slot(frame.sequence_id, frame.pattern_index)  # None unless kept by a pending scan
@@ -211,7 +212,8 @@ class PhaseNode(Node):
                                        min_modulation=self.min_modulation, saturation_level=saturation)
                 background = np.mean([stack.mean(axis=0, dtype=np.float32) for stack in scan.stacks], axis=0)
             phases, modulation, valid = maps
-            texture = texture_image(background=background)  # (H, W) float32 DN
+            texture = texture_image(background=background, white=scan.references.get("white"),
+                                    black=scan.references.get("black"))  # (H, W) float32 DN
         except ValueError as exc:
             self._report(DroppedScan(scan.sequence_id, f"phase computation refused the frames: {exc}",
                                      scan.frame_count, scan.frame_count, scan.first_arrival_s))

@@ -44,6 +44,7 @@ import numpy as np
 
 from dptpu.fpp.frequencies import same_frequency
 from dptpu.fpp.scan_phase import ImageSlot
+from dptpu.messages.scanner import REFERENCE_KINDS
 
 __all__ = [
     "AssembledScan",
@@ -72,6 +73,8 @@ class FrameInfo:
         The camera frame, digital numbers (uint8 or uint16); kept by reference (no copy) until the scan is handed out.
     stamp_ns : int
         Exposure start, ns since the epoch.
+    kind : str
+        ``"phase"``, or ``"white"`` / ``"black"`` for a reference frame (the projector full on / off).
     """
 
     sequence_id: int
@@ -82,8 +85,11 @@ class FrameInfo:
     step: int
     image: np.ndarray
     stamp_ns: int = 0
+    kind: str = "phase"
 
     def describe(self) -> str:
+        if self.kind in REFERENCE_KINDS:
+            return f"pattern {self.pattern_index} ({self.kind})"
         return (f"pattern {self.pattern_index} (f={self.frequency:g}, step {self.step}"
                 f"{f' of {self.steps}' if self.steps else ''})")
 
@@ -106,6 +112,8 @@ class ScanLayout:
         ``"x"`` or ``"y"``.
     projector_size : (int, int)
         Projector ``(width, height)``, pixels; ``(0, 0)`` when unknown.
+    references : tuple of str
+        Reference frames after the fringe sets, one pattern each: ``"white"``, ``"black"``.
     """
 
     frequencies: tuple
@@ -114,6 +122,7 @@ class ScanLayout:
     shift_sign: int = -1
     fringe_axis: str = "x"
     projector_size: tuple = (0, 0)
+    references: tuple = ()
 
     def __post_init__(self):
         frequencies = tuple(float(f) for f in self.frequencies)
@@ -134,15 +143,30 @@ class ScanLayout:
         object.__setattr__(self, "steps", steps)
         object.__setattr__(self, "phase_offsets", offsets)
         object.__setattr__(self, "projector_size", tuple(int(v) for v in self.projector_size))
+        references = tuple(str(kind) for kind in self.references)
+        if any(kind not in REFERENCE_KINDS for kind in references) or len(set(references)) != len(references):
+            raise ValueError(f"ScanLayout references must be white and/or black, once each; got {list(references)}")
+        object.__setattr__(self, "references", references)
+
+    @property
+    def fringe_count(self) -> int:
+        """Patterns of the fringe sets (the reference frames follow them)."""
+        return sum(self.steps)
 
     @property
     def pattern_count(self) -> int:
-        return sum(self.steps)
+        return sum(self.steps) + len(self.references)
+
+    def reference_at(self, pattern_index: int) -> str | None:
+        """``"white"`` / ``"black"`` when pattern ``pattern_index`` is a reference frame, else None."""
+        offset = int(pattern_index) - self.fringe_count
+        return self.references[offset] if 0 <= offset < len(self.references) else None
 
     def locate(self, pattern_index: int) -> tuple[int, int]:
-        """``(entry, step)`` of a 0-based pattern index; ValueError outside ``[0, pattern_count)``."""
-        if not 0 <= pattern_index < self.pattern_count:
-            raise ValueError(f"pattern_index {pattern_index} is outside the scan's {self.pattern_count} patterns")
+        """``(entry, step)`` of a 0-based pattern index of the fringe sets; ValueError outside
+        ``[0, fringe_count)`` (a reference frame: :meth:`reference_at`)."""
+        if not 0 <= pattern_index < self.fringe_count:
+            raise ValueError(f"pattern_index {pattern_index} is outside the scan's {self.fringe_count} fringe patterns")
         for entry, steps in enumerate(self.steps):
             if pattern_index < steps:
                 return entry, pattern_index
@@ -151,10 +175,18 @@ class ScanLayout:
 
     @classmethod
     def from_pattern_sequence(cls, sequence) -> ScanLayout:
-        """The layout of a :class:`dptpu.messages.PatternSequence` message."""
-        return cls(frequencies=tuple(sequence.frequencies()), steps=tuple(e.steps for e in sequence.entries),
-                   phase_offsets=tuple(e.phase_offset for e in sequence.entries), shift_sign=sequence.shift_sign,
-                   fringe_axis=sequence.fringe_axis, projector_size=sequence.projector_size)
+        """The layout of a :class:`dptpu.messages.PatternSequence` message (its reference frames must follow its
+        fringe sets)."""
+        entries = list(sequence.entries)
+        fringes = [e for e in entries if not e.is_reference]
+        references = [e.kind for e in entries if e.is_reference]
+        if entries[:len(fringes)] != fringes:
+            raise ValueError("the PatternSequence's reference frames (white, black) must follow its fringe sets")
+        frequencies = sequence.frequencies()[:len(fringes)]
+        return cls(frequencies=tuple(frequencies), steps=tuple(e.steps for e in fringes),
+                   phase_offsets=tuple(e.phase_offset for e in fringes), shift_sign=sequence.shift_sign,
+                   fringe_axis=sequence.fringe_axis, projector_size=sequence.projector_size,
+                   references=tuple(references))
 
 
 @dataclass(frozen=True, eq=False)
@@ -171,6 +203,8 @@ class AssembledScan:
         Earliest and latest exposure start of the scan's frames.
     first_arrival_s : float
         When its first frame arrived (the assembler's clock).
+    references : dict
+        ``"white"`` / ``"black"`` -> its frame (H, W), as received.
     """
 
     sequence_id: int
@@ -179,6 +213,7 @@ class AssembledScan:
     first_stamp_ns: int
     last_stamp_ns: int
     first_arrival_s: float
+    references: dict = field(default_factory=dict)
 
     @cached_property
     def stacks(self) -> tuple:
@@ -187,6 +222,7 @@ class AssembledScan:
 
     @property
     def frame_count(self) -> int:
+        """Frames of the fringe sets (the reference frames not counted)."""
         return sum(len(entry) for entry in self.images)
 
     def slot(self, pattern_index: int) -> ImageSlot:
@@ -351,7 +387,7 @@ class SequenceAssembler:
         pending or does not hold that frame (refused, failed, or completed: see :meth:`AssembledScan.slot`)."""
         scan = self._pending.get(int(sequence_id))
         frame = scan.frames.get(int(pattern_index)) if scan is not None else None
-        if scan is None or frame is None:
+        if scan is None or frame is None or frame.kind in REFERENCE_KINDS:
             return None
         if scan.layout is not None:
             entry, step = scan.layout.locate(int(pattern_index))
@@ -406,6 +442,12 @@ class SequenceAssembler:
         if frame.pattern_index in scan.frames:
             return f"duplicate frame for pattern_index {frame.pattern_index}"
         if scan.layout is not None:
+            reference = scan.layout.reference_at(int(frame.pattern_index))
+            if reference is not None or frame.kind in REFERENCE_KINDS:
+                if frame.kind != (reference or "phase"):
+                    return (f"frame {what} is a {frame.kind} frame; the PatternSequence has "
+                            f"{reference or 'a fringe pattern'} at pattern {frame.pattern_index}")
+                return None
             entry, step = scan.layout.locate(int(frame.pattern_index))
             expected_f = scan.layout.frequencies[entry]
             if frame.frequency and not same_frequency(frame.frequency, expected_f):
@@ -416,13 +458,17 @@ class SequenceAssembler:
                 return (f"frame {what} is out of order: pattern {frame.pattern_index} is step {step} of "
                         f"{scan.layout.steps[entry]} at f={expected_f:g} in the PatternSequence")
             return None
+        if frame.kind in REFERENCE_KINDS:
+            if any(other.kind == frame.kind for other in scan.frames.values()):
+                return f"frame {what} repeats the scan's {frame.kind} frame"
+            return None
         if not (math.isfinite(frame.frequency) and frame.frequency > 0) or frame.steps < 3:
             return (f"frame {what} lacks its entry's frequency or steps (>= 3) and no PatternSequence is known; "
                     "cannot place it")
         if frame.step >= frame.steps:
             return f"frame {what} has step >= steps"
         for other in scan.frames.values():
-            if same_frequency(other.frequency, frame.frequency):
+            if other.kind == "phase" and same_frequency(other.frequency, frame.frequency):
                 if other.steps != frame.steps:
                     return (f"frame {what} says steps {frame.steps} at f={frame.frequency:g}; an earlier frame said "
                             f"{other.steps}")
@@ -451,18 +497,21 @@ class SequenceAssembler:
         for steps in layout.steps:
             images.append(tuple(scan.frames[index + n].image for n in range(steps)))  # N_e frames (H, W)
             index += steps
+        references = {kind: scan.frames[index + offset].image for offset, kind in enumerate(layout.references)}
         stamps = [f.stamp_ns for f in scan.frames.values()]
         del self._pending[scan.sequence_id]
         self._remember(scan.sequence_id, now_s, "completed")
         return AssembledScan(sequence_id=scan.sequence_id, layout=layout, images=tuple(images),
                              first_stamp_ns=min(stamps), last_stamp_ns=max(stamps),
-                             first_arrival_s=scan.first_arrival_s)
+                             first_arrival_s=scan.first_arrival_s, references=references)
 
     def _layout_from_triggers(self, scan: _Pending):
         """ScanLayout of a complete trigger-laid scan, or the reason it is inconsistent."""
         groups: dict[int, FrameInfo] = {}   # first pattern_index of each entry -> a frame of it
+        references = sorted((f.pattern_index, f.kind) for f in scan.frames.values() if f.kind in REFERENCE_KINDS)
         for frame in scan.frames.values():
-            groups.setdefault(frame.pattern_index - frame.step, frame)
+            if frame.kind not in REFERENCE_KINDS:
+                groups.setdefault(frame.pattern_index - frame.step, frame)
         starts = sorted(groups)
         index = 0
         for start in starts:
@@ -470,16 +519,22 @@ class SequenceAssembler:
                 return (f"out of order: an entry starts at pattern {start} but the entries before it end at "
                         f"pattern {index}")
             index += groups[start].steps
+        if [i for i, _ in references] != list(range(index, index + len(references))):
+            return "out of order: the reference frames (white, black) must follow the fringe sets"
+        index += len(references)
         if index != scan.pattern_count:
             return f"out of order: the entries cover {index} patterns; pattern_count is {scan.pattern_count}"
         return ScanLayout(frequencies=tuple(groups[s].frequency for s in starts),
-                          steps=tuple(groups[s].steps for s in starts), **self._geometry)
+                          steps=tuple(groups[s].steps for s in starts),
+                          references=tuple(kind for _, kind in references), **self._geometry)
 
     def _missing(self, scan: _Pending) -> str:
         missing = [i for i in range(scan.pattern_count) if i not in scan.frames]
         shown = []
         for index in missing[:6]:
-            if scan.layout is not None:
+            if scan.layout is not None and scan.layout.reference_at(index) is not None:
+                shown.append(f"{index} ({scan.layout.reference_at(index)})")
+            elif scan.layout is not None:
                 entry, step = scan.layout.locate(index)
                 shown.append(f"{index} (f={scan.layout.frequencies[entry]:g} step {step})")
             else:

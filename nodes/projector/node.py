@@ -31,7 +31,8 @@ name                     default            meaning
                                             no box: the node answers its own echoed commands with the
                                             trigger-box EMULATOR (sim rigs; see ``link``)
 ``baudrate``             115200             serial speed
-``sequence``             ``"96x12,1x12"``   ``frequency x steps`` entries in projection order
+``sequence``             ``"96x12,1x12"``   ``frequency x steps`` entries in projection order, then optionally
+                                            ``white`` and ``black`` reference frames (the texture)
 ``fringe_axis``          ``"x"``            ``x`` (vertical stripes, extent = width) or ``y``
 ``projector_size``       ``[912, 1140]``    width, height in projector pixels (LightCrafter 4500)
 ``exposure_us``          8333               display time of one pattern, microseconds
@@ -69,7 +70,7 @@ from dptpu.nodes.node_main import run_node
 from dptpu.nodes.plumbing import LATCHED_QOS, scan_status
 
 from .link import ProjectorLink
-from .protocol import SequenceSpec, parse_sequence_spec
+from .protocol import SequenceSpec, parse_sequence_spec, split_references
 
 __all__ = ["ProjectorNode", "main"]
 
@@ -101,7 +102,9 @@ class ProjectorNode(Node):
             raise ValueError(f"parameter shift_sign must be -1 or +1; got {self.shift_sign}")
         if max_waiting < 1:
             raise ValueError(f"parameter max_waiting_scans must be >= 1; got {max_waiting}")
-        self.spec = SequenceSpec(fringe_axis, tuple(projector_size), exposure_us, parse_sequence_spec(sequence_text))
+        fringes, references = split_references(sequence_text)
+        self.spec = SequenceSpec(fringe_axis, tuple(projector_size), exposure_us, parse_sequence_spec(fringes),
+                                 references)
 
         self.trigger_pub = self.create_publisher(Trigger, "/projector/trigger", 100)
         self.sequence_pub = self.create_publisher(
@@ -157,7 +160,7 @@ class ProjectorNode(Node):
         frequency, steps, step = self.spec.locate(pattern_index)
         self.trigger_pub.publish(Trigger(header=self._header(), sequence_id=sequence_id, pattern_index=pattern_index,
                                          pattern_count=self.spec.pattern_count, frequency=frequency, steps=steps,
-                                         step=step))
+                                         step=step, kind=self.spec.kind_of(pattern_index)))
 
     def on_scan_end(self, sequence_id: int, displayed: int, reason: str) -> None:
         """Link thread: scan ``sequence_id`` ended after ``displayed`` patterns (``reason`` empty when complete)."""
@@ -186,7 +189,8 @@ class ProjectorNode(Node):
         width, height = self.spec.projector_size
         return PatternSequence(header=self._header(), fringe_axis=self.spec.fringe_axis, projector_width=width,
                                projector_height=height, shift_sign=self.shift_sign,
-                               entries=[PatternEntry(frequency=f, steps=n) for f, n in self.spec.entries])
+                               entries=[PatternEntry(frequency=f, steps=n) for f, n in self.spec.entries]
+                               + [PatternEntry(kind=kind, steps=1) for kind in self.spec.references])
 
     def _header(self) -> Header:
         return Header(stamp=self.get_clock().now().to_msg(), frame_id=self.frame_id)

@@ -7,7 +7,7 @@ trigger output says it is on screen. The full description, with a transcript, is
 ``\\n``, tokens separated by one space, at most :data:`MAX_LINE_BYTES` bytes)::
 
     -> HELLO                                      <- HELLO dptpu-trigger/1 <firmware>
-    -> LOAD <axis> <width> <height> <exposure_us> <f>x<N>[,<f>x<N>...]
+    -> LOAD <axis> <width> <height> <exposure_us> <f>x<N>[,<f>x<N>...][,white][,black]
                                                   <- LOADED <pattern_count>
     -> START <scan_id>                            <- STARTED <scan_id>
                                                   <- ACK <scan_id> <index>        one per displayed pattern
@@ -26,7 +26,8 @@ import math
 import re
 from dataclasses import dataclass, field
 
-__all__ = ["PROTOCOL", "MAX_LINE_BYTES", "ERROR_CODES", "ProtocolError", "SequenceSpec", "parse_sequence_spec",
+__all__ = ["PROTOCOL", "MAX_LINE_BYTES", "ERROR_CODES", "REFERENCES", "ProtocolError", "SequenceSpec",
+           "split_references", "parse_sequence_spec",
            "format_sequence_spec", "Command", "Reply", "encode_command", "parse_command", "encode_reply",
            "parse_reply"]
 
@@ -37,6 +38,8 @@ ERROR_CODES = ("BADCMD", "BADARG", "NOSEQ", "BUSY")
 COMMANDS = ("HELLO", "LOAD", "START", "STOP")
 REPLIES = ("HELLO", "LOADED", "STARTED", "ACK", "DONE", "ABORT", "STOPPED", "ERR")
 MAX_SCAN_ID = 2**32 - 1
+#: Reference frames a sequence may end with (one pattern each).
+REFERENCES = ("white", "black")
 _TOKEN = re.compile(r"^[A-Za-z0-9_.:/+-]+$")
 
 
@@ -58,12 +61,16 @@ class SequenceSpec:
         Display time of one pattern, microseconds (the LightCrafter's pattern exposure).
     entries : tuple of (float, int)
         ``(frequency, steps)`` per pattern set: fringe periods across the extent, and ``N >= 3``.
+    references : tuple of str
+        Reference frames shown after the fringe sets, each one pattern: ``"white"`` (the projector full on) and
+        ``"black"`` (full off), each at most once (the texture of the scan, ``dptpu.fpp.texture``).
     """
 
     fringe_axis: str
     projector_size: tuple[int, int]
     exposure_us: int
     entries: tuple = field(default_factory=tuple)
+    references: tuple = field(default_factory=tuple)
 
     def __post_init__(self):
         if self.fringe_axis not in ("x", "y"):
@@ -84,16 +91,21 @@ class SequenceSpec:
                 raise ValueError(f"frequency must be finite and > 0 (periods across the extent); got {frequency!r}")
             if isinstance(steps, bool) or not isinstance(steps, int) or not 3 <= steps <= 256:
                 raise ValueError(f"steps must be an integer in [3, 256]; got {steps!r}")
+        references = tuple(self.references)
+        if any(kind not in REFERENCES for kind in references) or len(set(references)) != len(references):
+            raise ValueError(f"references must be 'white' and/or 'black', each at most once; got {references!r}")
         object.__setattr__(self, "projector_size", size)
         object.__setattr__(self, "entries", tuple((float(f), int(n)) for f, n in self.entries))
+        object.__setattr__(self, "references", references)
 
     @property
     def pattern_count(self) -> int:
-        """Total number of patterns, ``sum(N)``."""
-        return sum(steps for _, steps in self.entries)
+        """Total number of patterns, ``sum(N)`` and one per reference frame."""
+        return sum(steps for _, steps in self.entries) + len(self.references)
 
     def locate(self, pattern_index: int) -> tuple[float, int, int]:
-        """``(frequency, steps, step)`` of pattern ``pattern_index`` (0-based, projection order)."""
+        """``(frequency, steps, step)`` of pattern ``pattern_index`` (0-based, projection order); ``(0.0, 1, 0)``
+        for a reference frame (:meth:`kind_of` tells which)."""
         if not 0 <= pattern_index < self.pattern_count:
             raise ValueError(f"pattern_index must be in [0, {self.pattern_count}); got {pattern_index}")
         remaining = pattern_index
@@ -101,14 +113,36 @@ class SequenceSpec:
             if remaining < steps:
                 return frequency, steps, remaining
             remaining -= steps
-        raise AssertionError("unreachable: pattern_index was checked against pattern_count")
+        return 0.0, 1, 0
+
+    def kind_of(self, pattern_index: int) -> str:
+        """``"phase"``, or ``"white"`` / ``"black"`` for a reference frame."""
+        fringes = self.pattern_count - len(self.references)
+        return self.references[pattern_index - fringes] if pattern_index >= fringes else "phase"
+
+
+def split_references(text: str) -> tuple[str, tuple[str, ...]]:
+    """``"96x12,1x12,white,black"`` -> ``("96x12,1x12", ("white", "black"))``: the fringe sets and the reference
+    frames that end the sequence (ValueError for a reference before a fringe set, naming it)."""
+    if not isinstance(text, str):
+        raise ValueError(f"sequence must be a string like '96x12,1x12,white'; got {text!r}")
+    items = [item.strip() for item in text.split(",")]
+    references: list[str] = []
+    while items and items[-1].lower() in REFERENCES:
+        references.insert(0, items.pop().lower())
+    misplaced = [item for item in items if item.lower() in REFERENCES]
+    if misplaced:
+        raise ValueError(f"sequence entry {misplaced[0]!r}: reference frames (white, black) come after the fringe "
+                         f"sets, e.g. 96x12,1x12,white,black; in {text!r}")
+    return ",".join(items), tuple(references)
 
 
 def parse_sequence_spec(text: str) -> tuple[tuple[float, int], ...]:
     """``"96x12,1x12"`` -> ``((96.0, 12), (1.0, 12))``: ``frequency x steps`` entries in projection order.
 
     The frequency is the number of fringe periods across the projector extent and may be rational
-    (``"10.9x3"``). Raises ValueError naming the bad entry and the expected form.
+    (``"10.9x3"``). Raises ValueError naming the bad entry and the expected form. Reference frames (``white``,
+    ``black``) are split off first by :func:`split_references`.
     """
     if not isinstance(text, str) or not text.strip():
         raise ValueError(f"sequence must look like '96x12,1x12' (frequency x steps, comma separated); got {text!r}")
@@ -125,9 +159,10 @@ def parse_sequence_spec(text: str) -> tuple[tuple[float, int], ...]:
     return tuple(entries)
 
 
-def format_sequence_spec(entries) -> str:
-    """Inverse of :func:`parse_sequence_spec`: ``((96.0, 12), (10.9, 3))`` -> ``"96x12,10.9x3"``."""
-    return ",".join(f"{_number(frequency)}x{int(steps)}" for frequency, steps in entries)
+def format_sequence_spec(entries, references=()) -> str:
+    """Inverse of :func:`parse_sequence_spec` (and :func:`split_references`): ``((96.0, 12), (10.9, 3))``,
+    ``("white",)`` -> ``"96x12,10.9x3,white"``."""
+    return ",".join([f"{_number(frequency)}x{int(steps)}" for frequency, steps in entries] + list(references))
 
 
 def _number(value: float) -> str:
@@ -177,7 +212,8 @@ def encode_command(command: Command) -> bytes:
         if spec is None:
             raise ValueError("a LOAD command needs a sequence")
         width, height = spec.projector_size
-        line = f"LOAD {spec.fringe_axis} {width} {height} {spec.exposure_us} {format_sequence_spec(spec.entries)}"
+        line = (f"LOAD {spec.fringe_axis} {width} {height} {spec.exposure_us} "
+                f"{format_sequence_spec(spec.entries, spec.references)}")
     else:
         raise ValueError(f"unknown command kind {command.kind!r}; expected one of {', '.join(COMMANDS)}")
     return _finish(line)
@@ -224,10 +260,11 @@ def parse_command(line) -> Command:
     if kind == "LOAD":
         _arity(text, tokens, 6)
         try:
+            fringes, references = split_references(tokens[5])
             sequence = SequenceSpec(tokens[1], (_uint(text, tokens[2], "width", 65535),
                                                 _uint(text, tokens[3], "height", 65535)),
                                     _uint(text, tokens[4], "exposure_us", 10_000_000),
-                                    parse_sequence_spec(tokens[5]))
+                                    parse_sequence_spec(fringes), references)
         except ProtocolError:
             raise
         except ValueError as exc:

@@ -41,7 +41,8 @@ name                default                      meaning
                                                  its ``effects`` are rendered
 ``size``            ``"640x480"``                raycast: camera size ``WIDTHxHEIGHT`` (the rig's ``K`` is rescaled)
 ``scenes``          ``"random:1,sphere,...``     raycast: built-in names, ``random:SEED`` or scene files, in scan order
-``sequence``        ``"96x12,1x12"``             raycast: ``frequency x steps`` entries rendered (the projector's)
+``sequence``        ``"96x12,1x12"``             raycast: ``frequency x steps`` entries rendered (the projector's),
+                                                 and ``white`` / ``black`` reference frames when named
 ``fringe_axis``     ``"x"``                      raycast: fringe axis of the rendered patterns
 ``shift_sign``      -1                           raycast: phase-step sign (-1: the paper's Eq. (1))
 ``seed``            0                            raycast: noise seed of the first scene (scene i: seed + i)
@@ -82,6 +83,7 @@ from dptpu.messages import (
     ScanStatus,
     Trigger,
 )
+from dptpu.messages.scanner import REFERENCE_KINDS
 from dptpu.nodes.node_main import run_node
 from dptpu.nodes.plumbing import DEFAULT_FRAME_ID, LATCHED_QOS, STATUS_QOS, scan_status
 from dptpu.sim.rig import load_twin_rig
@@ -209,8 +211,9 @@ class SimNode(Node):
 
     def on_pattern_sequence(self, msg: PatternSequence) -> None:
         """Warn when the projector's sequence has entries the source cannot show."""
-        missing = [f"{e.frequency:g}x{e.steps}" for e in msg.entries
-                   if not any(n == e.steps and same_frequency(f, e.frequency) for f, n in self.source.sequences)]
+        missing = [f"{e.frequency:g}x{e.steps}" for e in msg.entries if not e.is_reference
+                   and not any(n == e.steps and same_frequency(f, e.frequency) for f, n in self.source.sequences)]
+        missing += [e.kind for e in msg.entries if e.is_reference and e.kind not in self.source.references]
         if missing:
             self.get_logger().warning(f"the projector's sequence has {', '.join(missing)}, which the source lacks "
                                       f"({self.source.describe_sequences()}): those Triggers get no frame")
@@ -262,21 +265,27 @@ class SimNode(Node):
                 self._scans_seen.popitem(last=False)
             if self.publish_truth:
                 self._publish_truth(trigger, index)
-        refused = _trigger_problem(trigger)
-        if refused is not None:
-            self._unknown(trigger, scene, refused)
-            return
-        stack = scene.stack(trigger.frequency, trigger.steps)
-        if stack is None or trigger.step >= stack.shape[0]:
-            self._unknown(trigger, scene)
-            return
+        if trigger.kind in REFERENCE_KINDS:  # the projector full on or full off
+            reference = scene.references.get(trigger.kind)
+            if reference is None:
+                self._unknown(trigger, scene)
+                return
+            stack, step = reference[None], 0
+        else:
+            refused = _trigger_problem(trigger)
+            if refused is not None:
+                self._unknown(trigger, scene, refused)
+                return
+            stack, step = scene.stack(trigger.frequency, trigger.steps), trigger.step
+            if stack is None or step >= stack.shape[0]:
+                self._unknown(trigger, scene)
+                return
         if (sequence_id, trigger.pattern_index) in self.drop_frames:
             self.frames_dropped += 1
             self.get_logger().info(f"dropping pattern {trigger.pattern_index} of scan {sequence_id} (drop_frames)")
             return
         header = Header(stamp=trigger.header.stamp, frame_id=self.frame_id)
-        self.image_pub.publish(FringeFrame(image=Image.from_array(stack[trigger.step], header=header),
-                                           trigger=trigger))
+        self.image_pub.publish(FringeFrame(image=Image.from_array(stack[step], header=header), trigger=trigger))
         self.frames_published += 1
 
     def _publish_truth(self, trigger: Trigger, index: int) -> None:

@@ -32,6 +32,7 @@ from dptpu.fpp.capture import (
     Capture,
     PhaseSequence,
     load_ground_truth,
+    load_reference,
     load_sequence_images,
     read_capture,
 )
@@ -56,6 +57,8 @@ __all__ = [
 #: Scenes rendered when the source is ``raycast`` (or ``shipped`` without shipped renders): seeded random
 #: scenes of several objects with occlusions and depth steps, the standard sphere and the calibration board.
 DEFAULT_SCENES = "random:1,sphere,random:2,board"
+#: Reference frames a sequence may name besides its fringe sets: the projector full on, full off.
+REFERENCES = ("white", "black")
 
 
 @dataclass(frozen=True, eq=False)
@@ -74,6 +77,9 @@ class SimScene:
         The projector lights the pixel's surface point.
     depth_m : ndarray (H, W) float32
         Depth along the camera z axis, metres; NaN where no surface.
+    references : dict
+        ``"white"`` / ``"black"`` -> (H, W) frame under the projector full on / full off (read-only), the ones the
+        source has.
     """
 
     name: str
@@ -81,6 +87,7 @@ class SimScene:
     projector_coord: np.ndarray
     valid: np.ndarray
     depth_m: np.ndarray
+    references: dict = field(default_factory=dict)
 
     def stack(self, frequency: float, steps: int) -> np.ndarray | None:
         """The (N, H, W) frames of the sequence ``frequency x steps``, or None when the scene has none.
@@ -122,6 +129,7 @@ class SimSource:
     kind: str = "raycast"
     note: str = ""
     sequences: tuple = field(default=())
+    references: tuple = field(default=())  # the reference frames every scene has ("white", "black")
 
     @property
     def size(self) -> tuple[int, int]:
@@ -130,7 +138,7 @@ class SimSource:
         return (width, height)
 
     def describe_sequences(self) -> str:
-        return ", ".join(f"{f:g}x{n}" for f, n in self.sequences)
+        return ", ".join([f"{f:g}x{n}" for f, n in self.sequences] + list(self.references))
 
 
 def shipped_root() -> Path:
@@ -150,11 +158,19 @@ def parse_scene_list(text: str) -> list[str]:
     return names
 
 
+def parse_references(text: str) -> tuple[str, ...]:
+    """The reference frames named in a sequence (``"64x12,1x12,white,black"`` -> ``("white", "black")``)."""
+    return tuple(token.strip().lower() for token in str(text).split(",") if token.strip().lower() in REFERENCES)
+
+
 def parse_sequence_list(text: str) -> list[tuple[float, int]]:
-    """``"96x12,1x12"`` -> ``[(96.0, 12), (1.0, 12)]`` (frequency x steps, the projector node's syntax)."""
+    """``"96x12,1x12"`` -> ``[(96.0, 12), (1.0, 12)]`` (frequency x steps, the projector node's syntax); the
+    reference frames (``white``, ``black``) are left to :func:`parse_references`."""
     out = []
     for token in str(text).split(","):
         token = token.strip()
+        if token.lower() in REFERENCES:
+            continue
         frequency, sep, steps = token.partition("x")
         try:
             value = (float(frequency), int(steps))
@@ -174,7 +190,7 @@ def _readonly(array: np.ndarray) -> np.ndarray:
 
 
 def raycast_scenes(rig: Rig, scene_names, sequences, *, fringe_axis: str = "x", shift_sign: int = -1,
-                   seed: int = 0, bit_depth: int = 8, log=None) -> list[SimScene]:
+                   seed: int = 0, bit_depth: int = 8, log=None, references=()) -> list[SimScene]:
     """Render each scene's frames of every sequence with the raycast twin (effects: ``rig.effects``).
 
     Parameters
@@ -189,8 +205,11 @@ def raycast_scenes(rig: Rig, scene_names, sequences, *, fringe_axis: str = "x", 
         Noise seed of the first scene (scene ``i`` uses ``seed + i``).
     log : callable, optional
         Called with one progress line per scene.
+    references : sequence of str
+        Reference frames rendered too (``"white"``, ``"black"``: the projector full on, full off).
     """
     specs = [SequenceSpec(f, n, axis=fringe_axis, shift_sign=shift_sign) for f, n in sequences]
+    specs += [SequenceSpec(kind=kind) for kind in references]
     axis = 0 if fringe_axis == "x" else 1
     scenes = []
     for index, name in enumerate(scene_names):
@@ -198,10 +217,12 @@ def raycast_scenes(rig: Rig, scene_names, sequences, *, fringe_axis: str = "x", 
         samples = trace(rig, scene)
         stacks = render_frames(rig, samples, specs, seed=seed + index, bit_depth=bit_depth)
         frames = {(float(f), int(n)): _readonly(stack) for (f, n), stack in zip(sequences, stacks)}
+        rendered_references = {kind: _readonly(stack[0]) for kind, stack in zip(references, stacks[len(sequences):])}
         coord = np.where(samples.lit, samples.projector_xy[..., axis], np.nan).astype(np.float32)
         depth_m = np.where(samples.hit, samples.depth * rig.scale_to_m, np.nan).astype(np.float32)
         scenes.append(SimScene(name=scene.name, frames=frames, projector_coord=_readonly(coord),
-                               valid=_readonly(samples.lit.copy()), depth_m=_readonly(depth_m)))
+                               valid=_readonly(samples.lit.copy()), depth_m=_readonly(depth_m),
+                               references=rendered_references))
         if log is not None:
             log(f"rendered scene {scene.name} ({index + 1} of {len(scene_names)}): {rig.camera.size[0]}x"
                 f"{rig.camera.size[1]}, {sum(n for _, n in sequences)} frames, "
@@ -260,9 +281,14 @@ def capture_scenes(folder) -> tuple[list[SimScene], Rig, str, int]:
                 else truth.projector_x
             depth = data["depth"] if "depth" in data.files else np.full(truth.valid.shape, np.nan)
         depth_m = (np.asarray(depth, np.float64) * load_rig(capture.calibration).scale_to_m).astype(np.float32)
+        references = {}
+        for kind in REFERENCES:
+            image = load_reference(capture, kind)
+            if image is not None:
+                references[kind] = _readonly(image)
         scenes.append(SimScene(name=path.name, frames=frames,
                                projector_coord=_readonly(np.where(truth.valid, coord, np.nan).astype(np.float32)),
-                               valid=_readonly(truth.valid), depth_m=_readonly(depth_m)))
+                               valid=_readonly(truth.valid), depth_m=_readonly(depth_m), references=references))
     if first is None or rig is None:  # folders is not empty: the first capture set both
         raise ValueError(f"{folder}: no capture read")
     return scenes, rig, first.fringe_axis, first.phase_shift_sign
@@ -275,6 +301,7 @@ def _shipped_lacks(scenes, rig: Rig, size, sequence) -> str:
     if tuple(rig.camera.size) != (width, height):
         lacking.append(f"the size {width}x{height} (they are {rig.camera.size[0]}x{rig.camera.size[1]})")
     missing = [f"{f:g}x{n}" for f, n in parse_sequence_list(sequence) if scenes[0].stack(f, n) is None]
+    missing += [kind for kind in parse_references(sequence) if kind not in scenes[0].references]
     if missing:
         held = ", ".join(f"{f:g}x{n}" for f, n in scenes[0].frames)
         lacking.append(f"the sequence(s) {', '.join(missing)} (they hold {held})")
@@ -302,7 +329,7 @@ def load_source(source: str, *, rig, size, scenes: str = DEFAULT_SCENES, sequenc
     if source not in ("shipped", "raycast"):
         found, twin_rig, axis, sign = capture_scenes(source)
         return SimSource(found, twin_rig, axis, sign, "folder", f"replaying {len(found)} capture(s) from {source}",
-                         tuple(found[0].frames))
+                         tuple(found[0].frames), _common_references(found))
     if source == "shipped":
         if _capture_folders(shipped_root()):
             found, twin_rig, axis, sign = capture_scenes(shipped_root())
@@ -310,7 +337,7 @@ def load_source(source: str, *, rig, size, scenes: str = DEFAULT_SCENES, sequenc
             if not lacking:
                 return SimSource(found, twin_rig, axis, sign, "shipped",
                                  f"replaying the {len(found)} shipped render(s) of {shipped_root()}",
-                                 tuple(found[0].frames))
+                                 tuple(found[0].frames), _common_references(found))
             note = f"the shipped renders of {shipped_root()} lack {lacking}: rendering the scenes live with the " \
                    "raycast twin; "
         else:
@@ -327,7 +354,14 @@ def load_source(source: str, *, rig, size, scenes: str = DEFAULT_SCENES, sequenc
         raise ValueError(f"parameter rig: {exc}") from None
     if on_rig is not None:
         on_rig(twin_rig)
+    references = parse_references(sequence)
     rendered = raycast_scenes(twin_rig, names, sequences, fringe_axis=fringe_axis, shift_sign=shift_sign, seed=seed,
-                              bit_depth=bit_depth, log=log)
+                              bit_depth=bit_depth, log=log, references=references)
     return SimSource(rendered, twin_rig, fringe_axis, shift_sign, "raycast",
-                     note + f"raycast renders of {', '.join(names)}", tuple((float(f), int(n)) for f, n in sequences))
+                     note + f"raycast renders of {', '.join(names)}", tuple((float(f), int(n)) for f, n in sequences),
+                     references)
+
+
+def _common_references(scenes) -> tuple[str, ...]:
+    """The reference frames every scene has."""
+    return tuple(kind for kind in REFERENCES if all(kind in scene.references for scene in scenes))

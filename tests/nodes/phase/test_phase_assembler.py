@@ -165,3 +165,49 @@ def test_finished_ids_are_forgotten_in_order_once_timed_out():
     assert list(assembler._finished) == [3]
     fresh = assembler.add(FrameInfo(1, 0, 8, 16.0, 4, 0, image), 1.5)
     assert fresh == [] and assembler.pending_ids == [1]
+
+
+def _with_references(frames, kinds=("white", "black")):
+    """``frames`` of one scan followed by its reference frames (filled with 200 + i)."""
+    count = len(frames) + len(kinds)
+    out = [FrameInfo(sequence_id=f.sequence_id, pattern_index=f.pattern_index, pattern_count=count,
+                     frequency=f.frequency, steps=f.steps, step=f.step, image=f.image, stamp_ns=f.stamp_ns)
+           for f in frames]
+    for offset, kind in enumerate(kinds):
+        index = len(frames) + offset
+        out.append(FrameInfo(sequence_id=frames[0].sequence_id, pattern_index=index, pattern_count=count,
+                             frequency=0.0, steps=1, step=0, image=np.full(frames[0].image.shape, 200 + offset,
+                                                                           dtype=np.uint8), kind=kind))
+    return out
+
+
+@pytest.mark.parametrize("with_layout", [False, True], ids=["triggers", "PatternSequence"])
+def test_white_and_black_frames_after_the_fringe_sets_come_out_as_the_scans_references(with_layout):
+    from dptpu.messages import PatternEntry, PatternSequence
+
+    assembler = SequenceAssembler(timeout_s=1.0)
+    if with_layout:
+        sequence = PatternSequence(entries=[PatternEntry(frequency=16.0, steps=4), PatternEntry(frequency=1.0, steps=3),
+                                            PatternEntry(kind="white", steps=1), PatternEntry(kind="black", steps=1)],
+                                   projector_width=912, projector_height=1140)
+        assembler.set_layout(ScanLayout.from_pattern_sequence(sequence))
+    frames = _with_references(frames_of(3))
+    (scan,) = feed(assembler, frames[::-1])  # any arrival order
+    assert isinstance(scan, AssembledScan) and scan.layout.references == ("white", "black")
+    assert scan.layout.frequencies == (16.0, 1.0) and scan.frame_count == 7
+    assert [int(scan.references[k][0, 0]) for k in ("white", "black")] == [200, 201]
+    assert [slot.step for slot in scan.slots()] == [0, 1, 2, 3, 0, 1, 2]  # the fringe frames only
+
+
+def test_a_reference_frame_where_the_sequence_has_a_fringe_pattern_fails_the_scan():
+    from dptpu.messages import PatternEntry, PatternSequence
+
+    assembler = SequenceAssembler(timeout_s=1.0)
+    sequence = PatternSequence(entries=[PatternEntry(frequency=16.0, steps=4), PatternEntry(frequency=1.0, steps=3),
+                                        PatternEntry(kind="white", steps=1)],
+                               projector_width=912, projector_height=1140)
+    assembler.set_layout(ScanLayout.from_pattern_sequence(sequence))
+    frames = _with_references(frames_of(4), kinds=("black",))
+    (dropped,) = feed(assembler, frames[-1:])
+    assert isinstance(dropped, DroppedScan)
+    assert dropped.reason == "frame pattern 7 (black) is a black frame; the PatternSequence has white at pattern 7"

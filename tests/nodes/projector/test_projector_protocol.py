@@ -136,3 +136,20 @@ def test_emulator_keeps_a_bounded_command_history_over_thousands_of_scans():
     assert done == 6000
     assert len(box.commands) == COMMANDS_KEPT
     assert box.commands[-1] == parse_command(b"START 6000")
+
+
+def test_reference_frames_end_the_sequence_and_travel_in_the_load_line():
+    from dptpu.nodes.projector.protocol import split_references
+
+    assert split_references("64x12,1x12,White,black") == ("64x12,1x12", ("white", "black"))
+    with pytest.raises(ValueError, match="reference frames \\(white, black\\) come after the fringe sets"):
+        split_references("white,64x12")
+    spec = SequenceSpec("x", (912, 1140), 8333, ((64.0, 12), (1.0, 12)), ("white", "black"))
+    assert spec.pattern_count == 26
+    assert (spec.locate(23), spec.kind_of(23)) == ((1.0, 12, 11), "phase")
+    assert (spec.locate(24), spec.kind_of(24), spec.kind_of(25)) == ((0.0, 1, 0), "white", "black")
+    line = encode_command(Command("LOAD", sequence=spec))
+    assert line == b"LOAD x 912 1140 8333 64x12,1x12,white,black\n"
+    assert parse_command(line).sequence == spec
+    with pytest.raises(ValueError, match="references must be 'white' and/or 'black', each at most once"):
+        SequenceSpec("x", (912, 1140), 8333, ((64.0, 12),), ("white", "white"))
