@@ -272,6 +272,8 @@ def floor_ms_per_scan(*, steps: int, size: str, repeats: int = 30) -> dict:
     :func:`dptpu.fpp.phase.sequence_sums`, :func:`~dptpu.fpp.phase.maps_from_sums`), Eq. (5) (``unwrap``,
     :func:`dptpu.fpp.tpu.unwrap_mf_float32`), the triangulation with both lens distortions into float32 metres
     (``triangulate``, :meth:`~dptpu.fpp.triangulate.Triangulator.camera_points` of the sim rig's rig at ``size``),
+    the cloud node's default filters (``filters``: :func:`dptpu.fpp.depth_edges.edge_points` and
+    :func:`dptpu.fpp.order_islands.order_islands`),
     the (H, W, 9) cloud as the cloud node builds it (x, y, z, texture, modulation, confidence and the normals of
     :func:`dptpu.fpp.organized_normals.organized_normals`) with its depth and confidence images (``assemble``), all
     three sent to one subscriber (``transport_out``, both sides). No Python between processes, no messages but the
@@ -286,6 +288,8 @@ def floor_ms_per_scan(*, steps: int, size: str, repeats: int = 30) -> dict:
 
     from dptpu.fpp import phase as fpp_phase
     from dptpu.fpp import tpu
+    from dptpu.fpp.depth_edges import edge_points
+    from dptpu.fpp.order_islands import order_islands
     from dptpu.fpp.organized_normals import organized_normals
     from dptpu.fpp.triangulate import Triangulator, projector_coordinate
     from dptpu.sim.rig import load_twin_rig
@@ -293,6 +297,7 @@ def floor_ms_per_scan(*, steps: int, size: str, repeats: int = 30) -> dict:
     width, height = (int(v) for v in size.lower().split("x"))
     rig = load_twin_rig(REPO_ROOT / "launch" / "params" / "shipped_rig.yaml", size=(width, height))
     triangulator = Triangulator(rig, axis="x")
+    focal_px = 0.5 * float(rig.camera.K[0, 0] + rig.camera.K[1, 1])
     extent = rig.projector.size[0]
     rows, cols = np.mgrid[0:height, 0:width]
     x_p = 40.0 + (extent - 80.0) * cols / width + 0.05 * rows  # (H, W) projector columns
@@ -344,6 +349,12 @@ def floor_ms_per_scan(*, steps: int, size: str, repeats: int = 30) -> dict:
         coord = projector_coordinate(result.absolute_phase, 64.0, extent)
         state["xyz"] = [triangulator.camera_points(coord, scale=rig.scale_to_m, dtype=np.float32)]
 
+    def filter_step():  # as the cloud node does by default: the points at depth edges, the islands of wrong orders
+        xyz, result, modulation = state["xyz"][0], state["unwrapped"], state["maps"][0].modulation
+        dropped = edge_points(np.ascontiguousarray(xyz[..., 2]), focal_px, modulation).dropped
+        dropped |= order_islands(result.absolute_phase, modulation, result.valid).islands
+        xyz[dropped] = np.nan
+
     def assemble_step():  # as the cloud node does: texture, modulation, confidence and normals beside x, y, z
         xyz = state["xyz"][0]
         channels = [np.ascontiguousarray(xyz[..., k]) for k in range(3)]
@@ -354,7 +365,7 @@ def floor_ms_per_scan(*, steps: int, size: str, repeats: int = 30) -> dict:
         state["depth"], state["confidence"] = channels[2], confidence
 
     parts = {"transport_in": lambda: transfer(frames), "phase": phase_step, "unwrap": unwrap_step,
-             "triangulate": triangulate_step, "assemble": assemble_step,
+             "triangulate": triangulate_step, "filters": filter_step, "assemble": assemble_step,
              "transport_out": lambda: transfer([state["cloud"], state["depth"], state["confidence"]]),
              "copy_in": lambda: copy_once(frames),
              "copy_out": lambda: copy_once([state["cloud"], state["depth"], state["confidence"]])}
@@ -370,7 +381,7 @@ def floor_ms_per_scan(*, steps: int, size: str, repeats: int = 30) -> dict:
         receiver.close(linger=0)
         context.term()
     figures = {name: round(1e3 * float(np.median(values[2:])), 2) for name, values in times.items()}
-    work = sum(figures[name] for name in ("phase", "unwrap", "triangulate", "assemble"))
+    work = sum(figures[name] for name in ("phase", "unwrap", "triangulate", "filters", "assemble"))
     figures["total"] = round(work + figures["transport_in"] + figures["transport_out"], 2)
     figures["total_shared_memory"] = round(work + figures["copy_in"] + figures["copy_out"], 2)
     figures["cores_2_scans_per_s_max"] = round(2000.0 / figures["total"], 1)
@@ -405,7 +416,7 @@ def _floor_line(f: dict) -> str:
     return (f"2 x {f['steps']}-step floor: {f['total_shared_memory']:.1f} ms CPU a scan with shared memory, "
             f"{f['total']:.1f} with ZeroMQ (at most {f['cores_2_scans_per_s_max']} scans/s on 2 cores): "
             + ", ".join(f"{k} {f[k]:.2f}" for k in ("transport_in", "copy_in", "phase", "unwrap", "triangulate",
-                                                     "assemble", "transport_out", "copy_out")))
+                                                     "filters", "assemble", "transport_out", "copy_out")))
 
 
 def dptpu_model(explicit: str | None) -> str | None:
