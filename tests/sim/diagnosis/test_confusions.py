@@ -4,8 +4,8 @@
   flicker is one gain per frame, shared by every pixel (tests/sim/diagnosis/hidden.py's nominal plane).
 - Camera saturation (clips at one DN, so at a projected level that depends on each pixel's albedo and shading)
   against the projector's response (bends the projected level, the same for every pixel): both on a rig the
-  project was not built on (tests/outside_rigs.py) and on a sphere of another size, with the twin's material
-  and with one the twin does not know.
+  project was not built on (tests/outside_rigs.py), on a sphere of another size and of a material the twin
+  does not know.
 - A step-scale error of the phase shifts (a ripple at twice the fringe frequency) against lens distortion
   (smooth over the image): on the nominal plane near the size at which the step error breaks the temporal
   unwrapping, and on an outside rig.
@@ -42,7 +42,7 @@ def _summary(result):
     return [(e["name"], round(e["gain"], 3), e["named"]) for e in result.effects[:4]]
 
 
-@pytest.mark.parametrize("seed, sigma", [(21, 0.01), (23, 0.02)])
+@pytest.mark.parametrize("seed, sigma", [(21, 0.01)])
 def test_flicker_is_named_as_the_drift_s_random_gain_not_sensor_noise(tmp_path, seed, sigma):
     effect = {"intensity_drift": {"rate_per_frame": 0.0, "sigma": sigma}}
     folder, rig = render_measured(tmp_path / "measured", "plane", effect, seed=seed)
@@ -86,7 +86,7 @@ def _outside_sphere(tmp_path, effect, material=None):
     return diagnose(folder, rig, reference="sphere:40.0", max_pixels=TEST_PIXELS)
 
 
-@pytest.mark.parametrize("material", [None, OTHER_MATERIAL], ids=["twin_material", "other_material"])
+@pytest.mark.parametrize("material", [OTHER_MATERIAL], ids=["other_material"])
 def test_camera_saturation_is_not_taken_for_the_projector_response(tmp_path, material):
     exposure_gain = 1.6 if material is None else 2.2
     result = _outside_sphere(tmp_path, {"saturation": {"exposure_gain": exposure_gain}}, material)
@@ -101,8 +101,8 @@ def test_camera_saturation_is_not_taken_for_the_projector_response(tmp_path, mat
     assert entry["gain"] > 0.9
 
 
-@pytest.mark.parametrize("levels, material", [(None, OTHER_MATERIAL), (KNEE, OTHER_MATERIAL), (KNEE, None)],
-                         ids=["s_curve_other_material", "knee_other_material", "knee_twin_material"])
+@pytest.mark.parametrize("levels, material", [(None, OTHER_MATERIAL), (KNEE, OTHER_MATERIAL)],
+                         ids=["s_curve_other_material", "knee_other_material"])
 def test_projector_response_is_not_taken_for_camera_saturation(tmp_path, levels, material):
     """A knee in the projector's level flattens the fringe tops like a clip, but at the same projected level on
     every pixel, so at a DN proportional to the pixel's brightness: the table is named, not the clip."""
@@ -128,8 +128,7 @@ def _nominal(tmp_path, scene, effects, seed):
                     max_pixels=TEST_PIXELS)
 
 
-@pytest.mark.parametrize("scene, scale, read_noise_dn", [("plane", 1.011, 1.0), ("sphere", 0.989, 0.0),
-                                                         ("sphere", 1.012, 0.0)])
+@pytest.mark.parametrize("scene, scale, read_noise_dn", [("plane", 1.011, 1.0), ("sphere", 1.012, 0.0)])
 def test_step_scale_error_at_the_mf_margin_is_not_taken_for_lens_distortion(tmp_path, scene, scale, read_noise_dn):
     """A 1.1-1.2 % step-scale error biases both phases by ~0.03 rad, 0.44-0.5 of an MF order at 96/1: the noise
     rounds regions (or the whole image) one order off. Decoded about the data's own MF centre, and with the one
