@@ -48,6 +48,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import cv2
 import numpy as np
 
 __all__ = ["DEFAULT_MAX_SLOPE", "DEFAULT_MAX_STEP", "DEFAULT_MIN_MODULATION_RATIO", "DEFAULT_MIN_NEIGHBOURS",
@@ -63,25 +64,33 @@ DEFAULT_MIN_NEIGHBOURS = 2
 #: A point with a neighbour more than this many pixel footprints nearer or farther lies beside a depth step.
 DEFAULT_MAX_STEP = 10.0
 
+# the 8 neighbours, the 4 side ones and the 4 diagonal ones of a pixel, as OpenCV kernels (the centre left out)
+_NEIGHBOURS = np.array([[1, 1, 1], [1, 0, 1], [1, 1, 1]], dtype=np.uint8)
+_SIDES = np.array([[0, 1, 0], [1, 0, 1], [0, 1, 0]], dtype=np.uint8)
+_DIAGONALS = np.array([[1, 0, 1], [0, 0, 0], [1, 0, 1]], dtype=np.uint8)
 # (row step, column step, footprint factor) of the four lines through a pixel
 _LINES = ((0, 1, 1.0), (1, 0, 1.0), (1, 1, np.sqrt(2.0)), (1, -1, np.sqrt(2.0)))
 
 
 def beside_steps(depth: np.ndarray, focal_px: float, *, max_step: float) -> np.ndarray:
     """Pixels with a neighbour (of 8) whose depth differs by more than ``max_step`` pixel footprints ``z / f`` (per
-    diagonal step ``sqrt(2) z / f``): the last pixel on each side of a depth step, (H, W) bool."""
-    z = np.asarray(depth, dtype=np.float64)
-    padded = np.pad(z, 1, constant_values=np.nan)
-    height, width = z.shape
-    limit = max_step * np.abs(z) / focal_px
+    diagonal step ``sqrt(2) z / f``): the last pixel on each side of a depth step, (H, W) bool.
+
+    A neighbour that far exists exactly where the nearest or the farthest neighbour is that far: four grey-level
+    morphologies (OpenCV, float32) over the 4 side and the 4 diagonal neighbours (NaN neighbours never count).
+    """
+    z = np.asarray(depth, dtype=np.float32)
+    finite = np.isfinite(z)
+    nearest_fill = np.where(finite, z, np.float32(np.inf))
+    farthest_fill = np.where(finite, z, np.float32(-np.inf))
+    limit = np.float32(max_step / focal_px) * np.abs(z)  # (H, W), one side step
     out = np.zeros(z.shape, dtype=bool)
     with np.errstate(invalid="ignore"):
-        for dr in (-1, 0, 1):
-            for dc in (-1, 0, 1):
-                if dr or dc:
-                    other = padded[1 + dr:1 + dr + height, 1 + dc:1 + dc + width]
-                    out |= np.abs(other - z) > (limit * np.sqrt(2.0) if dr and dc else limit)
-    return out
+        for kernel, factor in ((_SIDES, np.float32(1.0)), (_DIAGONALS, np.float32(np.sqrt(2.0)))):
+            farthest = cv2.dilate(farthest_fill, kernel, borderType=cv2.BORDER_CONSTANT, borderValue=-np.inf)
+            nearest = cv2.erode(nearest_fill, kernel, borderType=cv2.BORDER_CONSTANT, borderValue=np.inf)
+            out |= (farthest - z > factor * limit) | (z - nearest > factor * limit)
+    return out & finite
 
 
 def flying_points(depth: np.ndarray, focal_px: float, *, max_slope: float = DEFAULT_MAX_SLOPE) -> np.ndarray:
@@ -105,18 +114,18 @@ def flying_points(depth: np.ndarray, focal_px: float, *, max_slope: float = DEFA
         raise ValueError(f"focal_px must be a positive number of pixels; got {focal_px}")
     if not (np.isfinite(max_slope) and max_slope > 0):
         raise ValueError(f"max_slope must be > 0 (a depth change in pixel footprints); got {max_slope}")
-    z = np.asarray(depth, dtype=np.float64)
+    z = np.asarray(depth, dtype=np.float32)
     if z.ndim != 2:
         raise ValueError(f"depth must be an (H, W) image; got shape {z.shape}")
-    padded = np.pad(z, 1, constant_values=np.nan)
+    padded = cv2.copyMakeBorder(z, 1, 1, 1, 1, cv2.BORDER_CONSTANT, value=np.nan)
     height, width = z.shape
-    footprint = np.abs(z) / focal_px  # (H, W) lateral extent of one pixel at its depth
+    footprint = np.abs(z) * np.float32(1.0 / focal_px)  # (H, W) lateral extent of one pixel at its depth
     flying = np.zeros(z.shape, dtype=bool)
     with np.errstate(invalid="ignore"):  # NaN comparisons are False: no point, no mark
         for dr, dc, factor in _LINES:
             before = padded[1 - dr:1 - dr + height, 1 - dc:1 - dc + width]
             after = padded[1 + dr:1 + dr + height, 1 + dc:1 + dc + width]
-            limit = max_slope * factor * footprint
+            limit = np.float32(max_slope * factor) * footprint
             flying |= (np.abs(z - before) > limit) & (np.abs(after - z) > limit)
     return flying
 
@@ -183,7 +192,7 @@ def edge_points(depth: np.ndarray, focal_px: float, modulation: np.ndarray | Non
     has_point = np.isfinite(z)
     dip = np.zeros(z.shape, dtype=bool)
     if modulation is not None and min_modulation_ratio > 0:
-        b = np.asarray(modulation, dtype=np.float64)
+        b = np.asarray(modulation, dtype=np.float32)
         if b.shape != z.shape:
             raise ValueError(f"modulation must have the depth's shape {z.shape}; got {b.shape}")
         brightest = _neighbour_max(np.where(np.isfinite(b), b, -np.inf))
@@ -196,25 +205,13 @@ def edge_points(depth: np.ndarray, focal_px: float, modulation: np.ndarray | Non
     return EdgePoints(flying=flying, beside_step=step, modulation_dip=dip, isolated=isolated)
 
 
-def _neighbours(values: np.ndarray, fill):
-    """The 8 shifted copies of ``values`` (H, W), ``fill`` outside the image."""
-    padded = np.pad(values, 1, constant_values=fill)
-    height, width = values.shape
-    for dr in (-1, 0, 1):
-        for dc in (-1, 0, 1):
-            if dr or dc:
-                yield padded[1 + dr:1 + dr + height, 1 + dc:1 + dc + width]
-
-
 def _neighbour_max(values: np.ndarray) -> np.ndarray:
-    out = np.full(values.shape, -np.inf)
-    for shifted in _neighbours(values, -np.inf):
-        np.maximum(out, shifted, out=out)
-    return out
+    """The largest of each pixel's 8 neighbours (float32; -inf outside the image)."""
+    return cv2.dilate(np.asarray(values, dtype=np.float32), _NEIGHBOURS, borderType=cv2.BORDER_CONSTANT,
+                      borderValue=-np.inf)
 
 
 def _neighbour_count(mask: np.ndarray) -> np.ndarray:
-    out = np.zeros(mask.shape, dtype=np.int32)
-    for shifted in _neighbours(mask, False):
-        out += shifted
-    return out
+    """How many of each pixel's 8 neighbours are set (outside the image: none)."""
+    return cv2.filter2D(mask.astype(np.uint8), cv2.CV_16S, _NEIGHBOURS.astype(np.float32),
+                        borderType=cv2.BORDER_CONSTANT)
