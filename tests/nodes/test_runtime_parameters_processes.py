@@ -15,6 +15,8 @@ import time
 import numpy as np
 
 from dptpu.fpp.calibration import save_rig
+from dptpu.graph import Parameter
+from dptpu.graph.parameter_client import AsyncParameterClient
 from dptpu.messages import AbsolutePhase, FringeFrame, PointCloud2
 from dptpu.nodes.harness import fringe_frames
 from tests.nodes.test_cloud_scene import plane_scene
@@ -27,6 +29,23 @@ def _dptpu(*args: str) -> tuple[int, str]:
     result = subprocess.run([sys.executable, "-m", "dptpu.cli.main", *args], capture_output=True, text=True,
                             timeout=120, env=dict(os.environ))
     return result.returncode, result.stdout + result.stderr
+
+
+def _set(client: AsyncParameterClient, name: str, value):
+    future = client.set_parameters([Parameter(name, value=value)])
+    assert future.wait(timeout_sec=20), f"no answer to set_parameters {name}"
+    return future.result().results[0]
+
+
+def _reason(result) -> str:
+    assert not result.successful
+    return result.reason
+
+
+def _get(client: AsyncParameterClient, name: str):
+    future = client.get_parameters([name])
+    assert future.wait(timeout_sec=20), f"no answer to get_parameters {name}"
+    return client.values_of(future.result())[0]
 
 
 def test_param_set_changes_the_next_cloud_and_a_bad_value_is_refused(spawn_node, probe, tmp_path):
@@ -64,15 +83,16 @@ def test_param_set_changes_the_next_cloud_and_a_bad_value_is_refused(spawn_node,
     assert before.header.frame_id == "scanner_optical_frame"
     points_before = int(np.count_nonzero(np.isfinite(before.to_array(["z"]))))
 
+    # the two commands, through the real CLI; the rest through the same services from the probe
     assert _dptpu("param", "set", "/cloud", "frame_id", "camera_optical_frame") == (0, "Set parameter successful\n")
     code, out = _dptpu("param", "set", "/unwrap", "method", "bogus")
     assert (code, out) == (1, "Setting parameter failed: parameter method must be one of mf, mw, nt, heterodyne; "
                               "got 'bogus'\n")
-    assert _dptpu("param", "get", "/unwrap", "method") == (0, "String value is: mf\n")
-    code, out = _dptpu("param", "set", "/cloud", "rig", "other.yaml")
-    assert (code, out) == (1, "Setting parameter failed: Trying to set a read-only parameter: rig\n")
-    assert _dptpu("param", "set", "/cloud", "min_confidence", "1.5")[1] == \
-        "Setting parameter failed: min_confidence must be within [0, 1]; got 1.5\n"
+    cloud, unwrap = AsyncParameterClient(probe.node, "/cloud"), AsyncParameterClient(probe.node, "/unwrap")
+    assert cloud.wait_for_services(timeout_sec=20) and unwrap.wait_for_services(timeout_sec=20)
+    assert _get(unwrap, "method") == "mf"
+    assert _reason(_set(cloud, "rig", "other.yaml")) == "Trying to set a read-only parameter: rig"
+    assert _reason(_set(cloud, "min_confidence", 1.5)) == "min_confidence must be within [0, 1]; got 1.5"
 
     after, after_phase = scan()
     assert after.header.frame_id == "camera_optical_frame"
@@ -80,7 +100,7 @@ def test_param_set_changes_the_next_cloud_and_a_bad_value_is_refused(spawn_node,
     np.testing.assert_array_equal(np.isfinite(after.to_array(["z"])), np.isfinite(before.to_array(["z"])))
 
     # a threshold: no classical rounding margin reaches 1.0 on a noisy capture, so fewer points (none at most)
-    assert _dptpu("param", "set", "/cloud", "min_confidence", "1.0") == (0, "Set parameter successful\n")
+    assert _set(cloud, "min_confidence", 1.0).successful
     strict, _ = scan()
     assert int(np.count_nonzero(np.isfinite(strict.to_array(["z"])))) < points_before
     assert all(p.proc.poll() is None for p in nodes)
