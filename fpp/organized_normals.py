@@ -5,10 +5,10 @@ the image. The tangents along the row and the column are the central differences
 
     t_u = P(v, u + 1) - P(v, u - 1),    t_v = P(v + 1, u) - P(v - 1, u),
 
-(one-sided, ``P(v, u + 1) - P(v, u)`` or ``P(v, u) - P(v, u - 1)``, where a neighbour is missing: NaN or outside
-the image), summed over a ``window_px`` x ``window_px`` window of pixels around the point (the finite ones only;
-a symmetric window keeps the estimate's curvature bias of second order and divides the noise by about the window's
-width), and the normal is their cross product, normalized:
+(NaN where a neighbour is missing: NaN or outside the image), summed over a ``window_px`` x ``window_px`` window
+of pixels around the point (the finite ones only, so a point beside a hole or on a silhouette takes its tangents
+from the neighbours that have them; a symmetric window keeps the estimate's curvature bias of second order and
+divides the noise by about the window's width), and the normal is their cross product, normalized:
 
     n = (sum t_u x sum t_v) / |sum t_u x sum t_v|.
 
@@ -56,7 +56,7 @@ def organized_normals(points: np.ndarray, *, window_px: int = DEFAULT_NORMAL_WIN
     Notes
     -----
     ``n = (sum t_u x sum t_v) / |sum t_u x sum t_v|`` over the window, ``t_u``, ``t_v`` the central differences
-    along the row and the column (one-sided where a neighbour is missing); see the module docstring.
+    along the row and the column (NaN where a neighbour is missing); see the module docstring.
 
     Convention: pixel ``(v, u)`` is row ``v``, column ``u``; the result is oriented toward the origin.
     """
@@ -73,14 +73,19 @@ def organized_normals(points: np.ndarray, *, window_px: int = DEFAULT_NORMAL_WIN
     p = [points[..., c].astype(np.float32, copy=False) for c in range(3)]  # x, y, z planes (H, W)
     tu = _window_sum(_tangent(p, axis=1), int(window_px))  # along the row: 3 planes
     tv = _window_sum(_tangent(p, axis=0), int(window_px))  # along the column
-    n = [tu[1] * tv[2] - tu[2] * tv[1], tu[2] * tv[0] - tu[0] * tv[2], tu[0] * tv[1] - tu[1] * tv[0]]  # t_u x t_v
+    n = []  # t_u x t_v, component by component, in place
+    for a, b in ((1, 2), (2, 0), (0, 1)):
+        component = np.multiply(tu[a], tv[b])
+        component -= tu[b] * tv[a]
+        n.append(component)
     length = np.sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2])  # (H, W)
     facing = n[0] * p[0] + n[1] * p[1] + n[2] * p[2]  # n . P, NaN where the point is
     with np.errstate(invalid="ignore", divide="ignore"):
-        scale = np.where(facing > 0, -1.0 / length, 1.0 / length).astype(np.float32)  # toward the camera
-    scale[np.isnan(facing) | (length == 0)] = np.nan
+        np.divide(np.where(facing > 0, np.float32(-1.0), np.float32(1.0)), length, out=length)  # toward the camera
+    length[np.isnan(facing)] = np.nan  # (a zero length, parallel tangents, is inf -> NaN below)
     for c in range(3):
-        np.multiply(n[c], scale, out=out[..., c])
+        np.multiply(n[c], length, out=out[..., c])
+    out[~np.isfinite(length)] = np.nan
     return out
 
 
@@ -101,28 +106,15 @@ def _window_sum(tangents: list[np.ndarray], window: int) -> list[np.ndarray]:
     return summed
 
 
-def _tangent(points: list[np.ndarray], *, axis: int, radius: int = 1) -> list[np.ndarray]:
-    """Central difference over ``2 radius`` pixels along ``axis`` (0 rows, 1 columns) of the three (H, W) planes,
-    one-sided where the central one is NaN; NaN where neither side has a finite neighbour. Which difference a pixel
-    takes is decided on the z plane, so the three components always come from the same two points."""
-    size = points[0].shape[axis]
-
-    def cut(start, stop):  # the slice along ``axis``
-        return (slice(start, stop),) if axis == 0 else (slice(None), slice(start, stop))
-
-    tangents = [np.full_like(plane, np.nan) for plane in points]
-    if size <= radius:
-        return tangents
-    z = points[2]
-    pair_ok = ~np.isnan(z[cut(radius, None)] - z[cut(None, size - radius)])  # P(j + r) and P(j), j < size - r
-    central_ok = ~np.isnan(z[cut(2 * radius, None)] - z[cut(None, size - 2 * radius)]) if size > 2 * radius \
-        else None  # P(i + r), P(i - r) for r <= i < size - r
-    for plane, t in zip(points, tangents):
-        step = plane[cut(radius, None)] - plane[cut(None, size - radius)]  # P(j + r) - P(j), j < size - r
-        np.copyto(t[cut(None, size - radius)], step, where=pair_ok)  # forward difference at i = j ...
-        lacking = np.isnan(t[cut(radius, None)])
-        np.copyto(t[cut(radius, None)], step, where=pair_ok & lacking)  # ... backward at i = j + r ...
-        if central_ok is not None:
-            central = plane[cut(2 * radius, None)] - plane[cut(None, size - 2 * radius)]
-            np.copyto(t[cut(radius, size - radius)], central, where=central_ok)  # ... central wherever it exists
+def _tangent(points: list[np.ndarray], *, axis: int) -> list[np.ndarray]:
+    """Central difference ``P(i + 1) - P(i - 1)`` along ``axis`` (0 rows, 1 columns) of the three (H, W) planes; NaN
+    where a neighbour is NaN or outside the image."""
+    tangents = []
+    for plane in points:
+        t = np.full_like(plane, np.nan)
+        if axis == 0:
+            np.subtract(plane[2:], plane[:-2], out=t[1:-1])
+        else:
+            np.subtract(plane[:, 2:], plane[:, :-2], out=t[:, 1:-1])
+        tangents.append(t)
     return tangents

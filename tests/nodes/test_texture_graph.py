@@ -47,12 +47,14 @@ def test_the_texture_is_the_twins_albedo_render_within_the_sensor_noise(tmp_path
                       sequence="16x4,1x4,white,black")
         harness.start(PhaseNode, timeout_s=5.0, projector_width=912, projector_height=1140)
         harness.start(UnwrapNode, method="mf")
-        harness.start(CloudNode, rig=str(rig_path))
+        cloud_node = harness.start(CloudNode, rig=str(rig_path))
         triggers = harness.publisher(Trigger, "/projector/trigger", 100)
         frames = harness.collect(FringeFrame, "/camera/image_raw")
         textures = harness.collect(Image, "/scanner/texture")
         clouds = harness.collect(PointCloud2, "/scanner/points")
         harness.connect(timeout_s=60.0)
+        assert harness.spin_until(lambda: all(sub.get_publisher_count() for sub in
+                                              cloud_node._side_subscriptions.values()), timeout_s=15.0)
         for trigger in _triggers(1):
             triggers.publish(trigger)
         harness.wait(frames, 10)

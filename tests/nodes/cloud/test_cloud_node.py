@@ -246,8 +246,8 @@ def test_outside_rig_scan_drops_low_confidence_and_depth_edges_and_publishes_the
     # fall below min_confidence (the network, or a heterodyne tree of smaller ratios, keeps more)
     assert np.count_nonzero(published & capture.pure) >= 0.95 * capture.pure.sum()
     # normals against the analytic surfaces (3 x 3 windows of central differences of noisy points; 96/95 heterodyne
-    # amplifies the 1.6 DN noise). Measured, median / 90th percentile: plane 0.21 / 0.42 deg; the three spheres
-    # (radius 14-15 mm, about 22 px) 1.28-1.86 / 2.9-4.2 deg, their curvature over the window and the noise
+    # amplifies the 1.6 DN noise). Measured, median / 90th percentile: plane 0.21 / 0.41 deg; the three spheres
+    # (radius 14-15 mm, about 22 px) 1.34-2.04 / 3.1-4.9 deg, their curvature over the window and the noise
     normals = cloud.to_array(["normal_x", "normal_y", "normal_z"]).astype(np.float64)[published]  # (M, 3)
     _, which = capture.scene.hit(np.zeros(3), xyz_mm[published])
     truth = capture.scene.normal(xyz_mm[published], which)
