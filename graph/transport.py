@@ -211,7 +211,7 @@ def configure_server(sock: zmq.Socket, config: TransportConfig) -> None:
         sock.curve_secretkey = config.curve.secret
         sock.curve_publickey = config.curve.public
         sock.curve_server = True
-    _heartbeats(sock)
+    _heartbeats(sock, config)
 
 
 def configure_client(sock: zmq.Socket, config: TransportConfig) -> None:
@@ -219,11 +219,16 @@ def configure_client(sock: zmq.Socket, config: TransportConfig) -> None:
     if config.curve is not None:
         sock.curve_secretkey = config.curve.secret
         sock.curve_publickey = config.curve.public
-    _heartbeats(sock)
+    _heartbeats(sock, config)
 
 
-def _heartbeats(sock: zmq.Socket) -> None:
-    # ZMTP heartbeats: a silent tcp peer (host powered off, cable pulled) is dropped after ~3 s.
+def _heartbeats(sock: zmq.Socket, config: TransportConfig) -> None:
+    # ZMTP heartbeats: a silent tcp peer (host powered off, cable pulled) is dropped after ~3 s. Not on ipc only:
+    # there the kernel closes a dead peer's socket at once, and a heartbeat would also drop a live peer that is
+    # merely paused (SIGSTOP, a long GC) for 3 s, with what its pipes held: a paused projector lost the monitor's
+    # start request and the Triggers of the next scan (issue 19)
+    if config.tcp_interface is None:
+        return
     sock.setsockopt(zmq.HEARTBEAT_IVL, 1000)
     sock.setsockopt(zmq.HEARTBEAT_TIMEOUT, 3000)
     sock.setsockopt(zmq.HEARTBEAT_TTL, 3000)

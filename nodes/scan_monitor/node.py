@@ -355,6 +355,7 @@ class ScanMonitorNode(Node):
             for scan in list(self._pending.values()):
                 self._report(scan)
             self._done_ids.clear()
+            self._truths.clear()  # by sequence_id: the new scans' truths come with them
             self.scans_started = self.reported
         if starter:
             self._starter = starter

@@ -259,6 +259,9 @@ class SimNode(Node):
         sequence_id = trigger.sequence_id
         index = self.scene_index(sequence_id)
         scene = self.source.scenes[index]
+        if trigger.pattern_index == 0 and sequence_id in self._scans_seen:  # a scan starts twice: a new projector
+            self.get_logger().info(f"scan {sequence_id} starts again: a new projector numbers its scans anew")
+            self._scans_seen.clear()
         if sequence_id not in self._scans_seen:
             self._scans_seen[sequence_id] = False
             while len(self._scans_seen) > _SCANS_REMEMBERED:

@@ -54,13 +54,16 @@ def correct(line: str, outcome: str) -> bool:
     return float(line.split("fringe orders ")[1].split(" %")[0]) / 100.0 >= ORDER_ACCURACY_BOUND
 
 
-def _run_of_correct(run: LaunchRun, reported_before: int) -> tuple[bool, int]:
+def _run_of_correct(run: LaunchRun, reported_before: int, streak_from: int | None = None) -> tuple[bool, int]:
     """``(five correct in a row seen, scans reported not correct)`` among the scans reported after the first
-    ``reported_before`` (by position: a new projector numbers its scans from 1 again)."""
+    ``reported_before`` (by position: a new projector numbers its scans from 1 again); the five count only from
+    position ``streak_from`` on (default: ``reported_before``)."""
     streak = 0
     bad = 0
-    for _sequence_id, _scene, outcome, line in run.scans()[reported_before:]:
+    for position, (_sequence_id, _scene, outcome, line) in enumerate(run.scans()[reported_before:], reported_before):
         if correct(line, outcome):
+            if streak_from is not None and position < streak_from:
+                continue
             streak += 1
             if streak >= IN_A_ROW:
                 return True, bad
@@ -87,7 +90,11 @@ def inject(run: LaunchRun, node: str, fault: str, seconds: float, *, timeout: fl
         os.killpg(pid, signal.SIGCONT)
         label = f"SIGSTOP {seconds:g} s"
     resumed = time.monotonic()
-    run.wait_for(lambda lines: _run_of_correct(run, reported_before)[0], timeout,
+    # the lines of scans finished before the fault may reach the launcher's output late: the five in a row count
+    # from the scans reported a second after the fault's end
+    time.sleep(1.0)
+    streak_from = len(run.scans())
+    run.wait_for(lambda lines: _run_of_correct(run, reported_before, streak_from)[0], timeout,
                  f"{IN_A_ROW} correct scans in a row after {label} of {node}")
     done = time.monotonic()
     return Recovery(node, label, last_before, done - start, done - resumed, _run_of_correct(run, reported_before)[1],
