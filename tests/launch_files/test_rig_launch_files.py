@@ -44,8 +44,9 @@ def test_shipped_files_use_only_ros2_keys_and_paths_ros2_resolves(path):
         assert kind in ROS2_KEYS and set(body) <= ROS2_KEYS[kind], (path.name, kind, set(body) - ROS2_KEYS[kind])
         files = [body["file"]] if kind == "include" else \
             [item["from"] for item in body.get("param", []) if "from" in item] if kind == "node" else []
-        for name in files:
-            assert name.startswith(("$(dirname)/", "$(find-pkg-share dptpu)/")), (path.name, name)
+        for name in files:  # or a file the caller passes as an argument (the mount: its default is $(dirname)/...)
+            assert name.startswith(("$(dirname)/", "$(find-pkg-share dptpu)/")) or name == "$(var mount)", \
+                (path.name, name)
         if kind == "node":
             assert body["pkg"] == "dptpu", (path.name, body)
 
@@ -109,3 +110,19 @@ def test_the_main_job_runs_the_network_by_default_and_grades_scans_within_the_mo
     # the real rigs keep the classical order unless asked (their sequences are not the twin's)
     real = {node.label: node.command for node in load_launch_file(str(LAUNCH_DIR / "dlp4500_aca640.yaml"), {}).nodes}
     assert "model:=none" in real["unwrap"]
+
+
+@pytest.mark.parametrize("name", RIGS)
+def test_every_rig_gives_the_cloud_the_mount_file_identity_by_default(name, tmp_path):
+    """The cloud's /tf_static mount comes from a parameter file: the shipped identity, or mount:=FILE (what
+    ``dptpu calibrate hand-eye`` writes)."""
+    default = load_launch_file(str(LAUNCH_DIR / name))
+    (cloud,) = [node.command for node in default.nodes if node.label == "cloud"]
+    assert str(LAUNCH_DIR / "params" / "mount.yaml") in cloud
+    mount = yaml.safe_load((LAUNCH_DIR / "params" / "mount.yaml").read_text())["/**"]["ros__parameters"]
+    assert mount == {"mount_frame": "scanner_mount", "mount_transform": [0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0]}
+    measured = tmp_path / "mount.yaml"
+    measured.write_text("/**:\n  ros__parameters: {mount_frame: tool0}\n")
+    (cloud,) = [node.command for node in load_launch_file(str(LAUNCH_DIR / name), {"mount": str(measured)}).nodes
+                if node.label == "cloud"]
+    assert cloud[cloud.index(str(measured)) - 1] == "--params-file"
