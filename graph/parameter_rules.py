@@ -58,6 +58,7 @@ class ParameterRules:
     def __init__(self, node) -> None:
         self._node = node
         self._rules: dict[str, _Rule] = {}
+        self._pending: list = []  # the parameters being checked (one set call), for value()
         node.add_on_set_parameters_callback(self._check)
         node.add_post_set_parameters_callback(self._apply)
 
@@ -89,9 +90,10 @@ class ParameterRules:
         descriptor = ParameterDescriptor(description=description, read_only=True, dynamic_typing=dynamic_typing)
         return self._node.declare_parameter(name, default, descriptor).value
 
-    def value(self, name: str, pending: Sequence = ()):
-        """The value of ``name`` as it would be after ``pending`` (the parameters being set) is applied."""
-        for parameter in pending:
+    def value(self, name: str):
+        """The value of ``name`` as it will be if the set being checked is accepted: a check of one parameter that
+        depends on another reads it here (``param set`` of both at once, atomically, sees both new values)."""
+        for parameter in self._pending:
             if parameter.name == name:
                 return parameter.value
         return self._node.get_parameter(name).value
@@ -104,6 +106,13 @@ class ParameterRules:
         return assign
 
     def _check(self, parameters) -> SetParametersResult:
+        self._pending = list(parameters)
+        try:
+            return self._check_each(self._pending)
+        finally:
+            self._pending = []
+
+    def _check_each(self, parameters) -> SetParametersResult:
         for parameter in parameters:
             rule = self._rules.get(parameter.name)
             if rule is None or rule.check is None:
