@@ -128,7 +128,7 @@ class Acquisition:
         self.unpaired_frames = 0
         self._last_error = "not connected yet"
         self._triggers: queue.Queue = queue.Queue()
-        self._exposure_us: queue.Queue = queue.Queue()  # new exposure times for the thread to write
+        self._new_settings: queue.Queue = queue.Queue()  # (name, value) for the thread to write
         self._connected = threading.Event()
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._run, name="camera-acquisition", daemon=True)
@@ -148,31 +148,32 @@ class Acquisition:
         """Any thread: a Trigger arrived (it is stamped with its arrival time here)."""
         self._triggers.put((trigger, time.monotonic()))
 
-    def set_exposure_us(self, exposure_us: float) -> None:
-        """Any thread: write this exposure time to the camera before its next frame (and at every reconnection)."""
-        self.settings = dataclasses.replace(self.settings, exposure_us=float(exposure_us))
-        self._exposure_us.put(float(exposure_us))
+    def write_setting(self, name: str, value: float) -> None:
+        """Any thread: write ``exposure_us`` or ``frame_rate_hz`` to the camera before its next frame (and at every
+        reconnection)."""
+        self.settings = dataclasses.replace(self.settings, **{name: float(value)})
+        self._new_settings.put((name, float(value)))
 
     # --- the thread --------------------------------------------------------------------------------
 
     def _write_settings(self, device: GenICamDevice) -> None:
-        """Write the exposure times set since the last call (the latest wins)."""
-        latest = None
+        """Write the settings set since the last call (of each, the latest wins)."""
+        latest: dict[str, float] = {}
         while True:
             try:
-                latest = self._exposure_us.get_nowait()
+                name, value = self._new_settings.get_nowait()
             except queue.Empty:
                 break
-        if latest is None:
-            return
-        try:
-            note = device.set_exposure_us(latest)
-        except (CameraUnavailable, AttributeError, ValueError, OSError) as exc:  # GenICam's errors vary
-            note = f"cannot set exposure_us {latest}: {exc}"
-        if note:
-            self.logger.warning(f"camera: {note}")
-        else:
-            self.logger.info(f"camera: exposure time {latest:g} us")
+            latest[name] = value
+        for name, value in latest.items():
+            try:
+                note = device.write_setting(name, value)
+            except (CameraUnavailable, AttributeError, ValueError, OSError) as exc:  # GenICam's errors vary
+                note = f"cannot set {name} {value}: {exc}"
+            if note:
+                self.logger.warning(f"camera: {note}")
+            else:
+                self.logger.info(f"camera: {name} {value:g}")
 
     def _run(self) -> None:
         attempt = 0

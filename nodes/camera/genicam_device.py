@@ -167,14 +167,18 @@ class GenICamDevice:
             harvester.reset()
             raise
 
-    def set_exposure_us(self, exposure_us: float) -> str:
-        """Write the exposure time now (while acquiring); a note when the camera has no such feature ("" if set)."""
+    def write_setting(self, name: str, value: float) -> str:
+        """Write ``exposure_us`` or ``frame_rate_hz`` now (while acquiring); a note when the camera has no such
+        feature ("" when written)."""
         node_map = self._acquirer.remote_device.node_map
-        feature = _first_feature(node_map, ("ExposureTime", "ExposureTimeAbs"))
+        features = _RUN_TIME_FEATURES[name]
+        feature = _first_feature(node_map, features)
         if feature is None:
-            return f"the camera has no ExposureTime feature: exposure_us {exposure_us} ignored"
-        _set(node_map, feature, float(exposure_us))
-        self.settings = dataclasses.replace(self.settings, exposure_us=float(exposure_us))
+            return f"the camera has no {features[0]} feature: {name} {value} ignored"
+        if name == "frame_rate_hz" and node_map.has_node("AcquisitionFrameRateEnable"):
+            _set(node_map, "AcquisitionFrameRateEnable", True)
+        _set(node_map, feature, float(value))
+        self.settings = dataclasses.replace(self.settings, **{name: float(value)})
         return ""
 
     def software_trigger(self) -> None:
@@ -271,6 +275,10 @@ def _set(node_map, name: str, value) -> None:
     if node.get_access_mode() not in (EAccessMode.RW, EAccessMode.WO):
         raise CameraUnavailable(f"the camera's {name} is read-only at {node.value}; cannot set {value}")
     node.value = value
+
+
+#: The settings written while acquiring, and the GenICam features (SFNC names first) that hold them.
+_RUN_TIME_FEATURES = {"exposure_us": ("ExposureTime", "ExposureTimeAbs"), "frame_rate_hz": ("AcquisitionFrameRate",)}
 
 
 def _first_feature(node_map, names) -> str | None:

@@ -43,8 +43,8 @@ name                     default                     meaning
 ``reconnect_max_s``      5.0                         longest reconnection delay
 =======================  ==========================  ===================================================
 
-``exposure_us`` (written to the camera before its next frame) and ``frame_id`` apply at run time
-(``dptpu param set``); the others open and configure the device and are read-only.
+``exposure_us`` and ``frame_rate_hz`` (written to the camera before its next frame) and ``frame_id`` apply at run
+time (``dptpu param set``); the others open and configure the device and are read-only.
 
 Convention: an image's stamp is the host time at which its buffer was received (producers such as
 ``viky.cti`` give no device timestamps); the exposure started up to one exposure plus the transfer
@@ -88,7 +88,8 @@ class CameraNode(Node):
                                        description="written to the camera before its next frame"),
             trigger_mode=rules.read_only("trigger_mode", "hardware", description=device),
             trigger_source=rules.read_only("trigger_source", "Line1", description=device),
-            frame_rate_hz=rules.read_only("frame_rate_hz", 0.0, description=device))
+            frame_rate_hz=rules.settable("frame_rate_hz", 0.0, check=at_least(0.0), apply=self._set_frame_rate_hz,
+                                         description="free-running: written to the camera before its next frame"))
         frame_timeout_s = rules.read_only("frame_timeout_s", 1.0, description=device)
         publish_unpaired = rules.read_only("publish_unpaired", False, description=device)
         rig_path = rules.read_only("rig", "", description="the CameraInfo published at start-up")
@@ -120,7 +121,13 @@ class CameraNode(Node):
     def _set_exposure_us(self, exposure_us: float) -> None:
         """``param set /camera exposure_us``: the acquisition thread writes it before the next frame."""
         if exposure_us > 0:
-            self.acquisition.set_exposure_us(exposure_us)
+            self.acquisition.write_setting("exposure_us", exposure_us)
+
+    def _set_frame_rate_hz(self, frame_rate_hz: float) -> None:
+        """``param set /camera frame_rate_hz`` (free-running): the acquisition thread writes it before the next
+        frame."""
+        if frame_rate_hz > 0:
+            self.acquisition.write_setting("frame_rate_hz", frame_rate_hz)
 
     def on_trigger(self, trigger: Trigger) -> None:
         """A pattern is on screen: hand it to the acquisition thread to be paired with a frame."""

@@ -1,7 +1,8 @@
 """The camera node's parameters at run time, as a real process on the shipped viky.cti GenTL producer.
 
-``exposure_us`` goes to the acquisition thread, which writes it to the device before the next frame: viky has no
-ExposureTime feature, so the node says the value was ignored (a camera with the feature is written instead).
+``exposure_us`` and ``frame_rate_hz`` go to the acquisition thread, which writes them to the device before the next
+frame: viky has no ExposureTime feature, so the node says the value was ignored (a camera with the feature is
+written instead); its AcquisitionFrameRate is written.
 A negative exposure is refused by the same check as at start-up; a device setting is read-only. The parameters are
 set through the node's parameter services (what ``dptpu param set`` calls), from the test's probe node.
 """
@@ -18,7 +19,7 @@ def _set(client: AsyncParameterClient, name: str, value):
     return future.result().results[0]
 
 
-def test_exposure_is_written_at_run_time_and_a_bad_value_or_a_device_setting_refused(spawn_node, probe):
+def test_exposure_and_frame_rate_are_written_at_run_time_and_a_bad_value_or_a_device_setting_refused(spawn_node, probe):
     node = spawn_node(NODE, "--ros-args", "-p", "trigger_mode:=free-running", "-p", "frame_rate_hz:=50.0",
                       *SMALL, *FAST)
     assert node.wait_for_stderr("trigger mode free-running", timeout=20)
@@ -27,6 +28,8 @@ def test_exposure_is_written_at_run_time_and_a_bad_value_or_a_device_setting_ref
     assert _set(client, "exposure_us", 4000.0).successful
     assert node.wait_for_stderr("camera: the camera has no ExposureTime feature: exposure_us 4000.0 ignored",
                                 timeout=10)
+    assert _set(client, "frame_rate_hz", 25.0).successful  # viky has AcquisitionFrameRate (read-write): written
+    assert node.wait_for_stderr("camera: frame_rate_hz 25", timeout=10)
     refused = _set(client, "exposure_us", -1.0)
     assert (refused.successful, refused.reason) == (False, "exposure_us must be >= 0; got -1.0")
     refused = _set(client, "width", 320)
