@@ -225,7 +225,7 @@ def raycast_scenes(rig: Rig, scene_names, sequences, *, fringe_axis: str = "x", 
                                references=rendered_references))
         if log is not None:
             log(f"rendered scene {scene.name} ({index + 1} of {len(scene_names)}): {rig.camera.size[0]}x"
-                f"{rig.camera.size[1]}, {sum(n for _, n in sequences)} frames, "
+                f"{rig.camera.size[1]}, {sum(n for _, n in sequences) + len(references)} frames, "
                 f"{100.0 * samples.lit.mean():.0f} % of pixels lit")
     return scenes
 
