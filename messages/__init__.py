@@ -3,6 +3,8 @@
 - :mod:`.std`: ``Time``, ``Header``.
 - :mod:`.sensor`: ``Image``, ``CameraInfo``, ``RegionOfInterest``, ``PointField``, ``PointCloud2``.
 - :mod:`.diagnostic`: ``KeyValue``, ``DiagnosticStatus``, ``DiagnosticArray``.
+- :mod:`.ros2_definitions`: every type's ROS 2 form (``.msg`` text; the scanner types' shipped ``msg/*.msg``);
+  :mod:`.cdr`: every type in ROS 2's CDR (``encode_cdr``, ``decode_cdr``).
 - :mod:`.geometry`: ``Vector3``, ``Quaternion``, ``Transform``, ``TransformStamped``; :mod:`.tf`: ``TFMessage``.
 - :mod:`.scanner`: ``PatternEntry``, ``PatternSequence``, ``Trigger``, ``FringeFrame``, ``PhaseMaps``,
   ``AbsolutePhase``, ``ScanStatus``.

@@ -135,6 +135,7 @@ def _write_frames(folder: Path, frames: list[FringeFrame], layout: PatternSequen
     sequences = [PhaseFrames(images=np.stack(images), frequency=frequency,
                              phase_offset=float(offsets[index]) if index < len(offsets) else 0.0)
                  for index, (frequency, _, images) in enumerate(entries)]
-    write_capture(folder, sequences=sequences, projector_size=tuple(projector_size), fringe_axis=fringe_axis,
+    width, height = projector_size
+    write_capture(folder, sequences=sequences, projector_size=(int(width), int(height)), fringe_axis=fringe_axis,
                   phase_shift_sign=int(layout.shift_sign) if layout is not None else -1, calibration=rig_path or None,
                   references=references or None)
