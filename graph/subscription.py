@@ -35,10 +35,14 @@ from ..messages.wire_format import DecodeError
 from .known_publishers import KnownPublishers
 from .qos import QoSProfile, ReliabilityPolicy, pipe_high_water_mark, queue_limit
 from .sequence_tracking import SequenceTracker
-from .shared_memory import SharedMemoryError, read_message, shm_topic
+from .shared_memory import SharedMemoryError, StaleSegmentError, read_message, shm_topic
 from .transport import FLAG_HISTORY, EnvelopeError, configure_client, unpack_envelope
 
-__all__ = ["Subscription", "MessageInfo"]
+__all__ = ["Subscription", "MessageInfo", "SHM_GIVE_UP"]
+
+#: Descriptors in a row whose segment cannot be opened (not merely recycled) after which a subscription stops
+#: taking shared memory (unsubscribes its SHM topic; the publishers then send it everything through ZeroMQ).
+SHM_GIVE_UP = 20
 
 
 class MessageInfo(dict):
@@ -88,6 +92,7 @@ class Subscription:
         self.taken_count = 0
         self.exception_count = 0
         self._shm_topic = b""        # set by _open when this process may map other processes' segments
+        self._shm_failures = 0       # descriptors in a row whose segment could not be opened
         self._socket = None          # owned by the I/O thread
         self._connected: dict = {}   # endpoint -> publisher gid (I/O thread)
         self._warned: set = set()    # publisher gids already warned about (I/O thread)
@@ -158,8 +163,18 @@ class Subscription:
         if shared:
             try:
                 item = (read_message(self._topic_bytes, frames[1], frames[2]), envelope)
+                self._shm_failures = 0
+            except StaleSegmentError as exc:
+                self._lost_shared(str(exc))
+                return False
             except SharedMemoryError as exc:
                 self._lost_shared(str(exc))
+                self._shm_failures += 1
+                if self._shm_failures == SHM_GIVE_UP and self._socket is not None:
+                    self._socket.setsockopt(zmq.UNSUBSCRIBE, self._shm_topic)  # runs on the socket's own thread
+                    self._node.get_logger().error(
+                        f"subscription on {self.topic_name}: {SHM_GIVE_UP} shared-memory segments in a row could "
+                        "not be opened; taking every message through ZeroMQ from now on")
                 return False
         else:
             item = (frames[:-1], envelope)

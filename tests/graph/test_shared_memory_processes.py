@@ -11,14 +11,21 @@ import gc
 import os
 import signal
 import time
+import uuid
 from pathlib import Path
 
 import numpy as np
 import pytest
+import zmq
 
-from dptpu.graph import Node, SingleThreadedExecutor, shared_memory
+from dptpu.graph import Node, SingleThreadedExecutor, String, shared_memory
+from dptpu.graph.shared_memory import host_key, pack_descriptor, shm_topic
+from dptpu.graph.subscription import SHM_GIVE_UP
+from dptpu.graph.transport import pack_envelope
+from dptpu.messages import Image, encode
 
 from .nodes.shm_peer import first_array, is_shared, large_messages, round_of, same_message
+from .test_robustness_processes import _announce_raw_publisher
 
 TOPICS = list(large_messages(0))
 
@@ -164,8 +171,6 @@ def test_a_killed_subscriber_leaves_no_segment_and_the_publisher_goes_on(context
 @pytest.mark.parametrize("subscriber_shm", ["auto", "off"])
 def test_loaned_arrays_are_published_without_a_copy_or_copied_out_for_a_subscriber_that_cannot_map(
         context, spawn, subscriber_shm):
-    from dptpu.messages import Image
-
     subscriber = spawn("shm_peer", "--role", "sub", "--linger", "20", env={"DPTPU_SHM": subscriber_shm})
     subscriber.wait_event("ready", timeout=20.0)
     node = Node("loaner", context=context)
@@ -190,3 +195,39 @@ def test_loaned_arrays_are_published_without_a_copy_or_copied_out_for_a_subscrib
     (unused,) = publisher.borrow_loaned_arrays([((480, 640), np.uint16)])
     publisher.return_loaned_arrays([unused])
     assert not publisher._loans
+
+
+def test_a_subscriber_that_cannot_open_segments_unsubscribes_and_gets_zeromq(spawn, domain_dir):
+    listener = spawn("listener", "--count", "1", "--timeout", "30")
+    listener.wait_event("ready")
+    context = zmq.Context()
+    sock = context.socket(zmq.XPUB)
+    sock.setsockopt(zmq.XPUB_VERBOSER, 1)
+    endpoint = f"ipc://{domain_dir}/ep/shmforger"
+    topic = shm_topic(b"/chatter", host_key())  # the listener's host key: the same user on the same kernel
+    try:
+        sock.bind(endpoint)
+        _announce_raw_publisher(domain_dir, endpoint, "/chatter")
+        events: list[bytes] = []
+        deadline = time.monotonic() + 15.0
+        while b"\x01" + topic not in events and time.monotonic() < deadline:
+            if sock.poll(500):
+                events.append(sock.recv())
+        assert b"\x01" + topic in events, events  # it asked for descriptors
+        gid = uuid.uuid4().bytes
+        header = encode("/chatter", String(data="never"))[1]
+        for seq in range(1, SHM_GIVE_UP + 1):  # descriptors of a process that does not exist
+            sock.send_multipart([topic, header, pack_descriptor(2**22 + 4321, 5, 1, bytes(16), seq, 4096, [(64, 8)]),
+                                 pack_envelope(0, seq, 0, gid)])
+        deadline = time.monotonic() + 15.0
+        while b"\x00" + topic not in events and time.monotonic() < deadline:
+            if sock.poll(500):
+                events.append(sock.recv())
+        assert b"\x00" + topic in events  # it gave up shared memory
+        sock.send_multipart(encode("/chatter", String(data="good")) + [pack_envelope(0, SHM_GIVE_UP + 1, 0, gid)])
+        done = listener.wait_event("done", timeout=20.0)
+        assert done["received"] == ["good"] and done["lost_count"] == SHM_GIVE_UP
+        assert listener.wait_for_stderr("taking every message through ZeroMQ from now on"), listener.stderr
+    finally:
+        sock.close(linger=0)
+        context.term()
