@@ -56,6 +56,10 @@ _AX_XB = {"tsai": cv2.CALIB_HAND_EYE_TSAI, "park": cv2.CALIB_HAND_EYE_PARK, "hor
 _AX_ZB = {"shah": cv2.CALIB_ROBOT_WORLD_HAND_EYE_SHAH, "li": cv2.CALIB_ROBOT_WORLD_HAND_EYE_LI}
 #: The fewest views: three robot poses give two relative motions with (in general) different rotation axes.
 MIN_VIEWS = 3
+#: Motions turning less than this (degrees) say nothing about the axes; the ratio of the second to the first
+#: singular value of the remaining unit axes below ``_MIN_AXIS_SPREAD`` means one axis (about 3 degrees apart).
+_MIN_MOTION_DEG = 1.0
+_MIN_AXIS_SPREAD = 0.05
 
 
 def rigid(R: np.ndarray, t: ArrayLike) -> np.ndarray:
@@ -161,6 +165,7 @@ def calibrate_hand_eye(flange_poses: Sequence[np.ndarray], corners_px: Sequence[
                              f"board; got {c.shape}")
     flange = [_checked_rigid(np.asarray(T, dtype=np.float64), f"flange pose {i}") for i, T in enumerate(flange_poses)]
     A = flange if setup == "eye-in-hand" else [invert(T) for T in flange]  # (4, 4) each
+    _check_rotation_axes(A)
     B = [board_in_camera(c, board, camera) for c in corners]  # cam_T_board, (4, 4) each
     object_m = board.object_points() * 1e-3
 
@@ -181,6 +186,20 @@ def calibrate_hand_eye(flange_poses: Sequence[np.ndarray], corners_px: Sequence[
 
 
 # -- private -----------------------------------------------------------------------------------------------------
+
+def _check_rotation_axes(A) -> None:
+    """ValueError when the robot's motions between views turn about (nearly) one axis only: the mount's
+    translation along it is then undetermined (Tsai and Lenz's condition)."""
+    rotvecs = np.stack([Rotation.from_matrix((invert(A[j]) @ A[i])[:3, :3]).as_rotvec()
+                        for i in range(len(A)) for j in range(i + 1, len(A))])  # (P, 3)
+    angles = np.linalg.norm(rotvecs, axis=1)
+    axes = rotvecs[angles > np.radians(_MIN_MOTION_DEG)] / angles[angles > np.radians(_MIN_MOTION_DEG), None]
+    spread = np.linalg.svd(axes, compute_uv=False) if len(axes) >= 2 else np.zeros(2)
+    if len(axes) < 2 or spread[1] / spread[0] < _MIN_AXIS_SPREAD:
+        raise ValueError(f"the robot's rotations between the views turn about one axis only (or less than "
+                         f"{_MIN_MOTION_DEG:g} deg): the mount is undetermined along it; tilt the flange about at "
+                         "least two different axes (20-40 deg each way)")
+
 
 def _rms_px(residuals: np.ndarray) -> float:
     """RMS distance of corners from their reprojections: ``sqrt(mean(dx^2 + dy^2))`` (OpenCV's reprojection RMS)."""

@@ -82,6 +82,22 @@ def test_too_few_views_and_a_non_rigid_pose_are_refused():
         calibrate_hand_eye(flange, corners, BOARD, camera, setup="eye-in-hand")
 
 
+def test_views_turning_about_one_axis_only_are_refused():
+    rng = np.random.default_rng(5)
+    camera = _camera(rng)
+    X = rigid(Rotation.random(random_state=rng).as_matrix(), [0.05, 0.0, 0.1])
+    Y = rigid(np.eye(3), [0.6, 0.0, 0.0])
+    axis = np.array([0.0, 0.0, 1.0])
+    flange = [rigid(Rotation.from_rotvec(np.radians(a) * axis).as_matrix(), [0.4, 0.01 * k, 0.3])
+              for k, a in enumerate((0, 15, 30, 45))]
+    corners = []
+    for A in flange:  # the board seen through B = X^-1 A^-1 Y (whether in view does not matter here)
+        B = invert(X) @ invert(A) @ Y
+        corners.append(project(camera, BOARD.object_points() * 1e-3 @ B[:3, :3].T + B[:3, 3]))
+    with pytest.raises(ValueError, match="turn about one axis only"):
+        calibrate_hand_eye(flange, corners, BOARD, camera, setup="eye-in-hand")
+
+
 def _write_views(tmp_path, pose_text: str) -> str:
     (tmp_path / "view_00.png").write_bytes(b"")
     path = tmp_path / "views.yaml"
