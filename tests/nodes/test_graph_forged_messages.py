@@ -20,14 +20,16 @@ from pathlib import Path
 
 import zmq
 
+from dptpu.graph.discovery import get_graph
 from dptpu.graph.transport import pack_envelope
-from dptpu.messages import CameraInfo, FringeFrame, PatternSequence, ScanStatus
+from dptpu.messages import CameraInfo, FringeFrame, PatternSequence, ScanStatus, decode, encode
 from dptpu.nodes.plumbing import LATCHED_QOS
 from tests.nodes.conftest import TEST_DOMAIN_ID
 from tests.nodes.fault_matrix import IN_A_ROW, correct, start_rig
 from tests.nodes.test_graph_faults import _announce_raw_publisher
 
 FAKE_IDS = range(1_000_000, 1_003_000)
+FORGED_SCAN = 999_999  # the forged frame's scan, one that never was (a real scan's id would make it a duplicate)
 
 
 def _publisher_gid(domain_dir: Path, node: str, topic: str) -> bytes:
@@ -60,11 +62,18 @@ def test_forged_sequence_configuration_and_statuses_neither_stop_nor_fool_the_sc
         endpoint = f"ipc://{domain_dir}/ep/forger"
         sock.bind(endpoint)
         _announce_raw_publisher(domain_dir, endpoint, "/camera/image_raw", FringeFrame.TYPE_NAME)
+        def phase_connections() -> int:  # publishers the phase node's frame subscription is connected to
+            return max((s.stats.get("publisher_count", 0) for s in get_graph(directory=domain_dir).topics[
+                "/camera/image_raw"].subscriptions if s.node == "/phase"), default=0)
+
         deadline = time.monotonic() + 15
-        while time.monotonic() < deadline and not (sock.poll(500) and sock.recv() == b"\x01/camera/image_raw"):
-            pass  # (a shared-memory subscription may come first)
-        assert time.monotonic() < deadline, "the phase node did not subscribe to the forger"
-        sock.send_multipart([*captured[-1], pack_envelope(0, 2**62, time.time_ns(), sim_gid)])
+        while phase_connections() < 2 and time.monotonic() < deadline:  # the sim and the forger
+            time.sleep(0.2)
+        assert phase_connections() >= 2, "the phase node did not connect to the forger"
+        time.sleep(0.3)  # its subscription reaches the forger's socket
+        _, frame = decode(captured[-1], expected_type=FringeFrame)  # a real frame, of a scan that never was
+        forged = dataclasses.replace(frame, trigger=dataclasses.replace(frame.trigger, sequence_id=FORGED_SCAN))
+        sock.send_multipart([*encode("/camera/image_raw", forged), pack_envelope(0, 2**62, time.time_ns(), sim_gid)])
         # 2.-4. configuration from a second node, and 3000 statuses of scans that never were
         pattern_pub = probe.publisher(PatternSequence, "/projector/pattern_sequence", LATCHED_QOS)
         pattern_pub.publish(dataclasses.replace(real_sequence, shift_sign=-real_sequence.shift_sign))
@@ -89,11 +98,14 @@ def test_forged_sequence_configuration_and_statuses_neither_stop_nor_fool_the_sc
         context.term()
         run.close()
     text = "\n".join(run.lines)
-    after = [s for s in run.scans() if s[0] > before + 1]  # the scan in flight when the forging began may go
+    after = [s for s in run.scans() if s[0] > before + 1 and s[0] != FORGED_SCAN]  # (the scan in flight may go)
     assert all(correct(line, outcome) for _id, _scene, outcome, line in after), "\n".join(s[3] for s in after)
+    assert not [s for s in run.scans() if s[0] == FORGED_SCAN and s[2] == "ok"]  # one frame makes no scan
     assert not [s for s in run.scans() if s[0] in FAKE_IDS]  # no made-up scan reported, none counted
-    assert "4611686018427387904 was out of this publisher's sequence" in text  # 2**62, noticed by the phase node
+    assert any(line.startswith("[phase]") and "4611686018427387904 was out of this publisher's sequence" in line
+               for line in run.lines), text  # 2**62, noticed by the phase node and let go
     for node, topic in (("phase", "/projector/pattern_sequence"), ("sim", "/projector/pattern_sequence"),
-                        ("cloud", "/camera/camera_info"), ("scan_monitor", "/scanner/status")):
+                        ("cloud", "/camera/camera_info"), ("unwrap", "/camera/camera_info"),
+                        ("scan_monitor", "/scanner/status")):
         assert any(line.startswith(f"[{node}]") and f"refusing the publisher of {topic} of node /probe" in line
                    for line in run.lines), f"{node} did not refuse the forged {topic}:\n{run.text(200)}"

@@ -55,6 +55,9 @@ def test_soak_no_resident_memory_growth_after_warm_up(node_env, tmp_path):
     baseline = {name: sorted(rss[name] for rss in warm[:3])[1] for name in NODES}
     final = {name: sorted(rss[name] for rss in warm[-3:])[1] for name in NODES}
     growth = {name: (final[name] - baseline[name]) / baseline[name] for name in NODES}
+    fifths = [warm[round(i * (len(warm) - 1) / 4)] for i in range(5)]  # the curve: a leak grows, a heap settles
+    print("\nRSS (KiB) over the run after the warm-up, in fifths:\n" + "\n".join(
+        f"  {name}: {[rss[name] for rss in fifths]}" for name in NODES))
     print(f"\nsoak: {SCANS} scans in {elapsed:.0f} s; {totals}\nRSS after warm-up (KiB): {baseline}\n"
           f"RSS at the end (KiB): {final}\ngrowth: { {k: round(100 * v, 1) for k, v in growth.items()} } %")
     assert totals["scans"] == SCANS and totals["ok"] >= SCANS - 2, totals  # nothing lost when nothing goes wrong
