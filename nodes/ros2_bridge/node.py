@@ -24,6 +24,9 @@ graph                       DDS                           dir     notes
                                                                   latched, as tf2_ros' static broadcaster
 ``/projector/start_scan``   ``rq/scanner/captureRequest`` in      DDS ``std_srvs/srv/Trigger`` service
 (client)                    ``rr/scanner/captureReply``   out     ``/scanner/capture``; the reply is the projector's
+``/cloud/capture_and_save`` ``rq/scanner/capture_and_save in/out  DDS ``std_srvs/srv/Trigger`` service
+(client)                    Request``, ``...Reply``               ``/scanner/capture_and_save``; the reply is the
+                                                                  cloud node's (the files it wrote)
 =========================== ============================= ======= ==========================================
 
 Parameters
@@ -47,6 +50,8 @@ name                 default                                   meaning
 ``peers``            ""                                        comma-separated unicast peers (multicast off)
 ``capture_service``  "/scanner/capture"                        ROS 2 service name of the capture request ("" = none)
 ``start_service``    "/projector/start_scan"                   graph Trigger service it calls
+``save_service``     "/scanner/capture_and_save"               ROS 2 service name of the save request ("" = none)
+``save_target``      "/cloud/capture_and_save"                 graph Trigger service it calls
 ==================== ========================================= =================================================
 
 Every parameter is read-only (the DDS side is made at start-up; ``param set`` is refused).
@@ -60,20 +65,18 @@ import os
 
 from cyclonedds.domain import Domain, DomainParticipant
 from cyclonedds.pub import DataWriter
-from cyclonedds.sub import DataReader
 from cyclonedds.topic import Topic
 
-from dptpu.graph.interfaces import Trigger as TriggerService
 from dptpu.graph.node import Node
 from dptpu.graph.parameter_rules import ParameterRules
 from dptpu.graph.qos import QoSProfile, ReliabilityPolicy
-from dptpu.graph.services import Client
 from dptpu.messages import CameraInfo, DecodeError, DiagnosticArray, Image, PointCloud2, TFMessage, decode
 from dptpu.nodes.node_main import run_node
 from dptpu.nodes.plumbing import LATCHED_QOS
 
-from .ros2_idl import Trigger_Request_, Trigger_Response_, dds_type_of, ros_topic_name, to_dds
+from .ros2_idl import dds_type_of, ros_topic_name, to_dds
 from .ros2_qos import cyclone_config_xml, ros2_qos
+from .trigger_forward import TriggerForward
 
 __all__ = ["Ros2BridgeNode", "DEFAULT_TOPICS", "DEFAULT_TYPES", "main"]
 
@@ -116,11 +119,13 @@ class Ros2BridgeNode(Node):
         peers = tuple(p.strip() for p in rules.read_only("peers", "", description=wiring).split(",") if p.strip())
         capture_service = rules.read_only("capture_service", "/scanner/capture", description=wiring)
         start_service = rules.read_only("start_service", "/projector/start_scan", description=wiring)
+        save_service = rules.read_only("save_service", "/scanner/capture_and_save", description=wiring)
+        save_target = rules.read_only("save_target", "/cloud/capture_and_save", description=wiring)
         if self.qos_profile not in ("default", "sensor_data"):
             raise ValueError(f"parameter qos must be 'default' or 'sensor_data'; got {self.qos_profile!r}")
         if domain_id > 232:
             raise ValueError(f"parameter domain_id must be -1 (ROS_DOMAIN_ID) or 0..232; got {domain_id}")
-        for topic in topics + sorted(latched) + ([capture_service] if capture_service else []):
+        for topic in topics + sorted(latched) + [name for name in (capture_service, save_service) if name]:
             ros_topic_name(topic)  # ValueError naming a bad name
         self.domain_id = _domain_id(domain_id)
 
@@ -142,10 +147,11 @@ class Ros2BridgeNode(Node):
                                      LATCHED_QOS if topic in latched else _GRAPH_QOS, raw=True)
             for topic in topics]
 
-        self.start_client = None
-        if capture_service:
-            self.start_client = self.create_client(TriggerService, start_service)
-            self._capture_setup(capture_service)
+        self.capture_service = capture_service
+        self.forwards = [TriggerForward(self, self.participant, ros_name, graph_name)
+                         for ros_name, graph_name in ((capture_service, start_service), (save_service, save_target))
+                         if ros_name]  # the ROS 2 services the bridge answers, each by a graph Trigger service
+        if self.forwards:
             self.request_timer = self.create_timer(_REQUEST_POLL_S, self.on_request_timer)
 
     # -- graph -> DDS ------------------------------------------------------------------------------------------
@@ -188,47 +194,14 @@ class Ros2BridgeNode(Node):
         writer.write(to_dds(msg))
         self.bridged[topic] += 1
 
-    # -- DDS capture request -> graph ------------------------------------------------------------------------
-
-    def _capture_setup(self, service: str) -> None:
-        qos = ros2_qos("services_default")
-        request_topic = Topic(self.participant, ros_topic_name(service + "Request", prefix="rq"), Trigger_Request_,
-                              qos=qos)
-        reply_topic = Topic(self.participant, ros_topic_name(service + "Reply", prefix="rr"), Trigger_Response_,
-                            qos=qos)
-        self.request_reader = DataReader(self.participant, request_topic, qos=qos)
-        self.reply_writer = DataWriter(self.participant, reply_topic, qos=qos)
+    # -- DDS service requests -> graph ----------------------------------------------------------------------
 
     def on_request_timer(self) -> None:
-        """Forward each DDS capture request to the projector; its answer becomes the DDS reply."""
-        for request in self.request_reader.take(N=16):
-            if not isinstance(request, Trigger_Request_):
-                continue  # an invalid sample (e.g. a disposed instance)
-            self.capture_requests += 1
-            client = self._capture_client()
-            if not client.service_is_ready():
-                self._reply(request, False, f"{client.srv_name} is not available")
-                continue
-            future = client.call_async(TriggerService.Request())
-            future.add_done_callback(lambda done, req=request: self._on_started(req, done))
-
-    def _capture_client(self) -> Client:
-        """The projector's start service client; only a bridge made with a ``capture_service`` has one."""
-        if self.start_client is None:
-            raise RuntimeError("this bridge forwards no capture requests (it was made without capture_service)")
-        return self.start_client
-
-    def _on_started(self, request: Trigger_Request_, future) -> None:
-        if future.exception() is not None:
-            self._reply(request, False, f"{self._capture_client().srv_name} failed: {future.exception()}")
-            return
-        response = future.result()
-        self._reply(request, bool(response.success), response.message)
-
-    def _reply(self, request: Trigger_Request_, success: bool, message: str) -> None:
-        self.reply_writer.write(Trigger_Response_(client_guid=request.client_guid,
-                                                  sequence_number=request.sequence_number,
-                                                  success=success, message=message))
+        """Forward each DDS capture or save request to its graph service; its answer becomes the DDS reply."""
+        for forward in self.forwards:
+            forward.poll()
+        self.capture_requests = sum(forward.requests for forward in self.forwards
+                                    if forward.ros_service == self.capture_service)
 
 
 def main(argv=None) -> int:

@@ -184,6 +184,10 @@ SUBSCRIBER = textwrap.dedent('''
     if capture:
         requests = DataWriter(participant, Topic(participant, "rq/scanner/captureRequest", Trigger_Request_,
                                                  qos=qos()), qos=qos())
+        save_requests = DataWriter(participant, Topic(participant, "rq/scanner/capture_and_saveRequest",
+                                                      Trigger_Request_, qos=qos()), qos=qos())
+        save_replies = DataReader(participant, Topic(participant, "rr/scanner/capture_and_saveReply",
+                                                     Trigger_Response_, qos=qos()), qos=qos())
         replies = DataReader(participant, Topic(participant, "rr/scanner/captureReply", Trigger_Response_,
                                                 qos=qos()), qos=qos())
     print(json.dumps({"event": "ready"}), flush=True)
@@ -223,15 +227,17 @@ SUBSCRIBER = textwrap.dedent('''
         time.sleep(0.005)
     if capture:
         time.sleep(1.0)  # discovery of the request reader
-        requests.write(Trigger_Request_(client_guid=0x1234ABCD, sequence_number=7))
-        deadline = time.monotonic() + 20
-        while time.monotonic() < deadline:
-            got = [s for s in replies.take(N=4) if isinstance(s, Trigger_Response_)]
-            if got:
-                print(json.dumps({"event": "reply", "guid": got[0].client_guid, "seq": got[0].sequence_number,
-                                  "success": got[0].success, "message": got[0].message}), flush=True)
-                break
-            time.sleep(0.01)
+        for event, writer, reader, seq in (("reply", requests, replies, 7), ("save_reply", save_requests,
+                                                                             save_replies, 8)):
+            writer.write(Trigger_Request_(client_guid=0x1234ABCD, sequence_number=seq))
+            deadline = time.monotonic() + 20
+            while time.monotonic() < deadline:
+                got = [s for s in reader.take(N=4) if isinstance(s, Trigger_Response_)]
+                if got:
+                    print(json.dumps({"event": event, "guid": got[0].client_guid, "seq": got[0].sequence_number,
+                                      "success": got[0].success, "message": got[0].message}), flush=True)
+                    break
+                time.sleep(0.01)
     print(json.dumps({"event": "done", "clouds": clouds}), flush=True)
 ''')
 
@@ -304,6 +310,12 @@ def test_bridge_republishes_points_camera_info_and_answers_capture_requests(node
         return response
 
     probe.node.create_service(TriggerService, "/projector/start_scan", start_scan)
+
+    def capture_and_save(request, response):  # the cloud node's ~/capture_and_save, served by the test
+        response.success, response.message = True, "saved scan 41: captures/scan_00000041/cloud.ply (5 points, metres)"
+        return response
+
+    probe.node.create_service(TriggerService, "/cloud/capture_and_save", capture_and_save)
     points = probe.publisher(PointCloud2, "/scanner/points", 10)
     diagnostics = probe.publisher(DiagnosticArray, "/diagnostics", 10)
     array = DiagnosticArray(header=Header(stamp=Time(sec=1_700_000_000, nanosec=5)), status=[
@@ -368,6 +380,9 @@ def test_bridge_republishes_points_camera_info_and_answers_capture_requests(node
         assert (reply["guid"], reply["seq"]) == (0x1234ABCD, 7)  # rmw_cyclonedds' request header, echoed
         assert (reply["success"], reply["message"]) == (True, "scan 41 queued")
         assert len(started) == 1
+        saved = listener.wait_event("save_reply", timeout=30)  # /scanner/capture_and_save -> the cloud node's
+        assert (saved["guid"], saved["seq"], saved["success"]) == (0x1234ABCD, 8, True)
+        assert saved["message"] == "saved scan 41: captures/scan_00000041/cloud.ply (5 points, metres)"
     finally:
         stop(listener, bridge)
 
