@@ -7,6 +7,7 @@ import pytest
 
 from dptpu.fpp.calibration import load_rig, save_rig
 from dptpu.fpp.capture import PhaseSequence, load_sequence_images, read_capture
+from dptpu.graph import Parameter
 from dptpu.graph.interfaces import Trigger as TriggerService
 from dptpu.messages import FringeFrame, PointCloud2
 from dptpu.nodes.cloud import CloudNode
@@ -22,8 +23,7 @@ def _call(harness, client) -> object:
     return future.result()
 
 
-@pytest.mark.parametrize("save_format", ["ply", "pcd"])
-def test_the_last_scan_is_saved_as_a_cloud_in_metres_and_a_capture_folder(tmp_path, save_format):
+def test_the_last_scan_is_saved_as_a_cloud_in_metres_and_a_capture_folder(tmp_path):
     import open3d as o3d
 
     scene = plane_scene()
@@ -33,8 +33,7 @@ def test_the_last_scan_is_saved_as_a_cloud_in_metres_and_a_capture_folder(tmp_pa
     with NodeHarness() as harness:
         harness.start(PhaseNode, timeout_s=1.0, projector_width=912, projector_height=1140)
         harness.start(UnwrapNode, method="mf")
-        cloud_node = harness.start(CloudNode, rig=str(rig_path), save_dir=str(tmp_path / "saved"),
-                                   save_format=save_format)
+        cloud_node = harness.start(CloudNode, rig=str(rig_path), save_dir=str(tmp_path / "saved"))
         camera = harness.publisher(FringeFrame, "/camera/image_raw")
         points = harness.collect(PointCloud2, "/scanner/points")
         client = harness.probe.create_client(TriggerService, "/cloud/capture_and_save")
@@ -47,15 +46,18 @@ def test_the_last_scan_is_saved_as_a_cloud_in_metres_and_a_capture_folder(tmp_pa
         for frame in fringe_frames(stacks, frequencies, sequence_id=7):
             camera.publish(frame)
         (cloud,) = harness.wait(points, 1)
-        answer = _call(harness, client)
+        answers = [_call(harness, client)]
+        assert cloud_node.set_parameters([Parameter("save_format", value="pcd")])[0].successful  # applies at once
+        answers.append(_call(harness, client))
     folder = tmp_path / "saved" / "scan_00000007"
-    assert answer.success, answer.message
-    assert answer.message == (f"saved scan 7: {folder / f'cloud.{save_format}'} (19200 points, metres) and "
-                              f"{folder / 'capture'} (8 frames)")
-    assert cloud_node.capture.saved == 1
-    written = np.asarray(o3d.io.read_point_cloud(str(folder / f"cloud.{save_format}")).points)  # (M, 3) metres
     xyz = cloud.to_array(["x", "y", "z"]).reshape(-1, 3)
-    assert np.abs(written - xyz[np.isfinite(xyz).all(axis=1)]).max() < 1e-6
+    for answer, save_format in zip(answers, ("ply", "pcd")):
+        assert answer.success, answer.message
+        assert answer.message == (f"saved scan 7: {folder / f'cloud.{save_format}'} (19200 points, metres) and "
+                                  f"{folder / 'capture'} (8 frames)")
+        written = np.asarray(o3d.io.read_point_cloud(str(folder / f"cloud.{save_format}")).points)  # (M, 3) m
+        assert np.abs(written - xyz[np.isfinite(xyz).all(axis=1)]).max() < 1e-6
+    assert cloud_node.capture.saved == 2
     capture = read_capture(folder / "capture")
     assert [(s.frequency, s.steps) for s in capture.sequences if isinstance(s, PhaseSequence)] == [(16.0, 4),
                                                                                                    (1.0, 4)]
