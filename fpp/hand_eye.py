@@ -225,7 +225,10 @@ def _ax_xb_solutions(A, B) -> dict[str, np.ndarray]:
     R_a, t_a = [T[:3, :3] for T in A], [T[:3, 3] for T in A]
     R_b, t_b = [T[:3, :3] for T in B], [T[:3, 3] for T in B]
     for name, method in _AX_XB.items():
-        R, t = cv2.calibrateHandEye(R_a, t_a, R_b, t_b, method=method)
+        try:
+            R, t = cv2.calibrateHandEye(R_a, t_a, R_b, t_b, method=method)
+        except cv2.error:  # a solver that fails on these motions (e.g. a degenerate rotation) is left out
+            continue
         if R is not None and np.all(np.isfinite(R)) and np.all(np.isfinite(t)):
             out[name] = rigid(_orthonormal(R), t.ravel())
     return out
@@ -241,7 +244,10 @@ def _ax_zb_solutions(A, B) -> dict[str, tuple[np.ndarray, np.ndarray]]:
     R_w2c, t_w2c = [T[:3, :3] for T in B], [T[:3, 3] for T in B]
     R_b2g, t_b2g = [T[:3, :3] for T in inverse_a], [T[:3, 3] for T in inverse_a]
     for name, method in _AX_ZB.items():
-        R_wb, t_wb, R_cg, t_cg = cv2.calibrateRobotWorldHandEye(R_w2c, t_w2c, R_b2g, t_b2g, method=method)
+        try:
+            R_wb, t_wb, R_cg, t_cg = cv2.calibrateRobotWorldHandEye(R_w2c, t_w2c, R_b2g, t_b2g, method=method)
+        except cv2.error:  # as above
+            continue
         values = (R_wb, t_wb, R_cg, t_cg)
         if all(v is not None and np.all(np.isfinite(v)) for v in values):
             X = invert(rigid(_orthonormal(R_cg), t_cg.ravel()))
