@@ -41,6 +41,7 @@ from typing import NamedTuple
 
 import zmq
 
+from .curve_keys import ensure_domain_keys
 from .shared_memory import SharedMemoryConfig
 
 __all__ = [
@@ -198,8 +199,6 @@ class TransportConfig:
         if secret_file:
             curve = CurveKeys.load(secret_file, env.get("DPTPU_CURVE_AUTHORIZED_KEYS", "").strip())
         elif interface is not None and switch == "on" and key_dir is not None:
-            from .curve_keys import ensure_domain_keys  # deferred: only with tcp
-
             curve = CurveKeys.load(*ensure_domain_keys(key_dir))
         shared = SharedMemoryConfig.from_environment(env) if local == "ipc" else None
         return cls(local, interface, advertise, curve, shared, insecure_tcp=interface is not None and curve is None)
