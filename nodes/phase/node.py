@@ -228,7 +228,8 @@ class PhaseNode(Node):
             valid=valid))
         self.scans_published += 1
         self._status(scan.sequence_id, ScanStatus.OK, "processing", "", scan.first_arrival_s,
-                     frames_expected=scan.frame_count, frames_received=scan.frame_count,
+                     frames_expected=scan.frame_count + len(scan.references),
+                     frames_received=scan.frame_count + len(scan.references),
                      valid_pixels=int(np.count_nonzero(valid)), total_pixels=int(valid.size))
 
     def _status(self, sequence_id, level, state, reason, first_arrival_s, **counts) -> None:
