@@ -40,12 +40,17 @@ from dptpu.sim.rig import load_twin_rig
 
 from .finetune import FinetuneOptions, finetune, load_start_model
 
-__all__ = ["DownstreamOptions", "measured_kind", "measured_pairs", "split_rigs", "evaluate_orders",
+__all__ = ["DownstreamOptions", "measured_kind", "measured_pairs", "split_rigs", "evaluate_orders", "orders_in_reach",
            "run_downstream", "compare_finetunes", "twin_set_pairs", "write_downstream_report", "SIGMAS"]
 
 #: The paper's camera noise levels, DN (1 sigma, 2 sigma).
 SIGMAS = (1.5693, 3.1386)
 MODEL_NAMES = ("base", "finetuned_baseline", "finetuned_extended")
+#: Orders a network may move the classical order by: its consistency channel is clipped at +-4 periods
+#: (``dptpu.models.network.CONSISTENCY_CLIP``, not imported: it needs torch), and the fine-tunes' labels are kept
+#: only within ``PairDesign.max_correction`` of the classical order. A move further than that is outside what the
+#: network was trained to see; "in reach" scores keep the classical order there (:func:`orders_in_reach`).
+NETWORK_REACH_ORDERS = 4
 
 
 @dataclass(frozen=True)
@@ -135,13 +140,23 @@ def split_rigs(extended, base_rig=None) -> tuple:
     return replace(rig, effects=()), replace(rig, effects=tuple(effects))
 
 
-def evaluate_orders(pair: MeasuredPair, orders: dict, rig=None) -> dict[str, Any]:
-    """Accuracy of each order map of ``orders`` (name -> (H, W)) on ``pair``; 3D errors when ``rig`` is given."""
+def orders_in_reach(order: np.ndarray, classical: np.ndarray, reach: int = NETWORK_REACH_ORDERS) -> np.ndarray:
+    """``order`` (H, W) where it moves the ``classical`` order by at most ``reach`` orders, the classical order
+    elsewhere (:data:`NETWORK_REACH_ORDERS`)."""
+    return np.where(np.abs(order.astype(np.int64) - classical.astype(np.int64)) <= int(reach), order, classical)
+
+
+def evaluate_orders(pair: MeasuredPair, orders: dict, rig=None, *, reach: int = NETWORK_REACH_ORDERS) -> dict[str, Any]:
+    """Accuracy of each order map of ``orders`` (name -> (H, W)) on ``pair`` (``accuracy``), and of each within
+    ``reach`` of the classical order (``accuracy_in_reach``, :func:`orders_in_reach`); 3D errors when ``rig`` is
+    given."""
     accuracy: dict[str, float] = {}
+    in_reach: dict[str, float] = {}
     row: dict[str, Any] = {"pair": pair.name, "pixels": int(pair.valid.sum()), "accuracy": accuracy,
-                           "provenance": pair.provenance}
+                           "accuracy_in_reach": in_reach, "provenance": pair.provenance}
     for name, order in orders.items():
         accuracy[name] = order_accuracy(order, pair)
+        in_reach[name] = order_accuracy(orders_in_reach(order, pair.coarse_order, reach), pair)
     if rig is not None:
         row["3d"] = {name: sphere_errors_um(pair, order, rig)
                      for name, order in {"reference": pair.reference_order, **orders}.items()}
@@ -248,7 +263,7 @@ def compare_finetunes(pairs: list, design, baseline_rig, extended_rig, out_dir, 
         "base_model": str(model), "start": start[3], "models": models,
         "options": json.loads(json.dumps(asdict(options), default=str)), "finetune_runs": runs,
         "measured_results": rows,
-        "twin_results": {name: [{k: r[k] for k in ("pair", "pixels", "accuracy")} for r in rs]
+        "twin_results": {name: [{k: r[k] for k in ("pair", "pixels", "accuracy", "accuracy_in_reach")} for r in rs]
                          for name, rs in twin_rows.items()},
         "summary": _summary(rows, twin_rows), "seconds": round(time.perf_counter() - started, 1),
     }
@@ -260,7 +275,9 @@ def _mean(values) -> float:
 
 def _summary(rows: list, twin_rows: dict) -> dict[str, Any]:
     names = ["classical", *MODEL_NAMES]
-    summary: dict[str, Any] = {"measured_accuracy_mean": {n: _mean([r["accuracy"][n] for r in rows]) for n in names}}
+    summary: dict[str, Any] = {"measured_accuracy_mean": {n: _mean([r["accuracy"][n] for r in rows]) for n in names},
+                               "measured_accuracy_in_reach_mean": {
+                                   n: _mean([r["accuracy_in_reach"][n] for r in rows]) for n in names}}
     for twin, rs in twin_rows.items():
         summary[f"twin_{twin}_accuracy_mean"] = {n: _mean([r["accuracy"][n] for r in rs]) for n in names}
     if rows and "3d" in rows[0]:
@@ -268,6 +285,8 @@ def _summary(rows: list, twin_rows: dict) -> dict[str, Any]:
                                                          for n in ["reference", *names]} for r in rows}
     m = summary["measured_accuracy_mean"]
     summary["gain_of_extension"] = m["finetuned_extended"] - m["finetuned_baseline"]
+    m = summary["measured_accuracy_in_reach_mean"]
+    summary["gain_of_extension_in_reach"] = m["finetuned_extended"] - m["finetuned_baseline"]
     return summary
 
 
@@ -290,6 +309,11 @@ def _markdown(report: dict) -> str:
         for row in rows:
             lines.append(f"| held-out {twin} twin {row['pair'].split('/')[-1]} | {row['pixels']} | "
                          + " | ".join(f"{row['accuracy'][n]:.4f}" for n in names) + " |")
+    lines += ["", f"Within reach ({NETWORK_REACH_ORDERS} orders of the classical order; the classical order where "
+                  "a model moves it further):", "",
+              "| pair | " + " | ".join(names) + " |", "|---|" + "---|" * len(names)]
+    for row in report["measured_results"]:
+        lines.append(f"| {row['pair']} | " + " | ".join(f"{row['accuracy_in_reach'][n]:.4f}" for n in names) + " |")
     rows3d = [r for r in report["measured_results"] if "3d" in r]
     if rows3d:
         lines += ["", "3D error on the sphere (um; sphere fit with a free radius, interior = 2 px edge band left out; "

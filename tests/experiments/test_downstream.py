@@ -106,6 +106,10 @@ def test_finetune_pipeline_numbers_are_consistent(base_onnx, tmp_path):
                                                    valid=pair.valid)
         assert row["accuracy"][name] == pytest.approx(np.mean((order == pair.reference_order)[pair.valid]),
                                                       abs=1e-12), name
+        # within reach: the classical order wherever the model moves it by more than 4 orders
+        kept = np.where(np.abs(order - pair.coarse_order) <= 4, order, pair.coarse_order)
+        assert row["accuracy_in_reach"][name] == pytest.approx(
+            np.mean((kept == pair.reference_order)[pair.valid]), abs=1e-12), name
     # the two sets hold the same scenes: the same pixels are lit, only the frames differ
     lit = [np.load(p)["valid"].sum() for p in sorted((tmp_path / "out" / "twin_baseline" / "samples").glob("*.npz"))]
     assert len(lit) == 2 and min(lit) > 0
@@ -170,3 +174,12 @@ def test_cli_refuses_a_folder_that_is_no_measured_data(tmp_path, capsys):
                  "--out", str(tmp_path / "out")])
     assert code == 2
     assert f"{tmp_path}: neither a CFPE folder" in capsys.readouterr().err
+
+
+def test_orders_in_reach_keep_the_classical_order_beyond_four_orders():
+    from dptpu.experiments.downstream import orders_in_reach
+
+    classical = np.zeros((2, 3), dtype=np.int32)
+    network = np.array([[0, 4, -4], [5, -5, 15]], dtype=np.int32)
+    np.testing.assert_array_equal(orders_in_reach(network, classical), [[0, 4, -4], [0, 0, 0]])
+    np.testing.assert_array_equal(orders_in_reach(network, classical, 1), [[0, 0, 0], [0, 0, 0]])
