@@ -33,11 +33,12 @@ import numpy as np
 
 from dptpu.fpp import tpu
 from dptpu.fpp.phase import quality_mask, wrapped_phase
+from dptpu.fpp.phase_harmonics import HarmonicPhaseError, fit_harmonic_phase_error, remove_harmonic_phase_error
 
 from .measured_pair import MeasuredPair, mf_coarse_order, reference_order
 
 __all__ = ["PERIODS_PX", "PROJECTOR_WIDTH_PX", "FREQUENCIES", "INPUT_STEPS", "LOW_PHASES", "load_cfpe_frames",
-           "beat_frequencies", "low_phase", "build_pair", "cfpe_pair", "input_rms"]
+           "beat_frequencies", "low_phase", "build_pair", "cfpe_pair", "cfpe_phase_error", "input_rms"]
 
 #: Projector periods of the three sequences, in file order (highest frequency first).
 PERIODS_PX = (42, 45, 48)
@@ -175,7 +176,8 @@ def build_pair(name: str, psi3, mask3, reference_phase, frequencies, *, extent_p
                         provenance=dict(provenance or {}))
 
 
-def cfpe_pair(cfpe_dir, scene: str, *, low: str = "het12") -> MeasuredPair:
+def cfpe_pair(cfpe_dir, scene: str, *, low: str = "het12",
+              phase_error: HarmonicPhaseError | None = None) -> MeasuredPair:
     """The MF pair of a CFPE scene from its real 3-step frames, scored against its 12-step heterodyne.
 
     Parameters
@@ -186,6 +188,10 @@ def cfpe_pair(cfpe_dir, scene: str, *, low: str = "het12") -> MeasuredPair:
         ``"01"``, ``"04"``, ``"06"`` or ``"08"``.
     low : {"het12", "beat123"}
         Construction of the low phase (:func:`low_phase`).
+    phase_error : HarmonicPhaseError, optional
+        The projector's harmonic phase error of 3-step phases (:func:`cfpe_phase_error`), removed from each 3-step
+        phase first (:func:`dptpu.fpp.phase_harmonics.remove_harmonic_phase_error`); default: the phases as
+        captured.
 
     Returns
     -------
@@ -194,6 +200,8 @@ def cfpe_pair(cfpe_dir, scene: str, *, low: str = "het12") -> MeasuredPair:
     """
     frames = load_cfpe_frames(cfpe_dir, scene)  # (3, 12, H, W)
     psi3, mask3 = _phases(frames[:, list(INPUT_STEPS)])
+    if phase_error is not None:
+        psi3 = [remove_harmonic_phase_error(psi, phase_error) for psi in psi3]
     psi12, mask12 = _phases(frames)
     frequencies = FREQUENCIES
     reference = tpu.unwrap_heterodyne(psi12, frequencies, valid=mask12)
@@ -231,3 +239,18 @@ def input_rms(cfpe_dir, scene: str, *, low: str = "het12") -> dict:
     rms_low = float(np.sqrt(np.mean(low_error ** 2)))
     return {"high_rad": float(np.sqrt(np.mean(high ** 2))), "low_rad": rms_low,
             "low_in_high_periods": rms_low * pair.frequency_high / _TWO_PI, "pixels": int(valid.sum())}
+
+
+def cfpe_phase_error(cfpe_dir, scenes) -> HarmonicPhaseError:
+    """The CFPE projector's harmonic phase error of 3-step phases (steps 0, 4, 8), fitted against the 12-step phases
+    of the same frames over ``scenes`` and all three periods (:func:`dptpu.fpp.phase_harmonics.
+    fit_harmonic_phase_error`): a calibration of the projector's response, to be applied to other scenes."""
+    measured, reference, valid = [], [], []
+    for scene in scenes:
+        frames = load_cfpe_frames(cfpe_dir, scene)  # (3, 12, H, W)
+        psi3, mask3 = _phases(frames[:, list(INPUT_STEPS)])
+        psi12, mask12 = _phases(frames)
+        measured += psi3
+        reference += psi12
+        valid += [mask3 & mask12] * len(psi3)
+    return fit_harmonic_phase_error(measured, reference, valid, steps=len(INPUT_STEPS))
