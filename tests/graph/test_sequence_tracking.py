@@ -66,7 +66,7 @@ def test_live_message_below_the_last_is_delivered_never_dropped():
     assert verdict.deliver and verdict.lost == 0 and "went back" in verdict.note
 
 
-def test_table_is_bounded_and_its_memory_flat_over_100k_new_publisher_ids():
+def test_table_is_bounded_and_its_memory_flat_over_20k_new_publisher_ids():
     tracker = SequenceTracker(max_publishers=256)
     _feed(tracker, range(1, 4))
     tracemalloc.start()
@@ -74,13 +74,13 @@ def test_table_is_bounded_and_its_memory_flat_over_100k_new_publisher_ids():
         for index in range(1000):  # fill to the bound first
             tracker.accept(index.to_bytes(16, "little"), 1)
         before, _ = tracemalloc.get_traced_memory()
-        for index in range(1000, 101_000):
+        for index in range(1000, 21_000):
             tracker.accept(index.to_bytes(16, "little"), 1)
         after, _ = tracemalloc.get_traced_memory()
     finally:
         tracemalloc.stop()
     assert len(tracker) == 256
-    assert after - before < 64 * 1024, after - before  # before the bound: +17 MB per 100k ids
+    assert after - before < 64 * 1024, after - before  # before the bound: +17 MB per 100k ids, 3.4 MB here
     assert tracker.last(SIM) is None  # the least recently heard went first
 
 

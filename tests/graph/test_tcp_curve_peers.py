@@ -103,7 +103,7 @@ def test_tcp_is_curve_by_default_with_keys_made_private_in_the_discovery_folder(
         for announcement in domain_dir.glob("n-*.json"):  # the talker's (the listener may be gone)
             with contextlib.suppress(FileNotFoundError):
                 shutil.copy(announcement, copy)
-        stranger = spawn("listener", "--name", "stranger", "--timeout", "3.0",
+        stranger = spawn("listener", "--name", "stranger", "--timeout", "2.0",
                          env={**env, "DPTPU_CURVE": "off", "DPTPU_DISCOVERY_DIR": stranger_dir})
         done = stranger.wait_event("done", timeout=20)
         assert stranger.wait_for_stderr("without CurveZMQ (DPTPU_CURVE=off)", timeout=5.0)
