@@ -33,8 +33,9 @@ import numpy as np
 from dptpu.fpp.calibration import Rig, save_rig
 from dptpu.fpp.capture import PatternLevels, PhaseFrames, write_capture
 
-from .effects import effects_to_yaml, parse_effects
+from .effects import effects_to_yaml, find_effect, parse_effects
 from .effects.camera import apply_camera_effects
+from .effects.footprint import footprint_samples, integrate_footprint
 from .effects.geometry import has_motion, render_rig
 from .effects.pattern import projector_images
 from .image_formation import DEFAULT_AMPLITUDE, DEFAULT_OFFSET, _as_sequences, quantize, render_frames_float
@@ -112,6 +113,8 @@ def _raycast_supersampled(rig: Rig, meshes, sequences, effects, base: SurfaceSam
     """Float frames at ``rig``'s size from ``supersample`` x ``supersample`` rays per pixel (a box filter: the
     pixel integrates its area); the camera-stage effects act on the binned frames, at the real pixels."""
     width, height = rig.camera.size
+    footprint = find_effect(effects, "pixel_footprint")
+    blur_sigma_px = 0.0 if footprint is None else footprint["blur_sigma_px"]
     fine_rig = resize_camera(rig, (width * supersample, height * supersample))
     fine = trace(fine_rig, meshes)
     optical = tuple(e for e in effects if e.stage != "camera")
@@ -122,7 +125,7 @@ def _raycast_supersampled(rig: Rig, meshes, sequences, effects, base: SurfaceSam
     for sequence in sequences:  # one sequence at a time bounds the memory of the fine frames
         frames = render_frames_float(fine_rig, fine, [sequence], effects=optical, seed=seed, bit_depth=bit_depth,
                                      exposure=exposure)[0]
-        binned = frames.reshape(len(frames), height, supersample, width, supersample).mean(axis=(2, 4))
+        binned = integrate_footprint(frames, supersample, blur_sigma_px)
         out.append(apply_camera_effects(binned, effects=camera, albedo=base.albedo.astype(np.float64), hit=base.hit,
                                         full_scale=full_scale, exposure=exposure, rng=rng))
     return out
@@ -182,6 +185,8 @@ def render_capture(rig: Rig, scene, sequences, out_dir, *, engine: str = "raycas
     meshes = scene.meshes if hasattr(scene, "meshes") else list(scene)
     traced_rig = render_rig(rig, effects)
     samples = trace(traced_rig, meshes)
+    if find_effect(effects, "pixel_footprint") is not None:  # the effect's rays per pixel (docs/effects.md)
+        supersample = max(int(supersample), footprint_samples(effects))
     if isinstance(supersample, bool) or not isinstance(supersample, int) or not 1 <= supersample <= 8:
         raise ValueError(f"supersample must be an integer in [1, 8]; got {supersample!r}")
     if supersample > 1 and engine != "raycast":

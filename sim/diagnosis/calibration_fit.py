@@ -25,7 +25,8 @@ from .reference import surface_hits
 from .registration import Registration, register
 from .selection import MIN_DELTA_BIC, MIN_GAIN, delta_bic, gain
 
-__all__ = ["COMPONENTS", "MAX_COMPONENTS", "fit_calibration_error", "component_value", "NOT_IDENTIFIABLE_ON_SCENE"]
+__all__ = ["COMPONENTS", "MAX_COMPONENTS", "PLAUSIBLE_UNITS", "fit_calibration_error", "component_value",
+           "NOT_IDENTIFIABLE_ON_SCENE"]
 
 #: Components of the 12-vector (:func:`dptpu.sim.effects.calibration.calibration_vector`) the stepwise fit may
 #: free: name, index, unit (``None``: the baseline length). The projector's ``cy`` (index 11) moves only the
@@ -34,6 +35,11 @@ COMPONENTS = (("rotation_x_deg", 0, 0.1), ("rotation_y_deg", 1, 0.1), ("rotation
               ("translation_x", 3, None), ("translation_y", 4, None), ("translation_z", 5, None),
               ("camera_focal_scale", 6, 1e-3), ("projector_focal_scale", 7, 1e-3),
               ("camera_cx_px", 8, 1.0), ("camera_cy_px", 9, 1.0), ("projector_cx_px", 10, 1.0))
+#: The largest error a calibration can plausibly hold, per component, in its units: 2 deg of rotation, 10 % of
+#: the baseline, 3 % of focal length, 30 px of principal point. A step whose fit leaves these bounds is
+#: something else (the pose and a calibration component absorbing an edge or a filter effect) and ends the
+#: selection.
+PLAUSIBLE_UNITS = np.array([20.0, 20.0, 20.0, 10.0, 10.0, 10.0, 30.0, 30.0, 30.0, 30.0, 30.0])
 #: At most this many components are freed (one view of one object shows a few of the 11).
 MAX_COMPONENTS = 4
 #: Why a scene reference does not fit it (reported, never named).
@@ -139,7 +145,8 @@ def fit_calibration_error(rig: Rig, reference, measured_x: np.ndarray, baseline:
     chosen: list[int] = []
     current: Registration = baseline
     values: list[float] = []
-    steps = []
+    steps: list[dict] = []
+    implausible: list[dict] = []
     while len(chosen) < max_components:
         k = _best_next_component(rig, reference, current, chosen, values, units, rig_of_for)
         if k is None:
@@ -150,6 +157,11 @@ def fit_calibration_error(rig: Rig, reference, measured_x: np.ndarray, baseline:
         rms_before, rms_after = np.sqrt(before / n), np.sqrt(after / n)
         step_bic = delta_bic(before, after, n, 1)
         if not (step_bic > MIN_DELTA_BIC and gain(rms_before, rms_after) > MIN_GAIN):
+            break
+        outside = [COMPONENTS[c][0] for c, v in zip(chosen + [k], fitted.extra) if abs(v) > PLAUSIBLE_UNITS[c]]
+        if outside:
+            implausible.append({"component": COMPONENTS[k][0], "outside_bounds": outside,
+                                "residual_px": float(rms_after)})
             break
         chosen.append(k)
         values = [float(v) for v in fitted.extra]
@@ -164,5 +176,6 @@ def fit_calibration_error(rig: Rig, reference, measured_x: np.ndarray, baseline:
              "residual_before": before, "residual_after": after, "gain": gain(before, after),
              "evidence": {"domain": "phase", "unit": "projector px", "values": n, "parameters": len(chosen),
                           "delta_bic": delta_bic(rss0, rss1, n, len(chosen)),
-                          "components": [COMPONENTS[k][0] for k in chosen], "steps": steps}}
+                          "components": [COMPONENTS[k][0] for k in chosen], "steps": steps,
+                          "implausible_step": implausible}}
     return entry, current

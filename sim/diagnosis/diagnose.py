@@ -31,14 +31,16 @@ from .candidates import (
     fit_photometric,
     not_identifiable,
 )
+from .correlated_noise import fit_phase_filter_on_phase_file
+from .footprint_fit import edge_defocus_entry, fit_pixel_footprint
 from .forward import PixelSet, intensity_residual
 from .measured import Measured, load_measured
 from .motion import fit_motion, identifiable_directions
 from .noise import fit_sensor_noise
 from .phase_candidates import PHASE_VISIBLE, fit_phase_candidate
 from .pixels import DEFAULT_MAX_PIXELS, erode_mask, reference_pixels, self_reference_pixels
-from .reference import Reference, load_scene_reference, parse_reference
 from .recentred_orders import recentred_absolute_phase
+from .reference import Reference, load_scene_reference, parse_reference
 from .registration import Registration, register_robust
 from .response import fit_response
 from .scene_registration import fit_scene_lens_distortion, register_scene
@@ -141,6 +143,20 @@ def _recentre_orders(measured: Measured, rig: Rig, reference: Reference, fit_mas
             best, best_phase = again, measured.absolute_phase
     measured.absolute_phase = best_phase
     return best
+
+
+#: Random effects: ranked after the deterministic ones; an entry's ``extension`` (when present) is what joins the
+#: extended twin (``phase_filter``: the read noise it filters, and the filter).
+NOISE_LIKE = ("sensor_noise", "phase_filter")
+#: Geometric models of one thing, the rig's geometry: one of them in the extended twin.
+GEOMETRIC = ("lens_distortion", "calibration_error")
+
+
+def _best_geometry(registration: Registration, fits) -> Registration:
+    """The registration of the named geometric effect that explains most (``fits``: (entry, registration)
+    pairs), or ``registration``."""
+    named = [(entry["gain"], fitted) for entry, fitted in fits if entry["named"] and fitted is not None]
+    return max(named, key=lambda g: g[0])[1] if named else registration
 
 
 def _quiet(_: str) -> None:
@@ -252,6 +268,26 @@ def diagnose(measured, rig: Rig | None, *, reference=None, self_reference: bool 
                 extra["named"] = False
                 entries.append(extra)
         material = _reference_material(reference, rig)
+        best_geometry = _best_geometry(registration, ((lens, with_lens), (calibration, with_calibration)))
+        filter_sigma = None
+        edge_defocus: dict | None = None
+        if not measured.has_frames:  # correlated phase noise: on what the best geometric model leaves
+            noise = fit_phase_filter_on_phase_file(measured, best_geometry, reference, material)
+            noise["named"] = significant(noise)
+            filter_sigma = noise["parameters"]["sigma_px"] if noise["named"] else None
+        if reference.kind != "sphere":
+            footprint = not_identifiable("pixel_footprint", "the edge band is fitted on a sphere's silhouette (a "
+                                                            "plane's border is the image's or a shadow's, a scene's "
+                                                            "is traced)")
+        else:  # the edge band, against the best geometric model
+            footprint = fit_pixel_footprint(measured, best_geometry, reference, material, edge_px=EDGE_BAND_PX,
+                                            phase_filter_sigma=filter_sigma)
+            footprint["named"] = significant(footprint) and footprint["evidence"].get("beats_alternatives", False)
+            defocus = edge_defocus_entry(footprint) if not measured.has_frames else None
+            if defocus is not None:  # a phase file: the lens blur after the sampling, seen on the edge band
+                defocus["named"] = significant(defocus) and defocus["evidence"]["beats_alternatives"]
+                edge_defocus = defocus
+        entries.append(footprint)
         pixels = mask = lens_pixels = None
         if measured.has_frames:
             pixels, mask = reference_pixels(measured, registration.rig, reference, registration.pose, material,
@@ -269,8 +305,10 @@ def diagnose(measured, rig: Rig | None, *, reference=None, self_reference: bool 
                 entry = fit_phase_candidate(measured, rig, reference, material, registration, candidate)
                 entry["named"] = significant(entry)
                 entries.append(entry)
-            entries += [not_identifiable(c.name, NOT_IDENTIFIABLE["phase"][c.name]) for c in candidates if c.needs]
+            entries += [edge_defocus if c.name == "camera_defocus" and edge_defocus is not None
+                        else not_identifiable(c.name, NOT_IDENTIFIABLE["phase"][c.name]) for c in candidates if c.needs]
             entries.append(not_identifiable("motion", NOT_IDENTIFIABLE["phase"]["motion"]))
+            entries.append(noise)
         refine = 1
     residual_before = residual_after = model_before = None
     additional = []
@@ -338,18 +376,20 @@ def diagnose(measured, rig: Rig | None, *, reference=None, self_reference: bool 
         entries.append(noise)
     geometry = None
     if registration is not None:  # the geometric effect that explains most, or the registration
-        geometric = [(e["gain"], fitted) for e, fitted in ((lens, with_lens), (calibration, with_calibration))
-                     if e["named"] and fitted is not None]
-        geometry = max(geometric, key=lambda g: g[0])[1] if geometric else registration
-    deterministic = sorted([e for e in entries if e["named"] and e["name"] != "sensor_noise"],
+        geometry = _best_geometry(registration, ((lens, with_lens), (calibration, with_calibration)))
+    deterministic = sorted([e for e in entries if e["named"] and e["name"] not in NOISE_LIKE],
                            key=lambda e: -e["gain"])
-    noise_named = [e for e in entries if e["named"] and e["name"] == "sensor_noise"]
+    noise_named = [e for e in entries if e["named"] and e["name"] in NOISE_LIKE]
     rest = sorted([e for e in entries if not e["named"]], key=lambda e: -e["evidence"]["delta_bic"])
     ranked = deterministic + noise_named + rest
     cause = ranked[0]["name"] if ranked and ranked[0]["named"] else "none"
     corrected_rig = with_calibration.rig if with_calibration is not None and calibration["named"] else None
     extended = [effect_entry(deterministic[0])] if deterministic else []
-    extended += [effect_entry(e) for e in additional] + [effect_entry(e) for e in noise_named]
+    if not measured.has_frames and deterministic:  # a phase file: every named effect joins, one geometric model
+        first_geometric = deterministic[0]["name"] in GEOMETRIC
+        extended += [effect_entry(e) for e in deterministic[1:] if not (first_geometric and e["name"] in GEOMETRIC)]
+    extended += [effect_entry(e) for e in additional]
+    extended += [effect for e in noise_named for effect in e.get("extension", [effect_entry(e)])]
     return Diagnosis(cause=cause, effects=ranked, measured=measured, rig=rig, reference=reference,
                      registration=registration, geometry=geometry, pixels=pixels, pixel_mask=mask,
                      residual_before=residual_before, residual_after=residual_after, model_before=model_before,

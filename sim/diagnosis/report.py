@@ -36,6 +36,8 @@ __all__ = ["write_report", "json_ready", "RERENDER_SEED"]
 #: Seed of the re-render's random effects: never the data's own realization, so a re-rendered noise is a new
 #: draw (its residual RMS then grows by ~sqrt(2) x the noise; the noise entry's variance match is its gain).
 RERENDER_SEED = 20261123
+#: Effects that act through the rig the twin renders with (:func:`dptpu.sim.effects.geometry.render_rig`).
+RIG_EFFECTS = ("lens_distortion", "calibration_error")
 
 
 def json_ready(value):
@@ -79,6 +81,18 @@ def _intensity_rms(measured_frames, twin_frames, mask) -> float:
     return float(np.sqrt(np.mean(residual ** 2)))
 
 
+def _without_random(rig, reference, pose, diagnosis, sequences, effects) -> np.ndarray:
+    """Absolute phase of the extended twin without its random effects (sensor noise)."""
+    steady = [e for e in effects if e.name not in RIG_EFFECTS and e.stage != "phase" and e.name != "sensor_noise"]
+    frames = render_twin(rig, reference, pose, diagnosis.material, sequences, effects=steady)
+    return decode(frames, sequences)
+
+
+def _orders_of(x: np.ndarray, x_steady: np.ndarray, period_px: float) -> np.ndarray:
+    """``x`` (projector px) moved by whole periods to the nearest of ``x_steady``."""
+    return x + period_px * np.round((x_steady - x) / period_px)
+
+
 def _rerender(diagnosis, extended_effects) -> dict[str, Any]:
     """Twin and extended twin rendered again: intensity RMS (frames) and phase RMS against the measurement,
     and the sphere-fit RMS of measurement, twin and extended twin."""
@@ -97,7 +111,7 @@ def _rerender(diagnosis, extended_effects) -> dict[str, Any]:
         twin = render_twin(rig, reference, geometry.pose, diagnosis.material, measured.sequences, **kwargs)
         reference_frame = diagnosis.pixels.motion_reference_frame if diagnosis.pixels is not None else 0.0
         extended = render_twin(extended_rig, reference, extended_pose, diagnosis.material, measured.sequences,
-                               effects=[e for e in effects if e.name not in ("lens_distortion", "calibration_error")],
+                               effects=[e for e in effects if e.name not in RIG_EFFECTS],
                                reference_frame=reference_frame, **kwargs)
         out["intensity_rms_dn"] = {"twin": _intensity_rms(measured.frames, twin, mask),
                                    "extended_twin": _intensity_rms(measured.frames, extended, mask)}
@@ -106,16 +120,23 @@ def _rerender(diagnosis, extended_effects) -> dict[str, Any]:
                                          "extended_twin": _intensity_rms(extended, twin, mask)}
         x_twin = decode(twin, measured.sequences, bit_depth=measured.bit_depth) * measured.extent / (
             2 * np.pi * measured.frequency)
-        x_extended = decode(extended, measured.sequences, bit_depth=measured.bit_depth) * measured.extent / (
+        x_extended = decode(extended, measured.sequences, bit_depth=measured.bit_depth,
+                            effects=effects) * measured.extent / (
             2 * np.pi * measured.frequency)
     else:  # a phase file: render the paper's sequences (f x 12 and 1 x 12, 8 bit) and decode them the same way
 
         sequences = [SequenceSpec(measured.frequency, 12), SequenceSpec(1.0, 12)]
         twin = render_twin(rig, reference, geometry.pose, diagnosis.material, sequences)
         extended = render_twin(extended_rig, reference, extended_pose, diagnosis.material, sequences,
-                               effects=[e for e in effects if e.stage != "geometry"], seed=RERENDER_SEED)
+                               effects=[e for e in effects if e.name not in RIG_EFFECTS], seed=RERENDER_SEED)
         to_x = measured.extent / (2 * np.pi * measured.frequency)
-        x_twin, x_extended = decode(twin, sequences) * to_x, decode(extended, sequences) * to_x
+        x_twin, x_extended = decode(twin, sequences) * to_x, decode(extended, sequences, effects=effects) * to_x
+        if diagnosis.registration.order_errors == 0.0:
+            # the data's orders are right, so the extended twin's are too: its random effects (noise at the
+            # level of the high frequency's phase) act on the phase, not on the orders of our MF decoder
+            x_extended = _orders_of(x_extended, _without_random(extended_rig, reference, extended_pose, diagnosis,
+                                                                sequences, effects) * to_x,
+                                    measured.extent / measured.frequency)
         out["rendered_sequences"] = [s.label for s in sequences]
     x_measured = measured.projector_x
     both = mask & np.isfinite(x_measured) & np.isfinite(x_twin) & np.isfinite(x_extended)
@@ -130,11 +151,12 @@ def _rerender(diagnosis, extended_effects) -> dict[str, Any]:
             out.setdefault("sphere_radius", {})[label] = radius
         out["sphere_rms_um"] = rms
         out["sphere_pixels"] = int(both.sum())
-        # the whole sphere, edge band included: each on its own valid pixels
-        whole = {}
-        for label, x in (("measured", x_measured), ("twin", x_twin), ("extended_twin", x_extended)):
-            whole[label], _ = sphere_rms_um(rig, x, np.isfinite(x), axis=axis, mm_per_unit=1e-3 / rig.scale_to_m)
-        out["sphere_rms_um_whole"] = whole
+        # the whole sphere, edge band included: every measured pixel the twin decodes too
+        whole = measured.valid & np.isfinite(x_twin) & np.isfinite(x_extended)
+        out["sphere_rms_um_whole"] = {
+            label: sphere_rms_um(rig, x, whole, axis=axis, mm_per_unit=1e-3 / rig.scale_to_m)[0]
+            for label, x in (("measured", x_measured), ("twin", x_twin), ("extended_twin", x_extended))}
+        out["sphere_pixels_whole"] = int(whole.sum())
     return out
 
 
@@ -266,8 +288,21 @@ def _markdown(report: dict) -> str:
         lines.append("")
     if "sphere_rms_um" in report:
         s = report["sphere_rms_um"]
-        lines += ["## Sphere-fit RMS (um)", "", "| measured | twin | extended twin |", "|---|---|---|",
-                  f"| {s['measured']} | {s['twin']} | {s['extended_twin']} |", ""]
+        lines += ["## Sphere-fit RMS (um)", "", "| pixels | measured | twin | extended twin |", "|---|---|---|---|",
+                  f"| interior | {s['measured']} | {s['twin']} | {s['extended_twin']} |"]
+        w = report.get("sphere_rms_um_whole")
+        if w:
+            lines.append(f"| whole sphere | {w['measured']} | {w['twin']} | {w['extended_twin']} |")
+        lines.append("")
+    if "corrected_calibration" in report:
+        c = report["corrected_calibration"]
+        lines += [f"## The corrected calibration (`{report['corrected_rig']}`) on the measured phase", "",
+                  "| pixels | RMS given (um) | RMS corrected (um) | radius given | radius corrected |",
+                  "|---|---|---|---|---|"]
+        lines += [f"| {region} | {c[f'sphere_rms_um_{region}']['given']} | {c[f'sphere_rms_um_{region}']['corrected']} "
+                  f"| {c[f'sphere_radius_{region}']['given']} | {c[f'sphere_radius_{region}']['corrected']} |"
+                  for region in ("interior", "whole")]
+        lines += ["", f"Certified radius: {c['certified_radius']}.", ""]
     if report.get("rerender"):
         lines += ["## Rendered again", "", "```json", json.dumps(report["rerender"], indent=2), "```", ""]
     phase = report.get("decomposition", {}).get("phase")

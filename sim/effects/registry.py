@@ -95,6 +95,9 @@ _SPECS = [
                "the rig the frames were taken with differs from the calibration written with them: the projector "
                "turned (rotation vector, deg) and moved (rig units) in its own frame, focal lengths scaled, "
                "principal points moved (px); render only"),
+    EffectSpec("pixel_footprint", "geometry", {"samples": ("int0", 4), "blur_sigma_px": ("nonneg", 0.5)},
+               "each camera pixel integrates the scene over its area (samples x samples rays) and a Gaussian lens "
+               "blur of blur_sigma_px camera pixels; the camera-stage effects act after the integration"),
     EffectSpec("motion", "geometry", {"velocity_per_frame": ("vec3", [0.0, 0.0, 0.0]),
                                       "angular_deg_per_frame": ("vec3", [0.0, 0.0, 0.0])},
                "the scene moves rigidly between frames: frame g (0-based over the whole capture) is traced with "
@@ -162,6 +165,9 @@ def _entry(entry, where: str) -> Effect:
     values = {}
     for key, (kind, default) in spec.parameters.items():
         values[key] = _value(f"{where}.{name}.{key}", kind, params.get(key, default))
+    if name == "pixel_footprint" and not 1 <= values["samples"] <= 8:
+        raise ValueError(f"{where}.{name}.samples: must be an integer in [1, 8] (rays per pixel and axis); "
+                         f"got {values['samples']!r}")
     if name == "projector_response":
         levels = np.asarray(values["levels"])
         if levels.size < 2 or np.any(levels < 0) or np.any(np.diff(levels) < 0):

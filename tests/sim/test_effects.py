@@ -40,8 +40,8 @@ def test_every_effect_is_off_by_default(small_rig, plane_samples):
     for name, spec in EFFECTS.items():
         assert {e.name for e in parse_effects([name])} == {name}
         assert spec.stage in STAGES and spec.summary
-        if name in ("phase_filter", "motion", "lens_distortion", "calibration_error"):
-            continue  # not a frame change at default parameters (decoder stage / zero motion / zero extra)
+        if name in ("phase_filter", "motion", "lens_distortion", "calibration_error", "pixel_footprint"):
+            continue  # not a frame change here (decoder stage / zero motion / zero extra / acts in the trace)
         changed = _render(small_rig, plane_samples, [name])
         assert np.abs(changed - ideal).max() > 0.5, name
 
