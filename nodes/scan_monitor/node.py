@@ -64,7 +64,8 @@ name                 default  meaning
 ``start_scans``      0        keep this many scans in flight by calling ``start_service`` (scan on demand: the
                               next scan starts when one was reported, so a slow machine is never overrun);
                               0 = start none (the projector runs its own scans)
-``start_service``    ``/projector/start_scan``  the projector's std_srvs/Trigger service
+``start_service``    ``projector/start_scan``  the projector's std_srvs/Trigger service (relative: the projector in
+                              the monitor's namespace, ``/projector/start_scan`` at the root)
 ``start_timeout_s``  2.0      a start request unanswered this long is withdrawn and sent again (a paused or
                               restarted projector loses it), with a warning. After a LOST scan the next start
                               waits until a late message of that scan shows the pipeline moves again, or for
@@ -154,7 +155,7 @@ class ScanMonitorNode(Node):
         self.ply_count = rules.settable("ply_count", 3, check=at_least(0))
         self.summary_path = rules.settable("summary", "", apply=lambda path: setattr(self, "summary_path", path))
         self.start_scans = rules.read_only("start_scans", 0, description=wiring)
-        start_service = rules.read_only("start_service", "/projector/start_scan", description=wiring)
+        start_service = rules.read_only("start_service", "projector/start_scan", description=wiring)  # in its namespace
         self.trigger_latency = rules.read_only("trigger_latency", True, description=wiring)
         status_nodes = tuple(rules.read_only("status_nodes", list(_STATUS_NODES), description=wiring))
         self.start_timeout_s = float(rules.settable("start_timeout_s", 2.0, check=greater_than(0.0)))
