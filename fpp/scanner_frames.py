@@ -80,7 +80,7 @@ def mount_pose(values: Sequence[float], *, parent: str, child: str) -> FramePose
     norm = float(np.linalg.norm(v[3:]))
     if abs(norm - 1.0) > _UNIT_TOLERANCE:
         raise ValueError(f"the mount transform's quaternion [qx, qy, qz, qw] must have unit norm; got norm {norm:.6g} "
-                         f"({list(v[3:])})")
+                         f"({v[3:].tolist()})")
     return FramePose(parent, child, Rotation.from_quat(v[3:] / norm).as_matrix(), v[:3].copy())
 
 

@@ -162,6 +162,10 @@ def camera_points_m(triangulator: Triangulator, absolute_phase: np.ndarray, freq
     return triangulator.camera_points(coord, scale=triangulator.rig.scale_to_m, dtype=np.float32)  # (H, W, 3) m
 
 
+#: the cloud node's TF frame parameters: three distinct frames on /tf_static
+_TF_FRAMES = ("frame_id", "mount_frame", "projector_frame")
+
+
 class CloudNode(Node):
     """AbsolutePhase -> PointCloud2 + depth Image (see the module docstring).
 
@@ -176,7 +180,8 @@ class CloudNode(Node):
         rules = ParameterRules(self)
         rig_path = rules.read_only("rig", "", description="a dptpu-rig/1 file; restart the node to change it")
         self.use_camera_info = rules.read_only("use_camera_info", False, description="sets the subscriptions up")
-        self.frame_id = rules.settable("frame_id", DEFAULT_FRAME_ID, check=frame_id, apply=self._set_frame("frame_id"),
+        self.frame_id = rules.settable("frame_id", DEFAULT_FRAME_ID, check=_tf_frame(self, rules, "frame_id"),
+                                       apply=self._set_frame("frame_id"),
                                        description="header.frame_id of the next clouds and images (and TF's)")
         self.distortion = rules.settable("distortion", True, apply=self._set_distortion)
         self.ply_dir = rules.settable("ply_dir", "")
@@ -189,14 +194,15 @@ class CloudNode(Node):
         self.drop_order_islands = rules.settable("drop_order_islands", True)
         self.normals = rules.settable("normals", True, description="the fields normal_x/y/z of the next clouds")
         self.normal_window_px = rules.settable("normal_window_px", DEFAULT_NORMAL_WINDOW_PX, check=_odd_window)
-        self.mount_frame = rules.settable("mount_frame", "scanner_mount", check=frame_id,
+        self.mount_frame = rules.settable("mount_frame", "scanner_mount", check=_tf_frame(self, rules, "mount_frame"),
                                           apply=self._set_frame("mount_frame"),
                                           description="TF parent of the camera optical frame (a robot's tool0, ...)")
         self.mount_transform = rules.settable(
             "mount_transform", list(IDENTITY_MOUNT), check=_mount_transform_problem,
             apply=self._set_frame("mount_transform"),
             description="pose of the camera optical frame in mount_frame: [x, y, z, qx, qy, qz, qw], metres")
-        self.projector_frame = rules.settable("projector_frame", "projector_optical_frame", check=frame_id,
+        self.projector_frame = rules.settable("projector_frame", "projector_optical_frame",
+                                              check=_tf_frame(self, rules, "projector_frame"),
                                               apply=self._set_frame("projector_frame"))
         if not rig_path:
             raise ValueError("parameter rig must name a dptpu-rig/1 calibration file (-p rig:=calibration.yaml)")
@@ -506,6 +512,20 @@ class CloudNode(Node):
 def main(argv=None) -> int:
     """``python -m dptpu.nodes.cloud --ros-args -p rig:=FILE``: run the node until Ctrl-C or SIGTERM."""
     return run_node("cloud", CloudNode, argv)
+
+
+def _tf_frame(node: Node, rules: ParameterRules, name: str):
+    """The check of the TF frame parameter ``name``: a valid frame id, and none of the other two (tf2 refuses a
+    frame that is its own parent: ``mount_frame`` = ``frame_id`` would publish ``A -> A``)."""
+    def check(value) -> str | None:
+        problem = frame_id(value)
+        if problem:
+            return problem
+        for other in _TF_FRAMES:
+            if other != name and node.has_parameter(other) and rules.value(other) == value:
+                return f"must differ from {other} (a TF frame cannot be its own parent or child); got {value!r}"
+        return None
+    return check
 
 
 def _mount_transform_problem(values) -> None:

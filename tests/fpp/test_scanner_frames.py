@@ -41,5 +41,7 @@ def test_mount_transform_round_trips_and_refuses_a_non_unit_quaternion():
     np.testing.assert_allclose(mount_pose(IDENTITY_MOUNT, parent="a", child="b").matrix(), np.eye(4))
     with pytest.raises(ValueError, match=r"quaternion \[qx, qy, qz, qw\] must have unit norm; got norm 2"):
         mount_pose([0, 0, 0, 0, 0, 0, 2], parent="a", child="b")
+    with pytest.raises(ValueError, match=r"got norm 2 \(\[0\.0, 0\.0, 0\.0, 2\.0\]\)$"):  # plain numbers, no np.float64
+        mount_pose([0, 0, 0, 0, 0, 0, 2], parent="a", child="b")
     with pytest.raises(ValueError, match=r"a mount transform is 7 finite numbers"):
         mount_pose([0, 0, 0, 1], parent="a", child="b")
