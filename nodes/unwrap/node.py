@@ -90,7 +90,6 @@ class UnwrapNode(Node):
         super().__init__(node_name, **node_options)
         rules = self._rules = ParameterRules(self)
         self.method = rules.settable("method", "mf", check=self._check_method, apply=self._apply_model_setup)
-        self.model_path = rules.settable("model", "none", check=self._check_model, apply=self._apply_model_setup)
         self.high_frequency = rules.settable("high_frequency", 0.0, check=at_least(0.0))
         self.low_frequency = rules.settable("low_frequency", 0.0, check=at_least(0.0))
         self.min_confidence = rules.settable("min_confidence", DEFAULT_MIN_CONFIDENCE, check=within(0.0, 1.0))
@@ -98,6 +97,8 @@ class UnwrapNode(Node):
         self.camera_shape: tuple[int, int] | None = None  # (H, W) from /camera/camera_info
         self.consensus = rules.settable("consensus", False, check=self._check_consensus,
                                         apply=self._apply_model_setup)
+        # declared last: a start-up model that cannot be loaded is named as parameter model (not consensus)
+        self.model_path = rules.settable("model", "none", check=self._check_model, apply=self._apply_model_setup)
         self._prepared: _ModelSetup | None = None
         self._use(_model_setup(self.method, self.model_path, self.consensus))
         self.scans_published = 0
@@ -166,16 +167,18 @@ class UnwrapNode(Node):
     # -- parameters (method, model and consensus are checked together) --------------------------------------------
 
     def _check_method(self, method: str) -> str | None:
-        if not self.has_parameter("consensus"):
+        if method not in PHASE_SEQUENCE_METHODS:  # alone, so that a bad start-up method is named as such
+            raise ValueError(f"parameter method must be one of {', '.join(PHASE_SEQUENCE_METHODS)}; got {method!r}")
+        if not self.has_parameter("model"):
             return None
         return self._prepare(method, self._rules.value("model"), self._rules.value("consensus"))
 
     def _check_model(self, model_path: str) -> str | None:
-        if not self.has_parameter("consensus"):
-            return None
         return self._prepare(self._rules.value("method"), model_path, self._rules.value("consensus"))
 
     def _check_consensus(self, consensus: bool) -> str | None:
+        if not self.has_parameter("model"):
+            return None
         return self._prepare(self._rules.value("method"), self._rules.value("model"), consensus)
 
     def _prepare(self, method: str, model_path: str, consensus: bool) -> str | None:
