@@ -154,6 +154,9 @@ def run_node(name: str, make_node: Callable[[], NodeT], argv=None, *, spin: Call
         print(f"{name}: error: {exc}", file=sys.stderr)
         rclpy.try_shutdown()
         return 2
+    except KeyboardInterrupt:  # Ctrl-C (or the launcher stopping the graph) while the node was still starting
+        rclpy.try_shutdown()
+        return 0
     freeze_startup_objects()
     try:
         spin_profiled(name, lambda: (spin or rclpy.spin)(node))

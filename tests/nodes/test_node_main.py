@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import gc
 
-from dptpu.nodes.node_main import _GC_YOUNG_THRESHOLD, freeze_startup_objects
+from dptpu.nodes.node_main import _GC_YOUNG_THRESHOLD, freeze_startup_objects, run_node
 
 
 def test_freeze_startup_objects_moves_live_objects_out_of_full_collections():
@@ -18,3 +18,13 @@ def test_freeze_startup_objects_moves_live_objects_out_of_full_collections():
         gc.unfreeze()
         gc.set_threshold(*threshold)
     assert any(o is kept[0] for o in gc.get_objects())
+
+
+def test_ctrl_c_while_a_node_starts_ends_quietly(capsys):
+    """The launcher stopping the graph while a node still starts (the sim loading its captures) gave a
+    KeyboardInterrupt traceback; now the node exits 0 without one, as after Ctrl-C while spinning."""
+    def starting():
+        raise KeyboardInterrupt
+
+    assert run_node("sim", starting, ["sim"]) == 0
+    assert capsys.readouterr().err == ""
