@@ -7,7 +7,9 @@ selection, each step the registration (:func:`dptpu.sim.diagnosis.registration.r
 and the components chosen so far, least squares on the measured projector coordinate) with one more component
 free, the one that lowers the residual most kept while it passes both criteria of
 :func:`dptpu.sim.diagnosis.selection.significant` against the previous step (``dBIC > 10`` for one more
-parameter and at least 5 % less residual RMS), up to :data:`MAX_COMPONENTS`. The components left out stay at
+parameter and at least 5 % less residual RMS) and stays within what a calibration can plausibly be off
+(:data:`PLAUSIBLE_UNITS`; beyond it the pose and a component are absorbing something else, such as an edge
+effect reaching into the interior), up to :data:`MAX_COMPONENTS`. The components left out stay at
 "no error"; the fitted rig is the given rig with the chosen ones (``corrected_rig.yaml`` of the report).
 
 Parameters are fitted in units of their typical size (:data:`COMPONENT_UNITS`, translation in units of the
@@ -30,17 +32,19 @@ __all__ = ["COMPONENTS", "MAX_COMPONENTS", "PLAUSIBLE_UNITS", "fit_calibration_e
 
 #: Components of the 12-vector (:func:`dptpu.sim.effects.calibration.calibration_vector`) the stepwise fit may
 #: free: name, index, unit (``None``: the baseline length). The projector's ``cy`` (index 11) moves only the
-#: coordinate across the fringes, which an x-fringe capture does not measure.
+#: coordinate across the fringes, which an x-fringe capture does not measure; its ``cx`` (index 10) is a turn
+#: of the projector about its vertical axis to first order (``fx tan(angle)`` px): freed together, the two
+#: cancel each other and absorb what is not a calibration error, so only the turn is fitted.
 COMPONENTS = (("rotation_x_deg", 0, 0.1), ("rotation_y_deg", 1, 0.1), ("rotation_z_deg", 2, 0.1),
               ("translation_x", 3, None), ("translation_y", 4, None), ("translation_z", 5, None),
               ("camera_focal_scale", 6, 1e-3), ("projector_focal_scale", 7, 1e-3),
-              ("camera_cx_px", 8, 1.0), ("camera_cy_px", 9, 1.0), ("projector_cx_px", 10, 1.0))
+              ("camera_cx_px", 8, 1.0), ("camera_cy_px", 9, 1.0))
 #: The largest error a calibration can plausibly hold, per component, in its units: 2 deg of rotation, 10 % of
 #: the baseline, 3 % of focal length, 30 px of principal point. A step whose fit leaves these bounds is
 #: something else (the pose and a calibration component absorbing an edge or a filter effect) and ends the
 #: selection.
-PLAUSIBLE_UNITS = np.array([20.0, 20.0, 20.0, 10.0, 10.0, 10.0, 30.0, 30.0, 30.0, 30.0, 30.0])
-#: At most this many components are freed (one view of one object shows a few of the 11).
+PLAUSIBLE_UNITS = np.array([20.0, 20.0, 20.0, 10.0, 10.0, 10.0, 30.0, 30.0, 30.0, 30.0])
+#: At most this many components are freed (one view of one object shows a few of the 10).
 MAX_COMPONENTS = 4
 #: Why a scene reference does not fit it (reported, never named).
 NOT_IDENTIFIABLE_ON_SCENE = ("a scene reference: its pose is registered by ICP; the calibration is fitted against an "

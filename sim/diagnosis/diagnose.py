@@ -272,6 +272,7 @@ def diagnose(measured, rig: Rig | None, *, reference=None, self_reference: bool 
         filter_sigma = None
         edge_defocus: dict | None = None
         if not measured.has_frames:  # correlated phase noise: on what the best geometric model leaves
+            step("phase_filter")
             noise = fit_phase_filter_on_phase_file(measured, best_geometry, reference, material)
             noise["named"] = significant(noise)
             filter_sigma = noise["parameters"]["sigma_px"] if noise["named"] else None
@@ -280,6 +281,7 @@ def diagnose(measured, rig: Rig | None, *, reference=None, self_reference: bool 
                                                             "plane's border is the image's or a shadow's, a scene's "
                                                             "is traced)")
         else:  # the edge band, against the best geometric model
+            step("pixel_footprint")
             footprint = fit_pixel_footprint(measured, best_geometry, reference, material, edge_px=EDGE_BAND_PX,
                                             phase_filter_sigma=filter_sigma)
             footprint["named"] = significant(footprint) and footprint["evidence"].get("beats_alternatives", False)
