@@ -60,8 +60,9 @@ def scan_diagnostics(record: Mapping, line: str, node_statuses: Iterable[ScanSta
 
 
 def _text(value) -> str:
-    """A figure as text: floats with 6 significant digits, the rest as ``str``."""
+    """A figure as text: floats with 6 significant digits, but every integer digit and 3 decimals from 1e5 up (a
+    Unix time in seconds stays to the millisecond, not ``1.79574e+09``), the rest as ``str``."""
     if isinstance(value, float):
-        return f"{value:.6g}"
+        return f"{value:.3f}" if abs(value) >= 1e5 else f"{value:.6g}"
     return str(value)
 

@@ -57,3 +57,12 @@ def test_untrusted_scans_warn_and_lost_ones_are_errors():
         assert status.level == level and array.header.stamp == Time(sec=5)
         assert [(v.key, v.value) for v in status.values] == [("sequence_id", "4"), ("outcome", outcome),
                                                              ("wrong_share", "0.0135")]
+
+
+def test_a_unix_time_keeps_its_digits():
+    """``cloud_arrival_unix_s`` read 1.79574e+09 (6 significant digits: hours off); now to the millisecond."""
+    array = scan_diagnostics({"sequence_id": 4, "outcome": "ok", "cloud_arrival_unix_s": 1795738713.8950314,
+                              "latency_ms": 480.62712, "wrong_share": 0.00020152}, "scan 4: ...", [], stamp=Time(sec=5))
+    values = {v.key: v.value for v in array.status[0].values}
+    assert (values["cloud_arrival_unix_s"], values["latency_ms"], values["wrong_share"]) == (
+        "1795738713.895", "480.627", "0.00020152")
