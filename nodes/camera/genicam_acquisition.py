@@ -21,7 +21,6 @@ camera is not connected are reported as timeouts at once.
 
 from __future__ import annotations
 
-import dataclasses
 import queue
 import threading
 import time
@@ -151,7 +150,7 @@ class Acquisition:
     def write_setting(self, name: str, value: float) -> None:
         """Any thread: write ``exposure_us`` or ``frame_rate_hz`` to the camera before its next frame (and at every
         reconnection)."""
-        self.settings = dataclasses.replace(self.settings, **{name: float(value)})
+        self.settings = self.settings.with_run_time_setting(name, value)
         self._new_settings.put((name, float(value)))
 
     # --- the thread --------------------------------------------------------------------------------

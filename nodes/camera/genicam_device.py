@@ -53,6 +53,14 @@ class CameraSettings:
     trigger_source: str = "Line1"
     frame_rate_hz: float = 0.0     # free-running only; 0: leave as the device has it
 
+    def with_run_time_setting(self, name: str, value: float) -> CameraSettings:
+        """A copy with ``exposure_us`` or ``frame_rate_hz`` (the settings written while acquiring) changed."""
+        if name == "exposure_us":
+            return dataclasses.replace(self, exposure_us=float(value))
+        if name == "frame_rate_hz":
+            return dataclasses.replace(self, frame_rate_hz=float(value))
+        raise ValueError(f"{name} is not a setting written while acquiring (exposure_us, frame_rate_hz)")
+
     def __post_init__(self):
         if self.trigger_mode not in TRIGGER_MODES:
             raise ValueError(f"trigger_mode must be one of {', '.join(TRIGGER_MODES)}; got {self.trigger_mode!r}")
@@ -178,7 +186,7 @@ class GenICamDevice:
         if name == "frame_rate_hz" and node_map.has_node("AcquisitionFrameRateEnable"):
             _set(node_map, "AcquisitionFrameRateEnable", True)
         _set(node_map, feature, float(value))
-        self.settings = dataclasses.replace(self.settings, **{name: float(value)})
+        self.settings = self.settings.with_run_time_setting(name, value)
         return ""
 
     def software_trigger(self) -> None:
