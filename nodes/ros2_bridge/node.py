@@ -49,9 +49,10 @@ name                 default                                   meaning
                                                                choice or ``CYCLONEDDS_URI``
 ``peers``            ""                                        comma-separated unicast peers (multicast off)
 ``capture_service``  "/scanner/capture"                        ROS 2 service name of the capture request ("" = none)
-``start_service``    "/projector/start_scan"                   graph Trigger service it calls
+``start_service``    "projector/start_scan"                    graph Trigger service it calls (relative: in the
+                                                               bridge's namespace, as the nodes it serves)
 ``save_service``     "/scanner/capture_and_save"               ROS 2 service name of the save request ("" = none)
-``save_target``      "/cloud/capture_and_save"                 graph Trigger service it calls
+``save_target``      "cloud/capture_and_save"                  graph Trigger service it calls (relative, as above)
 ==================== ========================================= =================================================
 
 Every parameter is read-only (the DDS side is made at start-up; ``param set`` is refused).
@@ -118,9 +119,9 @@ class Ros2BridgeNode(Node):
         interface = rules.read_only("interface", "", description=wiring)
         peers = tuple(p.strip() for p in rules.read_only("peers", "", description=wiring).split(",") if p.strip())
         capture_service = rules.read_only("capture_service", "/scanner/capture", description=wiring)
-        start_service = rules.read_only("start_service", "/projector/start_scan", description=wiring)
+        start_service = rules.read_only("start_service", "projector/start_scan", description=wiring)
         save_service = rules.read_only("save_service", "/scanner/capture_and_save", description=wiring)
-        save_target = rules.read_only("save_target", "/cloud/capture_and_save", description=wiring)
+        save_target = rules.read_only("save_target", "cloud/capture_and_save", description=wiring)
         if self.qos_profile not in ("default", "sensor_data"):
             raise ValueError(f"parameter qos must be 'default' or 'sensor_data'; got {self.qos_profile!r}")
         if domain_id > 232:

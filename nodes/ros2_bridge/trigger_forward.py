@@ -30,7 +30,8 @@ class TriggerForward:
     participant : DomainParticipant
         The bridge's DDS participant.
     ros_service, graph_service : str
-        Absolute names, e.g. ``/scanner/capture`` and ``/projector/start_scan``.
+        ``/scanner/capture`` (DDS, absolute) and ``projector/start_scan`` (the graph's, resolved in the node's
+        namespace as rclpy does).
     """
 
     def __init__(self, node, participant, ros_service: str, graph_service: str):
