@@ -217,7 +217,11 @@ def _shaped(flat: np.ndarray, field: Ros2Field, sizes: dict[str, int], path: str
     for axis in field.shape:
         if axis in sizes:
             shape.append(sizes[axis])
-        elif known == 0 or flat.size % known:
+        elif known == 0:  # empty planes: only an empty array fits, and its other axis is lost in the flattening
+            if flat.size:
+                raise ValueError(f"{path}: {flat.size} elements in planes of 0 (height x width) elements")
+            shape.append(0)
+        elif flat.size % known:
             raise ValueError(f"{path}: {flat.size} elements are not a whole number of {known}-element "
                              f"(height x width) planes")
         else:

@@ -70,3 +70,12 @@ def test_the_shipped_msg_files_are_the_scanner_types_ros2_form():
     assert set(files) == scanner
     for name, text in files.items():
         assert shipped_msg_file(name) == text, f"messages/msg/{name} is stale: write msg_files() again"
+
+
+def test_an_empty_stack_of_planes_round_trips():
+    """A (F, H, W) array whose planes are empty (every default message has one) is written as 0 elements and
+    read back as the empty array, not refused for its 0-element planes."""
+    empty = PhaseMaps()
+    assert empty.phases.size == 0
+    back = decode_cdr(PhaseMaps, encode_cdr(empty))
+    assert back.phases.shape == empty.phases.shape and back == empty
