@@ -6,6 +6,7 @@ when they are absent.
 """
 from __future__ import annotations
 
+import signal
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -19,6 +20,14 @@ if TYPE_CHECKING:
     from dptpu.fpp.capture import GraycodeFrames, PhaseFrames
 
 _MISSING_REASON = "real data not found: set DPTPU_DATA or place ../shared/data"
+
+
+def pytest_configure(config):
+    """Ctrl-C handled as Python's default, whoever started the suite: a shell runs a background job with SIGINT
+    ignored, every process the tests start would inherit that, and the tests that stop a node with SIGINT (as
+    Ctrl-C or the launcher does) would wait on a node that cannot hear it."""
+    if signal.getsignal(signal.SIGINT) == signal.SIG_IGN:
+        signal.signal(signal.SIGINT, signal.default_int_handler)
 
 
 def _data_set(name: str, probe: str) -> Path:
