@@ -58,21 +58,23 @@ def test_malformed_input_is_counted_and_a_killed_unwrap_is_respawned_with_later_
     sockets = []
     try:
         run.wait_for(lambda lines: len(_ok_scans(run)) >= 2, 120, "two scans")
-        # 1. malformed bytes on the camera topic (phase) and the absolute-phase topic (cloud and monitor)
+        # 1. malformed bytes on the camera topic (phase, and the cloud keeping frames for capture_and_save) and the
+        #    absolute-phase topic (cloud and monitor), each sent once both its subscribers are connected
         gid = uuid.uuid4().bytes
         for index, (topic, msg_type) in enumerate((("/camera/image_raw", FringeFrame),
                                                    ("/scanner/absolute_phase", AbsolutePhase))):
             sock = context.socket(zmq.XPUB)
+            sock.setsockopt(zmq.XPUB_VERBOSE, 1)  # every subscriber's subscription, not only the first
             sockets.append(sock)
             endpoint = f"ipc://{domain_dir}/ep/rawinjector{index}"
             sock.bind(endpoint)
             _announce_raw_publisher(domain_dir, endpoint, topic, msg_type.TYPE_NAME)
             deadline = time.monotonic() + 15
             subscribed = 0
-            while subscribed < (2 if index == 1 else 1) and time.monotonic() < deadline:
+            while subscribed < 2 and time.monotonic() < deadline:
                 if sock.poll(500):
                     subscribed += sock.recv() == b"\x01" + topic.encode()  # not the shared-memory subscription
-            assert subscribed, f"nobody subscribed to the raw publisher of {topic}"
+            assert subscribed == 2, f"{subscribed} of 2 subscribers connected to the raw publisher of {topic}"
             sock.send_multipart([topic.encode(), b"\x00garbage"])                                   # too few frames
             sock.send_multipart([topic.encode(), b"\xc1 not msgpack", pack_envelope(0, 2, 0, gid)])  # not msgpack
         injected_after = max(s[0] for s in run.scans())
