@@ -148,7 +148,7 @@ def _stat_cpu_s(stat_path: Path, ticks_per_s: int) -> float:
 
 
 def cpu_times_s(pids: dict[str, int]) -> dict[str, tuple[int, float, dict]]:
-    """``{name: (pid, user + system CPU seconds, {thread kind: seconds})}`` of the processes still alive
+    """``{name: (pid, user + system CPU seconds, {thread id: (kind, seconds)})}`` of the processes still alive
     (``/proc/<pid>/stat`` and ``/proc/<pid>/task/*/stat``; Linux). Thread kinds: ``main``, ``zmq_io`` (libzmq's
     I/O thread), ``other`` (the rest)."""
     ticks_per_s = os.sysconf("SC_CLK_TCK")
@@ -158,16 +158,31 @@ def cpu_times_s(pids: dict[str, int]) -> dict[str, tuple[int, float, dict]]:
             total = _stat_cpu_s(Path(f"/proc/{pid}/stat"), ticks_per_s)
         except OSError:
             continue
-        threads = {"main": 0.0, "zmq_io": 0.0, "other": 0.0}
+        threads = {}
         try:
-            for task in Path(f"/proc/{pid}/task").iterdir():
+            tasks = list(Path(f"/proc/{pid}/task").iterdir())
+        except OSError:  # the process ended after its total was read
+            tasks = []
+        for task in tasks:
+            try:
                 kind = "main" if task.name == str(pid) else _THREAD_KINDS.get(
                     (task / "comm").read_text().strip(), "other")
-                threads[kind] += _stat_cpu_s(task / "stat", ticks_per_s)
-        except OSError:  # a thread ended while listed: the process total still stands
-            pass
+                threads[task.name] = (kind, _stat_cpu_s(task / "stat", ticks_per_s))
+            except OSError:  # the thread ended while listed
+                continue
         times[name] = (pid, total, threads)
     return times
+
+
+def _thread_kinds_ms(first: dict, last: dict, scans: int) -> dict[str, float]:
+    """CPU ms per scan by thread kind between two samples of one process's threads: each thread alive at the
+    last sample from its first sample (0 if it started inside the window); a thread that ended inside the window
+    is missing, so no kind goes below 0."""
+    kinds = {"main": 0.0, "zmq_io": 0.0, "other": 0.0}
+    for tid, (kind, seconds) in last.items():
+        before = first.get(tid)
+        kinds[kind] += seconds - (before[1] if before is not None and before[0] == kind else 0.0)
+    return {kind: round(1e3 * value / scans, 2) for kind, value in kinds.items()}
 
 
 def cpu_per_scan_ms(first: tuple, last: tuple) -> dict:
@@ -181,8 +196,7 @@ def cpu_per_scan_ms(first: tuple, last: tuple) -> dict:
     figures = {name: round(1e3 * (cpu1[name][1] - cpu0[name][1]) / scans, 1) for name in kept}
     figures["total"] = round(sum(figures.values()), 1)
     figures.update(scans=scans, window_s=round(time1 - time0, 2))
-    figures["threads"] = {name: {kind: round(1e3 * (cpu1[name][2][kind] - cpu0[name][2][kind]) / scans, 2)
-                                 for kind in cpu1[name][2]} for name in kept}
+    figures["threads"] = {name: _thread_kinds_ms(cpu0[name][2], cpu1[name][2], scans) for name in kept}
     return figures
 
 
