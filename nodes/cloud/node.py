@@ -164,6 +164,8 @@ def camera_points_m(triangulator: Triangulator, absolute_phase: np.ndarray, freq
 
 #: the cloud node's TF frame parameters: three distinct frames on /tf_static
 _TF_FRAMES = ("frame_id", "mount_frame", "projector_frame")
+#: the parameters /tf_static is made of: the frames and the mount transform
+_TF_PARAMETERS = (*_TF_FRAMES, "mount_transform")
 
 
 class CloudNode(Node):
@@ -237,6 +239,7 @@ class CloudNode(Node):
         self.status_publisher = self.create_publisher(ScanStatus, "/scanner/status", STATUS_QOS)
         self.tf_static_publisher = self.create_publisher(TFMessage, "/tf_static", LATCHED_QOS)
         self._publish_static_frames()
+        self.add_post_set_parameters_callback(self._republish_static_frames)  # runs after the rules' applies
 
         self._subscriptions_in = [
             self.create_subscription(AbsolutePhase, "/scanner/absolute_phase", self.on_absolute_phase, 10)]
@@ -262,11 +265,17 @@ class CloudNode(Node):
         self.tf_static_publisher.publish(tf_message(frames, self.get_clock().now().to_msg()))
 
     def _set_frame(self, name: str):
-        """An apply of a TF parameter: set it and publish ``/tf_static`` again."""
+        """An apply of a TF parameter: set it; ``/tf_static`` goes out again once the whole set is applied
+        (:meth:`_republish_static_frames`): an atomic swap of two frames must not publish the half-swapped
+        ``A -> A`` in between."""
         def apply(value) -> None:
             setattr(self, name, value)
-            self._publish_static_frames()
         return apply
+
+    def _republish_static_frames(self, parameters) -> None:
+        """A post-set callback (after the rules' applies): publish ``/tf_static`` if a TF parameter was set."""
+        if any(parameter.name in _TF_PARAMETERS for parameter in parameters):
+            self._publish_static_frames()
 
     # -- callbacks ------------------------------------------------------------------------------------------
 
