@@ -39,8 +39,9 @@ def organized_normals(points: np.ndarray, *, window_px: int = DEFAULT_NORMAL_WIN
     Parameters
     ----------
     points : ndarray (H, W, 3) float32 or float64
-        Points in the camera's frame (the camera at the origin; any unit), NaN where a pixel has none. A planar
-        view (``planes.transpose(1, 2, 0)`` of (3, H, W) planes) is worked on plane by plane without a copy.
+        Points in the camera's frame (the camera at the origin; any unit), NaN (all three coordinates, as the
+        triangulation writes them) where a pixel has none. A planar view (``planes.transpose(1, 2, 0)`` of
+        (3, H, W) planes) is worked on plane by plane without a copy.
     window_px : int
         Width of the square window whose tangents are summed (odd, >= 1).
     out : ndarray (H, W, 3) float32, optional
@@ -59,6 +60,11 @@ def organized_normals(points: np.ndarray, *, window_px: int = DEFAULT_NORMAL_WIN
     along the row and the column (NaN where a neighbour is missing); see the module docstring.
 
     Convention: pixel ``(v, u)`` is row ``v``, column ``u``; the result is oriented toward the origin.
+
+    Kernel: a missing tangent enters the box sums as 0, so a window without any gives a zero sum, a zero cross
+    product and no normal, as the definition says, without a count of the finite ones; each step is one float32
+    operation over whole planes, in place where it can be, in the same order as the definition's, so the result is
+    that of the plain formulation bit for bit (tests/fpp/test_organized_normals.py holds it there).
     """
     points = np.asarray(points)
     if points.ndim != 3 or points.shape[2] != 3:
@@ -71,50 +77,54 @@ def organized_normals(points: np.ndarray, *, window_px: int = DEFAULT_NORMAL_WIN
     elif out.shape != points.shape or out.dtype != np.float32:
         raise ValueError(f"out must be a float32 array of shape {points.shape}; got {out.dtype} {out.shape}")
     p = [points[..., c].astype(np.float32, copy=False) for c in range(3)]  # x, y, z planes (H, W)
-    tu = _window_sum(_tangent(p, axis=1), int(window_px))  # along the row: 3 planes
-    tv = _window_sum(_tangent(p, axis=0), int(window_px))  # along the column
-    n = []  # t_u x t_v, component by component, in place
-    for a, b in ((1, 2), (2, 0), (0, 1)):
-        component = np.multiply(tu[a], tv[b])
-        component -= tu[b] * tv[a]
-        n.append(component)
-    length = np.sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2])  # (H, W)
-    facing = n[0] * p[0] + n[1] * p[1] + n[2] * p[2]  # n . P, NaN where the point is
+    tu = _window_sums(_tangents(p, axis=1), int(window_px))  # (5, H, W): sum t_u's x, y, z, x, y
+    tv = _window_sums(_tangents(p, axis=0), int(window_px))  # along the column
+    # t_u x t_v, all three components at once: planes (y, z, x) * (z, x, y) - (z, x, y) * (y, z, x)
+    n = np.multiply(tu[1:4], tv[2:5])  # (3, H, W)
+    scratch = np.multiply(tu[2:5], tv[1:4])
+    np.subtract(n, scratch, out=n)
+    length, term = np.multiply(n[0], n[0]), scratch[0]  # |n|^2 = (n_x^2 + n_y^2) + n_z^2, in this order
+    length += np.multiply(n[1], n[1], out=term)
+    length += np.multiply(n[2], n[2], out=term)
+    np.sqrt(length, out=length)
+    facing = np.multiply(n[0], p[0], out=scratch[1])  # n . P = (n_x x + n_y y) + n_z z; NaN where the point is
+    facing += np.multiply(n[1], p[1], out=term)
+    facing += np.multiply(n[2], p[2], out=term)
+    scale = length  # 1 / |n|, negated where n . P > 0 (toward the camera)
     with np.errstate(invalid="ignore", divide="ignore"):
-        np.divide(np.where(facing > 0, np.float32(-1.0), np.float32(1.0)), length, out=length)  # toward the camera
-    length[np.isnan(facing)] = np.nan  # (a zero length, parallel tangents, is inf -> NaN below)
+        np.divide(np.float32(1.0), length, out=scale)
+        np.negative(scale, out=scale, where=facing > 0)
+    # no normal: the point is NaN (so is n . P), or |n| = 0 (no tangent along an axis, or parallel ones): 1/0 = inf
+    missing = np.isnan(facing)
+    missing |= np.isinf(scale)
+    np.copyto(scale, np.float32(np.nan), where=missing)
     for c in range(3):
-        np.multiply(n[c], length, out=out[..., c])
-    out[~np.isfinite(length)] = np.nan
+        np.multiply(n[c], scale, out=out[..., c])
     return out
 
 
-def _window_sum(tangents: list[np.ndarray], window: int) -> list[np.ndarray]:
-    """Sum of each finite tangent plane over a ``window`` x ``window`` box (NaN counts as 0); NaN where the box
-    holds no finite tangent."""
-    if window == 1:
-        return tangents
-    finite = ~np.isnan(tangents[2])  # the three components are finite together
-    count = cv2.boxFilter(finite.astype(np.float32), -1, (window, window), normalize=False,
-                          borderType=cv2.BORDER_CONSTANT)
-    summed = []
-    for t in tangents:
-        total = cv2.boxFilter(np.where(finite, t, np.float32(0.0)), -1, (window, window), normalize=False,
-                              borderType=cv2.BORDER_CONSTANT)
-        total[count < 0.5] = np.nan
-        summed.append(total)
-    return summed
+def _window_sums(tangents: np.ndarray, window: int) -> np.ndarray:
+    """Sums of the (5, H, W) tangent planes over a ``window`` x ``window`` box of pixels (zero outside the image),
+    in place: the box filter of each of the first three planes, planes 3 and 4 copies of planes 0 and 1."""
+    if window > 1:
+        for plane in tangents[:3]:
+            cv2.boxFilter(plane, -1, (window, window), dst=plane, normalize=False, borderType=cv2.BORDER_CONSTANT)
+    tangents[3:] = tangents[:2]
+    return tangents
 
 
-def _tangent(points: list[np.ndarray], *, axis: int) -> list[np.ndarray]:
-    """Central difference ``P(i + 1) - P(i - 1)`` along ``axis`` (0 rows, 1 columns) of the three (H, W) planes; NaN
-    where a neighbour is NaN or outside the image."""
-    tangents = []
-    for plane in points:
-        t = np.full_like(plane, np.nan)
+def _tangents(points: list[np.ndarray], *, axis: int) -> np.ndarray:
+    """Central differences ``P(i + 1) - P(i - 1)`` along ``axis`` (0 rows, 1 columns) of the three (H, W) planes
+    as planes x, y, z of a (5, H, W) float32 array (3 and 4 left for :func:`_window_sums`); 0 where a neighbour
+    is NaN or outside the image (a missing tangent adds nothing to a window's sum)."""
+    height, width = points[0].shape
+    tangents = np.empty((5, height, width), dtype=np.float32)
+    for plane, t in zip(points, tangents):
         if axis == 0:
             np.subtract(plane[2:], plane[:-2], out=t[1:-1])
+            t[0] = t[-1] = 0.0
         else:
             np.subtract(plane[:, 2:], plane[:, :-2], out=t[:, 1:-1])
-        tangents.append(t)
+            t[:, 0] = t[:, -1] = 0.0
+    cv2.patchNaNs(tangents[:3].reshape(3 * height, width), 0.0)  # NaN differences (a neighbour missing) -> 0
     return tangents

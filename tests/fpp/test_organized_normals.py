@@ -108,3 +108,61 @@ def test_texture_is_white_minus_black_or_the_mean_intensity():
         texture_image(background=background, black=black)
     with pytest.raises(ValueError, match="black must have the white frame's shape"):
         texture_image(white=white, black=black[:1])
+
+
+def reference_normals(points: np.ndarray, window: int) -> np.ndarray:
+    """The module docstring's definition written plainly (NaN tangents, masked box sums, one float32 operation at a
+    time in the kernel's order): the kernel before it was made lean (issue 20), kept to hold it to the same bits."""
+    import cv2
+
+    p = [points[..., c].astype(np.float32) for c in range(3)]
+    sums = []
+    for axis in (1, 0):
+        t = [np.full_like(plane, np.nan) for plane in p]
+        for plane, d in zip(p, t):
+            if axis == 0:
+                d[1:-1] = plane[2:] - plane[:-2]
+            else:
+                d[:, 1:-1] = plane[:, 2:] - plane[:, :-2]
+        finite = ~np.isnan(t[2])
+        count = cv2.boxFilter(finite.astype(np.float32), -1, (window, window), normalize=False,
+                              borderType=cv2.BORDER_CONSTANT)
+        summed = [cv2.boxFilter(np.where(finite, d, np.float32(0.0)), -1, (window, window), normalize=False,
+                                borderType=cv2.BORDER_CONSTANT) for d in t]
+        for s in summed:
+            s[count < 0.5] = np.nan
+        sums.append(summed)
+    tu, tv = sums
+    n = [tu[a] * tv[b] - tu[b] * tv[a] for a, b in ((1, 2), (2, 0), (0, 1))]
+    length = np.sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2])
+    facing = n[0] * p[0] + n[1] * p[1] + n[2] * p[2]
+    with np.errstate(invalid="ignore", divide="ignore"):
+        scale = np.where(facing > 0, np.float32(-1.0), np.float32(1.0)) / length
+    scale[np.isnan(facing) | ~np.isfinite(scale)] = np.nan
+    return np.stack([c * scale for c in n], axis=-1)
+
+
+@pytest.mark.parametrize("window", [1, 3, 5, 7])
+def test_the_kernel_gives_the_plain_definitions_bits(window):
+    """Bit for bit the plain definition (:func:`reference_normals`) on a noisy sphere before a tilted plane with
+    holes, single pixels and rows missing, in float64 and float32, interleaved or as a planar view, with ``out``."""
+    sphere, _ = sphere_points(np.array([10.0, -5.0, 800.0]), 60.0)
+    points = plane_points((0.3, -0.2, -1.0), (0.0, 0.0, 900.0))
+    on_sphere = np.isfinite(sphere[..., 2])
+    points[on_sphere] = sphere[on_sphere]
+    rng = np.random.default_rng(7)
+    points *= (1.0 + rng.normal(0.0, 0.05, SHAPE) / points[..., 2])[..., None]
+    points[rng.random(SHAPE) < 0.03] = np.nan  # lone missing pixels
+    points[30:34] = np.nan
+    points[:, 150:] = np.nan
+    points[70, 20] = (5.0, 5.0, 850.0)  # an isolated point
+    points[69, 19:22] = points[71, 19:22] = points[70, 19] = points[70, 21] = np.nan
+    expected = reference_normals(points, window)
+    assert 0.5 < np.isfinite(expected[..., 0]).mean() < 0.95  # the case has normals and holes
+    planar = np.ascontiguousarray(points.transpose(2, 0, 1), dtype=np.float32)  # (3, H, W) as the cloud node has
+    out = np.empty((3, *SHAPE), dtype=np.float32)
+    for given, target in ((points, None), (points.astype(np.float32), None), (planar.transpose(1, 2, 0), None),
+                          (planar.transpose(1, 2, 0), out.transpose(1, 2, 0))):
+        normals = organized_normals(given, window_px=window, out=target)
+        np.testing.assert_array_equal(normals, expected)
+    assert np.shares_memory(normals, out)
