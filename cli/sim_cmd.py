@@ -62,7 +62,9 @@ def run_render(args) -> int:
     from dptpu.sim.rig import load_twin_rig
     from dptpu.sim.scenes import load_scene, random_scene
 
+    parse_sequences(args.sequence)  # the syntax and the step counts, before the rig is read
     rig = load_twin_rig(args.rig, size=args.size)
+    sequences = parse_sequences(args.sequence, projector_size=rig.projector.size)  # and every frequency: up front
     if args.scene.startswith("random:"):
         try:
             scene_seed = int(args.scene.split(":", 1)[1])
@@ -72,7 +74,6 @@ def run_render(args) -> int:
     else:
         scene = load_scene(args.scene, rig)
     effects = load_effects(args.effects) if args.effects else None
-    sequences = parse_sequences(args.sequence)
     try:
         out = render_capture(rig, scene, sequences, args.out, engine=args.engine, effects=effects, seed=args.seed,
                              bit_depth=args.bit_depth, supersample=args.supersample)

@@ -29,6 +29,7 @@ from typing import Protocol
 import numpy as np
 
 from dptpu.fpp.calibration import Rig
+from dptpu.fpp.capture.reading import MAX_STEPS
 
 from .effects import parse_effects
 from .effects.camera import apply_camera_effects
@@ -96,9 +97,16 @@ class SequenceSpec:
         return self.kind if self.kind != "phase" else f"{self.frequency:g}x{self.steps}"
 
 
-def parse_sequences(text: str, *, shift_sign: int = -1) -> list[SequenceSpec]:
+def parse_sequences(text: str, *, shift_sign: int = -1, projector_size: tuple[int, int] | None = None
+                    ) -> list[SequenceSpec]:
     """``"96x12,1x12"`` -> sequences; a token is ``FREQxSTEPS`` with optional ``:y`` (fringe axis), or ``white`` /
-    ``black``."""
+    ``black``.
+
+    Refused up front (``ValueError`` naming ``--sequence`` and the range), before anything is rendered: steps
+    outside ``[3, MAX_STEPS]`` and, with ``projector_size`` ``(width, height)``, a frequency above half the
+    projector's extent along the fringe axis (a period of fewer than 2 projector pixels cannot be projected), as
+    a capture file's sequences are (:mod:`dptpu.fpp.capture.reading`).
+    """
     sequences = []
     for token in str(text).split(","):
         token = token.strip()
@@ -112,6 +120,15 @@ def parse_sequences(text: str, *, shift_sign: int = -1) -> list[SequenceSpec]:
         except ValueError as exc:
             reason = exc if sep else "expected FREQxSTEPS"
             raise ValueError(f"--sequence {token!r}: {reason} (e.g. 96x12,1x12 or 64x3:y, white, black)") from None
+        spec = sequences[-1]
+        if spec.steps > MAX_STEPS:
+            raise ValueError(f"--sequence {token!r}: steps must be an integer in [3, {MAX_STEPS}]; got {spec.steps}")
+        if projector_size is not None:
+            extent = int(projector_size[0 if spec.axis == "x" else 1])
+            if spec.frequency > extent / 2:
+                raise ValueError(f"--sequence {token!r}: frequency must be in (0, {extent / 2:g}] (a period of at "
+                                 f"least 2 projector pixels over its {extent} pixels along {spec.axis}); got "
+                                 f"{spec.frequency:g}")
     if not sequences:
         raise ValueError("--sequence must list at least one sequence, e.g. 96x12,1x12")
     return sequences
