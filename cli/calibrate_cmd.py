@@ -3,6 +3,7 @@
     dptpu calibrate POSE_DIRS... --board COLSxROWS:SQUARE_MM --out rig.yaml
     dptpu calibrate --twin --rig RIG [--poses N] [--size WIDTHxHEIGHT] --board ... --out rig.yaml [--keep DIR]
     dptpu calibrate hand-eye VIEWS.yaml --rig RIG --board COLSxROWS:SQUARE_MM --out mount.yaml
+    dptpu calibrate response CAPTURE_DIR... [--rig RIG] [--steps 3,4] --out rig.yaml
 
 A pose folder holds the captures ``x/`` and ``y/`` (docs/calibration.md); a folder of pose folders stands for all
 of them. With ``--twin`` the poses are rendered in the twin of ``--rig RIG`` first and the result is compared with it
@@ -14,6 +15,12 @@ and ends with a one-line summary.
 views file (the flange pose at each board capture; :mod:`dptpu.fpp.hand_eye_file`) and the camera model of the
 scanner's ``--rig`` (:mod:`dptpu.fpp.hand_eye`); writes the cloud node's ``mount_frame`` and ``mount_transform`` as a
 ROS 2 parameter file (its ``/tf_static``, docs/ros2.md).
+
+``response``: the projector's phase response, from captures that hold a 12-step (or longer) phase sequence and,
+of the same frequency, the N-step phases to calibrate (their own sequences, or every N dividing the reference's
+steps taken from its frames; :mod:`dptpu.fpp.phase_response_calibration`); writes ``--rig`` (default: the first
+capture's ``calibration``) with ``projector.phase_response`` to ``--out``. Every later phase computation with that
+rig file removes the error of the step counts it holds (docs/calibration.md "The projector's phase response").
 """
 from __future__ import annotations
 
@@ -29,9 +36,11 @@ def register(subparsers) -> None:
                     "vertical and horizontal fringes at the board corners, then the pair (docs/calibration.md).")
     parser.add_argument("pose_dirs", nargs="*", metavar="POSE_DIR",
                         help="calibration pose folders (each with x/ and y/ dptpu-capture/1 folders), or folders "
-                             "of them; or 'hand-eye VIEWS.yaml' for a hand-eye calibration (below)")
-    parser.add_argument("--board", required=True,
-                        help="COLSxROWS:SQUARE_MM: inner corners and square edge, e.g. 10x8:13")
+                             "of them; or 'hand-eye VIEWS.yaml' for a hand-eye calibration, or 'response "
+                             "CAPTURE_DIR...' for the projector's phase response (below)")
+    parser.add_argument("--board",
+                        help="COLSxROWS:SQUARE_MM: inner corners and square edge, e.g. 10x8:13 (rig and hand-eye "
+                             "calibrations)")
     parser.add_argument("--out", required=True,
                         help="rig file to write (dptpu-rig/1 YAML); with hand-eye: the mount file (ROS 2 parameters)")
     parser.add_argument("--window", type=int, default=6,
@@ -41,7 +50,8 @@ def register(subparsers) -> None:
                       help="render the poses in the twin of --rig and compare the result with it")
     twin.add_argument("--rig", metavar="RIG", help="the twin's rig: dptpu-rig/1 or OpenCV file, 'CAM.mat,PRJ.mat' "
                                                    "(Bouguet) or 'nominal'; with hand-eye: the scanner's rig file "
-                                                   "(its camera's intrinsics and distortion)")
+                                                   "(its camera's intrinsics and distortion); with response: the "
+                                                   "rig file to extend (default: the first capture's calibration)")
     twin.add_argument("--poses", type=int, default=10, help="board poses to render (default 10)")
     twin.add_argument("--size", default=None, help="camera size WIDTHxHEIGHT for the render (default: the rig's)")
     twin.add_argument("--frequency", type=float, default=16.0, help="fringe frequency of both directions (default 16)")
@@ -53,6 +63,11 @@ def register(subparsers) -> None:
                                          "... --out mount.yaml)")
     hand_eye.add_argument("--camera-frame", default="",
                           help="also write the cloud's frame_id (the camera optical frame; default: leave it)")
+    response = parser.add_argument_group("projector phase response (dptpu calibrate response CAPTURE_DIR... "
+                                         "[--rig RIG] --out rig.yaml)")
+    response.add_argument("--steps", metavar="N[,N...]",
+                          help="step counts to calibrate (default: every one the captures provide beside a 12-step "
+                               "sequence)")
     parser.add_argument("--quiet", action="store_true", help="no progress bars")
     parser.set_defaults(func=run)
 
@@ -62,6 +77,12 @@ def run(args) -> int:
     from dptpu.fpp.calibration import save_rig
     from dptpu.fpp.rig_calibration import calibrate_from_folders, parse_board
 
+    if args.pose_dirs and args.pose_dirs[0] == "response":
+        return _run_response(args)
+    if args.steps is not None:
+        raise ValueError("--steps belongs to 'dptpu calibrate response'")
+    if args.board is None:
+        raise ValueError("--board COLSxROWS:SQUARE_MM is required (the checkerboard's inner corners and square edge)")
     board = parse_board(args.board)
     if args.pose_dirs and args.pose_dirs[0] == "hand-eye":
         return _run_hand_eye(args, board)
@@ -149,6 +170,47 @@ def _run_hand_eye(args, board) -> int:
           f"roll {rpy[0]:.4f}, pitch {rpy[1]:.4f}, yaw {rpy[2]:.4f} deg (fixed axes x, y, z)")
     print(f"hand-eye ({views.setup}) from {len(corners)} views -> {args.out}: reprojection RMS {result.rms_px:.3f} px "
           f"(worst view {float(np.max(result.view_rms_px)):.3f} px); mount_frame {parent}")
+    return 0
+
+
+def _run_response(args) -> int:
+    # imported when the command runs, not at start-up: keeps `dptpu --help` fast
+    import dataclasses
+
+    from dptpu.fpp.calibration import load_rig, save_rig
+    from dptpu.fpp.capture import read_capture
+    from dptpu.fpp.phase_response_calibration import calibrate_phase_response
+
+    folders = args.pose_dirs[1:]
+    if not folders:
+        raise ValueError("dptpu calibrate response needs capture folders (CAPTURE_DIR...) holding a 12-step phase "
+                         "sequence and the N-step phases of the same scene")
+    if args.twin or args.board is not None:
+        raise ValueError("--twin and --board belong to the rig calibration; 'response' takes capture folders")
+    steps = None
+    if args.steps is not None:
+        try:
+            steps = [int(text) for text in args.steps.split(",")]
+        except ValueError:
+            raise ValueError(f"--steps must be step counts such as 3 or 3,4; got {args.steps!r}") from None
+        if any(n < 3 for n in steps):
+            raise ValueError(f"--steps must be step counts >= 3; got {args.steps!r}")
+    captures = [read_capture(folder) for folder in folders]
+    rig_path = args.rig or captures[0].calibration
+    if rig_path is None:
+        raise ValueError(f"{captures[0].root}: the capture names no 'calibration' rig file; give --rig RIG (the rig "
+                         f"file to add the projector's response to)")
+    rig = load_rig(rig_path)
+    calibration = calibrate_phase_response(captures, steps=steps)
+    for n, fit in calibration.fits.items():
+        by_frequency = ", ".join(f"{f:g}: {a:.4f}" for f, a in fit.amplitude_by_frequency_rad.items())
+        print(f"{n} steps: cos_rad {fit.error.cos_rad:+.5f}, sin_rad {fit.error.sin_rad:+.5f} (amplitude "
+              f"{fit.error.amplitude_rad:.4f} rad; per frequency {by_frequency}); {n}-step minus reference RMS "
+              f"{fit.rms_before_rad:.4f} -> {fit.rms_after_rad:.4f} rad over {fit.pixels} pixels of "
+              f"{len(fit.pairs)} sequence pairs")
+    save_rig(dataclasses.replace(rig, phase_response=calibration.response), args.out)
+    print(f"projector phase response of {', '.join(map(str, calibration.response.steps))} steps from "
+          f"{len(captures)} capture(s) -> {args.out} (rig {rig_path})")
     return 0
 
 

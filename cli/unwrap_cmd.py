@@ -8,7 +8,10 @@ for mf/mw/nt the DP-TPU network (:mod:`dptpu.models.refine`, onnxruntime) refine
 default with the shipped model when it serves the method and the fringes (:func:`dptpu.models.refine.choose_model`;
 ``--model none``: the classical result). Pixels whose confidence (``reliability``: the classical rounding margin or
 the network's confidence, :mod:`dptpu.fpp.confidence`) is below ``--min-confidence`` are invalid; the summary line
-counts them. ``dptpu triangulate`` unwraps through :func:`unwrap_from_args` too (same defaults, same code path).
+counts them. When the capture's ``calibration`` rig file holds the projector's response (``projector.phase_response``,
+``dptpu calibrate response``) the wrapped phases of the step counts it holds are corrected first
+(:meth:`dptpu.fpp.phase_harmonics.ProjectorPhaseResponse.correct`). ``dptpu triangulate`` unwraps through
+:func:`unwrap_from_args` too (same defaults, same code path).
 """
 from __future__ import annotations
 
@@ -18,6 +21,7 @@ from pathlib import Path
 
 import numpy as np
 
+from dptpu.fpp.calibration import load_rig
 from dptpu.fpp.capture import read_capture
 from dptpu.fpp.confidence import DEFAULT_MIN_CONFIDENCE, confident
 from dptpu.fpp.methods import CAPTURE_METHODS
@@ -69,6 +73,7 @@ class Unwrapping:
     model_path: str  # "none" without a model
     note: str
     dropped_low_confidence: int
+    response_note: str = ""  # what of the rig's projector.phase_response was applied ("" without one)
 
 
 def unwrap_from_args(args: argparse.Namespace) -> Unwrapping:
@@ -84,8 +89,9 @@ def unwrap_from_args(args: argparse.Namespace) -> Unwrapping:
         raise ValueError(f"--min-confidence must be in [0, 1]; got {min_confidence:g}")
     model = resolve_model(args.model, args.method)  # before the work: a bad model file fails fast
     capture = read_capture(args.capture)
+    response = load_rig(capture.calibration).phase_response if capture.calibration is not None else None
     result = unwrap_capture(capture, method=args.method, high=args.high, low=args.low,
-                            min_modulation=args.min_modulation)
+                            min_modulation=args.min_modulation, phase_response=response)
     note = ""
     if model is not None or args.model is None:
         model, note = choose_model(model, args.model, args.method, result.wrapped_phases[0], result.quality)
@@ -98,7 +104,19 @@ def unwrap_from_args(args: argparse.Namespace) -> Unwrapping:
                                      absolute_phase=np.where(valid, result.absolute_phase, np.nan),
                                      reliability=np.where(valid, result.reliability, 0.0))
     return Unwrapping(result=result, model_path=str(model.path) if model is not None else "none", note=note,
-                      dropped_low_confidence=dropped)
+                      dropped_low_confidence=dropped, response_note=_response_note(result, response))
+
+
+def _response_note(result: CaptureResult, response) -> str:
+    """Which step counts of the rig's projector response corrected the sequences used ("" without a response)."""
+    if response is None:
+        return ""
+    used = sorted(set(result.steps))
+    corrected = [n for n in used if response.for_steps(n) is not None]
+    held = ", ".join(map(str, response.steps))
+    if not corrected:
+        return f"projector response of the rig (steps {held}) not needed for {'/'.join(map(str, used))}-step phases"
+    return f"projector response of the rig applied to {'/'.join(map(str, corrected))}-step phases"
 
 
 def summary(unwrapping: Unwrapping) -> str:
@@ -106,6 +124,8 @@ def summary(unwrapping: Unwrapping) -> str:
     parts = [f"model {unwrapping.model_path}"]
     if unwrapping.note:
         parts.append(unwrapping.note)
+    if unwrapping.response_note:
+        parts.append(unwrapping.response_note)
     parts.append(f"{unwrapping.dropped_low_confidence} pixels below the confidence threshold dropped")
     return "; ".join(parts)
 

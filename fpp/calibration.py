@@ -13,7 +13,10 @@ Readers:
   ``T`` as written by projector-camera calibration tools, world = camera frame; our writer adds ``cam_R``,
   ``cam_T``, ``cam_size``, ``proj_size``, ``units``) or one file per device (``camera_matrix``,
   ``distortion_coefficients``, ``image_width``, ``image_height``, optional ``R`` or ``rvec`` and ``T``);
-- ``dptpu-rig/1`` YAML (docs/architecture.md).
+- ``dptpu-rig/1`` YAML (docs/architecture.md), with the optional ``projector.phase_response`` (the projector's
+  harmonic phase error per step count, :class:`dptpu.fpp.phase_harmonics.ProjectorPhaseResponse`; written by
+  ``dptpu calibrate response``, docs/calibration.md). A file without it is read as before; a reader that predates
+  it ignores it (the devices take unknown keys), so the format stays ``dptpu-rig/1``.
 
 Writers: ``dptpu-rig/1`` YAML and the OpenCV FileStorage rig file.
 """
@@ -27,12 +30,13 @@ import yaml
 
 from .checks import is_finite_real
 from .mat_file import read_mat
+from .phase_harmonics import HarmonicPhaseError, ProjectorPhaseResponse
 from .rig_model import METRES_PER_UNIT, DeviceModel, Rig, checked_array
 from .text_files import read_text_file
 
-__all__ = ["RIG_FORMAT", "DeviceModel", "Rig", "check_physical_device", "check_physical_rig", "load_bouguet",
-           "load_bouguet_pair", "load_device", "load_opencv_device", "load_opencv_rig", "load_rig", "save_opencv_rig",
-           "save_rig"]
+__all__ = ["PHASE_RESPONSE_KEY", "RIG_FORMAT", "DeviceModel", "Rig", "check_physical_device", "check_physical_rig",
+           "load_bouguet", "load_bouguet_pair", "load_device", "load_opencv_device", "load_opencv_rig", "load_rig",
+           "phase_response_from_dict", "phase_response_to_dict", "save_opencv_rig", "save_rig"]
 
 RIG_FORMAT = "dptpu-rig/1"
 #: Largest width or height of a device, pixels (no camera or projector panel comes near it).
@@ -212,11 +216,77 @@ def _device_from_dict(entry, where: str) -> DeviceModel:
         raise ValueError(f"{where}: {exc}") from None
 
 
+#: The key of the projector's phase response in a ``dptpu-rig/1`` file, and the keys of one step count's entry.
+PHASE_RESPONSE_KEY = "phase_response"
+_RESPONSE_TERMS = ("cos_rad", "sin_rad")
+#: Step counts a phase response may hold (a capture's ``steps`` range, docs/capture-format.md).
+_RESPONSE_STEPS = (3, 1000)
+
+
+def phase_response_to_dict(response: ProjectorPhaseResponse) -> dict:
+    """``{N: {cos_rad: a, sin_rad: b}}`` (ascending ``N``; lists ``[a_1, a_2, ...]`` for the terms at ``N, 2N, ...``
+    when an error has more than the first): the YAML of ``projector.phase_response``."""
+    document = {}
+    for steps in response.steps:
+        terms = response.errors[steps].terms
+        cosines, sines = [c for _, c, _ in terms], [s for _, _, s in terms]
+        document[steps] = ({"cos_rad": cosines[0], "sin_rad": sines[0]} if len(terms) == 1
+                           else {"cos_rad": cosines, "sin_rad": sines})
+    return document
+
+
+def phase_response_from_dict(entry, where: str) -> ProjectorPhaseResponse:
+    """Check and read ``projector.phase_response``; ``where`` (e.g. ``"rig.yaml: projector.phase_response"``)
+    starts every message.
+
+    Raises
+    ------
+    ValueError
+        Not a mapping of step counts (integers in [3, 1000]) to ``{cos_rad, sin_rad}`` of finite numbers (or of
+        equally long lists of them: the terms at ``N, 2N, ...``), or an error too large to invert (its slope
+        reaching -1: ``steps x amplitude >= 1`` for one term).
+    """
+    expected = "a mapping of step counts to {cos_rad: R, sin_rad: R}, e.g. {3: {cos_rad: 0.01, sin_rad: -0.16}}"
+    if not isinstance(entry, dict) or not entry:
+        raise ValueError(f"{where} must be {expected}; got {entry!r}")
+    errors = {}
+    low, high = _RESPONSE_STEPS
+    for steps, terms in entry.items():
+        if isinstance(steps, bool) or not isinstance(steps, int) or not low <= steps <= high:
+            raise ValueError(f"{where}: keys are step counts, integers in [{low}, {high}]; got {steps!r}")
+        if not isinstance(terms, dict) or set(terms) != set(_RESPONSE_TERMS):
+            raise ValueError(f"{where}[{steps}] must be {{cos_rad: R, sin_rad: R}} (radians); got {terms!r}")
+        values = {}
+        for name in _RESPONSE_TERMS:
+            value = terms[name]
+            listed = value if isinstance(value, list) else [value]
+            if not listed or not all(is_finite_real(v) for v in listed):
+                raise ValueError(f"{where}[{steps}].{name} must be a finite number or a list of them (radians, the "
+                                 f"terms at {steps}, {2 * steps}, ... times the phase); got {value!r}")
+            values[name] = [float(v) for v in listed]
+        if len(values["cos_rad"]) != len(values["sin_rad"]):
+            raise ValueError(f"{where}[{steps}]: cos_rad and sin_rad must list as many terms; got "
+                             f"{len(values['cos_rad'])} and {len(values['sin_rad'])}")
+        cosines, sines = values["cos_rad"], values["sin_rad"]
+        error = HarmonicPhaseError(steps=steps, cos_rad=cosines[0], sin_rad=sines[0],
+                                   higher_cos_rad=tuple(cosines[1:]), higher_sin_rad=tuple(sines[1:]))
+        if not error.min_slope > -1.0:
+            raise ValueError(f"{where}[{steps}]: the error's slope must stay above -1 (for one term: amplitude below "
+                             f"1 / {steps} = {1.0 / steps:.4g} rad); got {error.min_slope:.4g} (amplitude "
+                             f"{error.amplitude_rad:.4g} rad): a larger harmonic phase error cannot be inverted")
+        errors[steps] = error
+    return ProjectorPhaseResponse(errors)
+
+
 def save_rig(rig: Rig, path) -> Path:
-    """Write ``rig`` as a ``dptpu-rig/1`` YAML file; returns the path."""
+    """Write ``rig`` as a ``dptpu-rig/1`` YAML file (with ``projector.phase_response`` when it has one); returns the
+    path."""
     path = Path(path)
+    projector = _device_to_dict(rig.projector)
+    if rig.phase_response is not None and rig.phase_response.steps:
+        projector[PHASE_RESPONSE_KEY] = phase_response_to_dict(rig.phase_response)
     document = {"format": RIG_FORMAT, "units": rig.units, "camera": _device_to_dict(rig.camera),
-                "projector": _device_to_dict(rig.projector), "effects": list(rig.effects)}
+                "projector": projector, "effects": list(rig.effects)}
     path.write_text(yaml.safe_dump(document, sort_keys=False, default_flow_style=None))
     return path
 
@@ -245,9 +315,13 @@ def load_rig(path) -> Rig:
     effects = document.get("effects") or []
     if not isinstance(effects, list):
         raise ValueError(f"{path}: 'effects' must be a list; got {type(effects).__name__}")
+    projector = document["projector"]
+    response = None
+    if isinstance(projector, dict) and projector.get(PHASE_RESPONSE_KEY) is not None:
+        response = phase_response_from_dict(projector[PHASE_RESPONSE_KEY], f"{path}: projector.{PHASE_RESPONSE_KEY}")
     rig = Rig(camera=_device_from_dict(document["camera"], f"{path}: camera"),
-              projector=_device_from_dict(document["projector"], f"{path}: projector"),
-              units=str(document.get("units", "mm")), effects=tuple(effects))
+              projector=_device_from_dict(projector, f"{path}: projector"),
+              units=str(document.get("units", "mm")), effects=tuple(effects), phase_response=response)
     return check_physical_rig(rig, path)
 
 
@@ -282,7 +356,8 @@ def _open_storage(path):
 
 
 def load_opencv_rig(path, *, camera_size=None, projector_size=None, units=None) -> Rig:
-    """Read an OpenCV FileStorage rig file (``cam_K``, ``cam_kc``, ``proj_K``, ``proj_kc``, ``R``, ``T``).
+    """Read an OpenCV FileStorage rig file (``cam_K``, ``cam_kc``, ``proj_K``, ``proj_kc``, ``R``, ``T``; optional
+    ``proj_phase_response``, rows ``[steps, cos_1, sin_1, cos_2, sin_2, ...]``: the rig's ``phase_response``).
 
     ``R``, ``T`` map camera coordinates to projector coordinates. ``cam_R``/``cam_T`` (optional, identity and
     zero by default) place the camera in the world. Sizes come from ``cam_size``/``proj_size`` or the
@@ -301,8 +376,10 @@ def load_opencv_rig(path, *, camera_size=None, projector_size=None, units=None) 
         cam_size = _read_node(storage, "cam_size", path, required=False)
         proj_size = _read_node(storage, "proj_size", path, required=False)
         file_units = _read_node(storage, "units", path, required=False)
+        response_rows = _read_node(storage, "proj_phase_response", path, required=False)
     finally:
         storage.release()
+    response = None if response_rows is None else _phase_response_from_rows(response_rows, path)
     camera_size = camera_size or (None if cam_size is None else tuple(np.ravel(cam_size).astype(int)))
     projector_size = projector_size or (None if proj_size is None else tuple(np.ravel(proj_size).astype(int)))
     if camera_size is None or projector_size is None:
@@ -317,7 +394,27 @@ def load_opencv_rig(path, *, camera_size=None, projector_size=None, units=None) 
                                 T=R_cp @ camera.T + T_cp, size=projector_size)
     except ValueError as exc:
         raise ValueError(f"{path}: {exc}") from None
-    return check_physical_rig(Rig(camera=camera, projector=projector, units=units or file_units or "mm"), path)
+    return check_physical_rig(Rig(camera=camera, projector=projector, units=units or file_units or "mm",
+                                  phase_response=response), path)
+
+
+def _phase_response_from_rows(rows, path) -> ProjectorPhaseResponse:
+    """``proj_phase_response`` of an OpenCV rig file: one row ``[steps, cos_1, sin_1, cos_2, sin_2, ...]`` per step
+    count (the terms at ``N, 2N, ...``; trailing zero pairs pad the shorter rows)."""
+    array = np.asarray(rows, dtype=np.float64)
+    if array.ndim != 2 or array.shape[1] < 3 or array.shape[1] % 2 != 1 or not np.all(np.isfinite(array)):
+        raise ValueError(f"{path}: proj_phase_response must be a matrix of finite rows [steps, cos_1, sin_1, cos_2, "
+                         f"sin_2, ...]; got shape {array.shape}")
+    entry = {}
+    for row in array:
+        steps = row[0]
+        if steps != int(steps):
+            raise ValueError(f"{path}: proj_phase_response: steps must be integers; got {steps:g}")
+        pairs = row[1:].reshape(-1, 2)
+        while len(pairs) > 1 and not np.any(pairs[-1]):
+            pairs = pairs[:-1]
+        entry[int(steps)] = {"cos_rad": pairs[:, 0].tolist(), "sin_rad": pairs[:, 1].tolist()}
+    return phase_response_from_dict(entry, f"{path}: proj_phase_response")
 
 
 def save_opencv_rig(rig: Rig, path) -> Path:
@@ -335,6 +432,14 @@ def save_opencv_rig(rig: Rig, path) -> Path:
                             ("cam_size", np.array(rig.camera.size, dtype=np.float64)[:, None]),
                             ("proj_size", np.array(rig.projector.size, dtype=np.float64)[:, None])):
             storage.write(name, np.ascontiguousarray(value, dtype=np.float64))
+        if rig.phase_response is not None and rig.phase_response.steps:
+            response = rig.phase_response
+            width = 1 + 2 * max(len(response.errors[n].terms) for n in response.steps)
+            rows = np.zeros((len(response.steps), width))  # (K, 1 + 2 terms): steps, cos_1, sin_1, cos_2, ...
+            for row, steps in zip(rows, response.steps):
+                terms = np.asarray([[c, s] for _, c, s in response.errors[steps].terms]).ravel()
+                row[0], row[1:1 + terms.size] = steps, terms
+            storage.write("proj_phase_response", rows)
     finally:
         storage.release()
     return path

@@ -48,6 +48,7 @@ from .capture import (
 )
 from .frequencies import find_frequency, same_frequency, select_frequencies
 from .methods import CAPTURE_METHODS
+from .phase_harmonics import ProjectorPhaseResponse
 
 __all__ = ["DEFAULT_MIN_MODULATION_FRACTION", "CaptureResult", "unwrap_capture"]
 
@@ -89,6 +90,8 @@ class CaptureResult:
         refinement, e.g. the DP-TPU network in ``dptpu.models``, can start from this result).
     quality : ndarray (H, W) bool or None
         Quality mask of the sequences used (modulation, saturation), before unwrapping.
+    steps : tuple of int
+        Phase steps of the sequences in ``frequencies``.
     """
 
     fringe_order: np.ndarray
@@ -103,6 +106,7 @@ class CaptureResult:
     projector_size: tuple[int, int]
     wrapped_phases: tuple[np.ndarray, ...] = ()
     quality: np.ndarray | None = None
+    steps: tuple[int, ...] = ()
 
     @property
     def fringe_extent_px(self) -> int:
@@ -123,6 +127,7 @@ def unwrap_capture(
     low: float | None = None,
     min_modulation: float | None = None,
     saturation_level: float | None = None,
+    phase_response: ProjectorPhaseResponse | None = None,
 ) -> CaptureResult:
     """Fringe order and absolute phase of a capture by temporal phase unwrapping.
 
@@ -142,6 +147,11 @@ def unwrap_capture(
     saturation_level : float, optional
         A pixel with any frame ``>=`` this level is invalid; default the full scale
         ``2**bit_depth - 1``.
+    phase_response : ProjectorPhaseResponse, optional
+        The projector's calibrated response (the rig file's ``projector.phase_response``): the harmonic phase
+        error of each sequence whose step count it holds is removed from its wrapped phase before unwrapping
+        (:meth:`dptpu.fpp.phase_harmonics.ProjectorPhaseResponse.correct`); other sequences, and every sequence
+        without it, are used as computed.
 
     Returns
     -------
@@ -187,6 +197,8 @@ def unwrap_capture(
         maps.append(sequence_maps)
 
     psi = [m.phase for m in maps]
+    if phase_response is not None:
+        psi = [phase_response.correct(p, s.steps, phase_offset=s.phase_offset) for p, s in zip(psi, phase_sequences)]
     f_h = frequencies[0]
     if method == "mf":
         unwrapped = tpu.unwrap_mf(psi[0], psi[1], f_h, frequencies[1], valid=quality)
@@ -199,7 +211,7 @@ def unwrap_capture(
     else:  # "graycode"
         if code is None:  # _select_graycode returns the Gray-code sequence or raises
             raise RuntimeError("graycode unwrapping reached without a Gray-code sequence")
-        unwrapped = _unwrap_graycode(capture, code, maps[0])
+        unwrapped = _unwrap_graycode(capture, code, maps[0], psi[0])
 
     absolute_phase = np.asarray(unwrapped.absolute_phase, dtype=np.float64)  # (H, W)
     with np.errstate(invalid="ignore"):  # NaN at pixels the method rejected
@@ -218,6 +230,7 @@ def unwrap_capture(
         projector_size=(capture.projector_size[0], capture.projector_size[1]),
         wrapped_phases=tuple(psi),
         quality=quality,
+        steps=tuple(s.steps for s in phase_sequences),
     )
 
 
@@ -270,12 +283,13 @@ def _list_frequencies(capture: Capture) -> str:
 # Gray code
 # --------------------------------------------------------------------------------------------------
 
-def _unwrap_graycode(capture: Capture, code: GraycodeSequence, maps: phase.WrappedPhase):
+def _unwrap_graycode(capture: Capture, code: GraycodeSequence, maps: phase.WrappedPhase, psi: np.ndarray):
     """Binarize with the inverse patterns, else the white/black references, else the phase background.
 
     The last fallback thresholds each bit at the background ``A`` of the indexed phase sequence, which
     is the mid level between the code's on and off frames when the fringe offset is half of full scale
-    (the usual ``pattern.offset: 0.5``).
+    (the usual ``pattern.offset: 0.5``). ``psi`` is the wrapped phase of ``maps`` (corrected for the projector's
+    response where the rig holds one).
     """
     images = load_sequence_images(capture, code)  # (bits, H, W)
     options = {}
@@ -290,4 +304,4 @@ def _unwrap_graycode(capture: Capture, code: GraycodeSequence, maps: phase.Wrapp
         options["white"], options["black"] = white, black
     else:
         options["threshold"] = maps.background[None]  # (1, H, W)
-    return graycode.unwrap_graycode(maps.phase, images, period=code.period, **options)
+    return graycode.unwrap_graycode(psi, images, period=code.period, **options)

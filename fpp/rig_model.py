@@ -11,6 +11,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .phase_harmonics import ProjectorPhaseResponse
+
 __all__ = ["METRES_PER_UNIT", "DeviceModel", "Rig", "checked_array"]
 
 #: The length units of a rig (and of the point clouds written from it), in metres.
@@ -75,12 +77,15 @@ class DeviceModel:
 
 @dataclass(frozen=True)
 class Rig:
-    """A camera and a projector in one world frame, with the twin's physical effects (docs/effects.md)."""
+    """A camera and a projector in one world frame, with the twin's physical effects (docs/effects.md) and the
+    projector's calibrated phase response (``projector.phase_response`` of the rig file, docs/calibration.md; None:
+    not calibrated, phases used as computed)."""
 
     camera: DeviceModel
     projector: DeviceModel
     units: str = "mm"
     effects: tuple = field(default_factory=tuple)
+    phase_response: ProjectorPhaseResponse | None = None
 
     @property
     def scale_to_m(self) -> float:

@@ -39,6 +39,10 @@ name                    default  meaning
 ``projector_width``     0        used until a PatternSequence arrives (0 = unknown)
 ``projector_height``    0        used until a PatternSequence arrives (0 = unknown)
 ``frame_queue_depth``   100      frames the subscription may queue (at least the patterns of two scans)
+``rig``                 ""       a dptpu-rig/1 file whose ``projector.phase_response`` (``dptpu calibrate
+                                 response``) corrects the wrapped phase of each entry whose step count it holds
+                                 (:meth:`dptpu.fpp.phase_harmonics.ProjectorPhaseResponse.correct`); "" or a rig
+                                 without it: the phases as computed
 ======================= ======== ================================================================================
 
 ``min_modulation`` and ``saturation_level`` apply from the next scan (``dptpu param set``), checked as at start-up;
@@ -53,6 +57,7 @@ import time
 
 import numpy as np
 
+from dptpu.fpp.calibration import load_rig
 from dptpu.fpp.scan_phase import IncrementalScanPhase, scan_phase_maps
 from dptpu.fpp.texture import texture_image
 from dptpu.graph.known_publishers import SOLE_PUBLISHER
@@ -107,6 +112,12 @@ class PhaseNode(Node):
                                                                      description="the subscription's QoS depth")
         if frame_queue_depth < 1:
             raise ValueError(f"parameter frame_queue_depth must be >= 1; got {frame_queue_depth}")
+        rig_path = rules.read_only("rig", "", description="its projector.phase_response corrects the phases; "
+                                                          "restart the node to change it")
+        self.phase_response = load_rig(rig_path).phase_response if rig_path else None
+        if self.phase_response is not None:
+            held = ", ".join(map(str, self.phase_response.steps))
+            self.get_logger().info(f"projector phase response of {rig_path}: {held}-step phases corrected")
         self.assembler = SequenceAssembler(timeout_s=self.timeout_s, max_pending_scans=self.max_pending_scans,
                                            shift_sign=shift_sign, fringe_axis=fringe_axis,
                                            projector_size=projector_size)
@@ -212,6 +223,8 @@ class PhaseNode(Node):
                                        min_modulation=self.min_modulation, saturation_level=saturation)
                 background = np.mean([stack.mean(axis=0, dtype=np.float32) for stack in scan.stacks], axis=0)
             phases, modulation, valid = maps
+            if self.phase_response is not None:
+                phases = self._corrected(phases, scan.layout)
             texture = texture_image(background=background, white=scan.references.get("white"),
                                     black=scan.references.get("black"))  # (H, W) float32 DN
         except ValueError as exc:
@@ -231,6 +244,17 @@ class PhaseNode(Node):
                      frames_expected=scan.frame_count + len(scan.references),
                      frames_received=scan.frame_count + len(scan.references),
                      valid_pixels=int(np.count_nonzero(valid)), total_pixels=int(valid.size))
+
+    def _corrected(self, phases: np.ndarray, layout: ScanLayout) -> np.ndarray:
+        """``phases`` (F, H, W) with the projector's harmonic phase error removed from each entry whose step count
+        the rig's response holds (others untouched)."""
+        response = self.phase_response
+        if response is None or not any(response.for_steps(n) is not None for n in layout.steps):
+            return phases
+        phases = phases.copy()
+        for index, (steps, offset) in enumerate(zip(layout.steps, layout.phase_offsets)):
+            phases[index] = response.correct(phases[index], steps, phase_offset=offset)
+        return phases
 
     def _status(self, sequence_id, level, state, reason, first_arrival_s, **counts) -> None:
         self.status_publisher.publish(scan_status(

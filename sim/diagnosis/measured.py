@@ -100,9 +100,10 @@ def _from_capture(folder: Path, *, decode: bool) -> Measured:
         if len(frequencies) < 2:
             raise ValueError(f"{folder}: decoding needs two or more phase sequences (e.g. 96x12 and 1x12); "
                              "use --self-reference for a single sequence")
-        kwargs = {"high": high, "low": 1.0} if method == "mf" else {}
+        high_low = (high, 1.0) if method == "mf" else (None, None)
         # saturated pixels are kept (saturation is one of the effects diagnosed): level above full scale
-        result = unwrap_capture(capture, method=method, saturation_level=2.0 ** capture.bit_depth, **kwargs)
+        result = unwrap_capture(capture, method=method, high=high_low[0], low=high_low[1],
+                                saturation_level=2.0 ** capture.bit_depth)
         phase = np.where(result.valid, result.absolute_phase, np.nan)
         high = result.frequency
     return Measured(source=folder, absolute_phase=phase, frequency=float(high), fringe_axis=capture.fringe_axis,
