@@ -1,9 +1,14 @@
 """The phase node in the in-process harness: frames of the analytic plane in, PhaseMaps and ScanStatus out."""
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 
+from dptpu.fpp.calibration import save_rig
+from dptpu.fpp.phase import wrapped_phase
+from dptpu.fpp.phase_harmonics import ProjectorPhaseResponse, fit_harmonic_phase_error
 from dptpu.graph.qos import DurabilityPolicy, QoSProfile
 from dptpu.messages import FringeFrame, Image, PatternEntry, PatternSequence, PhaseMaps, ScanStatus
 from dptpu.nodes.harness import NodeHarness, fringe_frames
@@ -135,3 +140,27 @@ def test_bad_parameters_are_refused_with_the_parameter_name(harness):
         harness.start(PhaseNode, min_modulation=-1.0)
     with pytest.raises(ValueError, match="timeout_s must be a number of seconds > 0"):
         harness.start(PhaseNode, timeout_s=0.0)
+
+
+def _through_gamma(frames: np.ndarray, gamma: float = 2.2) -> np.ndarray:
+    """A nonlinear response (the projector's and the camera's act alike on the frames): level ** gamma."""
+    return np.round(255.0 * (frames / 255.0) ** gamma).astype(np.uint8)
+
+
+@pytest.mark.parametrize("with_rig, bound", [(False, (0.1, np.inf)), (True, (0.0, 0.02))])
+def test_the_rigs_projector_response_corrects_the_3_step_phases(harness, scene, tmp_path, with_rig, bound):
+    """The response fitted on 12-step against 3-step frames of one scan, given as the rig parameter, takes another
+    scan's 3-step phase error from the gamma's to the noise (measured: 0.172 -> 0.0079 rad RMS; the fit's first term
+    -0.241 rad, 0.5 DN of noise on 3 steps); without the rig the error stays."""
+    psi = [wrapped_phase(_through_gamma(scene.frames(16.0, steps=steps, seed=9))).phase for steps in (3, 12)]
+    error = fit_harmonic_phase_error([psi[0]], [psi[1]], [np.ones(psi[0].shape, bool)], steps=3, multiples=3)
+    rig = dataclasses.replace(scene.rig, phase_response=ProjectorPhaseResponse({3: error}))
+    parameters = {"rig": str(save_rig(rig, tmp_path / "rig.yaml"))} if with_rig else {}
+    node, camera, phase, _ = start(harness, **parameters)
+    for frame in fringe_frames([_through_gamma(scene.frames(f, steps=3, seed=4)) for f in FREQUENCIES], FREQUENCIES,
+                               sequence_id=5):
+        camera.publish(frame)
+    (maps,) = harness.wait(phase, 1)
+    assert maps.phases.dtype == np.float32 and 0 <= maps.phases.min() and maps.phases.max() < 2 * np.pi
+    rms = float(np.sqrt(np.mean(circular_error(maps.phases[0], scene.wrapped_phase(16.0)) ** 2)))
+    assert bound[0] < rms < bound[1]
