@@ -56,7 +56,8 @@ def register(subparsers) -> None:
                     "Writes downstream.json and report.md. See docs/sim-to-real.md, 'Downstream gain'.")
     finetune.add_argument("--measured", required=True, help="../shared/data/cfpe or ../shared/data/dptpu-sphere")
     finetune.add_argument("--extended", required=True,
-                          help="extended_rig.yaml or extended_effects.yaml of 'dptpu twin diagnose'")
+                          help="extended_rig.yaml or extended_effects.yaml of 'dptpu twin diagnose', or "
+                               "cfpe-response: the CFPE projector's response measured on the frames")
     finetune.add_argument("--rig", default=None, help="rig for an effects file (default nominal)")
     finetune.add_argument("--model", required=True, help="base model: exported .onnx or a training .ckpt")
     finetune.add_argument("--scenes", type=int, default=8, help="twin scenes per training set (default 8)")
