@@ -7,8 +7,9 @@ classical fringe order); the network's rounded order, post-processed by the neig
 pixel that passes the capture's quality mask (so NT pixels whose lookup key was rejected get an order too), and the
 absolute phase and validity are recomputed as ``unwrap_capture`` does: ``psi + 2*pi*k`` (Eq. (3)), valid
 where the quality mask holds and the phase lies on the projector, ``0 <= phi < 2*pi*f``. ``reliability``
-becomes the network's confidence (:func:`dptpu.fpp.confidence.network_confidence`: its distance to an integer order
-and its agreement with its prior).
+becomes the network's confidence (:func:`dptpu.fpp.confidence.network_confidence`: its distance to an integer order,
+its agreement with its prior and its neighbours' support), held to the two frequencies' agreement
+(:func:`dptpu.fpp.frequency_consistency.frequency_consistency`).
 
 The default model (:func:`choose_model`, ``dptpu unwrap`` and ``dptpu triangulate`` without ``--model``): the
 shipped one, for the methods it serves and fringes of at most :data:`DEFAULT_MAX_PERIODS_PER_PIXEL` periods per
@@ -23,6 +24,7 @@ from pathlib import Path
 import numpy as np
 
 from dptpu.fpp.confidence import network_confidence
+from dptpu.fpp.frequency_consistency import frequency_consistency
 from dptpu.fpp.methods import TWO_FREQUENCY_METHODS
 
 from .consensus import consensus_order
@@ -142,9 +144,10 @@ def refine_order_and_confidence(model: FringeOrderModel, method: str, psi_h, psi
                                 consensus: bool = True) -> tuple[np.ndarray, np.ndarray]:
     """:func:`refine_order`'s order and its confidence, ``(order (H, W) int32, confidence (H, W) float32)``.
 
-    The confidence is :func:`dptpu.fpp.confidence.network_confidence` of the network's continuous output, the
-    published order and the prior the network received (0 where not ``valid``). Parameters as
-    :func:`refine_order`'s.
+    The confidence is the smaller of :func:`dptpu.fpp.confidence.network_confidence` (the network's continuous
+    output, its prior and its neighbours' support of the published order) and
+    :func:`dptpu.fpp.frequency_consistency.frequency_consistency` (the low frequency's phase against the published
+    absolute phase), 0 where not ``valid``. Parameters as :func:`refine_order`'s.
     """
     if method not in REFINABLE_METHODS or not model.serves(method):
         raise ValueError(f"the model {model.path} (trained for {', '.join(model.trained_methods)}) does not refine "
@@ -162,7 +165,10 @@ def refine_order_and_confidence(model: FringeOrderModel, method: str, psi_h, psi
         classical = np.where(classical_valid, classical_order, order)  # the network's where classical has none
     if consensus:
         order = consensus_order(order, classical, np.where(valid, psi_h, 0.0), valid)
-    return order, network_confidence(continuous, order, classical, mask)
+    confidence = network_confidence(continuous, order, classical, mask, wrapped_high=np.where(mask, psi_h, 0.0))
+    absolute = np.asarray(psi_h, dtype=np.float64) + 2.0 * np.pi * order  # Eq. (3)
+    consistency = frequency_consistency(absolute, psi_l, f_h, f_l, mask)
+    return order, np.minimum(confidence, consistency)
 
 
 def _continuous_order(model: FringeOrderModel, psi_h, wrapped_low, coarse, f_h: float,

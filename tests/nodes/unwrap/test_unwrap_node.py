@@ -7,6 +7,7 @@ import sys
 import numpy as np
 import pytest
 
+from dptpu.fpp.frequency_consistency import frequency_consistency
 from dptpu.fpp.tpu import unwrap_mf, unwrap_mf_float32
 from dptpu.messages import AbsolutePhase, CameraInfo, Header, Image, PhaseMaps, ScanStatus, Time
 from dptpu.nodes.harness import NodeHarness
@@ -293,11 +294,14 @@ def test_pixels_below_min_confidence_are_dropped_and_counted(harness, scene):
 
 
 def test_the_networks_confidence_reaches_the_reliability_field(harness, scene, shifted_model):
-    # the shifted model's output is exactly an integer, one order from its prior: its own margin is 1
+    # the shifted model's output is exactly an integer, one order from its prior: its own margin is 1, so the
+    # published confidence is the two frequencies' agreement (dptpu.fpp.frequency_consistency), the smaller one
     _node, source, absolute, _status = start(harness, method="mf", model=str(shifted_model))
-    source.publish(phase_maps(scene, (16.0, 1.0), sequence_id=23))
+    maps = phase_maps(scene, (16.0, 1.0), sequence_id=23)
+    source.publish(maps)
     (result,) = harness.wait(absolute, 1)
-    assert result.valid.any() and np.all(result.reliability[result.valid] == 1.0)
+    consistency = frequency_consistency(result.absolute_phase, maps.phases[1], 16.0, 1.0, result.valid)
+    assert result.valid.any() and np.allclose(result.reliability[result.valid], consistency[result.valid], atol=0.02)
     assert np.all(result.reliability[~result.valid] == 0.0)
 
 

@@ -1,0 +1,76 @@
+"""Agreement of a two-frequency capture's two phases at each pixel, once the high frequency's order is decided.
+
+A surface point seen at projector coordinate ``x`` has the absolute phases ``Phi_h = 2 pi f_h x / W`` and
+``Phi_l = 2 pi f_l x / W`` (Eq. (3) for each frequency), so the published absolute phase ``Phi_h`` predicts the
+low frequency's wrapped phase: ``psi_l = (f_l / f_h) Phi_h`` modulo ``2 pi``. The **consistency residual**
+
+    eps = wrap((f_l / f_h) Phi_h - psi_l),   wrap into (-pi, pi],
+
+is camera noise where the pixel sees one surface lit directly by one projector column. It grows where that model
+fails: light bounced between surfaces (interreflection: a second sinusoid of another phase mixed into each
+frequency, shifting the two by different amounts), a pixel mixing two surfaces, a wrong order of the high frequency
+(``eps`` then jumps by ``2 pi f_l / f_h`` per order; a wrong order of the low one is invisible here), and pixels whose
+phase noise is far above the scan's (dark, glossy or shadowed). Each of these puts the published point off the
+surface. For MW the rounding margin of the classical order is ``1 - 2 f_h |eps| / 2 pi`` (Eq. (7)), so the classical
+method drops such pixels already, with most of the rest of a noisy capture; the network's order does not look at
+``eps`` at all.
+
+:func:`frequency_consistency` turns ``|eps|`` into a confidence on the scale of the scan's own noise: ``z = |eps| /
+s`` with ``s = 1.4826 median |eps|`` over the valid pixels (the noise's standard deviation, robust against the
+outliers it is there to find), and ``1 - z / Z`` clipped to [0, 1] with ``Z`` = :data:`DEFAULT_CONSISTENCY_SCALE`,
+so the default confidence threshold 0.2 (:mod:`dptpu.fpp.confidence`) drops ``z >= 0.8 Z`` = 5 robust standard
+deviations. No length, frequency or noise level is set: only the scan's own residuals.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+__all__ = ["DEFAULT_CONSISTENCY_SCALE", "MIN_SIGMA_RAD", "consistency_residual", "frequency_consistency"]
+
+#: ``Z`` of the module docstring: the confidence ``1 - z / Z`` is 0.2 (the default threshold) at ``z`` = 5 robust
+#: standard deviations of the scan's residual. Chosen on the main job's shipped scenes and the outside rigs of
+#: ``dptpu eval cloud`` (docs/nodes.md, "Frequency consistency").
+DEFAULT_CONSISTENCY_SCALE = 6.25
+#: 1 / Phi^-1(3/4): the median absolute value of a zero-mean normal variable times this is its standard deviation.
+MAD_TO_SIGMA = 1.4826
+#: Floor of the residual's standard deviation, radians: a noiseless synthetic scan (residuals of rounding only) is
+#: judged against 1 mrad, about the phase noise that 8-bit quantization alone leaves at the modulations seen here.
+MIN_SIGMA_RAD = 1e-3
+
+
+def consistency_residual(absolute_high: np.ndarray, wrapped_low: np.ndarray, f_h: float, f_l: float) -> np.ndarray:
+    """``eps = wrap((f_l / f_h) Phi_h - psi_l)`` (module docstring), radians in ``(-pi, pi]``, NaN where an input is.
+
+    Parameters
+    ----------
+    absolute_high : ndarray (H, W)
+        The published absolute phase of ``f_h``, radians.
+    wrapped_low : ndarray (H, W)
+        The wrapped phase of ``f_l``, radians.
+    f_h, f_l : float
+        Periods across the projector (> 0).
+    """
+    if not (f_h > 0 and f_l > 0):
+        raise ValueError(f"frequencies must be positive; got f_h={f_h}, f_l={f_l}")
+    difference = (f_l / f_h) * np.asarray(absolute_high, dtype=np.float64) - np.asarray(wrapped_low, np.float64)
+    return np.pi - np.mod(np.pi - difference, 2.0 * np.pi)
+
+
+def frequency_consistency(absolute_high: np.ndarray, wrapped_low: np.ndarray, f_h: float, f_l: float,
+                          valid: np.ndarray, *, scale: float = DEFAULT_CONSISTENCY_SCALE) -> np.ndarray:
+    """Confidence ``(H, W)`` float32 in [0, 1] of each valid pixel's phase from the two frequencies' agreement.
+
+    ``clip(1 - |eps| / (scale s), 0, 1)``, ``s`` = 1.4826 times the median ``|eps|`` of the valid pixels (module
+    docstring, never below :data:`MIN_SIGMA_RAD`); 0 where not ``valid``. Parameters as
+    :func:`consistency_residual`'s; ``valid`` (H, W) bool.
+    """
+    if not scale > 0:
+        raise ValueError(f"scale must be > 0; got {scale}")
+    eps = np.abs(consistency_residual(absolute_high, wrapped_low, f_h, f_l))
+    valid = np.asarray(valid, dtype=bool) & np.isfinite(eps)
+    if not valid.any():
+        return np.zeros(eps.shape, np.float32)
+    sigma = max(MAD_TO_SIGMA * float(np.median(eps[valid])), MIN_SIGMA_RAD)
+    with np.errstate(invalid="ignore"):
+        confidence = np.clip(1.0 - eps / (scale * sigma), 0.0, 1.0)
+    return np.where(valid, confidence, 0.0).astype(np.float32)

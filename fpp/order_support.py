@@ -1,0 +1,107 @@
+"""Neighbour support of a fringe order: how much of a pixel's surroundings, weighted by their own confidence, puts
+its absolute phase where its order does.
+
+A smooth surface's absolute phase ``U = k + psi / 2 pi`` (Eq. (3), in periods) changes between neighbouring pixels
+by its local gradient ``G`` (periods per pixel) and nothing more, so each neighbour ``q`` of ``p`` predicts
+``U_p = U_q - G_p . (q - p)``; a prediction within ``tolerance`` periods of ``U_p`` *agrees* with ``p``'s order.
+:func:`neighbour_support` is the share of ``p``'s valid neighbours (window of ``2 radius + 1`` pixels) that agree,
+each counted with its own confidence: 1 where every neighbour agrees and is sure of its own order, about 1/2 for a
+pixel at a depth edge (half of its window on the other surface) or in a patch made up by a vote, 0 where nothing
+around it confirms it.
+
+It is the spatial half of a confidence whose temporal half (the rounding margin of a method, the network's distance
+to an integer order, its agreement with its prior: :mod:`dptpu.fpp.confidence`) fails where the temporal prior is
+too noisy to say anything: MW at 3 steps and 2 sigma amplifies the phase noise ``f_h / (f_h - f_l)`` = 64 times, so
+the coarse order is often 2 or more orders off while the order the network and its neighbour consensus publish is
+right, and smoothly joined to confident neighbours. Wrong orders the consensus made up sit at edges or in patches
+whose neighbours are either on another surface or unconfident themselves: their support stays near or below 1/2.
+
+The gradient comes from the wrapped phase alone (:func:`phase_gradient`: wrapped neighbour differences averaged over
+a small window), never from the orders being judged.
+"""
+from __future__ import annotations
+
+import cv2
+import numpy as np
+
+__all__ = ["DEFAULT_SUPPORT_RADIUS", "DEFAULT_SUPPORT_TOLERANCE", "neighbour_support", "phase_gradient"]
+
+#: Half-width of the support window, pixels (7 x 7: 48 neighbours, about one fringe period at the project's
+#: densest fringes of 4-7 pixels; a wrong patch smaller than half the window cannot support itself).
+DEFAULT_SUPPORT_RADIUS = 3
+#: Largest disagreement, in periods, between a neighbour's prediction of a pixel's absolute phase and the pixel's:
+#: a wrong order is a whole period off, the noise of a 3-step phase at the paper's 2 sigma ~0.01 period.
+DEFAULT_SUPPORT_TOLERANCE = 0.25
+#: Half-width of the window averaging the wrapped differences of :func:`phase_gradient`.
+GRADIENT_RADIUS = 2
+
+
+def _box_sum(values: np.ndarray, radius: int) -> np.ndarray:
+    size = (2 * radius + 1, 2 * radius + 1)
+    return cv2.boxFilter(values, -1, size, normalize=False, borderType=cv2.BORDER_CONSTANT)
+
+
+def phase_gradient(wrapped: np.ndarray, valid: np.ndarray,
+                   radius: int = GRADIENT_RADIUS) -> tuple[np.ndarray, np.ndarray]:
+    """Local gradient of the absolute phase along image rows (y) and columns (x), periods per pixel, float32.
+
+    The mean over a ``(2 radius + 1)^2`` window of the wrapped differences ``wrap(psi(p + e) - psi(p)) / 2 pi``
+    between valid neighbours (right while fringes are wider than 2 pixels); 0 where the window has no valid pair.
+    """
+    frac = (np.asarray(wrapped, dtype=np.float64) / (2.0 * np.pi)).astype(np.float32)
+    valid = np.asarray(valid, dtype=bool)
+    gradients = []
+    for axis in (0, 1):
+        step = np.diff(frac, axis=axis)
+        step -= np.rint(step)
+        pair = (valid[1:] & valid[:-1]) if axis == 0 else (valid[:, 1:] & valid[:, :-1])
+        pad = ((0, 1), (0, 0)) if axis == 0 else ((0, 0), (0, 1))
+        weights = np.pad(pair, pad).astype(np.float32)
+        total = _box_sum(np.pad(np.where(pair, step, 0.0), pad).astype(np.float32), radius)
+        gradients.append(total / np.maximum(_box_sum(weights, radius), 1.0))
+    return gradients[0], gradients[1]
+
+
+def neighbour_support(order: np.ndarray, wrapped: np.ndarray, valid: np.ndarray, confidence: np.ndarray, *,
+                      radius: int = DEFAULT_SUPPORT_RADIUS,
+                      tolerance: float = DEFAULT_SUPPORT_TOLERANCE) -> np.ndarray:
+    """Support ``(H, W)`` float32 in ``[0, 1]`` of each valid pixel's ``order`` by its neighbours (module docstring).
+
+    ``sum_q agree(q, p) c_q / n_p`` over the valid neighbours ``q`` of the ``(2 radius + 1)^2`` window (``n_p`` of
+    them; ``p`` itself excluded), ``agree``: ``|U_q - G_p . (q - p) - U_p| < tolerance`` periods, ``c_q`` the
+    neighbour's own confidence clipped to ``[0, 1]``. 0 where ``p`` is not valid or has no valid neighbour.
+
+    Parameters
+    ----------
+    order : ndarray (H, W) int
+        Fringe order of the high frequency.
+    wrapped : ndarray (H, W)
+        Its wrapped phase, radians (NaN allowed where not ``valid``).
+    valid : ndarray (H, W) bool
+    confidence : ndarray (H, W)
+        Each pixel's own confidence (without neighbour support).
+    """
+    if radius < 1 or not 0.0 < tolerance <= 0.5:
+        raise ValueError(f"neighbour_support needs radius >= 1 and tolerance in (0, 0.5]; got {radius}, {tolerance}")
+    valid = np.asarray(valid, dtype=bool) & np.isfinite(wrapped)
+    psi = np.where(valid, wrapped, 0.0)
+    absolute = np.where(valid, np.asarray(order, dtype=np.float64) + psi / (2.0 * np.pi), np.nan)  # U, periods
+    weight = np.where(valid, np.clip(np.nan_to_num(np.asarray(confidence, dtype=np.float64)), 0.0, 1.0), 0.0)
+    gy, gx = phase_gradient(psi, valid)
+    height, width = absolute.shape
+    padded = np.pad(absolute, radius, constant_values=np.nan)
+    padded_weight = np.pad(weight, radius)
+    agreeing = np.zeros((height, width), np.float64)
+    neighbours = np.zeros((height, width), np.int32)
+    with np.errstate(invalid="ignore"):
+        for dy in range(-radius, radius + 1):
+            for dx in range(-radius, radius + 1):
+                if dy == 0 and dx == 0:
+                    continue
+                other = padded[radius + dy:radius + dy + height, radius + dx:radius + dx + width]
+                agree = np.abs(other - (absolute + gy * dy + gx * dx)) < tolerance
+                neighbours += np.isfinite(other)
+                agreeing += np.where(agree, padded_weight[radius + dy:radius + dy + height,
+                                                          radius + dx:radius + dx + width], 0.0)
+    support = agreeing / np.maximum(neighbours, 1)
+    return np.where(valid, support, 0.0).astype(np.float32)
