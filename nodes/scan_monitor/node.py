@@ -90,7 +90,6 @@ from __future__ import annotations
 import json
 import math
 import time
-from array import array
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -110,6 +109,7 @@ from dptpu.graph.task import Future
 from dptpu.messages import AbsolutePhase, DiagnosticArray, Image, PointCloud2, ScanStatus, Trigger
 from dptpu.nodes.node_main import run_node
 
+from .latency_histogram import LatencyHistogram
 from .scan_diagnostics import scan_diagnostics
 from .scan_metrics import MAX_WRONG_SHARE, MIN_COMPLETENESS, scan_metrics, trust_verdict
 
@@ -168,7 +168,7 @@ class ScanMonitorNode(Node):
         self.records: list[dict] = []
         self.reported = 0
         self.counts = {"ok": 0, "untrusted": 0, "failed": 0, "lost": 0}
-        self._latencies_ms = array("d")  # every ok scan's latency (8 bytes each)
+        self._latencies_ms = LatencyHistogram()  # every ok scan's latency, in fixed memory (p50, p99)
         self._pooled: dict[str, float] = {"compared": 0, "errors": 0, "depth_pixels": 0, "depth_squares": 0.0,
                                           "published": 0, "wrong": 0, "truly_valid": 0, "published_truly_valid": 0}
         self.ply_written = 0
@@ -521,7 +521,7 @@ class ScanMonitorNode(Node):
     def _pool(self, record: dict) -> None:
         if record["outcome"] not in ("ok", "untrusted"):
             return
-        self._latencies_ms.append(record["latency_ms"])
+        self._latencies_ms.add(record["latency_ms"])
         if record.get("compared_pixels"):
             self._pooled["compared"] += record["compared_pixels"]
             self._pooled["errors"] += record["order_errors"]
@@ -538,9 +538,8 @@ class ScanMonitorNode(Node):
         """Counts and figures over every reported scan (accuracy and RMS pooled over pixels)."""
         totals: dict[str, float] = dict(self.counts, scans=self.reported)
         if self._latencies_ms:
-            latencies = np.array(self._latencies_ms, dtype=np.float64)
-            totals["latency_ms_p50"] = float(np.percentile(latencies, 50))
-            totals["latency_ms_p99"] = float(np.percentile(latencies, 99))
+            totals["latency_ms_p50"] = self._latencies_ms.percentile(50)
+            totals["latency_ms_p99"] = self._latencies_ms.percentile(99)
         pooled = self._pooled
         if pooled["compared"]:
             totals["order_accuracy"] = 1.0 - pooled["errors"] / pooled["compared"]
