@@ -40,7 +40,7 @@ Configurations: 2 x 12-step (``64x12,1x12``) and 2 x 3-step (``64x3,1x3``), MF, 
 model is available (``dptpu.models.inference.shipped_model_path()`` or ``--model``), DP-TPU. Run::
 
     dptpu bench pipeline [--json] [--size 640x480] [--scans 60] [--warmup 10] [--in-flight 4]
-                         [--latency-load 0.5] [--steps 12,3] [--model FILE.onnx] [--classical-only]
+                         [--latency-load 0.5] [--steps 12,3] [--model FILE.onnx] [--classical-only | --dptpu-only]
     dptpu bench pipeline --floor [--json] [--size 640x480] [--steps 12,3]
     python benchmarks/pipeline_bench.py [same options]
 
@@ -467,7 +467,11 @@ def run(args) -> int:
         print(json.dumps(report, indent=1) if args.json else "\n".join(_floor_line(f) for f in report["floors"]))
         return 0
     model = dptpu_model(args.model)
-    models = ["none"] + ([model] if model and not args.classical_only else [])
+    if args.dptpu_only and (args.classical_only or model is None):
+        print("dptpu bench pipeline: error: --dptpu-only needs a DP-TPU model (--model, or the shipped one) and no "
+              f"--classical-only; got model {model}, --classical-only {args.classical_only}", file=sys.stderr)
+        return 2
+    models = ([] if args.dptpu_only else ["none"]) + ([model] if model and not args.classical_only else [])
     results = []
     for step in steps:
         for which in models:
@@ -513,6 +517,9 @@ def add_arguments(parser) -> None:
     parser.add_argument("--steps", default="12,3", help="sequences: 12 (2 x 12-step), 3 (2 x 3-step); default 12,3")
     parser.add_argument("--model", default=None, help="DP-TPU .onnx model (default: the shipped one, if any)")
     parser.add_argument("--classical-only", action="store_true", help="skip DP-TPU even when a model exists")
+    parser.add_argument("--dptpu-only", action="store_true",
+                        help="DP-TPU only (no classical run): with a timeout per invocation, a slow configuration "
+                             "cannot cost the others' figures")
     parser.add_argument("--timeout", type=float, default=600.0, help="seconds per launch (default 600)")
     parser.add_argument("--no-floor", action="store_true",
                         help="do not measure the floor beside the graph (measured by default, after each step count)")

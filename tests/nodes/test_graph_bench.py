@@ -52,3 +52,9 @@ def test_bench_pipeline_reports_one_object_per_configuration(capsys):
 def test_bench_pipeline_refuses_unknown_steps(capsys):
     assert main(["bench", "pipeline", "--steps", "5"]) == 2
     assert "--steps takes 12 and/or 3" in capsys.readouterr().err
+
+
+def test_bench_pipeline_refuses_dptpu_only_beside_classical_only(capsys):
+    assert main(["bench", "pipeline", "--dptpu-only", "--classical-only", "--steps", "3"]) == 2
+    assert "--dptpu-only needs a DP-TPU model (--model, or the shipped one) and no --classical-only" \
+        in capsys.readouterr().err
