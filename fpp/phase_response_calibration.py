@@ -110,33 +110,56 @@ def calibrate_phase_response(captures: Iterable[Capture], *, steps: Sequence[int
         A capture holds no sequence of :data:`REFERENCE_MIN_STEPS` steps or more; a step count asked for is not
         provided by any capture; no pixel passes the quality masks.
     """
-    pairs: list[_Pair] = []
-    for capture in captures:
-        pairs += _pairs_of(capture, min_modulation)
-    available = sorted({pair.steps for pair in pairs})
+    captures = list(captures)
+    available = sorted({n for capture in captures for n in _provided_steps(capture)})
     wanted = available if steps is None else sorted({int(n) for n in steps})
     missing = [n for n in wanted if n not in available]
     if missing:
         raise ValueError(f"no capture provides {', '.join(map(str, missing))}-step phases beside a reference of "
                          f"{REFERENCE_MIN_STEPS}+ steps (available: {', '.join(map(str, available)) or 'none'})")
+    pairs: list[_Pair] = []
+    for capture in captures:
+        pairs += _pairs_of(capture, min_modulation, wanted)
     fits = {n: _fit_steps([pair for pair in pairs if pair.steps == n], multiples) for n in wanted}
     return PhaseResponseCalibration(response=ProjectorPhaseResponse({n: fit.error for n, fit in fits.items()}),
                                     fits=fits)
 
 
-def _pairs_of(capture: Capture, min_modulation: float | None) -> list[_Pair]:
-    """Every (N-step, reference) pair of one capture, explicit sequences and subsets of the reference."""
-    full_scale = float(2 ** capture.bit_depth - 1)
-    if min_modulation is None:
-        min_modulation = _MIN_MODULATION_FRACTION * full_scale
-    where = capture.root / CAPTURE_FILE
+def _references(capture: Capture) -> list[PhaseSequence]:
+    """The capture's sequences of :data:`REFERENCE_MIN_STEPS` steps or more; ValueError naming it when none."""
     sequences = capture.phase_sequences
     references = [s for s in sequences if s.steps >= REFERENCE_MIN_STEPS]
     if not references:
         listed = ", ".join(f"{capture.frequency_of(s):g} x {s.steps}" for s in sequences)
-        raise ValueError(f"{where}: no phase sequence of {REFERENCE_MIN_STEPS} or more steps to calibrate against "
-                         f"(has frequency x steps {listed}); the projector's response needs the N-step phases and a "
-                         f"{REFERENCE_MIN_STEPS}-step sequence of the same scene")
+        raise ValueError(f"{capture.root / CAPTURE_FILE}: no phase sequence of {REFERENCE_MIN_STEPS} or more steps to "
+                         f"calibrate against (has frequency x steps {listed}); the projector's response needs the "
+                         f"N-step phases and a {REFERENCE_MIN_STEPS}-step sequence of the same scene")
+    return references
+
+
+def _subset_steps(total: int) -> list[int]:
+    """N with ``3 <= N <= total / 2`` dividing ``total``: the N-step sequences inside a ``total``-step one."""
+    return [n for n in range(3, total // 2 + 1) if total % n == 0]
+
+
+def _provided_steps(capture: Capture) -> set[int]:
+    """The step counts a capture can calibrate (subsets of its references, its shorter sequences beside them)."""
+    provided: set[int] = set()
+    for reference in _references(capture):
+        provided.update(_subset_steps(reference.steps))
+        frequency = capture.frequency_of(reference)
+        provided.update(s.steps for s in capture.phase_sequences
+                        if s.steps < reference.steps and same_frequency(capture.frequency_of(s), frequency))
+    return provided
+
+
+def _pairs_of(capture: Capture, min_modulation: float | None, wanted: Sequence[int]) -> list[_Pair]:
+    """Every (N-step, reference) pair of one capture with N in ``wanted``: subsets of the reference and shorter
+    sequences of its frequency."""
+    full_scale = float(2 ** capture.bit_depth - 1)
+    if min_modulation is None:
+        min_modulation = _MIN_MODULATION_FRACTION * full_scale
+    where = capture.root / CAPTURE_FILE
 
     def maps_of(images, sequence: PhaseSequence):
         maps = phase.wrapped_phase(images, shift_sign=capture.phase_shift_sign, phase_offset=sequence.phase_offset)
@@ -144,21 +167,23 @@ def _pairs_of(capture: Capture, min_modulation: float | None) -> list[_Pair]:
         return maps.phase, ok
 
     pairs = []
-    for reference in references:
-        frequency = capture.frequency_of(reference)
+    for reference in _references(capture):
+        frequency, total = capture.frequency_of(reference), reference.steps
+        others = [s for s in capture.phase_sequences if s.steps < total and s.steps in wanted
+                  and same_frequency(capture.frequency_of(s), frequency)]
+        subsets = [n for n in _subset_steps(total) if n in wanted]
+        if not others and not subsets:
+            continue
         images = load_sequence_images(capture, reference)  # (M, H, W)
         psi_ref, ok_ref = maps_of(images, reference)
-        total = reference.steps
-        for n in range(3, total // 2 + 1):
-            if total % n == 0:
-                psi, ok = maps_of(images[:: total // n], reference)
-                pairs.append(_Pair(n, frequency, psi, psi_ref, ok & ok_ref, reference.phase_offset,
-                                   f"{where}: frequency {frequency:g}, {n} of the {total} steps"))
-        for other in sequences:
-            if other.steps < total and same_frequency(capture.frequency_of(other), frequency):
-                psi, ok = maps_of(load_sequence_images(capture, other), other)
-                pairs.append(_Pair(other.steps, frequency, psi, psi_ref, ok & ok_ref, other.phase_offset,
-                                   f"{where}: frequency {frequency:g}, the {other.steps}-step sequence"))
+        for n in subsets:
+            psi, ok = maps_of(images[:: total // n], reference)
+            pairs.append(_Pair(n, frequency, psi, psi_ref, ok & ok_ref, reference.phase_offset,
+                               f"{where}: frequency {frequency:g}, {n} of the {total} steps"))
+        for other in others:
+            psi, ok = maps_of(load_sequence_images(capture, other), other)
+            pairs.append(_Pair(other.steps, frequency, psi, psi_ref, ok & ok_ref, other.phase_offset,
+                               f"{where}: frequency {frequency:g}, the {other.steps}-step sequence"))
     return pairs
 
 

@@ -26,19 +26,29 @@ What is real, what is derived (nothing is synthesized here):
 """
 from __future__ import annotations
 
+import tempfile
 from pathlib import Path
 
 import cv2
 import numpy as np
+import yaml
 
 from dptpu.fpp import tpu
+from dptpu.fpp.capture import CAPTURE_FILE, read_capture
 from dptpu.fpp.phase import quality_mask, wrapped_phase
-from dptpu.fpp.phase_harmonics import HarmonicPhaseError, fit_harmonic_phase_error, remove_harmonic_phase_error
+from dptpu.fpp.phase_harmonics import (
+    HarmonicPhaseError,
+    ProjectorPhaseResponse,
+    fit_harmonic_phase_error,
+    remove_harmonic_phase_error,
+)
+from dptpu.fpp.phase_response_calibration import calibrate_phase_response
 
 from .measured_pair import MeasuredPair, mf_coarse_order, reference_order
 
 __all__ = ["PERIODS_PX", "PROJECTOR_WIDTH_PX", "FREQUENCIES", "INPUT_STEPS", "LOW_PHASES", "load_cfpe_frames",
-           "beat_frequencies", "low_phase", "build_pair", "cfpe_pair", "cfpe_phase_error", "input_rms"]
+           "beat_frequencies", "low_phase", "build_pair", "cfpe_pair", "cfpe_phase_error", "cfpe_phase_response",
+           "input_rms", "write_cfpe_capture"]
 
 #: Projector periods of the three sequences, in file order (highest frequency first).
 PERIODS_PX = (42, 45, 48)
@@ -177,7 +187,7 @@ def build_pair(name: str, psi3, mask3, reference_phase, frequencies, *, extent_p
 
 
 def cfpe_pair(cfpe_dir, scene: str, *, low: str = "het12",
-              phase_error: HarmonicPhaseError | None = None) -> MeasuredPair:
+              phase_error: HarmonicPhaseError | ProjectorPhaseResponse | None = None) -> MeasuredPair:
     """The MF pair of a CFPE scene from its real 3-step frames, scored against its 12-step heterodyne.
 
     Parameters
@@ -188,9 +198,11 @@ def cfpe_pair(cfpe_dir, scene: str, *, low: str = "het12",
         ``"01"``, ``"04"``, ``"06"`` or ``"08"``.
     low : {"het12", "beat123"}
         Construction of the low phase (:func:`low_phase`).
-    phase_error : HarmonicPhaseError, optional
+    phase_error : HarmonicPhaseError or ProjectorPhaseResponse, optional
         The projector's harmonic phase error of 3-step phases (:func:`cfpe_phase_error`), removed from each 3-step
-        phase first (:func:`dptpu.fpp.phase_harmonics.remove_harmonic_phase_error`); default: the phases as
+        phase first (:func:`dptpu.fpp.phase_harmonics.remove_harmonic_phase_error`); or the rig calibration of
+        ``dptpu calibrate response`` (:func:`cfpe_phase_response`), applied as every phase computation of a rig
+        applies it (:meth:`dptpu.fpp.phase_harmonics.ProjectorPhaseResponse.correct`); default: the phases as
         captured.
 
     Returns
@@ -200,7 +212,9 @@ def cfpe_pair(cfpe_dir, scene: str, *, low: str = "het12",
     """
     frames = load_cfpe_frames(cfpe_dir, scene)  # (3, 12, H, W)
     psi3, mask3 = _phases(frames[:, list(INPUT_STEPS)])
-    if phase_error is not None:
+    if isinstance(phase_error, ProjectorPhaseResponse):
+        psi3 = [phase_error.correct(psi, len(INPUT_STEPS)) for psi in psi3]
+    elif phase_error is not None:
         psi3 = [remove_harmonic_phase_error(psi, phase_error) for psi in psi3]
     psi12, mask12 = _phases(frames)
     frequencies = FREQUENCIES
@@ -254,3 +268,34 @@ def cfpe_phase_error(cfpe_dir, scenes) -> HarmonicPhaseError:
         reference += psi12
         valid += [mask3 & mask12] * len(psi3)
     return fit_harmonic_phase_error(measured, reference, valid, steps=len(INPUT_STEPS))
+
+
+def write_cfpe_capture(cfpe_dir, scene: str, folder) -> Path:
+    """A ``dptpu-capture/1`` folder for a CFPE scene: a ``capture.yaml`` in ``folder`` (created) naming the real
+    frames by absolute path (nothing copied): periods 42, 45, 48 px, 12 steps each, ``phase_shift_sign: +1``,
+    ``CC36h.png`` as the white reference (docs/capture-format.md "The real CFPE captures as a capture folder")."""
+    cfpe_dir, folder = Path(cfpe_dir).resolve(), Path(folder)
+    load_cfpe_frames(cfpe_dir, scene)  # every frame there and readable, or the error names it
+    folder.mkdir(parents=True, exist_ok=True)
+    document = {
+        "format": "dptpu-capture/1", "camera": {"size": [640, 480], "bit_depth": 8},
+        "projector": {"size": [PROJECTOR_WIDTH_PX, 1080]}, "fringe_axis": "x", "phase_shift_sign": SHIFT_SIGN,
+        "pattern": {"offset": 128 / 255, "amplitude": 96 / 255},
+        "sequences": [{"period": period, "steps": 12,
+                       "images": [str(cfpe_dir / f"{scene}{12 * i + step:02d}h.png") for step in range(12)]}
+                      for i, period in enumerate(PERIODS_PX)],
+        "references": {"white": str(cfpe_dir / f"{scene}36h.png")},
+        "source": "yongleex/CFPE data/recordings/2 (MIT)",
+    }
+    (folder / CAPTURE_FILE).write_text(yaml.safe_dump(document, sort_keys=False))
+    return folder
+
+
+def cfpe_phase_response(cfpe_dir, scenes) -> ProjectorPhaseResponse:
+    """The CFPE projector's response as ``dptpu calibrate response`` calibrates it from the capture folders of
+    ``scenes`` (:func:`write_cfpe_capture`; :func:`dptpu.fpp.phase_response_calibration.calibrate_phase_response`):
+    3-step phases (steps 0, 4, 8) against the 12-step ones, every period pooled, terms at 3, 6 and 9 times the
+    phase. What a user with these captures writes into the rig file."""
+    with tempfile.TemporaryDirectory(prefix="dptpu-cfpe-") as scratch:
+        captures = [read_capture(write_cfpe_capture(cfpe_dir, scene, Path(scratch) / scene)) for scene in scenes]
+        return calibrate_phase_response(captures, steps=[len(INPUT_STEPS)]).response
