@@ -187,8 +187,12 @@ def write_announcement(directory: Path, file_name: str, entry: dict) -> None:
     """Write ``entry`` as JSON to ``directory/file_name`` atomically (readers never see half a file)."""
     final = Path(directory) / file_name
     temporary = Path(directory) / f".{file_name}.{os.getpid()}.tmp"
+    # json.dumps, not json.dump: dump always runs the pure-Python encoder, whose nested functions make reference
+    # cycles left for the garbage collector on every write (a node rewrites its entry about once a second; with
+    # the nodes' gc thresholds they piled up for thousands of scans: issue 19's soak); dumps runs the C encoder
+    text = json.dumps(entry, separators=(",", ":"))
     with open(temporary, "w", encoding="utf-8") as handle:
-        json.dump(entry, handle, separators=(",", ":"))
+        handle.write(text)
     os.replace(temporary, final)
 
 
