@@ -7,8 +7,8 @@ Unwraps like ``dptpu unwrap`` (the same code path, :func:`dptpu.cli.unwrap_cmd.u
 by default where it serves, ``--min-confidence``), turns the absolute phase into the projector coordinate
 ``x_p = phi * W_p / (2 pi f)``, intersects each valid camera ray with the projector plane of that
 coordinate (:class:`dptpu.fpp.triangulate.Triangulator`, the capture's ``calibration`` rig file), drops the points
-at depth edges (:func:`dptpu.fpp.depth_edges.edge_points`: flying points, points beside a depth step, modulation dips,
-isolated points; off with ``--keep-edges``) and the islands of a wrong fringe order
+at depth edges (:func:`dptpu.fpp.depth_edges.edge_points`: flying points, the far side of a depth step, modulation
+dips at depth edges, partly shadowed points predicted more than 1 mm off, isolated points; off with ``--keep-edges``) and the islands of a wrong fringe order
 (:func:`dptpu.fpp.order_islands.order_islands`; off with ``--keep-islands``) and writes the rest with open3d, in the
 rig's world frame, in metres as every point-cloud file of dptpu (``--units mm``: millimetres). The summary line
 counts what was dropped and why.
@@ -24,7 +24,7 @@ from dptpu.cli.conventions import add_cloud_units_option
 from dptpu.cli.unwrap_cmd import add_unwrap_arguments, summary, unwrap_from_args
 from dptpu.fpp.calibration import load_rig
 from dptpu.fpp.capture import CAPTURE_FILE, read_capture
-from dptpu.fpp.depth_edges import DEFAULT_MAX_SLOPE, edge_points
+from dptpu.fpp.depth_edges import DEFAULT_MAX_EDGE_ERROR_MM, DEFAULT_MAX_SLOPE, depth_per_pixel, edge_points
 from dptpu.fpp.order_islands import order_islands
 from dptpu.fpp.point_cloud_file import write_point_cloud
 from dptpu.fpp.triangulate import Triangulator, projector_coordinate
@@ -86,12 +86,18 @@ def run(args: argparse.Namespace) -> int:
     if not args.keep_edges:
         depth = np.where(keep, (points @ rig.camera.R.T + rig.camera.T)[..., 2], np.nan)  # (H, W) camera z
         focal_px = 0.5 * float(rig.camera.K[0, 0] + rig.camera.K[1, 1])
-        edges = edge_points(depth, focal_px, result.modulation, max_slope=args.max_edge_slope)
+        def camera_depth(projector_x: np.ndarray) -> np.ndarray:
+            return (triangulator.points(projector_x) @ rig.camera.R.T + rig.camera.T)[..., 2]
+
+        per_px = depth_per_pixel(x_p, camera_depth, capture.fringe_axis, depth=depth)
+        edges = edge_points(depth, focal_px, result.modulation, lit=result.valid, depth_per_px=per_px,
+                            max_edge_error=DEFAULT_MAX_EDGE_ERROR_MM * 1e-3 / rig.scale_to_m,
+                            max_slope=args.max_edge_slope)
         counts = edges.counts(keep)
         keep &= ~edges.dropped
         edges_note = (f"{counts['total']} points at depth edges dropped ({counts['flying']} flying, "
                       f"{counts['beside_step']} beside a step, {counts['modulation_dip']} modulation dips, "
-                      f"{counts['isolated']} isolated)")
+                      f"{counts['shadow_border']} partly shadowed, {counts['isolated']} isolated)")
     islands_note = "islands of a wrong order kept"
     if not args.keep_islands:
         islands = order_islands(result.absolute_phase, result.modulation, result.valid).islands & keep

@@ -13,7 +13,8 @@ and on the real CFPE captures (issue #16).
    (:func:`dptpu.models.refine.refine_capture_result`, the model of ``--model``, on the methods it was trained
    for); the pixels whose confidence is below ``min_confidence`` dropped (:func:`dptpu.fpp.confidence.confident`);
    triangulation; the points at depth edges dropped (:func:`dptpu.fpp.depth_edges.edge_points`: flying points,
-   modulation dips, isolated points; ``edges=False`` keeps them) and the islands of a wrong order
+   the far side of depth steps, modulation dips at depth edges, partly shadowed points predicted more than 1 mm off,
+   isolated points; ``edges=False`` keeps them) and the islands of a wrong order
    (:func:`dptpu.fpp.order_islands.order_islands`; ``islands=False`` keeps them). The published points are the
    finite ones left.
 3. **Scores** (:func:`dptpu.fpp.cloud_accuracy.cloud_accuracy`, the scan monitor's definition): the share of
@@ -47,7 +48,7 @@ from dptpu.fpp.calibration import load_rig
 from dptpu.fpp.capture import read_capture
 from dptpu.fpp.cloud_accuracy import OFF_SURFACE_MM, cloud_accuracy, order_shift
 from dptpu.fpp.confidence import DEFAULT_MIN_CONFIDENCE, confident
-from dptpu.fpp.depth_edges import edge_points
+from dptpu.fpp.depth_edges import DEFAULT_MAX_EDGE_ERROR_MM, depth_per_pixel, edge_points
 from dptpu.fpp.order_islands import order_islands
 from dptpu.fpp.reconstruct import CaptureResult, unwrap_capture
 from dptpu.fpp.triangulate import Triangulator, projector_coordinate
@@ -191,14 +192,20 @@ def published_cloud(result: CaptureResult, rig: Rig, extent_px: int, axis: str, 
     ``{"low_confidence": n, "edges": n, "islands": n}``."""
     valid, low_confidence = confident(result.reliability, result.valid, min_confidence)
     x_p = projector_coordinate(np.where(valid, result.absolute_phase, np.nan), result.frequency, extent_px)
-    points = Triangulator(rig, axis=axis).points(x_p)  # (H, W, 3) world
-    camera_points = points @ np.asarray(rig.camera.R).T + np.asarray(rig.camera.T)  # (H, W, 3)
-    published = np.all(np.isfinite(points), axis=-1)
-    depth = np.where(published, camera_points[..., 2], np.nan)  # (H, W)
+    triangulator = Triangulator(rig, axis=axis)
+
+    def camera_depth(projector_x: np.ndarray) -> np.ndarray:
+        return (triangulator.points(projector_x) @ np.asarray(rig.camera.R).T + np.asarray(rig.camera.T))[..., 2]
+
+    depth = camera_depth(x_p)  # (H, W), NaN where no point
+    published = np.isfinite(depth)
     at_edges = 0
     if edges:
         focal_px = 0.5 * float(rig.camera.K[0, 0] + rig.camera.K[1, 1])
-        dropped = edge_points(depth, focal_px, result.modulation).dropped & published
+        per_px = depth_per_pixel(x_p, camera_depth, axis, depth=depth)
+        max_error = DEFAULT_MAX_EDGE_ERROR_MM / {"mm": 1.0, "m": 1e3}.get(rig.units, 1.0)
+        dropped = edge_points(depth, focal_px, result.modulation, lit=result.valid, depth_per_px=per_px,
+                              max_edge_error=max_error).dropped & published
         at_edges = int(np.count_nonzero(dropped))
         published &= ~dropped
     on_islands = 0

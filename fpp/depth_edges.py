@@ -15,16 +15,24 @@ two sides (or a sliver of them) differs from both and is marked. Invalid (NaN) n
 background behind a projector shadow carries no phase, so a pixel mixing the foreground with a shadow keeps the
 foreground's phase).
 
-Three more signs of a pixel that straddles an edge, all used by :func:`edge_points`:
+Four more signs of a pixel that straddles an edge, all used by :func:`edge_points`:
 
-- a neighbour more than ``max_step`` footprints nearer or farther (:func:`beside_steps`): the last pixel on each
-  side of a depth step (a step, not a slope: 10 footprints between neighbours is a surface 84 degrees from facing
-  the camera) still integrates a sliver of the other side, whose phase is far from its own (the flying points are
-  taken out first: a lone wrong point is flying, and its right neighbours are not beside a step);
-
-- its fringe modulation ``B`` dips below ``min_modulation_ratio`` times the largest of its 8 neighbours': the
-  phasors of two surfaces (or of a lit surface and a projector shadow) add to less than either; a partly shadowed
-  pixel carries the phase of its lit part only, off its centre's ray;
+- a NEARER neighbour more than ``max_step`` footprints away (:func:`beside_steps`, ``side="far"``): the last pixel
+  of the far surface beside a depth step (a step, not a slope: 10 footprints between neighbours is a surface 84
+  degrees from facing the camera) still integrates a sliver of the occluder, whose phase is far from its own. The
+  last pixel of the near surface is kept (on the outside rigs of ``dptpu eval cloud``, 12 steps, it held 95 wrong
+  points for 1,589 right ones, the far side 265 for 1,421). The flying points are taken out first: a lone wrong
+  point is flying, and its right neighbours are not beside a step;
+- its fringe modulation ``B`` dips below ``min_modulation_ratio`` times the largest of its 8 neighbours' AND it lies
+  at a depth edge (within one pixel of a pixel with a neighbour more than ``max_slope`` footprints away) or beside an
+  unlit pixel: the phasors of two surfaces (or of a lit surface and a projector shadow) add to less than either. A
+  dip on a smooth surface is an albedo (texture) edge, whose phase is right: kept;
+- beside an unlit pixel (a projector shadow), a ``shadow_border`` point whose predicted depth error exceeds
+  ``max_shadow_error``: a partly shadowed pixel carries the phase of its lit part only, whose centre lies
+  ``(1 - r) / 2`` pixels off the pixel's centre (``r = B / B_max`` of its 8 neighbours, the lit fraction), so its
+  depth is off by ``(1 - r) / 2`` times ``depth_per_pixel``, the depth change along the pixel's ray when its
+  projector coordinate moves by one camera pixel's worth of fringe (:func:`depth_per_pixel`; a narrow baseline
+  makes it large: 5 degrees, ~10 mm per pixel on the twin's f1300 rig; 20 degrees, ~1 mm);
 - it has fewer than ``min_neighbours`` of its 8 neighbours left with a point: a sliver between edges or shadows,
   which no neighbour confirms.
 
@@ -37,22 +45,26 @@ Parameters and why (``docs/nodes.md``, "Flying points", has the measurements beh
   the camera): a mixed pixel at an edge of depth step ``dz`` differs from its two neighbours by about ``dz / 2``,
   i.e. by ``f dz / (2 z)`` footprints, more than 4 for any step over 8 footprints (8 mm at a 1 mm footprint).
 - ``max_step`` (default :data:`DEFAULT_MAX_STEP` = 10): on the twin's outside-rig scenes the last pixel beside a
-  step held half of what stayed off the surface; dropping it costs one pixel per side of each depth edge.
+  step held half of what stayed off the surface; dropping it (far side only) costs one pixel per depth edge.
 - ``min_modulation_ratio`` (default :data:`DEFAULT_MIN_MODULATION_RATIO` = 0.6): a pixel at 60 % of its brightest
   neighbour's modulation; noise and smooth shading change ``B`` by a few percent between neighbours, texture by more
   (0.7 halves what stays off the surface again but costs about 0.7 % of completeness on textured scenes; at 0.8 the
   noise of 3-step captures starts to trigger it).
+- ``max_shadow_error`` (depth units; ``dptpu triangulate``, the cloud node and ``dptpu eval cloud`` pass
+  :data:`DEFAULT_MAX_SHADOW_ERROR_MM` = 1 mm in the rig's unit, the off-surface bound of ``dptpu eval cloud``).
 - ``min_neighbours`` (default :data:`DEFAULT_MIN_NEIGHBOURS` = 2).
 """
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import cv2
 import numpy as np
 
-__all__ = ["DEFAULT_MAX_SLOPE", "DEFAULT_MAX_STEP", "DEFAULT_MIN_MODULATION_RATIO", "DEFAULT_MIN_NEIGHBOURS",
-           "EdgePoints", "beside_steps", "edge_points", "flying_points"]
+__all__ = ["DEFAULT_MAX_EDGE_ERROR_MM", "DEFAULT_MAX_SLOPE", "DEFAULT_MAX_STEP", "DEFAULT_MIN_MODULATION_RATIO",
+           "DEFAULT_MIN_NEIGHBOURS", "MIN_LIT_FRACTION", "EdgePoints", "beside_steps", "continues_a_side",
+           "depth_per_pixel", "edge_points", "flying_points"]
 
 #: Depth change between neighbouring pixels, in pixel footprints ``z / f``, above which a pixel that differs so from
 #: both its neighbours along a line is a flying point: the tangent of the steepest surface kept (76 degrees).
@@ -63,6 +75,12 @@ DEFAULT_MIN_MODULATION_RATIO = 0.6
 DEFAULT_MIN_NEIGHBOURS = 2
 #: A point with a neighbour more than this many pixel footprints nearer or farther lies beside a depth step.
 DEFAULT_MAX_STEP = 10.0
+#: Largest depth error of a point kept at an edge (predicted for a partly shadowed one; a modulation dip is kept
+#: where a pure side continues to it within half of it), millimetres: convert to the depth's unit.
+DEFAULT_MAX_EDGE_ERROR_MM = 1.0
+#: A point beside an unlit pixel whose modulation is below this fraction of its brightest neighbour's has its centre
+#: in the shadow: no surface there is lit (``dptpu eval cloud`` counts such a point as having no true surface).
+MIN_LIT_FRACTION = 0.5
 
 # the 8 neighbours, the 4 side ones and the 4 diagonal ones of a pixel, as OpenCV kernels (the centre left out)
 _NEIGHBOURS = np.array([[1, 1, 1], [1, 0, 1], [1, 1, 1]], dtype=np.uint8)
@@ -72,13 +90,17 @@ _DIAGONALS = np.array([[1, 0, 1], [0, 0, 0], [1, 0, 1]], dtype=np.uint8)
 _LINES = ((0, 1, 1.0), (1, 0, 1.0), (1, 1, np.sqrt(2.0)), (1, -1, np.sqrt(2.0)))
 
 
-def beside_steps(depth: np.ndarray, focal_px: float, *, max_step: float) -> np.ndarray:
+def beside_steps(depth: np.ndarray, focal_px: float, *, max_step: float, side: str = "both") -> np.ndarray:
     """Pixels with a neighbour (of 8) whose depth differs by more than ``max_step`` pixel footprints ``z / f`` (per
     diagonal step ``sqrt(2) z / f``): the last pixel on each side of a depth step, (H, W) bool.
 
-    A neighbour that far exists exactly where the nearest or the farthest neighbour is that far: four grey-level
-    morphologies (OpenCV, float32) over the 4 side and the 4 diagonal neighbours (NaN neighbours never count).
+    ``side``: ``"both"``, ``"far"`` (only pixels with a NEARER neighbour that far: the far surface's last pixel) or
+    ``"near"`` (only pixels with a farther one). A neighbour that far exists exactly where the nearest or the
+    farthest neighbour is that far: grey-level morphologies (OpenCV, float32) over the 4 side and the 4 diagonal
+    neighbours (NaN neighbours never count).
     """
+    if side not in ("both", "far", "near"):
+        raise ValueError(f"side must be 'both', 'far' or 'near'; got {side!r}")
     z = np.asarray(depth, dtype=np.float32)
     finite = np.isfinite(z)
     nearest_fill = np.where(finite, z, np.float32(np.inf))
@@ -89,7 +111,10 @@ def beside_steps(depth: np.ndarray, focal_px: float, *, max_step: float) -> np.n
         for kernel, factor in ((_SIDES, np.float32(1.0)), (_DIAGONALS, np.float32(np.sqrt(2.0)))):
             farthest = cv2.dilate(farthest_fill, kernel, borderType=cv2.BORDER_CONSTANT, borderValue=-np.inf)
             nearest = cv2.erode(nearest_fill, kernel, borderType=cv2.BORDER_CONSTANT, borderValue=np.inf)
-            out |= (farthest - z > factor * limit) | (z - nearest > factor * limit)
+            if side != "far":
+                out |= farthest - z > factor * limit
+            if side != "near":
+                out |= z - nearest > factor * limit
     return out & finite
 
 
@@ -130,6 +155,35 @@ def flying_points(depth: np.ndarray, focal_px: float, *, max_slope: float = DEFA
     return flying
 
 
+def depth_per_pixel(projector_x: np.ndarray, depth_at: Callable[[np.ndarray], np.ndarray], axis: str = "x",
+                    depth: np.ndarray | None = None) -> np.ndarray:
+    """The depth change along each pixel's ray when its projector coordinate moves by one camera pixel's worth of
+    fringe, ``|dz/dx_p| * g`` (H, W): what a phase taken one camera pixel off the pixel's centre costs in depth.
+
+    ``g`` is the median of ``|x_p|``'s change between neighbouring camera pixels along the fringe axis (projector
+    pixels per camera pixel; one number per image: the fringes' scale barely changes over a scene).
+
+    Parameters
+    ----------
+    projector_x : ndarray (H, W)
+        Projector coordinate of every pixel (NaN where none).
+    depth_at : callable
+        Camera depth ``z`` (H, W) of a projector coordinate image (the caller's triangulation).
+    axis : str
+        ``"x"`` or ``"y"``: the camera axis the fringes vary along most (the capture's fringe axis).
+    depth : ndarray (H, W), optional
+        ``depth_at(projector_x)`` when the caller has it already.
+    """
+    x_p = np.asarray(projector_x, dtype=np.float64)
+    steps = np.abs(np.diff(x_p, axis=1 if axis == "x" else 0))
+    steps = steps[np.isfinite(steps)]
+    if steps.size == 0:
+        return np.full(x_p.shape, np.nan)
+    g = float(np.median(steps))
+    base = depth_at(x_p) if depth is None else np.asarray(depth, dtype=np.float64)
+    return np.abs(np.asarray(depth_at(x_p + g), dtype=np.float64) - base)
+
+
 @dataclass(frozen=True, eq=False)
 class EdgePoints:
     """Pixels :func:`edge_points` drops, by reason, each (H, W) bool (a pixel may have several reasons)."""
@@ -138,11 +192,12 @@ class EdgePoints:
     beside_step: np.ndarray
     modulation_dip: np.ndarray
     isolated: np.ndarray
+    shadow_border: np.ndarray
 
     @property
     def dropped(self) -> np.ndarray:
         """(H, W) bool: dropped for any reason."""
-        return self.flying | self.beside_step | self.modulation_dip | self.isolated
+        return self.flying | self.beside_step | self.modulation_dip | self.isolated | self.shadow_border
 
     def counts(self, points: np.ndarray) -> dict[str, int]:
         """How many of the pixels with a point (``points`` (H, W) bool) each reason drops, and ``"total"``."""
@@ -150,16 +205,18 @@ class EdgePoints:
         return {"flying": int(np.count_nonzero(self.flying & points)),
                 "beside_step": int(np.count_nonzero(self.beside_step & points)),
                 "modulation_dip": int(np.count_nonzero(self.modulation_dip & points)),
+                "shadow_border": int(np.count_nonzero(self.shadow_border & points)),
                 "isolated": int(np.count_nonzero(self.isolated & points)),
                 "total": int(np.count_nonzero(self.dropped & points))}
 
 
 def edge_points(depth: np.ndarray, focal_px: float, modulation: np.ndarray | None = None, *,
-                max_slope: float = DEFAULT_MAX_SLOPE, max_step: float = DEFAULT_MAX_STEP,
-                min_modulation_ratio: float = DEFAULT_MIN_MODULATION_RATIO,
+                lit: np.ndarray | None = None, depth_per_px: np.ndarray | None = None,
+                max_edge_error: float | None = None, max_slope: float = DEFAULT_MAX_SLOPE,
+                max_step: float = DEFAULT_MAX_STEP, min_modulation_ratio: float = DEFAULT_MIN_MODULATION_RATIO,
                 min_neighbours: int = DEFAULT_MIN_NEIGHBOURS) -> EdgePoints:
-    """The points at depth edges to drop: flying points, points beside a depth step, modulation dips, isolated
-    points (module docstring).
+    """The points at depth edges to drop: flying points, points beside a depth step, modulation dips at edges,
+    partly shadowed points, isolated points (module docstring).
 
     Parameters
     ----------
@@ -169,7 +226,16 @@ def edge_points(depth: np.ndarray, focal_px: float, modulation: np.ndarray | Non
         The camera's focal length, pixels.
     modulation : ndarray (H, W), optional
         Fringe modulation ``B`` of every pixel (also where there is no point: a shadowed neighbour counts), any
-        unit; NaN allowed. None skips the modulation test (its mask is all False).
+        unit; NaN allowed. None skips the modulation and shadow tests (their masks are all False).
+    lit : ndarray (H, W) bool, optional
+        Pixels with a phase (the unwrapping's valid mask, before any confidence threshold): their complement is the
+        projector's shadow and what lies off it. None: the pixels with a point.
+    depth_per_px : ndarray (H, W), optional
+        :func:`depth_per_pixel`, in the depth's unit: with ``max_edge_error``, a partly shadowed point predicted
+        farther off is dropped.
+    max_edge_error : float, optional
+        Largest depth error of a point kept at an edge, in the depth's unit (:data:`DEFAULT_MAX_EDGE_ERROR_MM`
+        converted). None: no predicted-error test and no rescue of a modulation dip by its neighbours.
     max_slope, max_step, min_modulation_ratio, min_neighbours
         See the module docstring; ``max_step`` inf, ``min_modulation_ratio`` 0 and ``min_neighbours`` 0 turn those
         tests off.
@@ -184,25 +250,65 @@ def edge_points(depth: np.ndarray, focal_px: float, modulation: np.ndarray | Non
         raise ValueError(f"min_neighbours must be 0 to 8 (of the 8 neighbours); got {min_neighbours}")
     if not max_step > 0:
         raise ValueError(f"max_step must be > 0 pixel footprints (inf: off); got {max_step}")
+    if max_edge_error is not None and not (np.isfinite(max_edge_error) and max_edge_error > 0):
+        raise ValueError(f"max_edge_error must be > 0 (a depth, the depth's unit) or None; got {max_edge_error}")
     z = np.asarray(depth, dtype=np.float64)
     flying = flying_points(z, focal_px, max_slope=max_slope)
+    solid = np.where(flying, np.nan, z)  # a flying point (a lone wrong order too) makes no step
     step = np.zeros(z.shape, dtype=bool)
-    if np.isfinite(max_step):  # beside a step of the surfaces: a flying point (a lone wrong order too) makes none
-        step = beside_steps(np.where(flying, np.nan, z), focal_px, max_step=max_step) & ~flying
+    if np.isfinite(max_step):
+        step = beside_steps(solid, focal_px, max_step=max_step, side="far") & ~flying
     has_point = np.isfinite(z)
+    unlit = ~(has_point if lit is None else np.asarray(lit, dtype=bool))
+    if unlit.shape != z.shape:
+        raise ValueError(f"lit must have the depth's shape {z.shape}; got {unlit.shape}")
+    beside_unlit = has_point & (_neighbour_count(unlit) > 0)
     dip = np.zeros(z.shape, dtype=bool)
-    if modulation is not None and min_modulation_ratio > 0:
+    shadow = np.zeros(z.shape, dtype=bool)
+    if modulation is not None:
         b = np.asarray(modulation, dtype=np.float32)
         if b.shape != z.shape:
             raise ValueError(f"modulation must have the depth's shape {z.shape}; got {b.shape}")
         brightest = _neighbour_max(np.where(np.isfinite(b), b, -np.inf))
-        with np.errstate(invalid="ignore"):
-            dip = has_point & (b < min_modulation_ratio * brightest)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            lit_fraction = np.clip(b / brightest, 0.0, 1.0)  # NaN where B is
+        shadow = beside_unlit & ~(lit_fraction >= MIN_LIT_FRACTION)
+        if depth_per_px is not None and max_edge_error is not None:
+            per_px = np.asarray(depth_per_px, dtype=np.float64)
+            if per_px.shape != z.shape:
+                raise ValueError(f"depth_per_px must have the depth's shape {z.shape}; got {per_px.shape}")
+            with np.errstate(invalid="ignore"):
+                shadow |= beside_unlit & (0.5 * (1.0 - lit_fraction) * per_px > max_edge_error)
+        if min_modulation_ratio > 0:
+            with np.errstate(invalid="ignore"):
+                dipped = has_point & (b < min_modulation_ratio * brightest)
+            edge = beside_steps(solid, focal_px, max_step=max_slope)
+            at_edge = edge | (_neighbour_count(edge) > 0)  # within one pixel of a depth edge
+            dip = dipped & at_edge
+            if max_edge_error is not None:  # a pure side that continues to the point vouches for it (not in shadow)
+                dip &= beside_unlit | ~continues_a_side(z, has_point & ~flying & ~dipped, 0.5 * max_edge_error)
     isolated = np.zeros(z.shape, dtype=bool)
     if min_neighbours > 0:
-        kept = has_point & ~flying & ~step & ~dip
+        kept = has_point & ~flying & ~step & ~dip & ~shadow
         isolated = kept & (_neighbour_count(kept) < int(min_neighbours))
-    return EdgePoints(flying=flying, beside_step=step, modulation_dip=dip, isolated=isolated)
+    return EdgePoints(flying=flying, beside_step=step, modulation_dip=dip, isolated=isolated, shadow_border=shadow)
+
+
+def continues_a_side(depth: np.ndarray, pure: np.ndarray, tolerance: float) -> np.ndarray:
+    """Pixels whose depth the straight continuation of two ``pure`` pixels in a row predicts within ``tolerance``,
+    in any of the 8 directions: ``|z - (2 z_1 - z_2)| <= tolerance``, ``z_1``, ``z_2`` the next two pixels that way
+    (the surface on that side, linearly extrapolated), (H, W) bool.
+    """
+    z = np.asarray(depth, dtype=np.float64)
+    height, width = z.shape
+    padded = cv2.copyMakeBorder(np.where(pure, z, np.nan), 2, 2, 2, 2, cv2.BORDER_CONSTANT, value=np.nan)
+    out = np.zeros(z.shape, dtype=bool)
+    with np.errstate(invalid="ignore"):
+        for dr, dc in ((0, 1), (0, -1), (1, 0), (-1, 0), (1, 1), (-1, -1), (1, -1), (-1, 1)):
+            first = padded[2 + dr:2 + dr + height, 2 + dc:2 + dc + width]
+            second = padded[2 + 2 * dr:2 + 2 * dr + height, 2 + 2 * dc:2 + 2 * dc + width]
+            out |= np.abs(z - (2.0 * first - second)) <= tolerance
+    return out
 
 
 def _neighbour_max(values: np.ndarray) -> np.ndarray:

@@ -10,7 +10,10 @@ Two process-wide settings come with it:
   maps, clouds, ZeroMQ's receive buffers). glibc gives such blocks back to the kernel on ``free`` (``mmap``
   above 128 KiB, heap trimming), so the next scan page-faults the same amount again, in kernel time charged to
   every scan (docs/benchmarks.md, "Run 5", has the figures). The node keeps freed memory for reuse instead; its
-  resident size stays at its peak (a few scans' worth).
+  resident size stays at its peak (a few scans' worth). A node off the scan's hot path (the scan monitor) asks
+  for :func:`return_freed_memory` instead (``run_node(..., keep_freed=False)``): in a heap that is never
+  trimmed, the per-scan arrays it keeps for a while (clouds, phase maps, truths) wander over fresh pages of the
+  free space, and its resident size crept up for thousands of scans (issue 19's soak).
 - :func:`freeze_startup_objects`: once the node is built, the objects of its start-up (modules, the rig, tables,
   renders: tens of thousands) go to the garbage collector's permanent generation, so a full collection during
   the scans walks only what the scans made (otherwise it walks them all, a stall of that node in the scan it
@@ -37,7 +40,7 @@ from dptpu.graph import ExternalShutdownException
 from dptpu.graph.node import Node
 
 __all__ = ["PROFILE_CLOCK_ENV", "PROFILE_ENV", "SETUP_ERRORS", "freeze_startup_objects", "keep_freed_memory",
-           "run_node", "spin_profiled"]
+           "return_freed_memory", "run_node", "spin_profiled"]
 
 #: What a node's constructor raises for bad parameters, unreadable files or missing optional parts (exit code 2).
 SETUP_ERRORS = (ValueError, OSError, ImportError)
@@ -51,6 +54,7 @@ _M_TRIM_THRESHOLD, _M_TOP_PAD, _M_MMAP_THRESHOLD = -1, -2, -3
 _MMAP_THRESHOLD_BYTES = 32 * 1024 * 1024   # glibc's largest (HEAP_MAX_SIZE / 2 on 64-bit): a 640x480x24 stack is 7 MB
 _TRIM_THRESHOLD_BYTES = 512 * 1024 * 1024  # free heap kept before trimming
 _TOP_PAD_BYTES = 16 * 1024 * 1024          # heap grown in 16 MiB steps
+_RETURNED_ABOVE_BYTES = 64 * 1024          # return_freed_memory: blocks from 64 KiB up mapped and unmapped alone
 
 
 #: The class of node :func:`run_node` builds, so that its ``spin`` and ``on_exit`` may take that class.
@@ -81,6 +85,30 @@ def keep_freed_memory() -> bool:
     return all(mallopt(param, value) == 1 for param, value in ((_M_MMAP_THRESHOLD, _MMAP_THRESHOLD_BYTES),
                                                                (_M_TRIM_THRESHOLD, _TRIM_THRESHOLD_BYTES),
                                                                (_M_TOP_PAD, _TOP_PAD_BYTES)))
+
+
+def return_freed_memory() -> bool:
+    """Make glibc's ``malloc`` map every block of 64 KiB or more on its own and unmap it on ``free``.
+
+    Sets ``M_MMAP_THRESHOLD`` to 64 KiB, which also turns off glibc's moving threshold (it rises to the largest
+    block freed, after which such blocks come from the heap again). Messages and arrays then never fragment the
+    heap, and the resident size follows what the node holds; each large block costs its page faults again.
+    ``MALLOC_MMAP_THRESHOLD_`` in the environment wins. Not glibc: nothing is changed.
+
+    Returns
+    -------
+    bool
+        True when the setting was applied.
+    """
+    if "MALLOC_MMAP_THRESHOLD_" in os.environ:
+        return False
+    try:
+        mallopt = ctypes.CDLL(None).mallopt
+    except (OSError, AttributeError):
+        return False
+    mallopt.argtypes = (ctypes.c_int, ctypes.c_int)
+    mallopt.restype = ctypes.c_int
+    return mallopt(_M_MMAP_THRESHOLD, _RETURNED_ABOVE_BYTES) == 1
 
 
 #: Allocations (less deallocations) of container objects between two collections of the youngest generation.
@@ -125,7 +153,7 @@ def spin_profiled(name: str, spin: Callable[[], None]) -> None:
 
 
 def run_node(name: str, make_node: Callable[[], NodeT], argv=None, *, spin: Callable[[NodeT], None] | None = None,
-             on_exit: Callable[[NodeT], None] | None = None) -> int:
+             on_exit: Callable[[NodeT], None] | None = None, keep_freed: bool = True) -> int:
     """Run one node in this process until Ctrl-C, SIGTERM or shutdown; return the process exit code.
 
     Parameters
@@ -140,13 +168,19 @@ def run_node(name: str, make_node: Callable[[], NodeT], argv=None, *, spin: Call
         ``spin(node)`` runs the node (default ``rclpy.spin(node)``: until Ctrl-C, SIGTERM or shutdown).
     on_exit : callable, optional
         ``on_exit(node)`` runs after spinning, however it ended, before the node is destroyed.
+    keep_freed : bool
+        True (the pipeline's nodes): :func:`keep_freed_memory`; False (a node off the hot path that keeps
+        messages for a while): :func:`return_freed_memory`.
 
     Returns
     -------
     int
         0 after a clean stop, 2 when the node could not start.
     """
-    keep_freed_memory()
+    if keep_freed:
+        keep_freed_memory()
+    else:
+        return_freed_memory()
     rclpy.init(args=sys.argv if argv is None else argv)
     try:
         node = make_node()

@@ -57,8 +57,9 @@ name                   default                   meaning
                                                  :mod:`dptpu.fpp.confidence`) is lower get no point; 0 keeps all
 ``drop_edges``         true                      drop the points at depth edges (:func:`dptpu.fpp.depth_edges.
                                                  edge_points`: flying points between surfaces, points beside a
-                                                 depth step, modulation dips, isolated points; the modulation test
-                                                 needs the intensity image)
+                                                 depth step, modulation dips at edges, partly shadowed points
+                                                 predicted more than 1 mm off, isolated points; the modulation
+                                                 and shadow tests need the intensity image)
 ``max_edge_slope``     4.0                       depth step between neighbours, in pixel footprints ``z / f``, above
                                                  which a point apart from both neighbours along a line is flying
 ``drop_order_islands`` true                      drop the islands of a wrong fringe order (:func:`dptpu.fpp.
@@ -82,7 +83,8 @@ apply from the next scan (``dptpu param set /cloud frame_id base_link``), checke
 refused with the reason and the old one stays.
 
 What is dropped is counted: counters ``points_low_confidence``, ``points_flying``, ``points_modulation_dip``,
-``points_beside_step``, ``points_isolated``, ``points_on_islands`` and the scan's status reason (level OK).
+``points_beside_step``, ``points_shadow_border``, ``points_isolated``, ``points_on_islands`` and the scan's status
+reason (level OK).
 
 Fields of the cloud (:mod:`dptpu.nodes.cloud.cloud_fields`): ``x, y, z`` NaN where the pixel is invalid
 (``is_dense`` false); ``intensity`` the texture (DN) from ``/scanner/texture``, ``modulation`` the fringe
@@ -102,7 +104,7 @@ import numpy as np
 
 from dptpu.fpp.calibration import DeviceModel, Rig, load_rig
 from dptpu.fpp.confidence import DEFAULT_MIN_CONFIDENCE
-from dptpu.fpp.depth_edges import DEFAULT_MAX_SLOPE, edge_points
+from dptpu.fpp.depth_edges import DEFAULT_MAX_EDGE_ERROR_MM, DEFAULT_MAX_SLOPE, depth_per_pixel, edge_points
 from dptpu.fpp.order_islands import order_islands
 from dptpu.fpp.organized_normals import DEFAULT_NORMAL_WINDOW_PX, organized_normals
 from dptpu.fpp.point_cloud_file import write_point_cloud
@@ -173,7 +175,8 @@ class CloudNode(Node):
 
     Counters: ``scans_published``, ``scans_rejected``, ``ply_written``, ``pixels_nan`` (pixels marked valid whose
     absolute phase was NaN or inf), ``points_low_confidence``, ``points_flying``, ``points_beside_step``,
-    ``points_modulation_dip``, ``points_isolated`` (dropped; a point may count under several edge reasons),
+    ``points_modulation_dip``, ``points_shadow_border``, ``points_isolated`` (dropped; a point may count under
+    several edge reasons),
     ``points_on_islands``.
     """
 
@@ -229,6 +232,7 @@ class CloudNode(Node):
         self.points_beside_step = 0
         self.points_modulation_dip = 0
         self.points_isolated = 0
+        self.points_shadow_border = 0
         self.points_on_islands = 0
 
         self.points_publisher = self.create_publisher(PointCloud2, "/scanner/points", 10)
@@ -363,7 +367,7 @@ class CloudNode(Node):
         stamp_ns, shape = msg.header.stamp.to_ns(), coord.shape
         texture = self._side_images.take("texture", stamp_ns, shape)  # (H, W) float32 DN, or None
         modulation = self._side_images.take("modulation", stamp_ns, shape)
-        edge_counts = self._drop_edges(planes, modulation, triangulator)
+        edge_counts = self._drop_edges(planes, modulation, triangulator, coord, msg.valid)
         on_islands = self._drop_islands(planes, msg.absolute_phase, np.isfinite(coord), modulation)
         confidence = np.where(np.isfinite(planes[2]), msg.reliability, np.float32(0.0)).astype(np.float32, copy=False)
         channels = [planes[0], planes[1], planes[2], _or_nan(texture, shape), _or_nan(modulation, shape), confidence]
@@ -391,7 +395,7 @@ class CloudNode(Node):
         if edge_counts["total"]:
             notes.append(f"{edge_counts['total']} points at depth edges dropped ({edge_counts['flying']} flying, "
                          f"{edge_counts['beside_step']} beside a step, {edge_counts['modulation_dip']} modulation "
-                         f"dips, {edge_counts['isolated']} isolated)")
+                         f"dips, {edge_counts['shadow_border']} partly shadowed, {edge_counts['isolated']} isolated)")
         if on_islands:
             notes.append(f"{on_islands} points on islands of a wrong fringe order dropped")
         reasons = []
@@ -418,18 +422,34 @@ class CloudNode(Node):
         if self._camera_info_seen:
             self._triangulator("x")
 
-    def _drop_edges(self, planes: np.ndarray, modulation: np.ndarray | None,
-                    triangulator: Triangulator) -> dict[str, int]:
-        """Blank (NaN) the points at depth edges in ``planes`` (3, H, W), count them by reason (counters too)."""
+    def _drop_edges(self, planes: np.ndarray, modulation: np.ndarray | None, triangulator: Triangulator,
+                    coord: np.ndarray, lit: np.ndarray) -> dict[str, int]:
+        """Blank (NaN) the points at depth edges in ``planes`` (3, H, W), count them by reason (counters too).
+
+        ``coord``: the scan's projector coordinate (NaN where no point); ``lit``: the pixels with a phase (the
+        message's ``valid``): with the modulation image, the partly shadowed points are judged by their predicted
+        depth error (:func:`dptpu.fpp.depth_edges.depth_per_pixel`, one more triangulation).
+        """
         if not self.drop_edges:
-            return {"flying": 0, "beside_step": 0, "modulation_dip": 0, "isolated": 0, "total": 0}
+            return {"flying": 0, "beside_step": 0, "modulation_dip": 0, "shadow_border": 0, "isolated": 0,
+                    "total": 0}
         K = triangulator.rig.camera.K
-        edges = edge_points(planes[2], 0.5 * float(K[0, 0] + K[1, 1]), modulation, max_slope=self.max_edge_slope)
+        scale = triangulator.rig.scale_to_m
+        per_px = None
+        if modulation is not None:
+            def camera_depth(projector_x: np.ndarray) -> np.ndarray:
+                return triangulator.camera_points(projector_x, scale=scale, dtype=np.float32)[..., 2]
+
+            axis = "x" if triangulator.axis == 0 else "y"
+            per_px = depth_per_pixel(coord, camera_depth, axis, depth=planes[2])
+        edges = edge_points(planes[2], 0.5 * float(K[0, 0] + K[1, 1]), modulation, lit=lit, depth_per_px=per_px,
+                            max_edge_error=DEFAULT_MAX_EDGE_ERROR_MM * 1e-3, max_slope=self.max_edge_slope)
         counts = edges.counts(np.isfinite(planes[2]))
         planes[:, edges.dropped] = np.nan
         self.points_flying += counts["flying"]
         self.points_beside_step += counts["beside_step"]
         self.points_modulation_dip += counts["modulation_dip"]
+        self.points_shadow_border += counts["shadow_border"]
         self.points_isolated += counts["isolated"]
         return counts
 

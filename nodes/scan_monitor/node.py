@@ -615,5 +615,6 @@ def main(argv=None) -> int:
         if not node.finished and node.reported:
             print(node.summary_line(), flush=True)
 
-    return run_node("scan_monitor", ScanMonitorNode, argv, spin=spin, on_exit=on_exit)
+    # off the hot path, it keeps clouds and truths for a while: freed memory goes back (node_main)
+    return run_node("scan_monitor", ScanMonitorNode, argv, spin=spin, on_exit=on_exit, keep_freed=False)
 

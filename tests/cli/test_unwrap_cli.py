@@ -172,8 +172,8 @@ def test_triangulate_writes_points_on_the_plane_in_metres_or_millimetres(synthet
     assert points.shape == (scene.lit.size, 3)
     assert stdout.strip() == (f"heterodyne: {scene.lit.size} points (m); model none; the shipped model does not serve "
                               f"method heterodyne; 0 pixels below the confidence threshold dropped; 0 points at depth "
-                              f"edges dropped (0 flying, 0 beside a step, 0 modulation dips, 0 isolated); 0 points on "
-                              f"islands of a wrong order dropped -> {out}")
+                              f"edges dropped (0 flying, 0 beside a step, 0 modulation dips, 0 partly shadowed, "
+                              f"0 isolated); 0 points on islands of a wrong order dropped -> {out}")
     # Phase noise ~0.002 rad at period 42 px is ~0.01 projector px, ~0.04 mm in depth here.
     assert np.abs(points[:, 2] - PLANE_Z_MM / 1000).max() < 0.5e-3
     assert points[:, 0].min() == pytest.approx(-0.1975, abs=0.5e-3)  # pixel column 0: (0 - 39.5) / 100 * 0.5 m

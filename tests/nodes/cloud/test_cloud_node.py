@@ -1,6 +1,7 @@
 """The cloud node in the in-process harness: AbsolutePhase of the analytic plane in, PointCloud2 and depth out."""
 from __future__ import annotations
 
+import cv2
 import numpy as np
 import pytest
 
@@ -247,7 +248,10 @@ def test_outside_rig_scan_drops_low_confidence_and_depth_edges_and_publishes_the
     assert np.count_nonzero(published & capture.pure) >= 0.95 * capture.pure.sum()
     # normals against the analytic surfaces (3 x 3 windows of central differences of noisy points; 96/95 heterodyne
     # amplifies the 1.6 DN noise). Measured, median / 90th percentile: plane 0.21 / 0.41 deg; the three spheres
-    # (radius 14-15 mm, about 22 px) 1.34-2.04 / 3.1-4.9 deg, their curvature over the window and the noise
+    # (radius 14-15 mm, about 22 px) 1.34-2.04 / 3.1-4.9 deg, their curvature over the window and the noise. Since the
+    # edge filter keeps the near side's last pixel (fpp.depth_edges), the spheres' rims, seen almost edge-on, are
+    # published too: judged apart (a point with a neighbour unpublished has a one-sided window). Measured: inside
+    # 0.95-1.07 / 2.5-2.9 deg, at the rims' 1.8-2.9 deg median (90th percentile 5-42 deg: edge-on)
     normals = cloud.to_array(["normal_x", "normal_y", "normal_z"]).astype(np.float64)[published]  # (M, 3)
     _, which = capture.scene.hit(np.zeros(3), xyz_mm[published])
     truth = capture.scene.normal(xyz_mm[published], which)
@@ -256,9 +260,11 @@ def test_outside_rig_scan_drops_low_confidence_and_depth_edges_and_publishes_the
     assert np.isfinite(angle_deg).mean() > 0.99
     plane = (which == 0) & np.isfinite(angle_deg)
     assert np.median(angle_deg[plane]) < 0.5 and np.percentile(angle_deg[plane], 90) < 1.0
+    inside = cv2.erode(published.astype(np.uint8), np.ones((3, 3), np.uint8))[published] > 0  # all 8 published
     for sphere in range(1, len(capture.scene.spheres) + 1):
         on = (which == sphere) & np.isfinite(angle_deg)
-        assert np.median(angle_deg[on]) < 2.5 and np.percentile(angle_deg[on], 90) < 6.0
+        assert np.median(angle_deg[on & ~inside]) < 4.0
+        assert np.median(angle_deg[on & inside]) < 2.5 and np.percentile(angle_deg[on & inside], 90) < 6.0
 
 
 @pytest.mark.parametrize("drop", [True, False])
