@@ -8,8 +8,9 @@ by default where it serves, ``--min-confidence``), turns the absolute phase into
 ``x_p = phi * W_p / (2 pi f)``, intersects each valid camera ray with the projector plane of that
 coordinate (:class:`dptpu.fpp.triangulate.Triangulator`, the capture's ``calibration`` rig file), drops the points
 at depth edges (:func:`dptpu.fpp.depth_edges.edge_points`: flying points, the far side of a depth step, modulation
-dips at depth edges, partly shadowed points predicted more than 1 mm off, isolated points; off with ``--keep-edges``) and the islands of a wrong fringe order
-(:func:`dptpu.fpp.order_islands.order_islands`; off with ``--keep-islands``) and writes the rest with open3d, in the
+dips at depth edges, partly shadowed points predicted more than 1 mm off, isolated points; off with
+``--keep-edges``) and the islands of a wrong fringe order (:func:`dptpu.fpp.order_islands.order_islands`; off with
+``--keep-islands``) and writes the rest with open3d, in the
 rig's world frame, in metres as every point-cloud file of dptpu (``--units mm``: millimetres). The summary line
 counts what was dropped and why.
 """
