@@ -75,6 +75,8 @@ SEQUENCES = {12: "64x12,1x12", 3: "64x3,1x3"}
 DOMAIN_ID = 97
 #: Frames the phase node's subscription queues (``frame_queue_depth``): scans in flight x frames must fit.
 PHASE_FRAME_QUEUE = 100
+#: The raycast scenes the sim shows, in scan order.
+SCENES = "random:1,random:2"
 
 
 def camera_limit_scans_per_s(frames_per_scan: int) -> float:
@@ -83,13 +85,14 @@ def camera_limit_scans_per_s(frames_per_scan: int) -> float:
 
 
 def launch_sim_rig(*, sequence: str, model: str, size: str, scans: int, timeout_s: float,
-                   pacing: list[str], cpu_window: tuple[int, int] | None = None) -> dict:
+                   pacing: list[str], cpu_window: tuple[int, int] | None = None, source: str = "raycast") -> dict:
     """Run the sim rig until ``scans`` scans were reported; the monitor's summary (``totals``, ``scans``).
 
     ``pacing`` holds the launch arguments that start the scans (``in_flight:=N``, or ``in_flight:=0
     projector_scans:=-1 scan_period:=S``). With ``cpu_window = (a, b)`` the summary also holds
     ``cpu_ms_per_scan``: each process's CPU time (user + system, every thread, ``/proc/<pid>/stat``) from the
-    monitor's ``a``-th reported scan to its ``b``-th, divided by ``b - a`` (:func:`cpu_per_scan_ms`).
+    monitor's ``a``-th reported scan to its ``b``-th, divided by ``b - a`` (:func:`cpu_per_scan_ms`). ``source``:
+    the sim node's (``raycast`` renders :data:`SCENES` live; a folder of ``dptpu-capture/1`` captures is replayed).
     """
     folder = Path(tempfile.mkdtemp(prefix="dpb", dir="/tmp"))
     summary = folder / "summary.json"
@@ -98,7 +101,7 @@ def launch_sim_rig(*, sequence: str, model: str, size: str, scans: int, timeout_
     command = [sys.executable, "-c", "import sys; from dptpu.cli.main import main; sys.exit(main())", "launch",
                str(SIM_RIG), f"scans:={scans}", f"size:={size}", f"sequence:={sequence}", "method:=mf",
                f"model:={model}", "ground_truth:=false", "exposure_us:=100", "ply_dir:=", f"summary:={summary}",
-               "scenes:=random:1,random:2", "source:=raycast", *pacing]
+               f"scenes:={SCENES}", f"source:={source}", *pacing]
     process = subprocess.Popen(command, cwd=folder, env=env, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE,
                                stderr=subprocess.STDOUT, text=True)
     killer = threading.Timer(timeout_s, process.kill)
@@ -226,13 +229,14 @@ def timed_figures(report: dict, scans: int) -> dict:
 
 
 def run_configuration(*, steps: int, model: str, size: str, scans: int, warmup: int, in_flight: int,
-                      latency_load: float, timeout_s: float) -> dict:
+                      latency_load: float, timeout_s: float, source: str = "raycast") -> dict:
     """Launch the sim rig for one configuration (throughput run, then latency run); the module docstring's
     figures."""
     sequence = SEQUENCES[steps]
     frames = sum(int(entry.split("x")[1]) for entry in sequence.split(","))
     started = time.monotonic()
-    common = {"sequence": sequence, "model": model, "size": size, "scans": warmup + scans, "timeout_s": timeout_s}
+    common = {"sequence": sequence, "model": model, "size": size, "scans": warmup + scans, "timeout_s": timeout_s,
+              "source": source}
     # the monitor as a robot: clouds and statuses only (the latency run takes the Triggers for the first pattern)
     throughput_report = launch_sim_rig(pacing=[f"in_flight:={in_flight}", "monitor_triggers:=false"],
                                        cpu_window=(warmup + 1, warmup + scans - 1), **common)
@@ -248,7 +252,7 @@ def run_configuration(*, steps: int, model: str, size: str, scans: int, warmup: 
         latency["scan_period_s"] = round(period_s, 5)
     return {
         "configuration": f"2 x {steps}-step, {'DP-TPU' if model != 'none' else 'classical'} MF",
-        "sequence": sequence, "frames_per_scan": frames, "method": "mf", "model": model, "size": size,
+        "sequence": sequence, "frames_per_scan": frames, "method": "mf", "model": model, "size": size, "source": source,
         "in_flight": in_flight, "latency_load": latency_load if latency is not throughput else None,
         "scans_timed": min(throughput["scans_timed"], latency["scans_timed"]),
         "scans_failed": throughput["scans_failed"] + (latency["scans_failed"] if latency is not throughput else 0),
@@ -477,7 +481,8 @@ def run(args) -> int:
         for which in models:
             results.append(run_configuration(steps=step, model=which, size=args.size, scans=args.scans,
                                              warmup=args.warmup, in_flight=args.in_flight,
-                                             latency_load=args.latency_load, timeout_s=args.timeout))
+                                             latency_load=args.latency_load, timeout_s=args.timeout,
+                                             source=args.source))
             if not args.json:
                 r = results[-1]
                 print(f"{r['configuration']:<28} {r['scans_per_s']:7.2f} scans/s  "
@@ -516,6 +521,10 @@ def add_arguments(parser) -> None:
                              "(default 0.5; 0 = no latency run, latencies of the throughput run)")
     parser.add_argument("--steps", default="12,3", help="sequences: 12 (2 x 12-step), 3 (2 x 3-step); default 12,3")
     parser.add_argument("--model", default=None, help="DP-TPU .onnx model (default: the shipped one, if any)")
+    parser.add_argument("--source", default="raycast",
+                        help="the sim node's source: raycast (default: renders random:1 and random:2 live, needs "
+                             "open3d) or a folder of dptpu-capture/1 captures of the size and sequences asked (a "
+                             "machine without open3d: `dptpu sim render` them elsewhere)")
     parser.add_argument("--classical-only", action="store_true", help="skip DP-TPU even when a model exists")
     parser.add_argument("--dptpu-only", action="store_true",
                         help="DP-TPU only (no classical run): with a timeout per invocation, a slow configuration "
