@@ -30,8 +30,9 @@ def register(subparsers) -> None:
     render.add_argument("--scene", required=True,
                         help="scene YAML file, a built-in scene (sphere, plane, board), or random:SEED")
     render.add_argument("--sequence", default="96x12,1x12",
-                        help="phase sequences FREQxSTEPS[:AXIS], comma separated (default 96x12,1x12); "
-                             "'white' and 'black' add reference frames")
+                        help="phase sequences FREQxSTEPS[:AXIS], comma separated (default 96x12,1x12; STEPS 3-1000, "
+                             "FREQ at most half the projector's pixels along AXIS); 'white' and 'black' add "
+                             "reference frames")
     render.add_argument("--effects", default=None, help="effects YAML (replaces the rig's effects: list)")
     render.add_argument("--engine", choices=("raycast", "blender"), default="raycast",
                         help="raycast (numpy, default) or blender (Cycles; dptpu sim setup-blender first)")
