@@ -18,8 +18,9 @@ graycode   the phase sequence whose period is the Gray code's, + the code      E
 the choice of the sequences is :func:`dptpu.fpp.frequencies.select_frequencies`, the unwrap node's too.
 
 Validity: a pixel is valid where the unwrapping method accepts it AND every phase sequence it used has
-modulation ``B >= min_modulation`` and no saturated frame (:func:`dptpu.fpp.phase.quality_mask`) AND
-its absolute phase lies on the projector, ``0 <= absolute_phase < 2*pi*f`` (an order that puts a pixel
+modulation ``B >= min_modulation`` and no saturated frame (:func:`dptpu.fpp.phase.quality_mask`) and a phase
+noise, measured from its own fit, below ``max_noise_ratio`` times the scan's median (:mod:`dptpu.fpp.fringe_noise`)
+AND its absolute phase lies on the projector, ``0 <= absolute_phase < 2*pi*f`` (an order that puts a pixel
 outside the projector is wrong: a noisy pixel, or a capture whose ``phase_shift_sign`` is wrong). The
 default ``min_modulation`` is :data:`DEFAULT_MIN_MODULATION_FRACTION` (2 %) of the camera's full scale
 ``2**bit_depth - 1`` (5.1 digital numbers for 8-bit frames); a frame reaching full scale is saturated.
@@ -47,6 +48,7 @@ from .capture import (
     load_sequence_images,
 )
 from .frequencies import find_frequency, same_frequency, select_frequencies
+from .fringe_noise import DEFAULT_MAX_NOISE_RATIO, MIN_NOISE_STEPS, fit_residual, noise_outliers, phase_noise
 from .methods import CAPTURE_METHODS
 from .phase_harmonics import ProjectorPhaseResponse
 
@@ -128,6 +130,7 @@ def unwrap_capture(
     min_modulation: float | None = None,
     saturation_level: float | None = None,
     phase_response: ProjectorPhaseResponse | None = None,
+    max_noise_ratio: float = DEFAULT_MAX_NOISE_RATIO,
 ) -> CaptureResult:
     """Fringe order and absolute phase of a capture by temporal phase unwrapping.
 
@@ -152,6 +155,10 @@ def unwrap_capture(
         error of each sequence whose step count it holds is removed from its wrapped phase before unwrapping
         (:meth:`dptpu.fpp.phase_harmonics.ProjectorPhaseResponse.correct`); other sequences, and every sequence
         without it, are used as computed.
+    max_noise_ratio : float, optional
+        A pixel whose phase noise, measured from its own N-step fit (``N >= 5``), is at least this many times the
+        scan's median in any sequence used is invalid (:func:`dptpu.fpp.fringe_noise.noise_outliers`); 0: no
+        such test. Default :data:`dptpu.fpp.fringe_noise.DEFAULT_MAX_NOISE_RATIO`.
 
     Returns
     -------
@@ -185,7 +192,7 @@ def unwrap_capture(
         phase_sequences, code = _select_phase_sequences(capture, method, high, low), None
     frequencies = [capture.frequency_of(s) for s in phase_sequences]
 
-    maps, quality = [], np.ones(capture.image_shape, dtype=bool)
+    maps, quality, noise = [], np.ones(capture.image_shape, dtype=bool), []
     for sequence in phase_sequences:
         images = load_sequence_images(capture, sequence)  # (N, H, W)
         sequence_maps = phase.wrapped_phase(
@@ -195,6 +202,10 @@ def unwrap_capture(
             images, sequence_maps.modulation, min_modulation=min_modulation, saturation_level=saturation_level
         )
         maps.append(sequence_maps)
+        if max_noise_ratio > 0 and images.shape[0] >= MIN_NOISE_STEPS:
+            residual = fit_residual(images, sequence_maps.background, sequence_maps.modulation)
+            noise.append(phase_noise(residual, sequence_maps.modulation, images.shape[0]))
+    quality &= ~noise_outliers(noise, quality, max_noise_ratio)
 
     psi = [m.phase for m in maps]
     if phase_response is not None:

@@ -14,7 +14,8 @@ Where each image sits is an :class:`ImageSlot`.
 
 Both return the wrapped phase ``psi`` (F, H, W) float32 in ``[0, 2*pi)``, the modulation ``B`` (F, H, W) float32
 and one validity mask (H, W) for the scan: every entry's modulation at least ``min_modulation``, no image at the
-saturation level (:func:`dptpu.fpp.phase.quality_mask`).
+saturation level (:func:`dptpu.fpp.phase.quality_mask`), and in no entry of 5 or more steps a phase noise (measured
+from the entry's own fit) of ``max_noise_ratio`` times the scan's median or more (:mod:`dptpu.fpp.fringe_noise`).
 """
 from __future__ import annotations
 
@@ -23,6 +24,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .fringe_noise import DEFAULT_MAX_NOISE_RATIO, MIN_NOISE_STEPS, fit_residual, noise_outliers, phase_noise
 from .phase import maps_from_sums, quality_mask, sequence_sums, wrapped_phase
 
 __all__ = ["ImageSlot", "IncrementalScanPhase", "scan_phase_maps"]
@@ -43,8 +45,16 @@ class ImageSlot:
     shift_sign: int
 
 
+def _entry_noise(stack: np.ndarray, background: np.ndarray, modulation: np.ndarray) -> np.ndarray | None:
+    """:func:`dptpu.fpp.fringe_noise.phase_noise` of one entry (None below ``MIN_NOISE_STEPS`` steps)."""
+    if stack.shape[0] < MIN_NOISE_STEPS:
+        return None
+    return phase_noise(fit_residual(stack, background, modulation), modulation, stack.shape[0])
+
+
 def scan_phase_maps(stacks: Sequence[np.ndarray], phase_offsets: Sequence[float], *, shift_sign: int,
-                    min_modulation: float, saturation_level: float | None):
+                    min_modulation: float, saturation_level: float | None,
+                    max_noise_ratio: float = DEFAULT_MAX_NOISE_RATIO):
     """Wrapped phase, modulation and validity of a scan's stacked entries (Eq. (2) of the paper).
 
     Parameters
@@ -59,6 +69,9 @@ def scan_phase_maps(stacks: Sequence[np.ndarray], phase_offsets: Sequence[float]
         Smallest modulation ``B`` of a valid pixel, digital numbers.
     saturation_level : float or None
         A pixel with any image ``>=`` this is invalid; None: the integer dtype's maximum.
+    max_noise_ratio : float
+        A pixel whose phase noise in an entry of 5 or more steps is at least this many times the entry's median is
+        invalid (:func:`dptpu.fpp.fringe_noise.noise_outliers`); 0: no such test.
 
     Returns
     -------
@@ -69,7 +82,7 @@ def scan_phase_maps(stacks: Sequence[np.ndarray], phase_offsets: Sequence[float]
     valid : ndarray (H, W) bool
         Valid in every entry (:func:`dptpu.fpp.phase.quality_mask`).
     """
-    phases, modulations = [], []
+    phases, modulations, noise = [], [], []
     valid = np.ones(stacks[0].shape[1:], dtype=bool)
     for stack, offset in zip(stacks, phase_offsets):
         maps = wrapped_phase(stack, shift_sign=shift_sign, phase_offset=offset, dtype=np.float32)
@@ -77,6 +90,9 @@ def scan_phase_maps(stacks: Sequence[np.ndarray], phase_offsets: Sequence[float]
         phase32 = maps.phase.astype(np.float32, copy=False)
         phases.append(np.where(phase32 >= _TWO_PI, np.float32(0.0), phase32))
         modulations.append(maps.modulation.astype(np.float32, copy=False))
+        if max_noise_ratio > 0:
+            noise.append(_entry_noise(stack, maps.background, maps.modulation))
+    valid &= ~noise_outliers(noise, valid, max_noise_ratio)
     return np.stack(phases), np.stack(modulations), valid
 
 
@@ -90,6 +106,7 @@ class IncrementalScanPhase:
 
     def __init__(self) -> None:
         self.sums: dict[int, np.ndarray] = {}
+        self.noise: dict[int, np.ndarray | None] = {}  # entry_start -> phase noise (H, W) of an entry of N >= 5
         self.slots: dict[int, ImageSlot] = {}  # image index -> where it was added
         self.brightest: np.ndarray | None = None  # (H, W) max over the images, for the saturation mask
         self._stacks: dict[int, np.ndarray] = {}  # entry_start -> (N, H, W) images of an entry not complete yet
@@ -112,10 +129,13 @@ class IncrementalScanPhase:
             np.maximum(self.brightest, image, out=self.brightest)
         self.slots[int(index)] = slot
         if self._filled[start] == slot.steps:  # every step of the entry
-            self.sums[start] = sequence_sums(self._stacks.pop(start), shift_sign=slot.shift_sign,
-                                             phase_offset=slot.phase_offset)
+            stack = self._stacks.pop(start)
+            sums = self.sums[start] = sequence_sums(stack, shift_sign=slot.shift_sign, phase_offset=slot.phase_offset)
+            if slot.steps >= MIN_NOISE_STEPS:  # the fit's residual: the entry's phase noise (fpp.fringe_noise)
+                self.noise[start] = _entry_noise(stack, sums[2], np.hypot(sums[0], sums[1]))
 
-    def maps(self, layout: Sequence[ImageSlot], *, min_modulation: float, saturation_level: float | None):
+    def maps(self, layout: Sequence[ImageSlot], *, min_modulation: float, saturation_level: float | None,
+             max_noise_ratio: float = DEFAULT_MAX_NOISE_RATIO):
         """Wrapped phase (F, H, W), modulation (F, H, W) and validity (H, W), as :func:`scan_phase_maps` gives
         them from the stacked images; None when the images added are not ``layout`` (image ``i`` at
         ``layout[i]``: the scan's final layout), and the caller then computes the maps from the stacks."""
@@ -140,6 +160,8 @@ class IncrementalScanPhase:
             saturation_level = np.iinfo(self.brightest.dtype).max
         if saturation_level is not None:
             valid &= self.brightest < saturation_level  # no image at the saturation level
+        if max_noise_ratio > 0:
+            valid &= ~noise_outliers([self.noise.get(start) for start in starts], valid, max_noise_ratio)
         return phases, modulations, valid
 
     def background(self) -> np.ndarray | None:

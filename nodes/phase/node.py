@@ -34,6 +34,9 @@ name                    default  meaning
 ``max_pending_scans``   4        scans assembled at once; a newer one drops the oldest ("superseded")
 ``min_modulation``      5.0      smallest fringe modulation B of a valid pixel, camera digital numbers
 ``saturation_level``    0.0      a pixel with any frame ``>=`` this is invalid; 0 = the image dtype's maximum
+``max_noise_ratio``     5.0      a pixel whose phase noise, from its own fit (entries of 5 or more steps), is this
+                                 many times the scan's median or more is invalid (:mod:`dptpu.fpp.fringe_noise`);
+                                 0 = no such test
 ``shift_sign``          -1       used until a PatternSequence arrives: image n is A + B cos(phi + sign*2*pi*n/N)
 ``fringe_axis``         "x"      used until a PatternSequence arrives
 ``projector_width``     0        used until a PatternSequence arrives (0 = unknown)
@@ -45,8 +48,8 @@ name                    default  meaning
                                  without it: the phases as computed
 ======================= ======== ================================================================================
 
-``min_modulation`` and ``saturation_level`` apply from the next scan (``dptpu param set``), checked as at start-up;
-the others are read-only (``param set`` is refused; restart the node to change them).
+``min_modulation``, ``saturation_level`` and ``max_noise_ratio`` apply from the next scan (``dptpu param set``),
+checked as at start-up; the others are read-only (``param set`` is refused; restart the node to change them).
 
 Run: ``python -m dptpu.nodes.phase --ros-args -p timeout_s:=1.0``, or ``pkg: dptpu, exec: phase`` in a
 launch file. Conventions: ``docs/messages.md``; node design: ``docs/nodes.md``.
@@ -58,6 +61,7 @@ import time
 import numpy as np
 
 from dptpu.fpp.calibration import load_rig
+from dptpu.fpp.fringe_noise import DEFAULT_MAX_NOISE_RATIO
 from dptpu.fpp.scan_phase import IncrementalScanPhase, scan_phase_maps
 from dptpu.fpp.texture import texture_image
 from dptpu.graph.known_publishers import SOLE_PUBLISHER
@@ -88,6 +92,11 @@ from .sequence_assembler import (
 __all__ = ["PhaseNode", "main"]
 
 
+def _noise_ratio(value) -> str | None:
+    """The check of ``max_noise_ratio``: 0 (no test) or above 1."""
+    return None if value == 0 or value > 1 else f"must be 0 (no test) or > 1; got {value}"
+
+
 class PhaseNode(Node):
     """Fringe frames -> PhaseMaps, one per complete scan (see the module docstring).
 
@@ -103,6 +112,7 @@ class PhaseNode(Node):
         self.max_pending_scans = rules.read_only("max_pending_scans", 4, description=fixed)
         self.min_modulation = rules.settable("min_modulation", 5.0, check=at_least(0.0))
         self.saturation_level = rules.settable("saturation_level", 0.0, check=at_least(0.0))
+        self.max_noise_ratio = rules.settable("max_noise_ratio", DEFAULT_MAX_NOISE_RATIO, check=_noise_ratio)
         layout = "the layout without a PatternSequence (the projector's, when it comes, wins)"
         shift_sign = rules.read_only("shift_sign", -1, description=layout)
         fringe_axis = rules.read_only("fringe_axis", "x", description=layout)
@@ -216,11 +226,13 @@ class PhaseNode(Node):
                     if pattern_index not in sums.slots:
                         sums.add(pattern_index, image, slots[pattern_index])
                     pattern_index += 1
-            maps = sums.maps(slots, min_modulation=self.min_modulation, saturation_level=saturation)
+            maps = sums.maps(slots, min_modulation=self.min_modulation, saturation_level=saturation,
+                             max_noise_ratio=self.max_noise_ratio)
             background = sums.background()
             if maps is None:
                 maps = scan_phase_maps(scan.stacks, scan.layout.phase_offsets, shift_sign=scan.layout.shift_sign,
-                                       min_modulation=self.min_modulation, saturation_level=saturation)
+                                       min_modulation=self.min_modulation, saturation_level=saturation,
+                                       max_noise_ratio=self.max_noise_ratio)
                 background = np.mean([stack.mean(axis=0, dtype=np.float32) for stack in scan.stacks], axis=0)
             phases, modulation, valid = maps
             if self.phase_response is not None:
