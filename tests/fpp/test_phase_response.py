@@ -11,6 +11,7 @@ from dptpu.cli.main import main
 from dptpu.fpp.calibration import load_rig, save_opencv_rig, save_rig
 from dptpu.fpp.capture import read_capture
 from dptpu.fpp.phase_harmonics import HarmonicPhaseError, ProjectorPhaseResponse, remove_harmonic_phase_error
+from dptpu.fpp.phase_response_calibration import calibrate_phase_response
 from dptpu.fpp.reconstruct import unwrap_capture
 from dptpu.sim.image_formation import parse_sequences
 from dptpu.sim.render import render_capture
@@ -28,11 +29,12 @@ def _rig(*effects):
 
 @pytest.fixture(scope="module")
 def twin(tmp_path_factory):
-    """A gamma projector's 12-step plane (the calibration), its 3-step MF sphere (the scan), and the same sphere
-    through a linear projector (the noise floor); 1 DN read noise on all."""
+    """A gamma projector's 12-step and 3-step plane (the calibration), its 3-step MF sphere (the scan), and the same
+    sphere through a linear projector (the noise floor); 1 DN read noise on all."""
     root = tmp_path_factory.mktemp("response")
     gamma = {"projector_gamma": {"gamma": GAMMA}}
-    render_capture(_rig(gamma, *NOISE), load_scene("plane", _rig()), parse_sequences("16x12"), root / "cal", seed=1)
+    render_capture(_rig(gamma, *NOISE), load_scene("plane", _rig()), parse_sequences("16x12,16x3"), root / "cal",
+                   seed=1)
     render_capture(_rig(gamma, *NOISE), load_scene("sphere", _rig()), parse_sequences("16x3,1x3"), root / "scan",
                    seed=2)
     render_capture(_rig(*NOISE), load_scene("sphere", _rig()), parse_sequences("16x3,1x3"), root / "linear", seed=2)
@@ -59,6 +61,18 @@ def test_the_fitted_3_step_error_is_the_gamma_patterns_harmonics(twin):
     error = load_rig(twin / "response.yaml").phase_response.for_steps(3)
     assert error.sin_rad == pytest.approx(-first_order, rel=0.02)  # measured -0.2609
     assert abs(error.cos_rad) < 0.01 * first_order  # a gamma's harmonics are in phase with the fundamental
+
+
+def test_a_capture_calibrates_from_its_own_3_step_sequence_and_from_the_12_step_frames(twin):
+    """Steps 0, 4, 8 of the 12 and the separate 3-step sequence of the same frequency are two pairs of one fit; 4 and
+    6 steps come from the 12 alone; the first term fitted alone is the three-term fit's first term."""
+    capture = read_capture(twin / "cal")
+    fits = calibrate_phase_response([capture]).fits
+    assert sorted(fits) == [3, 4, 6] and len(fits[4].pairs) == len(fits[6].pairs) == 1
+    assert [label.split(", ")[-1] for label in fits[3].pairs] == ["3 of the 12 steps", "the 3-step sequence"]
+    assert fits[3].rms_after_rad < 0.15 * fits[3].rms_before_rad  # measured 0.187 -> 0.0174 rad over both pairs
+    alone = calibrate_phase_response([capture], steps=[3], multiples=1).fits[3].error
+    assert alone.sin_rad == pytest.approx(fits[3].error.sin_rad, abs=0.002)
 
 
 def test_the_calibrated_response_takes_the_3_step_error_of_another_scene_to_the_noise(twin):
