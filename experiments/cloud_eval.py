@@ -56,8 +56,9 @@ from dptpu.models.inference import FringeOrderModel
 from dptpu.models.refine import refine_capture_result, refine_order_and_confidence
 from dptpu.sim.diagnosis.cfpe_inputs import cfpe_pair, cfpe_phase_response
 from dptpu.sim.image_formation import SequenceSpec
+from dptpu.sim.outside_rigs import OUTSIDE_RIGS, EvalRig
 from dptpu.sim.render import render_capture
-from dptpu.sim.rig import Rig, resize_camera, wide_rig
+from dptpu.sim.rig import Rig
 from dptpu.sim.scenes.random_scene import random_scene
 
 __all__ = ["CFPE_SCENES", "GOALS", "NT_LOW_FREQUENCY", "OUTSIDE_RIGS", "PAPER_SIGMA_DN", "CloudEvalSpec", "EvalRig",
@@ -75,31 +76,6 @@ CFPE_SCENES = ("01", "04", "06", "08")
 RESPONSES = ("as captured", "compensated")
 #: Issue #16's goals: largest wrong share and smallest completeness per capture kind.
 GOALS = {"12-step": (0.0005, 0.97), "3-step 2 sigma": (0.001, 0.95), "cfpe": (0.005, float("nan"))}
-
-
-@dataclass(frozen=True)
-class EvalRig:
-    """A crossing-axes rig (:func:`dptpu.sim.rig.wide_rig`'s construction: the DLP4500 projector to the camera's left,
-    turned by ``angle_deg`` so the axes cross at ``distance_mm``; baseline ``distance_mm * tan(angle_deg)``)."""
-
-    name: str
-    focal_px: float  # camera focal length at 640x480
-    angle_deg: float
-    distance_mm: float
-
-    def rig(self, size: tuple[int, int]) -> Rig:
-        return resize_camera(wide_rig(distance_mm=self.distance_mm, angle_deg=self.angle_deg,
-                                      camera_focal_px=self.focal_px), size)
-
-    @property
-    def baseline_mm(self) -> float:
-        return self.distance_mm * math.tan(math.radians(self.angle_deg))
-
-
-#: Rigs no shipped model was trained on (training: nominal 2600 px / 6.21 deg / 800 mm and wide 1000 px / 8 deg /
-#: 700 mm): issue #16's outside rig (1800 px, 150 mm baseline, 14 deg), a long narrow one and a short wide one.
-OUTSIDE_RIGS = (EvalRig("f1800-b150-14deg", 1800.0, 14.0, 601.6), EvalRig("f1300-b79-5deg", 1300.0, 5.0, 900.0),
-                EvalRig("f2400-b164-20deg", 2400.0, 20.0, 450.0))
 
 
 @dataclass(frozen=True)

@@ -58,7 +58,7 @@ MERGE_TOLERANCE_RAD = 0.3 * np.pi
 #: Side of the window (pixels) whose circular mean residual :func:`_merged_pixels` compares with its band's when the
 #: tolerance is below :data:`MERGE_TOLERANCE_RAD` (:func:`merge_tolerance_rad`): 25 pixels average the noise of the
 #: paper's 3-step, 2 sigma inputs (0.3-0.4 rad a pixel for ``f_h/f_l`` near 8) to below a third of a 0.23 rad
-#: tolerance; 3x3 does not (measured on the outside rigs of tests/outside_rigs.py, docs/model-eval.md).
+#: tolerance; 3x3 does not (measured on the outside rigs of sim/outside_rigs.py, docs/model-eval.md).
 MERGE_WINDOW = 5
 #: The smallest split tolerance (radians) the window's mean resolves: the 5x5 mean of the residual's noise at the
 #: paper's 3-step, 2 sigma inputs is 0.06-0.08 rad for ``f_h/f_l`` near 8, so a tolerance below twice that splits

@@ -1,15 +1,15 @@
 """NT's fringe-order accuracy on rigs outside the training distribution (issue 16): classical and DP-TPU.
 
-    PYTHONPATH=. .venv/bin/python scripts/nt_outside_rigs.py [--size 320x240] [--rigs 6] [--scenes 2]
+    .venv/bin/python scripts/nt_outside_rigs.py [--size 320x240] [--rigs 6] [--scenes 2]
         [--frequencies 64,88,96] [--noise 3.1386] [--steps 3]
 
-For the outside tester's rig of issue 16 and ``--rigs`` random outside rigs (:mod:`tests.outside_rigs`: focal length,
-baseline, toe-in, projector panel and distortion drawn by a seed), ``--scenes`` scenes each (spheres before a tilted
-plane, 3x3 supersampled: mixed pixels at the depth edges), ``--steps``-step fringes at ``--noise`` DN (the paper's
-2 sigma: 3.1386) with ``f_l = 10.9``: the share of pixels (lit, modulation > 5.1 DN in both sequences) whose order
-of ``f_h`` is right, for the classical NT (:func:`dptpu.fpp.tpu.unwrap_nt`) and for DP-TPU with the shipped model
-(:func:`dptpu.models.refine.refine_order`, NT through its band prior). Prints a Markdown table (docs/model-eval.md,
-"Outside rigs (issue 16)").
+For the outside tester's rig of issue 16 and ``--rigs`` random outside rigs (:mod:`dptpu.sim.outside_rigs`: focal
+length, baseline, toe-in, projector panel and distortion drawn by a seed), ``--scenes`` scenes each (spheres before a
+tilted plane, 3x3 supersampled: mixed pixels at the depth edges), ``--steps``-step fringes at ``--noise`` DN (the
+paper's 2 sigma: 3.1386) with ``f_l = 10.9``: the share of pixels (lit, modulation > 5.1 DN in both sequences) whose
+order of ``f_h`` is right, for the classical NT (:func:`dptpu.fpp.tpu.unwrap_nt`) and for DP-TPU with the shipped
+model (:func:`dptpu.models.refine.refine_order`, NT through its band prior). Prints a Markdown table
+(docs/model-eval.md, "Outside rigs (issue 16)").
 """
 from __future__ import annotations
 
@@ -21,7 +21,7 @@ import numpy as np
 from dptpu.fpp import tpu
 from dptpu.models.inference import FringeOrderModel, shipped_model_path
 from dptpu.models.refine import refine_order
-from tests import outside_rigs
+from dptpu.sim import outside_rigs
 
 F_L = 10.9
 MIN_MODULATION_DN = 5.1

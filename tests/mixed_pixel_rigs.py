@@ -9,8 +9,9 @@ camera digital numbers, before 8-bit quantization.
 
 :func:`render` returns the frames and the truth: per pixel the projector coordinate and depth of the centre ray, a
 ``pure`` mask (every sub-pixel ray hits one object, lit by the projector) and :meth:`MixedPixelScene.distance_mm`,
-the distance of any 3-D point to the nearest true surface. Nothing here shares code with ``dptpu.sim`` (an
-independent renderer to test against).
+the distance of any 3-D point to the nearest true surface. The renderer shares no code with ``dptpu.sim`` (an
+independent renderer to test against); the rig (``OutsideRig``, :class:`dptpu.sim.outside_rigs.MixedPixelRig`)
+lives with the other outside rigs.
 """
 from __future__ import annotations
 
@@ -18,33 +19,11 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from dptpu.fpp.rig_model import DeviceModel, Rig
+from dptpu.fpp.rig_model import Rig
+from dptpu.sim.outside_rigs import MIXED_PIXEL_PROJECTOR_SIZE as PROJECTOR_SIZE
+from dptpu.sim.outside_rigs import MixedPixelRig as OutsideRig
 
-PROJECTOR_SIZE = (912, 1140)
-
-
-@dataclass(frozen=True)
-class OutsideRig:
-    """Camera and projector geometry (mm, pixels); see the module docstring."""
-
-    camera_size: tuple[int, int] = (160, 120)
-    camera_focal_px: float = 600.0
-    projector_focal_px: float = 1400.0
-    baseline_mm: float = 150.0
-    toe_in_deg: float = 14.0
-    distance_mm: float = 600.0  # the plane's distance along the camera axis
-
-    def rig(self) -> Rig:
-        w, h = self.camera_size
-        camera = DeviceModel(K=[[self.camera_focal_px, 0, (w - 1) / 2], [0, self.camera_focal_px, (h - 1) / 2],
-                                [0, 0, 1]], dist=np.zeros(5), R=np.eye(3), T=np.zeros(3), size=(w, h))
-        a = np.deg2rad(self.toe_in_deg)
-        R = np.array([[np.cos(a), 0.0, np.sin(a)], [0.0, 1.0, 0.0], [-np.sin(a), 0.0, np.cos(a)]])
-        centre = np.array([self.baseline_mm, 0.0, 0.0])
-        pw, ph = PROJECTOR_SIZE
-        projector = DeviceModel(K=[[self.projector_focal_px, 0, (pw - 1) / 2], [0, self.projector_focal_px,
-                                   (ph - 1) / 2], [0, 0, 1]], dist=np.zeros(5), R=R, T=-R @ centre, size=(pw, ph))
-        return Rig(camera=camera, projector=projector, units="mm")
+__all__ = ["PROJECTOR_SIZE", "MixedPixelCapture", "MixedPixelScene", "OutsideRig", "default_scene", "render"]
 
 
 @dataclass(frozen=True)

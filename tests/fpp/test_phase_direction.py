@@ -8,8 +8,8 @@ import pytest
 
 from dptpu.fpp.phase_direction import phase_direction_vote
 from dptpu.fpp.tpu import unwrap_mf
+from dptpu.sim.outside_rigs import SIGMA_2, issue16_rig, random_outside_rig, render_phases, spheres_and_plane
 from dptpu.sim.raycast import trace
-from tests.outside_rigs import SIGMA_2, issue16_rig, random_outside_rig, render_phases, spheres_and_plane
 
 RIGS = [pytest.param(lambda: issue16_rig(), id="issue16"),
         *(pytest.param(lambda seed=seed: random_outside_rig(seed), id=f"random{seed}") for seed in range(3))]

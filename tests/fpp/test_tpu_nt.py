@@ -11,7 +11,7 @@ import pytest
 from scipy.special import ndtr
 
 from dptpu.fpp import phase, tpu
-from tests import outside_rigs
+from dptpu.sim import outside_rigs
 
 EXTENT_PX = 912.0  # the paper's 912 px projector
 F_H, F_L = 64, 10.9  # the paper's NT pair

@@ -21,7 +21,7 @@ from dptpu.models.nt_prior import (
 )
 from dptpu.models.refine import refine_order
 from dptpu.models.toy_dataset import toy_sample
-from tests import outside_rigs
+from dptpu.sim import outside_rigs
 
 TWO_PI = 2.0 * np.pi
 EXTENT_PX = 912.0

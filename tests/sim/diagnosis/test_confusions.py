@@ -17,12 +17,12 @@ import pytest
 
 from dptpu.sim.diagnosis import diagnose
 from dptpu.sim.image_formation import SequenceSpec
+from dptpu.sim.outside_rigs import outside_rig
 from dptpu.sim.render import render_capture
 from dptpu.sim.rig import load_twin_rig
 from dptpu.sim.scene_mesh import Material
 from dptpu.sim.scenes import load_scene
 from dptpu.sim.scenes.builtin import plane_scene, sphere_scene
-from tests.outside_rigs import outside_rig
 
 from .hidden import render_measured
 

@@ -19,9 +19,9 @@ from dptpu.sim.diagnosis.registration import register_robust
 from dptpu.sim.diagnosis.report import write_report
 from dptpu.sim.effects.calibration import miscalibrated_rig
 from dptpu.sim.image_formation import SequenceSpec
+from dptpu.sim.outside_rigs import outside_rig
 from dptpu.sim.render import render_capture
 from dptpu.sim.scenes import load_scene
-from tests.outside_rigs import outside_rig
 
 SEQUENCES = [SequenceSpec(96, 12), SequenceSpec(1, 12)]
 SPHERE = "sphere:50.8082"

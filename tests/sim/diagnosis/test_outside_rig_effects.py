@@ -13,10 +13,10 @@ import pytest
 
 from dptpu.sim.diagnosis import diagnose
 from dptpu.sim.image_formation import SequenceSpec
+from dptpu.sim.outside_rigs import random_outside_rig
 from dptpu.sim.render import render_capture
 from dptpu.sim.rig import working_point
 from dptpu.sim.scenes.builtin import plane_scene, sphere_scene
-from tests.outside_rigs import random_outside_rig
 
 from .hidden import MAIN, hidden_effect, relative_error
 

@@ -1,5 +1,5 @@
 """pixel_footprint: the integration over a pixel's area and the lens blur (analytic), and the effect hidden in a
-phase file from an outside rig (tests/outside_rigs.py), found on the edge band with its blur within 20 % and
+phase file from an outside rig (sim/outside_rigs.py), found on the edge band with its blur within 20 % and
 told from camera_defocus (the clean control of the same rig: tests/sim/diagnosis/test_hidden_calibration.py)."""
 import numpy as np
 import pytest
@@ -12,9 +12,9 @@ from dptpu.sim.diagnosis.registration import register_robust
 from dptpu.sim.effects import parse_effects
 from dptpu.sim.effects.footprint import integrate_footprint
 from dptpu.sim.image_formation import SequenceSpec
+from dptpu.sim.outside_rigs import outside_rig
 from dptpu.sim.render import render_capture
 from dptpu.sim.scenes import load_scene
-from tests.outside_rigs import outside_rig
 
 SEQUENCES = [SequenceSpec(96, 12), SequenceSpec(1, 12)]
 
