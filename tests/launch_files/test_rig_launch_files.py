@@ -126,3 +126,12 @@ def test_every_rig_gives_the_cloud_the_mount_file_identity_by_default(name, tmp_
     (cloud,) = [node.command for node in load_launch_file(str(LAUNCH_DIR / name), {"mount": str(measured)}).nodes
                 if node.label == "cloud"]
     assert cloud[cloud.index(str(measured)) - 1] == "--params-file"
+
+
+@pytest.mark.parametrize("name", RIGS)
+def test_every_rig_gives_the_phase_node_the_cloud_nodes_rig_file(name):
+    """The phase node applies the rig file's projector.phase_response (dptpu calibrate response): the same file as
+    the cloud's, so a calibrated response reaches every scan."""
+    commands = {node.label: node.command for node in load_launch_file(str(LAUNCH_DIR / name), {}).nodes}
+    rigs = [[arg for arg in commands[label] if arg.startswith("rig:=")] for label in ("phase", "cloud")]
+    assert len(rigs[0]) == 1 and rigs[0] == rigs[1]
