@@ -176,3 +176,21 @@ def test_calibrate_response_needs_a_12_step_reference(twin, capsys):
     err = capsys.readouterr().err
     assert code == 2 and "no phase sequence of 12 or more steps to calibrate against" in err
     assert "16 x 3, 1 x 3" in err and not (twin / "never.yaml").exists()
+
+
+@pytest.mark.parametrize("args, message", [
+    (["--steps", "three"], "--steps must be step counts such as 3 or 3,4; got 'three'"),
+    (["--steps", "2"], "--steps must be step counts >= 3; got '2'"),
+    (["--steps", "5"], "no capture provides 5-step phases beside a reference of 12+ steps (available: 3, 4, 6)"),
+    (["--board", "10x8:13"], "--twin and --board belong to the rig calibration; 'response' takes capture folders"),
+])
+def test_calibrate_response_refuses_bad_options_in_one_line(twin, tmp_path, capsys, args, message):
+    code = main(["calibrate", "response", str(twin / "cal"), "--out", str(tmp_path / "rig.yaml"), *args])
+    err = capsys.readouterr().err
+    assert code == 2 and message in err and len(err.strip().splitlines()) == 1
+    assert not (tmp_path / "rig.yaml").exists()
+
+
+def test_a_rig_calibration_still_needs_its_board(tmp_path, capsys):
+    assert main(["calibrate", str(tmp_path), "--out", str(tmp_path / "rig.yaml")]) == 2
+    assert "--board COLSxROWS:SQUARE_MM is required" in capsys.readouterr().err
