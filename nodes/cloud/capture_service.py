@@ -21,6 +21,7 @@ name                             kind             meaning
 """
 from __future__ import annotations
 
+from collections.abc import Callable
 from pathlib import Path
 
 from dptpu.graph.interfaces import Trigger as TriggerService
@@ -58,7 +59,8 @@ class CaptureAndSave:
         self.save_frames = rules.read_only("save_frames", True, description="sets the frame subscription up")
         self.frames = RecentScanFrames(kept_scans=3)
         self.layout: PatternSequence | None = None
-        self._last: tuple[int, PointCloud2, str] | None = None  # (sequence_id, cloud, fringe axis)
+        # (sequence_id, the cloud or what makes it, fringe axis)
+        self._last: tuple[int, PointCloud2 | Callable[[], PointCloud2], str] | None = None
         self.saved = 0
         self.subscriptions = []
         if self.save_frames:
@@ -70,8 +72,9 @@ class CaptureAndSave:
                                          LATCHED_QOS)]
         self.service = node.create_service(TriggerService, "~/capture_and_save", self.on_request)
 
-    def keep(self, sequence_id: int, cloud: PointCloud2, fringe_axis: str) -> None:
-        """The cloud node published scan ``sequence_id``'s ``cloud``: it is the one a request saves."""
+    def keep(self, sequence_id: int, cloud: PointCloud2 | Callable[[], PointCloud2], fringe_axis: str) -> None:
+        """The cloud node published scan ``sequence_id``'s ``cloud``: it is the one a request saves (a callable
+        makes it when asked: a cloud published from a loaned segment is not kept itself)."""
         self._last = (int(sequence_id), cloud, fringe_axis)
 
     def on_request(self, request, response):
@@ -79,7 +82,8 @@ class CaptureAndSave:
         if self._last is None:
             response.success, response.message = False, "no scan to save yet: no cloud was published"
             return response
-        sequence_id, cloud, fringe_axis = self._last
+        sequence_id, kept, fringe_axis = self._last
+        cloud = kept() if callable(kept) else kept
         frames = self.frames.frames(sequence_id)
         folder = Path(self.save_dir) / f"scan_{sequence_id:08d}"
         try:

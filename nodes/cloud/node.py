@@ -376,10 +376,23 @@ class CloudNode(Node):
             organized_normals(planes.transpose(1, 2, 0), window_px=self.normal_window_px,
                               out=normals.transpose(1, 2, 0))
             channels += list(normals)
-        cloud = cv2.merge(channels)  # (H, W, 9) float32 (6 without normals), one interleaving pass
-        cloud_msg = PointCloud2.from_array(cloud, cloud_fields(self.normals), header=header, is_dense=False)
+        fields = cloud_fields(self.normals)
+        # (H, W, 9) float32 (6 without normals) filled in place in a loaned shared-memory segment, published without
+        # a copy (plain memory where there is no shared memory)
+        (cloud,) = self.points_publisher.borrow_loaned_arrays([((*shape, len(channels)), np.float32)])
+        try:
+            cv2.merge(channels, dst=cloud)  # one interleaving pass
+            cloud_msg = PointCloud2.from_array(cloud, fields, header=header, is_dense=False)
+        except BaseException:
+            self.points_publisher.return_loaned_arrays([cloud])
+            raise
         self.points_publisher.publish(cloud_msg)
-        self.capture.keep(msg.sequence_id, cloud_msg, msg.fringe_axis)  # what ~/capture_and_save writes
+        # the loaned segment is rewritten once the subscribers are done with it: ~/capture_and_save keeps what the
+        # cloud is made of (this scan's own planes; copies of the texture and modulation, views of received
+        # messages whose segments go back too) and makes it again when asked
+        kept = [*channels[:3], channels[3].copy(), channels[4].copy(), *channels[5:]]
+        self.capture.keep(msg.sequence_id, lambda: PointCloud2.from_array(cv2.merge(kept), fields, header=header,
+                                                                          is_dense=False), msg.fringe_axis)
         depth_m = planes[2]  # (H, W) metres
         camera_info = self._camera_info(header)
         self.depth_publisher.publish(Image.from_array(depth_m, "32FC1", header=header))
