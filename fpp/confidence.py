@@ -76,7 +76,9 @@ def network_confidence(continuous: np.ndarray, order: np.ndarray, prior_order: n
     confidence = np.maximum(own, prior)
     confidence = np.where(valid & np.isfinite(confidence), confidence, 0.0)
     if wrapped_high is not None:
-        support = neighbour_support(order, wrapped_high, valid, confidence, radius=SUPPORT_RADIUS)
+        # only where the support can raise the confidence (a pixel at 1 keeps 1)
+        support = neighbour_support(order, wrapped_high, valid, confidence, radius=SUPPORT_RADIUS,
+                                    where=confidence < 1.0)
         confidence = np.maximum(confidence, np.clip(2.0 * support - 1.0, 0.0, 1.0))
     return np.where(valid, confidence, 0.0).astype(np.float32)
 

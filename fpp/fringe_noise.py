@@ -28,6 +28,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 
+import cv2
 import numpy as np
 
 __all__ = ["DEFAULT_MAX_NOISE_RATIO", "MIN_NOISE_STEPS", "fit_residual", "noise_outliers", "phase_noise"]
@@ -54,10 +55,23 @@ def fit_residual(images: np.ndarray, background: np.ndarray, modulation: np.ndar
     images = np.asarray(images)
     if images.ndim != 3 or images.shape[0] < 3:
         raise ValueError(f"images must be an (N, H, W) stack with N >= 3; got shape {images.shape}")
-    mean_square = np.einsum("nhw,nhw->hw", images, images, dtype=np.float64) / images.shape[0]
+    mean_square = _sum_of_squares(images) / images.shape[0]
     a = np.asarray(background, dtype=np.float64)
     b = np.asarray(modulation, dtype=np.float64)
     return np.sqrt(np.maximum(mean_square - a * a - 0.5 * b * b, 0.0)).astype(np.float32)
+
+
+def _sum_of_squares(images: np.ndarray) -> np.ndarray:
+    """``sum_n I_n^2`` (H, W) float64. OpenCV's accumulator for the camera's dtypes (exact in float32 for 8-bit frames
+    of up to 258 steps, float64 otherwise), numpy for the others."""
+    if images.dtype in (np.uint8, np.uint16, np.float32, np.float64):
+        exact32 = images.dtype == np.uint8 and images.shape[0] <= 258  # 258 * 255^2 < 2^24
+        total = np.zeros(images.shape[1:], np.float32 if exact32 else np.float64)
+        for image in images:
+            cv2.accumulateSquare(np.ascontiguousarray(image), total)
+        return total.astype(np.float64, copy=False)
+    as_float = images.astype(np.float64)
+    return np.einsum("nhw,nhw->hw", as_float, as_float)
 
 
 def phase_noise(residual: np.ndarray, modulation: np.ndarray, steps: int) -> np.ndarray | None:

@@ -63,8 +63,8 @@ def phase_gradient(wrapped: np.ndarray, valid: np.ndarray,
 
 
 def neighbour_support(order: np.ndarray, wrapped: np.ndarray, valid: np.ndarray, confidence: np.ndarray, *,
-                      radius: int = DEFAULT_SUPPORT_RADIUS,
-                      tolerance: float = DEFAULT_SUPPORT_TOLERANCE) -> np.ndarray:
+                      radius: int = DEFAULT_SUPPORT_RADIUS, tolerance: float = DEFAULT_SUPPORT_TOLERANCE,
+                      where: np.ndarray | None = None) -> np.ndarray:
     """Support ``(H, W)`` float32 in ``[0, 1]`` of each valid pixel's ``order`` by its neighbours (module docstring).
 
     ``sum_q agree(q, p) c_q / n_p`` over the valid neighbours ``q`` of the ``(2 radius + 1)^2`` window (``n_p`` of
@@ -80,6 +80,9 @@ def neighbour_support(order: np.ndarray, wrapped: np.ndarray, valid: np.ndarray,
     valid : ndarray (H, W) bool
     confidence : ndarray (H, W)
         Each pixel's own confidence (without neighbour support).
+    where : ndarray (H, W) bool, optional
+        Pixels to compute (0 elsewhere); default every valid one. The pixels are gathered by flat index, so the cost
+        is that of ``where``'s pixels (a caller that needs the support only below some confidence passes those).
     """
     if radius < 1 or not 0.0 < tolerance <= 0.5:
         raise ValueError(f"neighbour_support needs radius >= 1 and tolerance in (0, 0.5]; got {radius}, {tolerance}")
@@ -87,21 +90,34 @@ def neighbour_support(order: np.ndarray, wrapped: np.ndarray, valid: np.ndarray,
     psi = np.where(valid, wrapped, 0.0)
     absolute = np.where(valid, np.asarray(order, dtype=np.float64) + psi / (2.0 * np.pi), np.nan)  # U, periods
     weight = np.where(valid, np.clip(np.nan_to_num(np.asarray(confidence, dtype=np.float64)), 0.0, 1.0), 0.0)
+    support = np.zeros(absolute.shape, np.float32)
+    todo = valid if where is None else valid & np.asarray(where, dtype=bool)
+    pixels = np.flatnonzero(todo)
+    if pixels.size == 0:
+        return support
     gy, gx = phase_gradient(psi, valid)
-    height, width = absolute.shape
-    padded = np.pad(absolute, radius, constant_values=np.nan)
-    padded_weight = np.pad(weight, radius)
-    agreeing = np.zeros((height, width), np.float64)
-    neighbours = np.zeros((height, width), np.int32)
+    size = (2 * radius + 1, 2 * radius + 1)
+    neighbours = cv2.boxFilter(valid.astype(np.float32), -1, size, normalize=False,
+                               borderType=cv2.BORDER_CONSTANT) - 1.0  # valid ones, p excluded (p is valid)
+    width = absolute.shape[1]
+    padded_width = width + 2 * radius
+    rows, cols = np.divmod(pixels, width)
+    centre = (rows + radius) * padded_width + cols + radius  # flat indices into the padded maps
+    padded = np.pad(absolute.astype(np.float32), radius, constant_values=np.nan).ravel()
+    padded_weight = np.pad(weight.astype(np.float32), radius).ravel()
+    own = absolute.ravel()[pixels].astype(np.float32)
+    grad_y, grad_x = gy.ravel()[pixels], gx.ravel()[pixels]
+    agreeing = np.zeros(pixels.size, np.float32)
+    difference = np.empty(pixels.size, np.float32)
     with np.errstate(invalid="ignore"):
         for dy in range(-radius, radius + 1):
             for dx in range(-radius, radius + 1):
                 if dy == 0 and dx == 0:
                     continue
-                other = padded[radius + dy:radius + dy + height, radius + dx:radius + dx + width]
-                agree = np.abs(other - (absolute + gy * dy + gx * dx)) < tolerance
-                neighbours += np.isfinite(other)
-                agreeing += np.where(agree, padded_weight[radius + dy:radius + dy + height,
-                                                          radius + dx:radius + dx + width], 0.0)
-    support = agreeing / np.maximum(neighbours, 1)
-    return np.where(valid, support, 0.0).astype(np.float32)
+                shift = centre + (dy * padded_width + dx)
+                # U_q - G_p . (q - p) - U_p, periods (NaN for an invalid q: never agrees)
+                np.subtract(padded[shift], own, out=difference)
+                difference -= grad_y * dy + grad_x * dx
+                agreeing += np.where(np.abs(difference) < tolerance, padded_weight[shift], 0.0)
+    support.ravel()[pixels] = agreeing / np.maximum(neighbours.ravel()[pixels], 1.0)
+    return support
