@@ -25,6 +25,7 @@ import numpy as np
 
 from dptpu.fpp.confidence import network_confidence
 from dptpu.fpp.frequency_consistency import frequency_consistency
+from dptpu.fpp.low_period_disputes import low_period_disputes
 from dptpu.fpp.methods import TWO_FREQUENCY_METHODS
 
 from .consensus import consensus_order
@@ -147,7 +148,9 @@ def refine_order_and_confidence(model: FringeOrderModel, method: str, psi_h, psi
     The confidence is the smaller of :func:`dptpu.fpp.confidence.network_confidence` (the network's continuous
     output, its prior and its neighbours' support of the published order) and
     :func:`dptpu.fpp.frequency_consistency.frequency_consistency` (the low frequency's phase against the published
-    absolute phase), 0 where not ``valid``. Parameters as :func:`refine_order`'s.
+    absolute phase), 0 where not ``valid``. NT: 0 also on the solid patches where the order and ``classical_order``
+    (the per-pixel lookup) differ by one low period (:func:`dptpu.fpp.low_period_disputes.low_period_disputes`: a
+    band the prior gave the other low order). Parameters as :func:`refine_order`'s.
     """
     if method not in REFINABLE_METHODS or not model.serves(method):
         raise ValueError(f"the model {model.path} (trained for {', '.join(model.trained_methods)}) does not refine "
@@ -168,7 +171,12 @@ def refine_order_and_confidence(model: FringeOrderModel, method: str, psi_h, psi
     confidence = network_confidence(continuous, order, classical, mask, wrapped_high=np.where(mask, psi_h, 0.0))
     absolute = np.asarray(psi_h, dtype=np.float64) + 2.0 * np.pi * order  # Eq. (3)
     consistency = frequency_consistency(absolute, psi_l, f_h, f_l, mask)
-    return order, np.minimum(confidence, consistency)
+    confidence = np.minimum(confidence, consistency)
+    if method == "nt":  # a band whose prior took the other low order than the per-pixel lookup, solidly: no confidence
+        both = valid if classical_valid is None else valid & np.asarray(classical_valid, dtype=bool)
+        disputed = low_period_disputes(order, np.asarray(classical_order), f_h / f_l, both)
+        confidence = np.where(disputed, np.float32(0.0), confidence)
+    return order, confidence
 
 
 def _continuous_order(model: FringeOrderModel, psi_h, wrapped_low, coarse, f_h: float,
