@@ -56,6 +56,7 @@ from __future__ import annotations
 from collections import deque
 
 from dptpu.fpp.calibration import load_rig
+from dptpu.graph.known_publishers import SOLE_PUBLISHER
 from dptpu.graph.node import Node
 from dptpu.graph.parameter_rules import ParameterRules, at_least, frame_id
 from dptpu.messages import CameraInfo, FringeFrame, Header, Image, ScanStatus, Time, Trigger
@@ -101,7 +102,8 @@ class CameraNode(Node):
         self.image_pub = self.create_publisher(FringeFrame, "/camera/image_raw", 30)
         self.info_pub = self.create_publisher(CameraInfo, "/camera/camera_info", LATCHED_QOS)
         self.status_pub = self.create_publisher(ScanStatus, "/scanner/status", 20)
-        self.trigger_sub = self.create_subscription(Trigger, "/projector/trigger", self.on_trigger, 100)
+        self.trigger_sub = self.create_subscription(Trigger, "/projector/trigger", self.on_trigger, 100,
+                                                    publishers=SOLE_PUBLISHER)  # a stranger's Triggers: refused
 
         self.frames_published = 0
         self.timeouts = 0

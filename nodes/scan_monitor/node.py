@@ -100,7 +100,7 @@ import dptpu.graph as rclpy
 from dptpu.fpp.cloud_accuracy import OFF_SURFACE_MM
 from dptpu.fpp.point_cloud_file import write_point_cloud
 from dptpu.graph.interfaces import Trigger as TriggerService
-from dptpu.graph.known_publishers import KnownPublishers
+from dptpu.graph.known_publishers import SOLE_PUBLISHER, KnownPublishers
 from dptpu.graph.node import Node
 from dptpu.graph.parameter_rules import ParameterRules, at_least, greater_than, within
 from dptpu.graph.qos import QoSProfile
@@ -289,7 +289,8 @@ class ScanMonitorNode(Node):
                 and all(sub is None or sub.get_publisher_count() for sub in (self.phase_sub, self.truth_sub)):
             self._outputs_ready = True
             if self.trigger_latency:
-                self.trigger_sub = self.create_subscription(Trigger, self._trigger_topic, self.on_trigger, 200)
+                self.trigger_sub = self.create_subscription(Trigger, self._trigger_topic, self.on_trigger, 200,
+                                                            publishers=SOLE_PUBLISHER)  # made-up scans: refused
             self.get_logger().info("clouds, statuses" + (", absolute phase and ground truth" if self.use_truth else "")
                                    + " have publishers" + (": taking Triggers" if self.trigger_latency else ""))
         now_s = time.monotonic()

@@ -206,7 +206,8 @@ class SimNode(Node):
         if self.image_pub.get_subscription_count() < self.min_subscribers:
             return
         self.wait_timer.cancel()
-        self.trigger_sub = self.create_subscription(Trigger, "/projector/trigger", self.on_trigger, 200)
+        self.trigger_sub = self.create_subscription(Trigger, "/projector/trigger", self.on_trigger, 200,
+                                                    publishers=SOLE_PUBLISHER)  # a stranger's Triggers: refused
         self.get_logger().info("frames have subscribers: taking Triggers")
 
     def on_pattern_sequence(self, msg: PatternSequence) -> None:

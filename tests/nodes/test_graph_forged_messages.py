@@ -6,12 +6,16 @@
   clouds);
 - a CameraInfo of another size, from a second node (before: every scan failed);
 - a flood of ScanStatus messages of made-up scans, from a node the monitor does not know (before: they ended a
-  ``scans:=N`` launch early as LOST scans).
+  ``scans:=N`` launch early as LOST scans);
+- copies of real Triggers for the scans to come and for a made-up one, from a second node (before: the sim
+  rendered the scans' patterns twice, over two scenes, and a scan came out UNTRUSTED with half its points off the
+  surface or FAILED as superseded; a hardware rig's camera would have paired frames with them; the monitor took
+  the made-up scan for one of its own).
 
 Each forged publisher is refused and logged by name (``dptpu.graph.known_publishers``), the forged sequence number
 is logged as out of sequence (``dptpu.graph.sequence_tracking``), and the scans that follow are correct.
 
-``DPTPU_FORGE`` (comma separated, default all of ``sequence,pattern,info,status``) sends only some of them: how
+``DPTPU_FORGE`` (comma separated, default all of ``sequence,pattern,info,status,trigger``) sends only some of them: how
 docs/reliability.md shows each one alone failing this test on the code before issue 19.
 """
 from __future__ import annotations
@@ -26,7 +30,7 @@ import zmq
 
 from dptpu.graph.discovery import get_graph
 from dptpu.graph.transport import pack_envelope
-from dptpu.messages import CameraInfo, FringeFrame, PatternSequence, ScanStatus, decode, encode
+from dptpu.messages import CameraInfo, FringeFrame, PatternSequence, ScanStatus, Trigger, decode, encode
 from dptpu.nodes.plumbing import LATCHED_QOS
 from tests.nodes.conftest import TEST_DOMAIN_ID
 from tests.nodes.fault_matrix import IN_A_ROW, correct, start_rig
@@ -34,7 +38,8 @@ from tests.nodes.test_graph_faults import _announce_raw_publisher
 
 FAKE_IDS = range(1_000_000, 1_003_000)
 FORGED_SCAN = 999_999  # the forged frame's scan, one that never was (a real scan's id would make it a duplicate)
-FORGERIES = ("sequence", "pattern", "info", "status")
+FORGED_TRIGGER_SCAN = 7_777_777  # a made-up scan only forged Triggers name
+FORGERIES = ("sequence", "pattern", "info", "status", "trigger")
 
 
 def _publisher_gid(domain_dir: Path, node: str, topic: str) -> bytes:
@@ -76,6 +81,7 @@ def test_forged_sequence_configuration_and_statuses_neither_stop_nor_fool_the_sc
     captured: list = []
     sequences = probe.subscribe(PatternSequence, "/projector/pattern_sequence", qos=LATCHED_QOS)
     infos = probe.subscribe(CameraInfo, "/camera/camera_info", qos=LATCHED_QOS)
+    triggers = probe.subscribe(Trigger, "/projector/trigger", qos=500)
     run = start_rig(node_env, tmp_path)
     context = zmq.Context()
     sock = context.socket(zmq.XPUB)
@@ -100,6 +106,14 @@ def test_forged_sequence_configuration_and_statuses_neither_stop_nor_fool_the_sc
                                               node="/phase", reason="forged"))
                 if sequence_id % 100 == 0:
                     time.sleep(0.01)
+        if "trigger" in forge:  # 5. real Triggers copied for the next scans and a made-up one, from a second node
+            real = {t.pattern_index: t for t in list(triggers.messages)[-48:]}  # one scan's patterns
+            trigger_pub = probe.publisher(Trigger, "/projector/trigger", 200)
+            time.sleep(1.0)  # the sim and the monitor have seen the new publisher (and refused it)
+            latest = max(s[0] for s in run.scans())
+            for sequence_id in [*range(latest + 2, latest + 8), FORGED_TRIGGER_SCAN]:
+                for trigger in real.values():
+                    trigger_pub.publish(dataclasses.replace(trigger, sequence_id=sequence_id))
 
         def recovered(lines) -> bool:
             after = [s for s in run.scans() if s[0] > before + 1]
@@ -116,14 +130,16 @@ def test_forged_sequence_configuration_and_statuses_neither_stop_nor_fool_the_sc
     after = [s for s in run.scans() if s[0] > before + 1 and s[0] != FORGED_SCAN]  # (the scan in flight may go)
     assert all(correct(line, outcome) for _id, _scene, outcome, line in after), "\n".join(s[3] for s in after)
     assert not [s for s in run.scans() if s[0] == FORGED_SCAN and s[2] == "ok"]  # one frame makes no scan
-    assert not [s for s in run.scans() if s[0] in FAKE_IDS]  # no made-up scan reported, none counted
+    assert not [s for s in run.scans() if s[0] in FAKE_IDS or s[0] == FORGED_TRIGGER_SCAN]  # none made up counted
     if "sequence" in forge:
         assert any(line.startswith("[phase]") and "4611686018427387904 was out of this publisher's sequence" in line
                    for line in run.lines), text  # 2**62, noticed by the phase node and let go
     for node, topic, forgery in (("phase", "/projector/pattern_sequence", "pattern"),
                                  ("sim", "/projector/pattern_sequence", "pattern"),
                                  ("cloud", "/camera/camera_info", "info"), ("unwrap", "/camera/camera_info", "info"),
-                                 ("scan_monitor", "/scanner/status", "status")):
+                                 ("scan_monitor", "/scanner/status", "status"),
+                                 ("sim", "/projector/trigger", "trigger"),
+                                 ("scan_monitor", "/projector/trigger", "trigger")):
         assert forgery not in forge or any(
             line.startswith(f"[{node}]") and f"refusing the publisher of {topic} of node /probe" in line
             for line in run.lines), f"{node} did not refuse the forged {topic}:\n{run.text(200)}"
