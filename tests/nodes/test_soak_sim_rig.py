@@ -3,8 +3,10 @@
 The test runs ``DPTPU_SOAK_SCANS`` scans (default the full 1,000: about 80 s on the shared 2-core build machine,
 under the brief's 3 minutes; set e.g. ``DPTPU_SOAK_SCANS=200`` for a quicker run; figures in docs/scanner.md) at
 160x120 with two scans in flight. Every node's ``VmRSS`` is sampled twice a second; the bound is the brief's: after
-the warm-up (the first fifth of the scans) no process grows by more than 10 % (median of the first three samples
-after the warm-up against the median of the last three); ``DPTPU_SOAK_GROWTH`` sets another. Issue 19's soak, 5,000
+the warm-up (the first fifth of the scans) no process grows by more than 10 % (median of the first tenth of the
+samples after the warm-up against the median of the last tenth, at least three each: the scan monitor gives freed
+memory back, so its resident size follows the messages it holds at the moment, +-1 MB); ``DPTPU_SOAK_GROWTH`` sets
+another. Issue 19's soak, 5,000
 scans within 1 %, is ``DPTPU_SOAK_SCANS=5000 DPTPU_SOAK_GROWTH=0.01`` (``-s`` prints the per-process figures;
 docs/reliability.md).
 """
@@ -14,6 +16,8 @@ import json
 import os
 import threading
 import time
+
+import numpy as np
 
 from tests.launch_files.running import SIM_RIG, LaunchRun, rss_kib
 from tests.nodes.test_graph_sim_rig import SMALL
@@ -51,9 +55,10 @@ def test_soak_no_resident_memory_growth_after_warm_up(node_env, tmp_path):
     totals = json.loads(summary.read_text())["totals"]
     warm = [rss for count, rss in samples if count >= SCANS // 5]
     assert len(warm) >= 4, f"only {len(warm)} samples after warm-up"
-    # medians of three samples, so one sample taken mid-allocation does not decide
-    baseline = {name: sorted(rss[name] for rss in warm[:3])[1] for name in NODES}
-    final = {name: sorted(rss[name] for rss in warm[-3:])[1] for name in NODES}
+    # medians of a tenth of the samples (at least three), so what a node holds at one moment does not decide
+    tenth = max(3, len(warm) // 10)
+    baseline = {name: int(np.median([rss[name] for rss in warm[:tenth]])) for name in NODES}
+    final = {name: int(np.median([rss[name] for rss in warm[-tenth:]])) for name in NODES}
     growth = {name: (final[name] - baseline[name]) / baseline[name] for name in NODES}
     fifths = [warm[round(i * (len(warm) - 1) / 4)] for i in range(5)]  # the curve: a leak grows, a heap settles
     print("\nRSS (KiB) over the run after the warm-up, in fifths:\n" + "\n".join(
