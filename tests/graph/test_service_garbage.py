@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import os
+import socket
 import time
 import uuid
 
@@ -63,3 +64,36 @@ def test_garbage_requests_are_counted_and_the_next_real_request_is_answered(spaw
     finally:
         sock.close(linger=0)
         context.term()
+
+
+def test_raw_bytes_and_idle_connections_on_the_socket_file_leave_the_service_answering(spawn, domain_dir):
+    node = spawn("param_node")
+    node.wait_event("ready")
+    endpoint = _service_endpoint(domain_dir, "/param_node")
+    assert endpoint.startswith("ipc://")
+    raw = []
+    try:
+        for index in range(30):  # not ZMTP at all, a greeting-like prefix with garbage, and silent connections
+            connection = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
+            connection.connect(endpoint[len("ipc://"):])
+            if index % 3 == 0:
+                connection.sendall(os.urandom(65536))
+            elif index % 3 == 1:
+                connection.sendall(b"\xff" + bytes(8) + b"\x7f" + os.urandom(200))
+            raw.append(connection)
+        context = zmq.Context()
+        sock = context.socket(zmq.DEALER)
+        sock.setsockopt(zmq.LINGER, 0)
+        try:
+            sock.connect(endpoint)
+            sock.send_multipart(encode("/param_node/report", Trigger.Request())
+                                + [pack_envelope(FLAG_REQUEST, 1, time.time_ns(), uuid.uuid4().bytes)])
+            flags, frames = _answer(sock, 1)  # answered while 30 broken or silent connections are open
+            assert not flags & FLAG_ERROR
+            assert decode(frames[:-1], expected_type=Trigger.Response)[1].success
+        finally:
+            sock.close(linger=0)
+            context.term()
+    finally:
+        for connection in raw:
+            connection.close()
