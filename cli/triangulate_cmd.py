@@ -93,7 +93,7 @@ def run(args: argparse.Namespace) -> int:
         per_px = depth_per_pixel(x_p, camera_depth, capture.fringe_axis, depth=depth)
         edges = edge_points(depth, focal_px, result.modulation, lit=result.valid, depth_per_px=per_px,
                             max_edge_error=DEFAULT_MAX_EDGE_ERROR_MM * 1e-3 / rig.scale_to_m,
-                            max_slope=args.max_edge_slope)
+                            axis=capture.fringe_axis, max_slope=args.max_edge_slope)
         counts = edges.counts(keep)
         keep &= ~edges.dropped
         edges_note = (f"{counts['total']} points at depth edges dropped ({counts['flying']} flying, "

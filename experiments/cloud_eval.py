@@ -181,7 +181,7 @@ def published_cloud(result: CaptureResult, rig: Rig, extent_px: int, axis: str, 
         per_px = depth_per_pixel(x_p, camera_depth, axis, depth=depth)
         max_error = DEFAULT_MAX_EDGE_ERROR_MM / {"mm": 1.0, "m": 1e3}.get(rig.units, 1.0)
         dropped = edge_points(depth, focal_px, result.modulation, lit=result.valid, depth_per_px=per_px,
-                              max_edge_error=max_error).dropped & published
+                              max_edge_error=max_error, axis=axis).dropped & published
         at_edges = int(np.count_nonzero(dropped))
         published &= ~dropped
     on_islands = 0

@@ -212,7 +212,7 @@ class EdgePoints:
 
 def edge_points(depth: np.ndarray, focal_px: float, modulation: np.ndarray | None = None, *,
                 lit: np.ndarray | None = None, depth_per_px: np.ndarray | None = None,
-                max_edge_error: float | None = None, max_slope: float = DEFAULT_MAX_SLOPE,
+                max_edge_error: float | None = None, axis: str = "x", max_slope: float = DEFAULT_MAX_SLOPE,
                 max_step: float = DEFAULT_MAX_STEP, min_modulation_ratio: float = DEFAULT_MIN_MODULATION_RATIO,
                 min_neighbours: int = DEFAULT_MIN_NEIGHBOURS) -> EdgePoints:
     """The points at depth edges to drop: flying points, points beside a depth step, modulation dips at edges,
@@ -235,7 +235,10 @@ def edge_points(depth: np.ndarray, focal_px: float, modulation: np.ndarray | Non
         farther off is dropped.
     max_edge_error : float, optional
         Largest depth error of a point kept at an edge, in the depth's unit (:data:`DEFAULT_MAX_EDGE_ERROR_MM`
-        converted). None: no predicted-error test and no rescue of a modulation dip by its neighbours.
+        converted). None: no predicted-error test and no point kept for a side continuing to it.
+    axis : str
+        ``"x"`` or ``"y"``: the camera axis the fringes' phase varies along (the capture's fringe axis); only the
+        part of a partly shadowed pixel's offset along it moves its phase.
     max_slope, max_step, min_modulation_ratio, min_neighbours
         See the module docstring; ``max_step`` inf, ``min_modulation_ratio`` 0 and ``min_neighbours`` 0 turn those
         tests off.
@@ -252,18 +255,17 @@ def edge_points(depth: np.ndarray, focal_px: float, modulation: np.ndarray | Non
         raise ValueError(f"max_step must be > 0 pixel footprints (inf: off); got {max_step}")
     if max_edge_error is not None and not (np.isfinite(max_edge_error) and max_edge_error > 0):
         raise ValueError(f"max_edge_error must be > 0 (a depth, the depth's unit) or None; got {max_edge_error}")
+    if axis not in ("x", "y"):
+        raise ValueError(f"axis must be 'x' or 'y' (the camera axis the fringes vary along); got {axis!r}")
     z = np.asarray(depth, dtype=np.float64)
     flying = flying_points(z, focal_px, max_slope=max_slope)
     solid = np.where(flying, np.nan, z)  # a flying point (a lone wrong order too) makes no step
-    step = np.zeros(z.shape, dtype=bool)
-    if np.isfinite(max_step):
-        step = beside_steps(solid, focal_px, max_step=max_step, side="far") & ~flying
     has_point = np.isfinite(z)
     unlit = ~(has_point if lit is None else np.asarray(lit, dtype=bool))
     if unlit.shape != z.shape:
         raise ValueError(f"lit must have the depth's shape {z.shape}; got {unlit.shape}")
     beside_unlit = has_point & (_neighbour_count(unlit) > 0)
-    dip = np.zeros(z.shape, dtype=bool)
+    dipped = np.zeros(z.shape, dtype=bool)
     shadow = np.zeros(z.shape, dtype=bool)
     if modulation is not None:
         b = np.asarray(modulation, dtype=np.float32)
@@ -272,26 +274,42 @@ def edge_points(depth: np.ndarray, focal_px: float, modulation: np.ndarray | Non
         brightest = _neighbour_max(np.where(np.isfinite(b), b, -np.inf))
         with np.errstate(invalid="ignore", divide="ignore"):
             lit_fraction = np.clip(b / brightest, 0.0, 1.0)  # NaN where B is
+            if min_modulation_ratio > 0:
+                dipped = has_point & (b < min_modulation_ratio * brightest)
         shadow = beside_unlit & ~(lit_fraction >= MIN_LIT_FRACTION)
         if depth_per_px is not None and max_edge_error is not None:
             per_px = np.asarray(depth_per_px, dtype=np.float64)
             if per_px.shape != z.shape:
                 raise ValueError(f"depth_per_px must have the depth's shape {z.shape}; got {per_px.shape}")
             with np.errstate(invalid="ignore"):
-                shadow |= beside_unlit & (0.5 * (1.0 - lit_fraction) * per_px > max_edge_error)
-        if min_modulation_ratio > 0:
-            with np.errstate(invalid="ignore"):
-                dipped = has_point & (b < min_modulation_ratio * brightest)
-            edge = beside_steps(solid, focal_px, max_step=max_slope)
-            at_edge = edge | (_neighbour_count(edge) > 0)  # within one pixel of a depth edge
-            dip = dipped & at_edge
-            if max_edge_error is not None:  # a pure side that continues to the point vouches for it (not in shadow)
-                dip &= beside_unlit | ~continues_a_side(z, has_point & ~flying & ~dipped, 0.5 * max_edge_error)
+                error = 0.5 * (1.0 - lit_fraction) * per_px * _across_fringes(unlit, axis)
+                shadow |= beside_unlit & (error > max_edge_error)
+    step = np.zeros(z.shape, dtype=bool)
+    if np.isfinite(max_step):
+        step = beside_steps(solid, focal_px, max_step=max_step, side="far") & ~flying
+    # a pure side (no flying point, no dip, not beside a step: a line of mixed pixels along an edge continues
+    # itself) that continues to the point vouches for it
+    continued = (continues_a_side(z, has_point & ~flying & ~dipped & ~step, 0.5 * max_edge_error)
+                 if max_edge_error is not None else np.zeros(z.shape, dtype=bool))
+    step &= ~continued
+    edge = beside_steps(solid, focal_px, max_step=max_slope)
+    dip = dipped & (edge | (_neighbour_count(edge) > 0))  # within one pixel of a depth edge
+    dip &= beside_unlit | ~continued  # (a partly shadowed point is judged by the shadow test)
     isolated = np.zeros(z.shape, dtype=bool)
     if min_neighbours > 0:
         kept = has_point & ~flying & ~step & ~dip & ~shadow
         isolated = kept & (_neighbour_count(kept) < int(min_neighbours))
     return EdgePoints(flying=flying, beside_step=step, modulation_dip=dip, isolated=isolated, shadow_border=shadow)
+
+
+def _across_fringes(unlit: np.ndarray, axis: str) -> np.ndarray:
+    """``|cos|`` of the angle between the shadow border's normal (the gradient of the unlit mask, 3x3 Sobel) and
+    the fringe axis, (H, W) float32: the share of a lit part's offset that moves the phase."""
+    mask = np.asarray(unlit, dtype=np.float32)
+    gx = cv2.Sobel(mask, cv2.CV_32F, 1, 0, ksize=3, borderType=cv2.BORDER_REPLICATE)
+    gy = cv2.Sobel(mask, cv2.CV_32F, 0, 1, ksize=3, borderType=cv2.BORDER_REPLICATE)
+    along = np.abs(gx if axis == "x" else gy)
+    return along / np.maximum(np.hypot(gx, gy), np.float32(1e-6))
 
 
 def continues_a_side(depth: np.ndarray, pure: np.ndarray, tolerance: float) -> np.ndarray:

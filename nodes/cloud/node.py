@@ -449,14 +449,15 @@ class CloudNode(Node):
         K = triangulator.rig.camera.K
         scale = triangulator.rig.scale_to_m
         per_px = None
+        axis = "x" if triangulator.axis == 0 else "y"
         if modulation is not None:
             def camera_depth(projector_x: np.ndarray) -> np.ndarray:
                 return triangulator.camera_points(projector_x, scale=scale, dtype=np.float32)[..., 2]
 
-            axis = "x" if triangulator.axis == 0 else "y"
             per_px = depth_per_pixel(coord, camera_depth, axis, depth=planes[2])
         edges = edge_points(planes[2], 0.5 * float(K[0, 0] + K[1, 1]), modulation, lit=lit, depth_per_px=per_px,
-                            max_edge_error=DEFAULT_MAX_EDGE_ERROR_MM * 1e-3, max_slope=self.max_edge_slope)
+                            max_edge_error=DEFAULT_MAX_EDGE_ERROR_MM * 1e-3, axis=axis,
+                            max_slope=self.max_edge_slope)
         counts = edges.counts(np.isfinite(planes[2]))
         planes[:, edges.dropped] = np.nan
         self.points_flying += counts["flying"]

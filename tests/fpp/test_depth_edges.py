@@ -41,6 +41,10 @@ def test_the_last_pixel_on_each_side_of_a_step_is_beside_it_and_only_the_far_one
     edges = edge_points(depth, 500.0)
     assert np.argwhere(edges.beside_step.any(axis=0)).ravel().tolist() == [5]
     assert not edge_points(depth, 500.0, max_step=np.inf).dropped.any()
+    # with a tolerance, a far-side pixel that its own surface continues to is kept; one 2 mm off it is not
+    assert not edge_points(depth, 500.0, max_edge_error=1.0).dropped.any()
+    depth[:, 5] += 2.0
+    assert edge_points(depth, 500.0, max_edge_error=1.0).beside_step[:, 5].all()
     with pytest.raises(ValueError, match="side"):
         beside_steps(depth, 500.0, max_step=10.0, side="left")
 
@@ -89,6 +93,9 @@ def test_a_partly_shadowed_point_is_dropped_by_its_predicted_depth_error():
     assert not edges.shadow_border[3:, 4].any()  # fully lit border pixels
     assert not edge_points(depth, 500.0, modulation, lit=lit, depth_per_px=per_px / 10,
                            max_edge_error=0.6).shadow_border[1:3, 4].any()  # a wide baseline: 0.05-0.075 mm
+    # fringes along y: the lit parts' offsets (across the vertical border, along x) leave the phase as it is
+    assert edge_points(depth, 500.0, modulation, lit=lit, depth_per_px=per_px, max_edge_error=0.6,
+                       axis="y").shadow_border[:3, 4].tolist() == [True, False, False]  # 0.3: centre in the shadow
 
 
 def test_depth_per_pixel_is_the_depth_change_of_one_camera_pixel_of_fringe():
@@ -110,6 +117,8 @@ def test_isolated_points_and_bad_parameters():
         edge_points(depth, 500.0, None, min_modulation_ratio=1.5)
     with pytest.raises(ValueError, match="max_edge_error"):
         edge_points(depth, 500.0, None, max_edge_error=0.0)
+    with pytest.raises(ValueError, match="axis"):
+        edge_points(depth, 500.0, None, axis="z")
 
 
 @pytest.mark.parametrize("outside", [OutsideRig(),
