@@ -281,13 +281,14 @@ def _node_durations_ms(records) -> dict:
                                                 if node in r.get("node_durations_s", {})])), 1) for node in nodes}
 
 
-def floor_ms_per_scan(*, steps: int, size: str, repeats: int = 30) -> dict:
+def floor_ms_per_scan(*, steps: int, size: str, repeats: int = 30, source: str = "raycast") -> dict:
     """The work of one scan that no graph can take away, in one process with the repo's fastest kernels (CPU ms).
 
     What a scanner must do however it is built: take the scan's frames in through ZeroMQ (``transport_in``: the
     camera's send and the scanner's receive of ``2 * steps`` mono8 frames, ipc PUSH/PULL, both sides' CPU), the
     Eq. (2) sums and float32 arctangents of both entries with the modulation/saturation mask (``phase``,
-    :func:`dptpu.fpp.phase.sequence_sums`, :func:`~dptpu.fpp.phase.maps_from_sums`), Eq. (5) (``unwrap``,
+    :func:`dptpu.fpp.phase.sequence_sums`, :func:`~dptpu.fpp.phase.maps_from_sums`, and the phase node's noise
+    test of :mod:`dptpu.fpp.fringe_noise` on entries of 5 or more steps), Eq. (5) (``unwrap``,
     :func:`dptpu.fpp.tpu.unwrap_mf_float32`), the triangulation with both lens distortions into float32 metres
     (``triangulate``, :meth:`~dptpu.fpp.triangulate.Triangulator.camera_points` of the sim rig's rig at ``size``),
     the cloud node's default filters (``filters``: :func:`dptpu.fpp.depth_edges.edge_points` and
@@ -299,7 +300,9 @@ def floor_ms_per_scan(*, steps: int, size: str, repeats: int = 30) -> dict:
     bytes as the shared-memory path does at the least, one copy each way (``copy_in``, ``copy_out``: ``np.copyto``
     into a preallocated array) instead of through ZeroMQ: the floor of a graph whose large messages go through
     shared memory. The frames are an analytic ramp across the projector (64 and 1 periods), so the triangulation
-    converges as on a real scene. Median of ``repeats`` timings of each part (``time.process_time``, every thread).
+    converges as on a real scene; with ``source`` a folder of ``dptpu-capture/1`` captures (``--source``), the
+    first capture's own frames and rig instead, so the floor works on the scene the graph scans. Median of
+    ``repeats`` timings of each part (``time.process_time``, every thread).
     """
     import cv2
     import zmq
@@ -307,23 +310,34 @@ def floor_ms_per_scan(*, steps: int, size: str, repeats: int = 30) -> dict:
     from dptpu.fpp import phase as fpp_phase
     from dptpu.fpp import tpu
     from dptpu.fpp.depth_edges import edge_points
+    from dptpu.fpp.fringe_noise import fit_residual, noise_outliers, phase_noise
     from dptpu.fpp.order_islands import order_islands
     from dptpu.fpp.organized_normals import organized_normals
     from dptpu.fpp.triangulate import Triangulator, projector_coordinate
     from dptpu.sim.rig import load_twin_rig
 
     width, height = (int(v) for v in size.lower().split("x"))
-    rig = load_twin_rig(REPO_ROOT / "launch" / "params" / "shipped_rig.yaml", size=(width, height))
+    if source == "raycast":
+        rig = load_twin_rig(REPO_ROOT / "launch" / "params" / "shipped_rig.yaml", size=(width, height))
+        extent = rig.projector.size[0]
+        rows, cols = np.mgrid[0:height, 0:width]
+        x_p = 40.0 + (extent - 80.0) * cols / width + 0.05 * rows  # (H, W) projector columns
+        stacks = []
+        for frequency in (64.0, 1.0):
+            n = np.arange(steps)[:, None, None]
+            phase = 2 * np.pi * frequency * x_p / extent
+            stacks.append(np.round(128 + 100 * np.cos(phase - 2 * np.pi * n / steps)).astype(np.uint8))  # (N, H, W)
+    else:
+        from dptpu.nodes.sim.source import capture_scenes
+
+        scenes, rig, _, _ = capture_scenes(source)
+        stacks = [scenes[0].stack(frequency, steps) for frequency in (64.0, 1.0)]
+        if any(stack is None for stack in stacks) or stacks[0].shape[1:] != (height, width):
+            raise RuntimeError(f"the first capture of {source} holds no 64x{steps} and 1x{steps} sequences at "
+                               f"{size}")
+        extent = rig.projector.size[0]
     triangulator = Triangulator(rig, axis="x")
     focal_px = 0.5 * float(rig.camera.K[0, 0] + rig.camera.K[1, 1])
-    extent = rig.projector.size[0]
-    rows, cols = np.mgrid[0:height, 0:width]
-    x_p = 40.0 + (extent - 80.0) * cols / width + 0.05 * rows  # (H, W) projector columns
-    stacks = []
-    for frequency in (64.0, 1.0):
-        n = np.arange(steps)[:, None, None]
-        phase = 2 * np.pi * frequency * x_p / extent
-        stacks.append(np.round(128 + 100 * np.cos(phase - 2 * np.pi * n / steps)).astype(np.uint8))  # (N, H, W)
 
     context = zmq.Context()
     sender, receiver = context.socket(zmq.PUSH), context.socket(zmq.PULL)
@@ -349,13 +363,16 @@ def floor_ms_per_scan(*, steps: int, size: str, repeats: int = 30) -> dict:
     frames = [frame for stack in stacks for frame in stack]
     state = {}
 
-    def phase_step():
+    def phase_step():  # as the phase node does: with the phase-noise test of entries of 5 or more steps
         sums = [fpp_phase.sequence_sums(stack) for stack in stacks]
         maps = [fpp_phase.maps_from_sums(s) for s in sums]
         valid = np.ones((height, width), dtype=bool)
         for m in maps:
             valid &= m.modulation >= 10.0
         valid &= np.maximum.reduce([stack.max(axis=0) for stack in stacks]) < 255
+        noise = [phase_noise(fit_residual(stack, m.background, m.modulation), m.modulation, steps)
+                 for stack, m in zip(stacks, maps)]  # None below 5 steps
+        valid &= ~noise_outliers(noise, valid)
         state["maps"], state["valid"] = maps, valid
 
     def unwrap_step():
@@ -403,17 +420,17 @@ def floor_ms_per_scan(*, steps: int, size: str, repeats: int = 30) -> dict:
     figures["total"] = round(work + figures["transport_in"] + figures["transport_out"], 2)
     figures["total_shared_memory"] = round(work + figures["copy_in"] + figures["copy_out"], 2)
     figures["cores_2_scans_per_s_max"] = round(2000.0 / figures["total"], 1)
-    figures.update(steps=steps, frames=2 * steps, size=size, valid_pixels=int(np.count_nonzero(
+    figures.update(steps=steps, frames=2 * steps, size=size, source=source, valid_pixels=int(np.count_nonzero(
         np.isfinite(state["depth"]))))
     return figures
 
 
-def measure_floor(step: int, size: str) -> dict:
+def measure_floor(step: int, size: str, source: str = "raycast") -> dict:
     """:func:`floor_ms_per_scan` with the allocator as every node sets it."""
     from dptpu.nodes.node_main import keep_freed_memory
 
     keep_freed_memory()  # as every node does
-    return floor_ms_per_scan(steps=step, size=size)
+    return floor_ms_per_scan(steps=step, size=size, source=source)
 
 
 #: The graph's CPU a scan over the floor: issue 20's goal.
@@ -467,7 +484,7 @@ def run(args) -> int:
         report = {"benchmark": "pipeline-floor", "machine": {"cpus": os.cpu_count(), "platform": platform.platform(),
                                                             "python": platform.python_version(),
                                                             "load_average": list(os.getloadavg())},
-                  "floors": [measure_floor(step, args.size) for step in steps]}
+                  "floors": [measure_floor(step, args.size, args.source) for step in steps]}
         print(json.dumps(report, indent=1) if args.json else "\n".join(_floor_line(f) for f in report["floors"]))
         return 0
     model = dptpu_model(args.model)
@@ -490,7 +507,7 @@ def run(args) -> int:
                       f"ms  p99 {r['latency_ms_p99']:7.1f} ms  camera_limit_ratio {r['camera_limit_ratio']:.3f} "
                       f"({r['scans_timed']} scans, {r['scans_failed']} failed, {r['scans_lost']} lost)", flush=True)
         if not args.no_floor:  # the floor beside the graph, in the same run (after this step count's graph runs)
-            floor = measure_floor(step, args.size)
+            floor = measure_floor(step, args.size, args.source)
             for r in results:
                 if r["frames_per_scan"] == 2 * step:
                     attach_floor(r, floor)

@@ -58,3 +58,20 @@ def test_bench_pipeline_refuses_dptpu_only_beside_classical_only(capsys):
     assert main(["bench", "pipeline", "--dptpu-only", "--classical-only", "--steps", "3"]) == 2
     assert "--dptpu-only needs a DP-TPU model (--model, or the shipped one) and no --classical-only" \
         in capsys.readouterr().err
+
+
+def test_bench_pipeline_floor_on_the_captures_the_graph_replays(tmp_path, capsys):
+    """``--source FOLDER``: the floor works on the first capture's own frames and rig (the scene the sim replays)."""
+    capture = tmp_path / "captures" / "01-random-1"
+    assert main(["sim", "render", "--rig", "nominal", "--scene", "random:1", "--sequence", "64x12,1x12",
+                 "--size", "96x72", "--out", str(capture)]) == 0
+    capsys.readouterr()
+    assert main(["bench", "pipeline", "--floor", "--json", "--size", "96x72", "--steps", "3",
+                 "--source", str(capture.parent)]) == 0
+    (floor,) = json.loads(capsys.readouterr().out)["floors"]
+    assert floor["source"] == str(capture.parent) and floor["frames"] == 6  # 3-step: frames 0, 4, 8 of the 12
+    assert 0.3 * 96 * 72 < floor["valid_pixels"] <= 96 * 72  # a scene, not the ramp the filters cut
+    assert main(["bench", "pipeline", "--floor", "--size", "64x48", "--steps", "3", "--source",
+                 str(capture.parent)]) == 2
+    assert capsys.readouterr().err.strip().endswith(
+        "holds no 64x3 and 1x3 sequences at 64x48")
