@@ -65,6 +65,11 @@ def register(subparsers) -> None:
     finetune.add_argument("--epochs", type=int, default=60, help="fine-tune epochs, the same for both (default 60)")
     finetune.add_argument("--batch", type=int, default=4, help="samples per step (default 4)")
     finetune.add_argument("--lr", type=float, default=3e-4, help="AdamW learning rate (default 3e-4)")
+    finetune.add_argument("--huber", type=float, default=None,
+                          help="Huber threshold of the loss, fringe orders (default none: squared error)")
+    finetune.add_argument("--max-correction", default=None,
+                          help="training labels kept only within this many orders of the classical order, or "
+                               "'none' for every label (default: the pair design's, 4 for CFPE)")
     finetune.add_argument("--cfpe-scenes", default="01,04,06,08", help="CFPE scenes, comma separated (default "
                           "01,04,06,08)")
     finetune.add_argument("--cfpe-low", default="het12", choices=("het12", "beat123"),
@@ -138,11 +143,20 @@ def run_finetune(args) -> int:
     if args.threads < 1:
         raise ValueError(f"--threads must be >= 1; got {args.threads}")
     torch.set_num_threads(args.threads)
+    max_correction: int | None = -1  # the design's
+    if args.max_correction is not None:
+        if args.max_correction.lower() == "none":
+            max_correction = None
+        elif args.max_correction.isdigit():
+            max_correction = int(args.max_correction)
+        else:
+            raise ValueError(f"--max-correction must be a whole number of orders >= 0 or 'none'; got "
+                             f"{args.max_correction!r}")
     options = DownstreamOptions(scenes=args.scenes, size=(width, height), seed=args.seed,
                                 cfpe_scenes=tuple(s.strip() for s in args.cfpe_scenes.split(",") if s.strip()),
-                                cfpe_low=args.cfpe_low,
+                                cfpe_low=args.cfpe_low, max_correction=max_correction,
                                 finetune=FinetuneOptions(epochs=args.epochs, batch=args.batch, lr=args.lr,
-                                                         seed=args.seed))
+                                                         seed=args.seed, huber=args.huber))
     report = run_downstream(args.measured, args.extended, args.out, model=args.model, base_rig=args.rig,
                             options=options, threads=args.threads, log=lambda text: print(text, file=sys.stderr))
     print(json.dumps(report["summary"], indent=2))

@@ -195,21 +195,23 @@ def solver_orders(models: dict, pair: MeasuredPair, threads: int = 1) -> tuple[d
     neighbour vote, the same step for every solver.
 
     ``classical`` is the pair's classical order; each model of ``models`` (name -> ONNX path) is run the way the
-    unwrap node runs it (:func:`dptpu.models.refine.refine_order_and_confidence`: the physics prior, the rounded
-    output), once without the vote and once with it. The classical order's vote is
-    :func:`dptpu.models.consensus.consensus_order` of the classical order on itself: the vote uses only the
-    wrapped phase and the orders (no network), so what it fixes counts for every solver alike.
+    unwrap node runs it (:func:`dptpu.models.refine.refine_order_and_confidence` without its vote: the physics
+    prior, the rounded output). ``voted`` is :func:`dptpu.models.consensus.consensus_order` of each order with
+    the pair's classical order voting beside it (for the classical order: the classical order on itself): the
+    vote uses only the wrapped phase and the orders (no network), so what it fixes counts for every solver alike.
+    (The unwrap node's own vote takes the network's prior instead of the classical order, for MF the order read
+    at the projector's ends, :mod:`dptpu.models.projector_ends`; on CFPE, whose camera sees the projector's whole
+    width, that prior is right on fewer pixels than the classical order: docs/sim-to-real.md.)
     """
     psi = np.where(pair.valid, pair.wrapped_high, 0.0)
     classical = np.asarray(pair.coarse_order, dtype=np.int32)
     orders = {"classical": classical}
-    voted = {"classical": consensus_order(classical, classical, psi, pair.valid)}
     for name, path in models.items():
         model = FringeOrderModel.load(path, threads=threads)
-        for target, vote in ((orders, False), (voted, True)):
-            target[name] = refine_order_and_confidence(
-                model, pair.method, pair.wrapped_high, pair.wrapped_low, classical, pair.frequency_high,
-                pair.frequency_low, pair.valid, consensus=vote)[0]
+        orders[name] = refine_order_and_confidence(
+            model, pair.method, pair.wrapped_high, pair.wrapped_low, classical, pair.frequency_high,
+            pair.frequency_low, pair.valid, consensus=False)[0]
+    voted = {name: consensus_order(order, classical, psi, pair.valid) for name, order in orders.items()}
     return orders, voted
 
 

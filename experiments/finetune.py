@@ -20,19 +20,23 @@ __all__ = ["FinetuneOptions", "load_start_model", "finetune"]
 @dataclass(frozen=True)
 class FinetuneOptions:
     """Budget of a fine-tune: ``epochs`` over the set in steps of ``batch`` crops of ``crop`` (height, width)
-    pixels, AdamW at ``lr``, ``seed`` of crops and order."""
+    pixels, AdamW at ``lr``, ``seed`` of crops and order; ``huber``: the loss' Huber threshold in orders
+    (:class:`dptpu.models.loss.LossWeights`; None: the paper's squared error)."""
 
     epochs: int = 60
     batch: int = 4
     crop: tuple = (64, 64)
     lr: float = 3e-4
     seed: int = 0
+    huber: float | None = None
 
     def __post_init__(self):
         if int(self.epochs) < 1 or int(self.batch) < 1:
             raise ValueError(f"--epochs and --batch must be >= 1; got {self.epochs}, {self.batch}")
         if not self.lr > 0:
             raise ValueError(f"--lr must be > 0; got {self.lr}")
+        if self.huber is not None and not self.huber > 0:
+            raise ValueError(f"--huber must be > 0 orders; got {self.huber}")
 
 
 def load_start_model(path):
@@ -61,6 +65,7 @@ def finetune(start, data_dir, out_onnx, options: FinetuneOptions = FinetuneOptio
     ``out_onnx``. Returns the run's record: steps, seconds, first and last epoch loss."""
     import torch  # training only
 
+    from dptpu.models.loss import LossWeights  # torch
     from dptpu.models.training import CHECKPOINT_FORMAT, TrainOptions, train  # torch
 
     model, kind, config, source = start if isinstance(start, tuple) else load_start_model(start)
@@ -73,6 +78,7 @@ def finetune(start, data_dir, out_onnx, options: FinetuneOptions = FinetuneOptio
     result = train(TrainOptions(data_dir=Path(data_dir), out=out_onnx, epochs=int(options.epochs),
                                 batch=int(options.batch), crop=tuple(options.crop) if options.crop else None,
                                 seed=int(options.seed), model=kind, lr=float(options.lr),
+                                loss=LossWeights(huber=None if options.huber is None else float(options.huber)),
                                 resume=start_checkpoint, checkpoint=out_onnx.with_suffix(".ckpt"), progress=False))
     samples = len(list((Path(data_dir) / "samples").glob("*.npz")))
     return {"onnx": str(result.onnx), "epochs": result.epochs_done,
