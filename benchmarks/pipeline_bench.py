@@ -291,7 +291,8 @@ def floor_ms_per_scan(*, steps: int, size: str, repeats: int = 30, source: str =
     test of :mod:`dptpu.fpp.fringe_noise` on entries of 5 or more steps), Eq. (5) (``unwrap``,
     :func:`dptpu.fpp.tpu.unwrap_mf_float32`), the triangulation with both lens distortions into float32 metres
     (``triangulate``, :meth:`~dptpu.fpp.triangulate.Triangulator.camera_points` of the sim rig's rig at ``size``),
-    the cloud node's default filters (``filters``: :func:`dptpu.fpp.depth_edges.edge_points` and
+    the cloud node's default filters (``filters``: :func:`dptpu.fpp.depth_edges.edge_points` with the partly
+    shadowed points' predicted error of :func:`~dptpu.fpp.depth_edges.depth_per_pixel`, and
     :func:`dptpu.fpp.order_islands.order_islands`),
     the (H, W, 9) cloud as the cloud node builds it (x, y, z, texture, modulation, confidence and the normals of
     :func:`dptpu.fpp.organized_normals.organized_normals`) with its depth and confidence images (``assemble``), all
@@ -309,7 +310,7 @@ def floor_ms_per_scan(*, steps: int, size: str, repeats: int = 30, source: str =
 
     from dptpu.fpp import phase as fpp_phase
     from dptpu.fpp import tpu
-    from dptpu.fpp.depth_edges import edge_points
+    from dptpu.fpp.depth_edges import DEFAULT_MAX_EDGE_ERROR_MM, depth_per_pixel, edge_points
     from dptpu.fpp.fringe_noise import fit_residual, noise_outliers, phase_noise
     from dptpu.fpp.order_islands import order_islands
     from dptpu.fpp.organized_normals import organized_normals
@@ -381,12 +382,19 @@ def floor_ms_per_scan(*, steps: int, size: str, repeats: int = 30, source: str =
 
     def triangulate_step():
         result = state["unwrapped"]
-        coord = projector_coordinate(result.absolute_phase, 64.0, extent)
+        coord = state["coord"] = projector_coordinate(result.absolute_phase, 64.0, extent)
         state["xyz"] = [triangulator.camera_points(coord, scale=rig.scale_to_m, dtype=np.float32)]
 
-    def filter_step():  # as the cloud node does by default: the points at depth edges, the islands of wrong orders
+    def camera_depth(projector_x):
+        return triangulator.camera_points(projector_x, scale=rig.scale_to_m, dtype=np.float32)[..., 2]
+
+    def filter_step():  # as the cloud node does by default: the points at depth edges (with the partly shadowed
+        # ones judged by their predicted depth error: one more triangulation), the islands of wrong orders
         xyz, result, modulation = state["xyz"][0], state["unwrapped"], state["maps"][0].modulation
-        dropped = edge_points(np.ascontiguousarray(xyz[..., 2]), focal_px, modulation).dropped
+        depth = np.ascontiguousarray(xyz[..., 2])
+        per_px = depth_per_pixel(state["coord"], camera_depth, "x", depth=depth)
+        dropped = edge_points(depth, focal_px, modulation, lit=result.valid, depth_per_px=per_px,
+                              max_edge_error=DEFAULT_MAX_EDGE_ERROR_MM * 1e-3, axis="x").dropped
         dropped |= order_islands(result.absolute_phase, modulation, result.valid).islands
         xyz[dropped] = np.nan
 
