@@ -437,10 +437,15 @@ def snapshot_from_entries(entries, domain_id=None) -> GraphSnapshot:
     services: dict[str, dict[str, Any]] = {}  # name -> {"types": set, "servers": [fqn, ...], "clients": [...]}
     for entry in sorted(entries, key=lambda e: (str(e.get("fqn")), str(e.get("gid")))):
         fqn = str(entry.get("fqn", ""))
-        pubs = tuple(e for e in (_endpoint_info(fqn, p) for p in entry.get("publishers", [])) if e)
-        subs = tuple(e for e in (_endpoint_info(fqn, s) for s in entry.get("subscriptions", [])) if e)
-        srvs = tuple((str(s.get("name")), str(s.get("type"))) for s in entry.get("services", []) if isinstance(s, dict))
-        clis = tuple((str(c.get("name")), str(c.get("type"))) for c in entry.get("clients", []) if isinstance(c, dict))
+        # tuple([...]), not tuple(generator): a tuple built from a generator is resized into place, never taken from
+        # CPython's free list, but given to it when freed; a snapshot a second filled the lists (2,000 tuples of
+        # each size) for half an hour: issue 19's soak
+        pubs = tuple([e for e in (_endpoint_info(fqn, p) for p in entry.get("publishers", [])) if e])
+        subs = tuple([e for e in (_endpoint_info(fqn, s) for s in entry.get("subscriptions", [])) if e])
+        srvs = tuple([(str(s.get("name")), str(s.get("type"))) for s in entry.get("services", [])
+                      if isinstance(s, dict)])
+        clis = tuple([(str(c.get("name")), str(c.get("type"))) for c in entry.get("clients", [])
+                      if isinstance(c, dict)])
         nodes.append(NodeInfo(name=str(entry.get("name", "")), namespace=str(entry.get("namespace", "/")),
                               fully_qualified_name=fqn, pid=int(entry.get("pid", 0) or 0),
                               host=str(entry.get("host", "")), start_time=float(entry.get("start_time", 0.0) or 0.0),

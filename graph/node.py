@@ -527,8 +527,9 @@ class Node:
                 "clients": [c._announcement() for c in clients]}
 
     def _stats_signature(self) -> tuple:
-        return (tuple((p.published_count, p._subscriber_count) for p in list(self._publishers))
-                + tuple(tuple(s._stats().values()) for s in list(self._subscriptions)))
+        # tuple([...]), not tuple(generator), which fills CPython's tuple free lists (graph/discovery.py)
+        return (tuple([(p.published_count, p._subscriber_count) for p in list(self._publishers)])
+                + tuple([tuple(s._stats().values()) for s in list(self._subscriptions)]))
 
     def __repr__(self):
         return f"<Node {self._fqn}>"

@@ -25,7 +25,7 @@ Definitions (H, W = camera height, width):
 from __future__ import annotations
 
 import math
-from dataclasses import asdict, dataclass
+from dataclasses import dataclass, fields
 
 import numpy as np
 
@@ -63,7 +63,12 @@ class ScanMetrics:
     off_surface_tolerance_mm: float = float("nan")
 
     def as_dict(self) -> dict:
-        return asdict(self)
+        # not dataclasses.asdict: its fields() makes a tuple from a generator on every call, which CPython's tuple
+        # free list keeps when freed (2,000 of them, 350 KB, over the first scans: issue 19's soak)
+        return {name: getattr(self, name) for name in _FIELD_NAMES}
+
+
+_FIELD_NAMES = tuple([item.name for item in fields(ScanMetrics)])
 
 
 def scan_metrics(depth_m: np.ndarray, absolute_phase: np.ndarray, phase_valid: np.ndarray,
