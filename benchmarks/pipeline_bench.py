@@ -332,10 +332,11 @@ def floor_ms_per_scan(*, steps: int, size: str, repeats: int = 30, source: str =
         from dptpu.nodes.sim.source import capture_scenes
 
         scenes, rig, _, _ = capture_scenes(source)
-        stacks = [scenes[0].stack(frequency, steps) for frequency in (64.0, 1.0)]
+        stacks = [scenes[0].stack(frequency, steps) for frequency in (64.0, 1.0)]  # 3-step: frames 0, 4, 8 of 12
         if any(stack is None for stack in stacks) or stacks[0].shape[1:] != (height, width):
             raise RuntimeError(f"the first capture of {source} holds no 64x{steps} and 1x{steps} sequences at "
                                f"{size}")
+        stacks = [np.ascontiguousarray(stack) for stack in stacks]  # as the phase node stacks its frames
         extent = rig.projector.size[0]
     triangulator = Triangulator(rig, axis="x")
     focal_px = 0.5 * float(rig.camera.K[0, 0] + rig.camera.K[1, 1])
