@@ -253,3 +253,12 @@ def test_cfpe_extension_renders_the_real_response_and_the_vote_lifts_the_classic
     assert order_accuracy(compensated.coarse_order, compensated) > 0.99
     _, voted = solver_orders({}, captured)
     assert order_accuracy(voted["classical"], captured) > 0.95
+
+
+def test_cli_refuses_a_max_correction_that_is_no_number(tmp_path, capsys):
+    from dptpu.cli.main import main
+
+    code = main(["twin", "finetune", "--measured", str(tmp_path), "--extended", "cfpe-response", "--model",
+                 "y.onnx", "--max-correction", "four", "--out", str(tmp_path / "out")])
+    assert code == 2
+    assert "--max-correction must be a whole number of orders >= 0 or 'none'; got 'four'" in capsys.readouterr().err
