@@ -14,6 +14,8 @@ import json
 import sys
 from pathlib import Path
 
+from .conventions import parse_list
+
 
 def register(subparsers) -> None:
     parser = subparsers.add_parser("twin", help="sim-to-real: what the twin gets wrong on measured data")
@@ -65,6 +67,9 @@ def register(subparsers) -> None:
     finetune.add_argument("--epochs", type=int, default=60, help="fine-tune epochs, the same for both (default 60)")
     finetune.add_argument("--batch", type=int, default=4, help="samples per step (default 4)")
     finetune.add_argument("--lr", type=float, default=3e-4, help="AdamW learning rate (default 3e-4)")
+    finetune.add_argument("--noise", default="1.5693,3.1386",
+                          help="camera noise of the twin sets, DN, comma separated (default 1.5693,3.1386: the "
+                               "paper's 1 and 2 sigma)")
     finetune.add_argument("--huber", type=float, default=None,
                           help="Huber threshold of the loss, fringe orders (default none: squared error)")
     finetune.add_argument("--max-correction", default=None,
@@ -136,6 +141,9 @@ def run_finetune(args) -> int:
     from dptpu.experiments.downstream import DownstreamOptions, run_downstream
     from dptpu.experiments.finetune import FinetuneOptions
 
+    noise = parse_list(args.noise, "--noise", float)
+    if any(not sigma >= 0 for sigma in noise):
+        raise ValueError(f"--noise must list sigmas >= 0 (DN); got {args.noise!r}")
     try:
         width, height = (int(v) for v in args.size.lower().split("x"))
     except ValueError:
@@ -152,7 +160,7 @@ def run_finetune(args) -> int:
         else:
             raise ValueError(f"--max-correction must be a whole number of orders >= 0 or 'none'; got "
                              f"{args.max_correction!r}")
-    options = DownstreamOptions(scenes=args.scenes, size=(width, height), seed=args.seed,
+    options = DownstreamOptions(scenes=args.scenes, size=(width, height), seed=args.seed, noise=noise,
                                 cfpe_scenes=tuple(s.strip() for s in args.cfpe_scenes.split(",") if s.strip()),
                                 cfpe_low=args.cfpe_low, max_correction=max_correction,
                                 finetune=FinetuneOptions(epochs=args.epochs, batch=args.batch, lr=args.lr,
