@@ -17,12 +17,14 @@ foreground's phase).
 
 Four more signs of a pixel that straddles an edge, all used by :func:`edge_points`:
 
-- a NEARER neighbour more than ``max_step`` footprints away (:func:`beside_steps`, ``side="far"``): the last pixel
-  of the far surface beside a depth step (a step, not a slope: 10 footprints between neighbours is a surface 84
-  degrees from facing the camera) still integrates a sliver of the occluder, whose phase is far from its own. The
-  last pixel of the near surface is kept (on the outside rigs of ``dptpu eval cloud``, 12 steps, it held 95 wrong
-  points for 1,589 right ones, the far side 265 for 1,421). The flying points are taken out first: a lone wrong
-  point is flying, and its right neighbours are not beside a step;
+- a neighbour more than ``max_step`` footprints nearer or farther (:func:`beside_steps`): the last pixel on each
+  side of a depth step (a step, not a slope: 10 footprints between neighbours is a surface 84 degrees from facing
+  the camera) still integrates a sliver of the other side, whose phase is far from its own. Both sides, and even
+  where the point's own surface continues to it: on the main job's random-1 the network without its neighbour
+  consensus puts a band of 2-3 pixels beside a step one order off, which continues itself (keeping the near side
+  took random-1 from 0.054 to 0.093 % wrong, keeping what continued to 0.186 %), though on ``dptpu eval cloud``'s
+  twin (consensus on) the near side held 95 wrong points for 1,589 right ones. The flying points are taken out
+  first: a lone wrong point is flying, and its right neighbours are not beside a step;
 - its fringe modulation ``B`` dips below ``min_modulation_ratio`` times the largest of its 8 neighbours' AND it lies
   at a depth edge (within one pixel of a pixel with a neighbour more than ``max_slope`` footprints away) or beside an
   unlit pixel: the phasors of two surfaces (or of a lit surface and a projector shadow) add to less than either. A
@@ -45,7 +47,7 @@ Parameters and why (``docs/nodes.md``, "Flying points", has the measurements beh
   the camera): a mixed pixel at an edge of depth step ``dz`` differs from its two neighbours by about ``dz / 2``,
   i.e. by ``f dz / (2 z)`` footprints, more than 4 for any step over 8 footprints (8 mm at a 1 mm footprint).
 - ``max_step`` (default :data:`DEFAULT_MAX_STEP` = 10): on the twin's outside-rig scenes the last pixel beside a
-  step held half of what stayed off the surface; dropping it (far side only) costs one pixel per depth edge.
+  step held half of what stayed off the surface; dropping it costs one pixel per side of each depth edge.
 - ``min_modulation_ratio`` (default :data:`DEFAULT_MIN_MODULATION_RATIO` = 0.6): a pixel at 60 % of its brightest
   neighbour's modulation; noise and smooth shading change ``B`` by a few percent between neighbours, texture by more
   (0.7 halves what stays off the surface again but costs about 0.7 % of completeness on textured scenes; at 0.8 the
@@ -286,12 +288,11 @@ def edge_points(depth: np.ndarray, focal_px: float, modulation: np.ndarray | Non
                 shadow |= beside_unlit & (error > max_edge_error)
     step = np.zeros(z.shape, dtype=bool)
     if np.isfinite(max_step):
-        step = beside_steps(solid, focal_px, max_step=max_step, side="far") & ~flying
+        step = beside_steps(solid, focal_px, max_step=max_step) & ~flying  # both sides: see the module docstring
     # a pure side (no flying point, no dip, not beside a step: a line of mixed pixels along an edge continues
-    # itself) that continues to the point vouches for it
+    # itself) that continues to a dipped point vouches for it. Not for a point beside a step (module docstring)
     continued = (continues_a_side(z, has_point & ~flying & ~dipped & ~step, 0.5 * max_edge_error)
                  if max_edge_error is not None else np.zeros(z.shape, dtype=bool))
-    step &= ~continued
     edge = beside_steps(solid, focal_px, max_step=max_slope)
     dip = dipped & (edge | (_neighbour_count(edge) > 0))  # within one pixel of a depth edge
     dip &= beside_unlit | ~continued  # (a partly shadowed point is judged by the shadow test)
