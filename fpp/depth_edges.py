@@ -28,18 +28,20 @@ Four more signs of a pixel that straddles an edge, all used by :func:`edge_point
 - its fringe modulation ``B`` dips below ``min_modulation_ratio`` times the largest of its 8 neighbours' AND it lies
   at a depth edge (within one pixel of a pixel with a neighbour more than ``max_slope`` footprints away) or beside an
   unlit pixel: the phasors of two surfaces (or of a lit surface and a projector shadow) add to less than either. A
-  dip on a smooth surface is an albedo (texture) edge, whose phase is right: kept;
-- beside an unlit pixel (a projector shadow), a ``shadow_border`` point whose predicted depth error exceeds
-  ``max_shadow_error``: a partly shadowed pixel carries the phase of its lit part only, whose centre lies
-  ``(1 - r) / 2`` pixels off the pixel's centre (``r = B / B_max`` of its 8 neighbours, the lit fraction), so its
-  depth is off by ``(1 - r) / 2`` times ``depth_per_pixel``, the depth change along the pixel's ray when its
-  projector coordinate moves by one camera pixel's worth of fringe (:func:`depth_per_pixel`; a narrow baseline
-  makes it large: 5 degrees, ~10 mm per pixel on the twin's f1300 rig; 20 degrees, ~1 mm);
+  dip on a smooth surface is an albedo (texture) edge, whose phase is right: kept; so is a dip (not beside an unlit
+  pixel) that a pure side continues to within ``max_edge_error / 2`` (:func:`continues_a_side`);
+- beside an unlit pixel (a projector shadow), a ``shadow_border`` point whose lit fraction ``r = B / B_max`` (of its
+  8 neighbours) is below :data:`MIN_LIT_FRACTION` (its centre lies in the shadow) or whose predicted depth error
+  exceeds ``max_edge_error``: a partly shadowed pixel carries the phase of its lit part only, whose centre lies
+  ``(1 - r) / 2`` pixels off the pixel's centre, across the shadow's border; the part of that offset along the
+  fringe axis (``|cos|`` of the border normal's angle to it) times :func:`depth_per_pixel`, the depth change along
+  the pixel's ray when its projector coordinate moves by one camera pixel's worth of fringe, is its depth error (a
+  narrow baseline makes it large: 5 degrees, ~10 mm per pixel on the twin's f1300 rig; 20 degrees, ~1 mm);
 - it has fewer than ``min_neighbours`` of its 8 neighbours left with a point: a sliver between edges or shadows,
   which no neighbour confirms.
 
-An albedo edge also dips the modulation; its pixels are dropped though their depth is right (completeness, never
-precision, pays for it).
+An albedo edge at a depth edge or a shadow also dips the modulation; its pixels are dropped though their depth is
+right (completeness, never precision, pays for it).
 
 Parameters and why (``docs/nodes.md``, "Flying points", has the measurements behind the defaults):
 
@@ -52,8 +54,9 @@ Parameters and why (``docs/nodes.md``, "Flying points", has the measurements beh
   neighbour's modulation; noise and smooth shading change ``B`` by a few percent between neighbours, texture by more
   (0.7 halves what stays off the surface again but costs about 0.7 % of completeness on textured scenes; at 0.8 the
   noise of 3-step captures starts to trigger it).
-- ``max_shadow_error`` (depth units; ``dptpu triangulate``, the cloud node and ``dptpu eval cloud`` pass
-  :data:`DEFAULT_MAX_SHADOW_ERROR_MM` = 1 mm in the rig's unit, the off-surface bound of ``dptpu eval cloud``).
+- ``max_edge_error`` (depth units; ``dptpu triangulate``, the cloud node and ``dptpu eval cloud`` pass
+  :data:`DEFAULT_MAX_EDGE_ERROR_MM` = 1 mm in the rig's unit, the off-surface bound of ``dptpu eval cloud``; None
+  turns the predicted-error test and the continuation off).
 - ``min_neighbours`` (default :data:`DEFAULT_MIN_NEIGHBOURS` = 2).
 """
 from __future__ import annotations
