@@ -17,7 +17,7 @@ import time
 import numpy as np
 import pytest
 
-from dptpu.graph import shared_memory
+from dptpu.graph import segment_pool, shared_memory
 from dptpu.graph.segment_pool import SegmentPool
 from dptpu.graph.shared_memory import SharedMemoryConfig, StaleSegmentError, read_message, unpack_descriptor
 
@@ -68,7 +68,9 @@ def test_generation_counter_refuses_a_recycled_segment():
         pool.close()
 
 
-def test_a_held_message_is_never_written_again_and_its_segment_returns_when_let_go():
+def test_a_held_message_is_never_written_again_and_its_segment_returns_when_let_go(monkeypatch):
+    # no idle trim: on a loaded machine the writes below can outlast IDLE_S, and the let-go segment was closed
+    monkeypatch.setattr(segment_pool, "IDLE_S", float("inf"))
     pool = _pool(lease_s=0.0)
     try:
         held = _read(pool.write(_payload(1), readers=1))
