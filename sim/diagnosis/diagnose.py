@@ -22,6 +22,7 @@ import numpy as np
 from dptpu.fpp.calibration import Rig
 from dptpu.sim.scenes import load_scene
 
+from .blur_correction import BLUR_EFFECTS, blur_bias
 from .calibration_fit import NOT_IDENTIFIABLE_ON_SCENE, fit_calibration_error
 from .candidates import (
     NOT_IDENTIFIABLE,
@@ -41,7 +42,7 @@ from .phase_candidates import PHASE_VISIBLE, fit_phase_candidate
 from .pixels import DEFAULT_MAX_PIXELS, erode_mask, reference_pixels, self_reference_pixels
 from .recentred_orders import recentred_absolute_phase
 from .reference import Reference, load_scene_reference, parse_reference
-from .registration import Registration, register_robust
+from .registration import Registration, register, register_robust
 from .response import fit_response
 from .scene_registration import fit_scene_lens_distortion, register_scene
 from .selection import MIN_DELTA_BIC, delta_bic, gain, significant
@@ -53,6 +54,12 @@ __all__ = ["Diagnosis", "diagnose", "effect_entry", "EDGE_BAND_PX"]
 NOISE_OVER_SYSTEMATIC = 4.0
 #: Pixels next to the border of the measured region left out of the geometric fits (mixed pixels).
 EDGE_BAND_PX = 2
+#: Rounds of the geometric candidates under the named blurs (:mod:`.blur_correction`), each with the blurs fitted
+#: again against the geometry it finds; they end early when the blurs stay within ``BLUR_TOLERANCE``.
+BLUR_ROUNDS = 3
+BLUR_TOLERANCE = 0.03
+#: The pose the blurs are first fitted against is registered on the pixels this far inside the measured region.
+BLUR_POSE_MARGIN_PX = 6
 
 
 @dataclass
@@ -163,6 +170,51 @@ def _quiet(_: str) -> None:
     """No progress report."""
 
 
+def _blur_entries(measured, geometry, reference, material, step):
+    """The blurs fitted against ``geometry``: ``phase_filter`` (a phase file's correlated noise; None with
+    frames), ``pixel_footprint`` on the edge band (a sphere) and, on a phase file, its ``camera_defocus``
+    alternative as an entry of its own (None otherwise); each with ``named``. When the edge band names a blur,
+    the filter is fitted again on the residual less that blur's bias (:mod:`.blur_correction`): a blur's smooth
+    pattern reaches into the interior and correlates neighbours like a filter."""
+    noise = edge_defocus = None
+    filter_sigma = None
+    if not measured.has_frames:  # correlated phase noise: on what the best geometric model leaves
+        step("phase_filter")
+        noise = fit_phase_filter_on_phase_file(measured, geometry, reference, material)
+        noise["named"] = significant(noise)
+        filter_sigma = noise["parameters"]["sigma_px"] if noise["named"] else None
+    if reference.kind != "sphere":
+        footprint = not_identifiable("pixel_footprint", "the edge band is fitted on a sphere's silhouette (a "
+                                                        "plane's border is the image's or a shadow's, a scene's "
+                                                        "is traced)")
+        return noise, footprint, None
+    step("pixel_footprint")  # the edge band, against the geometric model
+    footprint = fit_pixel_footprint(measured, geometry, reference, material, edge_px=EDGE_BAND_PX,
+                                    phase_filter_sigma=filter_sigma)
+    footprint["named"] = significant(footprint) and footprint["evidence"].get("beats_alternatives", False)
+    if not measured.has_frames:  # a phase file: the lens blur after the sampling, seen on the edge band
+        edge_defocus = edge_defocus_entry(footprint)
+        if edge_defocus is not None:
+            edge_defocus["named"] = significant(edge_defocus) and edge_defocus["evidence"]["beats_alternatives"]
+        edge = [effect_entry(e) for e in (footprint, edge_defocus) if e is not None and e["named"]]
+        if edge and noise is not None:
+            step("phase_filter less the edge blur")
+            bias = blur_bias(measured, geometry, reference, material, edge)
+            noise = fit_phase_filter_on_phase_file(measured, geometry, reference, material, bias=bias)
+            noise["named"] = significant(noise)
+    return noise, footprint, edge_defocus
+
+
+def _blur_widths(effects: list) -> dict:
+    """``{name: width px}`` of blur effects (``sigma_px``, or the footprint's ``blur_sigma_px``)."""
+    return {name: float(p.get("sigma_px", p.get("blur_sigma_px", 0.0))) for e in effects for name, p in e.items()}
+
+
+def _same_blurs(a: list, b: list, tolerance: float = BLUR_TOLERANCE) -> bool:
+    """Whether two lists of blur effects name the same effects with main parameters within ``tolerance``."""
+    wa, wb = _blur_widths(a), _blur_widths(b)
+    return wa.keys() == wb.keys() and all(abs(wa[k] - wb[k]) <= tolerance * max(abs(wb[k]), 1e-9) for k in wa)
+
 def _reference_material(reference: Reference, rig: Rig):
     if reference.kind == "scene":
         return None  # a traced scene carries its own materials
@@ -213,6 +265,7 @@ def diagnose(measured, rig: Rig | None, *, reference=None, self_reference: bool 
     calibration = not_identifiable("calibration_error", "self-reference: no reference object")
     with_calibration: Registration | None = None
     calibration_pixels = None
+    geometry_base: Registration | None = None  # the pose the geometric candidates start from
     if self_reference:
         if not measured.has_frames:
             raise ValueError(f"{measured.source}: --self-reference needs raw frames (a capture folder)")
@@ -254,6 +307,7 @@ def diagnose(measured, rig: Rig | None, *, reference=None, self_reference: bool 
             lens, with_lens = fit_lens_distortion(rig, reference, measured.projector_x, registration)
         lens["named"] = significant(lens)
         entries = [lens]
+        geometry_base = registration
         if reference.kind == "scene":
             calibration = not_identifiable("calibration_error", NOT_IDENTIFIABLE_ON_SCENE)
             with_calibration = registration
@@ -268,27 +322,49 @@ def diagnose(measured, rig: Rig | None, *, reference=None, self_reference: bool 
                 extra["named"] = False
                 entries.append(extra)
         material = _reference_material(reference, rig)
-        best_geometry = _best_geometry(registration, ((lens, with_lens), (calibration, with_calibration)))
-        filter_sigma = None
-        edge_defocus: dict | None = None
-        if not measured.has_frames:  # correlated phase noise: on what the best geometric model leaves
-            step("phase_filter")
-            noise = fit_phase_filter_on_phase_file(measured, best_geometry, reference, material)
-            noise["named"] = significant(noise)
-            filter_sigma = noise["parameters"]["sigma_px"] if noise["named"] else None
-        if reference.kind != "sphere":
-            footprint = not_identifiable("pixel_footprint", "the edge band is fitted on a sphere's silhouette (a "
-                                                            "plane's border is the image's or a shadow's, a scene's "
-                                                            "is traced)")
-        else:  # the edge band, against the best geometric model
-            step("pixel_footprint")
-            footprint = fit_pixel_footprint(measured, best_geometry, reference, material, edge_px=EDGE_BAND_PX,
-                                            phase_filter_sigma=filter_sigma)
-            footprint["named"] = significant(footprint) and footprint["evidence"].get("beats_alternatives", False)
-            defocus = edge_defocus_entry(footprint) if not measured.has_frames else None
-            if defocus is not None:  # a phase file: the lens blur after the sampling, seen on the edge band
-                defocus["named"] = significant(defocus) and defocus["evidence"]["beats_alternatives"]
-                edge_defocus = defocus
+        # the blurs first against the pose alone: a geometric model fitted beside an unmodelled blur absorbs part
+        # of it, and a blur fitted against that geometry comes out too narrow
+        blur_geometry = registration
+        if reference.kind != "scene":  # the pose from pixels deeper than a blur's reach
+            blur_geometry = register(rig, reference, measured.projector_x,
+                                     registration.mask & erode_mask(measured.valid, BLUR_POSE_MARGIN_PX),
+                                     pose0=registration.pose)
+        noise, footprint, edge_defocus = _blur_entries(measured, blur_geometry, reference, material, step)
+        previous: list = []
+        first = (lens, with_lens, calibration, with_calibration)
+        # a geometric effect named beside a blur is judged again under it: the geometric candidates on the measured
+        # less the named blurs' bias (none named: nothing the blurs could have lent them)
+        rounds_left = BLUR_ROUNDS if lens["named"] or calibration["named"] else 0
+        for _ in range(rounds_left):
+            blurs = [effect_entry(e) for e in (footprint, edge_defocus, noise)
+                     if e is not None and e["named"] and e["name"] in BLUR_EFFECTS]
+            if not blurs or _same_blurs(blurs, previous):
+                break
+            step("lens_distortion and calibration_error under " + ", ".join(
+                f"{name} {width:.3g} px" for name, width in _blur_widths(blurs).items()))
+            corrected_x = measured.projector_x - blur_bias(measured, blur_geometry, reference, material, blurs)
+            geometry_base = register(rig, reference, corrected_x, registration.mask, pose0=registration.pose)
+            lens, with_lens = fit_lens_distortion(rig, reference, corrected_x, geometry_base)
+            calibration, with_calibration = fit_calibration_error(rig, reference, corrected_x, geometry_base)
+            for entry in (lens, calibration):
+                entry["evidence"]["under_blur"] = {"effects": blurs}
+                entry["named"] = significant(entry)
+            entries = [lens, calibration] + entries[2:]
+            # the blurs again against the pose alone: a geometric effect fitted beside a blur a little off absorbs
+            # the rest of it, and a blur fitted against that geometry stays off (the two settle on a biased pair)
+            noise, footprint, edge_defocus = _blur_entries(measured, geometry_base, reference, material, step)
+            blur_geometry, previous = geometry_base, blurs
+        if previous and (lens["named"] or calibration["named"]):
+            # a geometric effect holds under the blurs, so it is no blur's: its fit on the data as measured stands
+            # (the correction is the twin's at a geometry still without it), and the blurs are read against it
+            for before, under in ((first[0], lens), (first[2], calibration)):
+                before["evidence"]["under_blur"] = {"effects": previous, "named": under["named"],
+                                                    "gain": under["gain"], "parameters": under["parameters"]}
+            lens, with_lens, calibration, with_calibration = first
+            entries = [lens, calibration] + entries[2:]
+            geometry_base = registration
+            best_geometry = _best_geometry(registration, ((lens, with_lens), (calibration, with_calibration)))
+            noise, footprint, edge_defocus = _blur_entries(measured, best_geometry, reference, material, step)
         entries.append(footprint)
         pixels = mask = lens_pixels = None
         if measured.has_frames:
@@ -377,8 +453,8 @@ def diagnose(measured, rig: Rig | None, *, reference=None, self_reference: bool 
             noise["evidence"]["excess_variance_dn2"] > NOISE_OVER_SYSTEMATIC * systematic)
         entries.append(noise)
     geometry = None
-    if registration is not None:  # the geometric effect that explains most, or the registration
-        geometry = _best_geometry(registration, ((lens, with_lens), (calibration, with_calibration)))
+    if geometry_base is not None:  # the geometric effect that explains most, or the registration
+        geometry = _best_geometry(geometry_base, ((lens, with_lens), (calibration, with_calibration)))
     deterministic = sorted([e for e in entries if e["named"] and e["name"] not in NOISE_LIKE],
                            key=lambda e: -e["gain"])
     noise_named = [e for e in entries if e["named"] and e["name"] in NOISE_LIKE]
