@@ -21,6 +21,19 @@ a single draw of the noise (``5 x`` its median is 3.4 of its standard deviations
 go); from five on (two or more degrees of freedom) a clean surface loses nothing (below ``1e-7`` at 5 steps).
 The two frequencies' agreement (:mod:`dptpu.fpp.frequency_consistency`) is the check that needs no extra steps.
 
+**The camera's quantization** sets a floor under every pixel's phase noise: rounding to whole digital numbers adds
+noise of variance ``1 / 12`` (DN^2) to each image, so a pixel of modulation ``B`` has at least
+
+    sigma_q = sqrt(2 / N) / (sqrt(12) B)                (radians, :func:`quantization_phase_noise`)
+
+even where the camera adds nothing else. On a clean capture (little camera noise) the scan's median is close to
+``sigma_q`` of the median modulation, so every pixel whose modulation is a fifth of the median (dim texture, a
+surface turned away from the projector) would reach 5 times the median from quantization alone, with a phase as
+good as its modulation allows. :func:`noise_outliers` therefore judges a pixel against ``max_ratio`` times the larger
+of the scan's median and the pixel's own ``sigma_q``: a pixel is an outlier only when its noise is also far above
+what its modulation's quantization explains. Where the camera's noise is several DN this floor lies far below the
+median and changes nothing.
+
 A projector whose response is not linear (gamma) adds harmonics of the pattern, which 12 steps see in the residual:
 ``R`` then grows with ``B`` at every pixel alike, so ``R / B`` and the ratio to the median stay unchanged.
 """
@@ -31,7 +44,8 @@ from collections.abc import Sequence
 import cv2
 import numpy as np
 
-__all__ = ["DEFAULT_MAX_NOISE_RATIO", "MIN_NOISE_STEPS", "fit_residual", "noise_outliers", "phase_noise"]
+__all__ = ["DEFAULT_MAX_NOISE_RATIO", "MIN_NOISE_STEPS", "fit_residual", "noise_outliers", "phase_noise",
+           "quantization_phase_noise"]
 
 #: A pixel whose phase noise is this many times the scan's median (in any sequence of 5 or more steps) is dropped.
 #: Chosen on the main job's shipped scenes (docs/nodes.md, "Phase noise"): at 5 the path-traced scene random-1 lost
@@ -86,10 +100,32 @@ def phase_noise(residual: np.ndarray, modulation: np.ndarray, steps: int) -> np.
     return np.where(np.isnan(noise), np.inf, noise).astype(np.float32)
 
 
+def quantization_phase_noise(modulation: np.ndarray, steps: int, images_dtype) -> np.ndarray | None:
+    """``sigma_q = sqrt(2 / N) / (sqrt(12) B)`` (H, W) float32, radians: the phase noise that rounding integer images
+    to whole digital numbers leaves at modulation ``B`` (module docstring); None for float images (no rounding).
+
+    Parameters
+    ----------
+    modulation : ndarray (H, W)
+        ``B`` of the fit, digital numbers.
+    steps : int
+        ``N`` of the sequence.
+    images_dtype : numpy dtype
+        The images' dtype: the floor holds for integer images only.
+    """
+    if not np.issubdtype(np.dtype(images_dtype), np.integer):
+        return None
+    with np.errstate(divide="ignore"):
+        floor = np.sqrt(2.0 / steps) / (np.sqrt(12.0) * np.asarray(modulation, np.float64))
+    return floor.astype(np.float32)
+
+
 def noise_outliers(noise: Sequence[np.ndarray | None], valid: np.ndarray,
-                   max_ratio: float = DEFAULT_MAX_NOISE_RATIO) -> np.ndarray:
-    """Pixels (H, W) bool, among ``valid``, whose phase noise in any sequence is at least ``max_ratio`` times that
-    sequence's median over ``valid``; none when ``max_ratio`` is 0 (the test off) or no sequence has a noise map.
+                   max_ratio: float = DEFAULT_MAX_NOISE_RATIO,
+                   floors: Sequence[np.ndarray | None] | None = None) -> np.ndarray:
+    """Pixels (H, W) bool, among ``valid``, whose phase noise in any sequence is at least ``max_ratio`` times the
+    larger of that sequence's median over ``valid`` and the pixel's floor; none when ``max_ratio`` is 0 (the test
+    off) or no sequence has a noise map.
 
     Parameters
     ----------
@@ -98,17 +134,23 @@ def noise_outliers(noise: Sequence[np.ndarray | None], valid: np.ndarray,
     valid : ndarray (H, W) bool
     max_ratio : float
         0 (off) or > 1.
+    floors : sequence of ndarray (H, W) or None, optional
+        Per sequence, the noise each pixel has whatever the scan (:func:`quantization_phase_noise`); None: none.
     """
     if not (max_ratio == 0 or max_ratio > 1):
         raise ValueError(f"max_noise_ratio must be 0 (off) or > 1; got {max_ratio}")
+    floors = [None] * len(noise) if floors is None else list(floors)
+    if len(floors) != len(noise):
+        raise ValueError(f"floors must hold one entry per noise map; got {len(floors)} for {len(noise)}")
     valid = np.asarray(valid, dtype=bool)
     outliers = np.zeros(valid.shape, dtype=bool)
     if max_ratio == 0 or not valid.any():
         return outliers
-    for sigma in noise:
+    for sigma, floor in zip(noise, floors):
         if sigma is None:
             continue
         median = float(np.median(sigma[valid]))
         if np.isfinite(median) and median > 0:
-            outliers |= valid & (sigma >= max_ratio * median)
+            bound = median if floor is None else np.maximum(median, floor)
+            outliers |= valid & (sigma >= max_ratio * bound)
     return outliers

@@ -48,7 +48,14 @@ from .capture import (
     load_sequence_images,
 )
 from .frequencies import find_frequency, same_frequency, select_frequencies
-from .fringe_noise import DEFAULT_MAX_NOISE_RATIO, MIN_NOISE_STEPS, fit_residual, noise_outliers, phase_noise
+from .fringe_noise import (
+    DEFAULT_MAX_NOISE_RATIO,
+    MIN_NOISE_STEPS,
+    fit_residual,
+    noise_outliers,
+    phase_noise,
+    quantization_phase_noise,
+)
 from .methods import CAPTURE_METHODS
 from .phase_harmonics import ProjectorPhaseResponse
 
@@ -192,7 +199,7 @@ def unwrap_capture(
         phase_sequences, code = _select_phase_sequences(capture, method, high, low), None
     frequencies = [capture.frequency_of(s) for s in phase_sequences]
 
-    maps, quality, noise = [], np.ones(capture.image_shape, dtype=bool), []
+    maps, quality, noise, floors = [], np.ones(capture.image_shape, dtype=bool), [], []
     for sequence in phase_sequences:
         images = load_sequence_images(capture, sequence)  # (N, H, W)
         sequence_maps = phase.wrapped_phase(
@@ -205,7 +212,8 @@ def unwrap_capture(
         if max_noise_ratio > 0 and images.shape[0] >= MIN_NOISE_STEPS:
             residual = fit_residual(images, sequence_maps.background, sequence_maps.modulation)
             noise.append(phase_noise(residual, sequence_maps.modulation, images.shape[0]))
-    quality &= ~noise_outliers(noise, quality, max_noise_ratio)
+            floors.append(quantization_phase_noise(sequence_maps.modulation, images.shape[0], images.dtype))
+    quality &= ~noise_outliers(noise, quality, max_noise_ratio, floors)
 
     psi = [m.phase for m in maps]
     if phase_response is not None:

@@ -24,7 +24,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .fringe_noise import DEFAULT_MAX_NOISE_RATIO, MIN_NOISE_STEPS, fit_residual, noise_outliers, phase_noise
+from .fringe_noise import (
+    DEFAULT_MAX_NOISE_RATIO,
+    MIN_NOISE_STEPS,
+    fit_residual,
+    noise_outliers,
+    phase_noise,
+    quantization_phase_noise,
+)
 from .phase import maps_from_sums, quality_mask, sequence_sums, wrapped_phase
 
 __all__ = ["ImageSlot", "IncrementalScanPhase", "scan_phase_maps"]
@@ -45,11 +52,14 @@ class ImageSlot:
     shift_sign: int
 
 
-def _entry_noise(stack: np.ndarray, background: np.ndarray, modulation: np.ndarray) -> np.ndarray | None:
-    """:func:`dptpu.fpp.fringe_noise.phase_noise` of one entry (None below ``MIN_NOISE_STEPS`` steps)."""
+def _entry_noise(stack: np.ndarray, background: np.ndarray,
+                 modulation: np.ndarray) -> tuple[np.ndarray | None, np.ndarray | None]:
+    """:func:`dptpu.fpp.fringe_noise.phase_noise` of one entry and its quantization floor
+    (:func:`dptpu.fpp.fringe_noise.quantization_phase_noise`); ``(None, None)`` below ``MIN_NOISE_STEPS`` steps."""
     if stack.shape[0] < MIN_NOISE_STEPS:
-        return None
-    return phase_noise(fit_residual(stack, background, modulation), modulation, stack.shape[0])
+        return None, None
+    return (phase_noise(fit_residual(stack, background, modulation), modulation, stack.shape[0]),
+            quantization_phase_noise(modulation, stack.shape[0], stack.dtype))
 
 
 def scan_phase_maps(stacks: Sequence[np.ndarray], phase_offsets: Sequence[float], *, shift_sign: int,
@@ -82,7 +92,7 @@ def scan_phase_maps(stacks: Sequence[np.ndarray], phase_offsets: Sequence[float]
     valid : ndarray (H, W) bool
         Valid in every entry (:func:`dptpu.fpp.phase.quality_mask`).
     """
-    phases, modulations, noise = [], [], []
+    phases, modulations, noise, floors = [], [], [], []
     valid = np.ones(stacks[0].shape[1:], dtype=bool)
     for stack, offset in zip(stacks, phase_offsets):
         maps = wrapped_phase(stack, shift_sign=shift_sign, phase_offset=offset, dtype=np.float32)
@@ -91,8 +101,10 @@ def scan_phase_maps(stacks: Sequence[np.ndarray], phase_offsets: Sequence[float]
         phases.append(np.where(phase32 >= _TWO_PI, np.float32(0.0), phase32))
         modulations.append(maps.modulation.astype(np.float32, copy=False))
         if max_noise_ratio > 0:
-            noise.append(_entry_noise(stack, maps.background, maps.modulation))
-    valid &= ~noise_outliers(noise, valid, max_noise_ratio)
+            entry_noise, floor = _entry_noise(stack, maps.background, maps.modulation)
+            noise.append(entry_noise)
+            floors.append(floor)
+    valid &= ~noise_outliers(noise, valid, max_noise_ratio, floors)
     return np.stack(phases), np.stack(modulations), valid
 
 
@@ -107,6 +119,7 @@ class IncrementalScanPhase:
     def __init__(self) -> None:
         self.sums: dict[int, np.ndarray] = {}
         self.noise: dict[int, np.ndarray | None] = {}  # entry_start -> phase noise (H, W) of an entry of N >= 5
+        self.noise_floor: dict[int, np.ndarray | None] = {}  # entry_start -> its quantization floor (H, W)
         self.slots: dict[int, ImageSlot] = {}  # image index -> where it was added
         self.brightest: np.ndarray | None = None  # (H, W) max over the images, for the saturation mask
         self._stacks: dict[int, np.ndarray] = {}  # entry_start -> (N, H, W) images of an entry not complete yet
@@ -132,7 +145,7 @@ class IncrementalScanPhase:
             stack = self._stacks.pop(start)
             sums = self.sums[start] = sequence_sums(stack, shift_sign=slot.shift_sign, phase_offset=slot.phase_offset)
             if slot.steps >= MIN_NOISE_STEPS:  # the fit's residual: the entry's phase noise (fpp.fringe_noise)
-                self.noise[start] = _entry_noise(stack, sums[2], np.hypot(sums[0], sums[1]))
+                self.noise[start], self.noise_floor[start] = _entry_noise(stack, sums[2], np.hypot(sums[0], sums[1]))
 
     def maps(self, layout: Sequence[ImageSlot], *, min_modulation: float, saturation_level: float | None,
              max_noise_ratio: float = DEFAULT_MAX_NOISE_RATIO):
@@ -161,7 +174,8 @@ class IncrementalScanPhase:
         if saturation_level is not None:
             valid &= self.brightest < saturation_level  # no image at the saturation level
         if max_noise_ratio > 0:
-            valid &= ~noise_outliers([self.noise.get(start) for start in starts], valid, max_noise_ratio)
+            valid &= ~noise_outliers([self.noise.get(start) for start in starts], valid, max_noise_ratio,
+                                     [self.noise_floor.get(start) for start in starts])
         return phases, modulations, valid
 
     def background(self) -> np.ndarray | None:

@@ -2,7 +2,13 @@
 import numpy as np
 import pytest
 
-from dptpu.fpp.fringe_noise import DEFAULT_MAX_NOISE_RATIO, fit_residual, noise_outliers, phase_noise
+from dptpu.fpp.fringe_noise import (
+    DEFAULT_MAX_NOISE_RATIO,
+    fit_residual,
+    noise_outliers,
+    phase_noise,
+    quantization_phase_noise,
+)
 from dptpu.fpp.phase import wrapped_phase
 
 TWO_PI = 2.0 * np.pi
@@ -69,3 +75,53 @@ def test_sequences_too_short_to_judge_and_bad_arguments():
         noise_outliers([], np.ones((4, 4), bool), 0.5)
     with pytest.raises(ValueError, match="N >= 3"):
         fit_residual(np.zeros((2, 4, 4)), psi, psi)
+
+
+def _quantized(psi, steps, b, *, a=100.3, sigma=0.0, seed=5):
+    """:func:`_frames` rounded to 8-bit digital numbers, as a camera delivers them."""
+    return np.clip(np.rint(_frames(psi, steps, a=a, b=b, sigma=sigma, seed=seed)), 0, 255).astype(np.uint8)
+
+
+@pytest.mark.parametrize("steps", [5, 12])
+def test_rounding_alone_leaves_the_quantization_floor(steps):
+    # a noiseless capture rounded to whole DN: the measured phase noise is sqrt(2 / N) / (sqrt(12) B), and so is the
+    # phase error itself (rounding error uniform over one DN: variance 1/12)
+    b = 15.0
+    psi = np.random.default_rng(6).uniform(0, TWO_PI, (200, 200))
+    images = _quantized(psi, steps, b, a=np.random.default_rng(7).uniform(90, 110, psi.shape))
+    maps = wrapped_phase(images)
+    noise = phase_noise(fit_residual(images, maps.background, maps.modulation), maps.modulation, steps)
+    floor = quantization_phase_noise(maps.modulation, steps, images.dtype)
+    expected = np.sqrt(2.0 / steps) / (np.sqrt(12.0) * b)
+    assert np.sqrt(np.mean(floor ** 2)) == pytest.approx(expected, rel=0.01)
+    assert np.sqrt(np.mean(noise ** 2)) == pytest.approx(expected, rel=0.05)
+    # the rounding errors of the N images are not quite independent (one psi, fixed steps): within 10 %
+    assert np.angle(np.exp(1j * (maps.phase - psi))).std() == pytest.approx(expected, rel=0.1)
+    assert quantization_phase_noise(maps.modulation, steps, np.float32) is None  # float images are not rounded
+
+
+def test_a_dim_surface_of_a_clean_capture_is_judged_against_its_own_quantization():
+    # a clean 12-step capture (rounding only), modulation 48 DN but a dim patch of 6 DN: the patch's phase noise is 8x
+    # the median from rounding alone (a phase as good as 6 DN allow): dropped against the median, kept with the floor;
+    # a patch of the same modulation with 3 DN of camera noise is far above both and still goes
+    steps = 12
+    psi = np.random.default_rng(8).uniform(0, TWO_PI, (120, 160))
+    b = np.full(psi.shape, 48.0)
+    b[10:40, 20:60] = 6.0  # dim, clean
+    images = _quantized(psi, steps, b)
+    noisy = _quantized(psi, steps, 48.0, sigma=3.0, seed=9)
+    images[:, 70:100, 90:130] = noisy[:, 70:100, 90:130]
+    maps = wrapped_phase(images)
+    noise = phase_noise(fit_residual(images, maps.background, maps.modulation), maps.modulation, steps)
+    floor = quantization_phase_noise(maps.modulation, steps, images.dtype)
+    valid = np.ones(psi.shape, bool)
+    dim, noisy_patch = np.zeros(psi.shape, bool), np.zeros(psi.shape, bool)
+    dim[10:40, 20:60], noisy_patch[70:100, 90:130] = True, True
+    assert noise_outliers([noise], valid)[dim].mean() > 0.9  # the median alone drops the dim patch
+    outliers = noise_outliers([noise], valid, DEFAULT_MAX_NOISE_RATIO, [floor])
+    assert not outliers[dim].any()
+    assert not outliers[~dim & ~noisy_patch].any()
+    # 3 DN against 1/sqrt(12) DN of rounding: the noise is ~10x the median; below 5x on P(chi^2_9 / 9 < 0.25) ~ 2 %
+    assert outliers[noisy_patch].mean() > 0.95
+    with pytest.raises(ValueError, match="one entry per noise map"):
+        noise_outliers([noise], valid, DEFAULT_MAX_NOISE_RATIO, [floor, floor])
