@@ -20,12 +20,24 @@ s`` with ``s = 1.4826 median |eps|`` over the valid pixels (the noise's standard
 outliers it is there to find), and ``1 - z / Z`` clipped to [0, 1] with ``Z`` = :data:`DEFAULT_CONSISTENCY_SCALE`,
 so the default confidence threshold 0.2 (:mod:`dptpu.fpp.confidence`) drops ``z >= 0.8 Z`` = 5 robust standard
 deviations. No length, frequency or noise level is set: only the scan's own residuals.
+
+**The quantization floor.** On a clean capture (little camera noise) ``s`` is about the residual that rounding the
+images to whole digital numbers leaves at the scan's typical modulation, and a pixel of a fifth of that modulation
+(dim texture, a surface turned from the projector) reaches ``z = 5`` from rounding alone, its phases as good as its
+modulation allows. ``floor`` (:func:`quantization_residual_noise`) gives each pixel the residual's standard
+deviation that rounding predicts at its own modulations,
+
+    s_q = sqrt((f_l / f_h)^2 sigma_q,h^2 + sigma_q,l^2),   sigma_q = sqrt(2 / N) / (sqrt(12) B)
+
+(:func:`dptpu.fpp.fringe_noise.quantization_phase_noise` of each frequency's sequence), and the pixel is judged
+against ``max(s, s_q)``. Where the camera's noise is a DN or more ``s`` is far above ``s_q`` and nothing changes.
 """
 from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["DEFAULT_CONSISTENCY_SCALE", "MIN_SIGMA_RAD", "consistency_residual", "frequency_consistency"]
+__all__ = ["DEFAULT_CONSISTENCY_SCALE", "MIN_SIGMA_RAD", "consistency_residual", "frequency_consistency",
+           "quantization_residual_noise"]
 
 #: ``Z`` of the module docstring: the confidence ``1 - z / Z`` is 0.2 (the default threshold) at ``z`` = 5 robust
 #: standard deviations of the scan's residual. Chosen on the main job's shipped scenes and the outside rigs of
@@ -56,13 +68,33 @@ def consistency_residual(absolute_high: np.ndarray, wrapped_low: np.ndarray, f_h
     return np.pi - np.mod(np.pi - difference, 2.0 * np.pi)
 
 
+def quantization_residual_noise(noise_high: np.ndarray | None, noise_low: np.ndarray | None, f_h: float,
+                                f_l: float) -> np.ndarray | None:
+    """``s_q = sqrt((f_l / f_h)^2 sigma_q,h^2 + sigma_q,l^2)`` (H, W) float32, radians: the standard deviation of
+    ``eps`` that the images' rounding alone leaves (module docstring); None when either sequence has no floor.
+
+    Parameters
+    ----------
+    noise_high, noise_low : ndarray (H, W) or None
+        :func:`dptpu.fpp.fringe_noise.quantization_phase_noise` of the two frequencies' sequences.
+    f_h, f_l : float
+        Periods across the projector (> 0).
+    """
+    if noise_high is None or noise_low is None:
+        return None
+    ratio = f_l / f_h
+    return np.hypot(ratio * np.asarray(noise_high, np.float64), np.asarray(noise_low, np.float64)).astype(np.float32)
+
+
 def frequency_consistency(absolute_high: np.ndarray, wrapped_low: np.ndarray, f_h: float, f_l: float,
-                          valid: np.ndarray, *, scale: float = DEFAULT_CONSISTENCY_SCALE) -> np.ndarray:
+                          valid: np.ndarray, *, scale: float = DEFAULT_CONSISTENCY_SCALE,
+                          floor: np.ndarray | None = None) -> np.ndarray:
     """Confidence ``(H, W)`` float32 in [0, 1] of each valid pixel's phase from the two frequencies' agreement.
 
     ``clip(1 - |eps| / (scale s), 0, 1)``, ``s`` = 1.4826 times the median ``|eps|`` of the valid pixels (module
-    docstring, never below :data:`MIN_SIGMA_RAD`); 0 where not ``valid``. Parameters as
-    :func:`consistency_residual`'s; ``valid`` (H, W) bool.
+    docstring, never below :data:`MIN_SIGMA_RAD`), per pixel never below ``floor`` (H, W) where given
+    (:func:`quantization_residual_noise`); 0 where not ``valid``. Parameters as :func:`consistency_residual`'s;
+    ``valid`` (H, W) bool.
     """
     if not scale > 0:
         raise ValueError(f"scale must be > 0; got {scale}")
@@ -70,7 +102,10 @@ def frequency_consistency(absolute_high: np.ndarray, wrapped_low: np.ndarray, f_
     valid = np.asarray(valid, dtype=bool) & np.isfinite(eps)
     if not valid.any():
         return np.zeros(eps.shape, np.float32)
-    sigma = max(MAD_TO_SIGMA * float(np.median(eps[valid])), MIN_SIGMA_RAD)
+    sigma: float | np.ndarray = max(MAD_TO_SIGMA * float(np.median(eps[valid])), MIN_SIGMA_RAD)
+    if floor is not None:  # an infinite floor (no modulation) would pass anything: such pixels keep the scan's s
+        floor = np.asarray(floor, np.float64)
+        sigma = np.maximum(sigma, np.where(np.isfinite(floor), floor, 0.0))
     with np.errstate(invalid="ignore"):
         confidence = np.clip(1.0 - eps / (scale * sigma), 0.0, 1.0)
     return np.where(valid, confidence, 0.0).astype(np.float32)

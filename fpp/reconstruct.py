@@ -101,6 +101,9 @@ class CaptureResult:
         Quality mask of the sequences used (modulation, saturation), before unwrapping.
     steps : tuple of int
         Phase steps of the sequences in ``frequencies``.
+    quantization_noise : tuple of (ndarray (H, W) float32 or None)
+        Per sequence in ``frequencies``, the phase noise the images' rounding to whole digital numbers leaves at each
+        pixel (:func:`dptpu.fpp.fringe_noise.quantization_phase_noise`; None for float images); empty when unknown.
     """
 
     fringe_order: np.ndarray
@@ -116,6 +119,7 @@ class CaptureResult:
     wrapped_phases: tuple[np.ndarray, ...] = ()
     quality: np.ndarray | None = None
     steps: tuple[int, ...] = ()
+    quantization_noise: tuple[np.ndarray | None, ...] = ()
 
     @property
     def fringe_extent_px(self) -> int:
@@ -209,10 +213,12 @@ def unwrap_capture(
             images, sequence_maps.modulation, min_modulation=min_modulation, saturation_level=saturation_level
         )
         maps.append(sequence_maps)
+        floors.append(quantization_phase_noise(sequence_maps.modulation, images.shape[0], images.dtype))
         if max_noise_ratio > 0 and images.shape[0] >= MIN_NOISE_STEPS:
             residual = fit_residual(images, sequence_maps.background, sequence_maps.modulation)
             noise.append(phase_noise(residual, sequence_maps.modulation, images.shape[0]))
-            floors.append(quantization_phase_noise(sequence_maps.modulation, images.shape[0], images.dtype))
+        else:
+            noise.append(None)
     quality &= ~noise_outliers(noise, quality, max_noise_ratio, floors)
 
     psi = [m.phase for m in maps]
@@ -250,6 +256,7 @@ def unwrap_capture(
         wrapped_phases=tuple(psi),
         quality=quality,
         steps=tuple(s.steps for s in phase_sequences),
+        quantization_noise=tuple(floors),
     )
 
 

@@ -24,7 +24,7 @@ from pathlib import Path
 import numpy as np
 
 from dptpu.fpp.confidence import network_confidence
-from dptpu.fpp.frequency_consistency import frequency_consistency
+from dptpu.fpp.frequency_consistency import frequency_consistency, quantization_residual_noise
 from dptpu.fpp.low_period_disputes import low_period_disputes
 from dptpu.fpp.methods import TWO_FREQUENCY_METHODS
 
@@ -95,8 +95,11 @@ def refine_capture_result(result, model: FringeOrderModel, *, consensus: bool = 
     psi_h, psi_l = result.wrapped_phases
     quality = np.asarray(result.quality, dtype=bool)
     f_h, f_l = result.frequencies[0], result.frequencies[1]
+    floor = (quantization_residual_noise(result.quantization_noise[0], result.quantization_noise[1], f_h, f_l)
+             if len(result.quantization_noise) >= 2 else None)
     order, confidence = refine_order_and_confidence(model, result.method, psi_h, psi_l, result.fringe_order, f_h, f_l,
-                                                    quality, classical_valid=result.valid, consensus=consensus)
+                                                    quality, classical_valid=result.valid, consensus=consensus,
+                                                    consistency_floor=floor)
     absolute = psi_h + 2.0 * np.pi * order  # Eq. (3), (H, W)
     with np.errstate(invalid="ignore"):
         valid = quality & (absolute >= 0.0) & (absolute < 2.0 * np.pi * result.frequency)
@@ -141,8 +144,8 @@ def refine_order(model: FringeOrderModel, method: str, psi_h, psi_l, classical_o
 
 
 def refine_order_and_confidence(model: FringeOrderModel, method: str, psi_h, psi_l, classical_order, f_h: float,
-                                f_l: float, valid, *, classical_valid=None,
-                                consensus: bool = True) -> tuple[np.ndarray, np.ndarray]:
+                                f_l: float, valid, *, classical_valid=None, consensus: bool = True,
+                                consistency_floor: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """:func:`refine_order`'s order and its confidence, ``(order (H, W) int32, confidence (H, W) float32)``.
 
     The confidence is the smaller of :func:`dptpu.fpp.confidence.network_confidence` (the network's continuous
@@ -150,7 +153,9 @@ def refine_order_and_confidence(model: FringeOrderModel, method: str, psi_h, psi
     :func:`dptpu.fpp.frequency_consistency.frequency_consistency` (the low frequency's phase against the published
     absolute phase), 0 where not ``valid``. NT: 0 also on the solid patches where the order and ``classical_order``
     (the per-pixel lookup) differ by one low period (:func:`dptpu.fpp.low_period_disputes.low_period_disputes`: a
-    band the prior gave the other low order). Parameters as :func:`refine_order`'s.
+    band the prior gave the other low order). Parameters as :func:`refine_order`'s; ``consistency_floor`` (H, W),
+    optional: the agreement's per-pixel noise floor from the images' rounding
+    (:func:`dptpu.fpp.frequency_consistency.quantization_residual_noise`; :func:`refine_capture_result` passes it).
     """
     if method not in REFINABLE_METHODS or not model.serves(method):
         raise ValueError(f"the model {model.path} (trained for {', '.join(model.trained_methods)}) does not refine "
@@ -170,7 +175,7 @@ def refine_order_and_confidence(model: FringeOrderModel, method: str, psi_h, psi
         order = consensus_order(order, classical, np.where(valid, psi_h, 0.0), valid)
     confidence = network_confidence(continuous, order, classical, mask, wrapped_high=np.where(mask, psi_h, 0.0))
     absolute = np.asarray(psi_h, dtype=np.float64) + 2.0 * np.pi * order  # Eq. (3)
-    consistency = frequency_consistency(absolute, psi_l, f_h, f_l, mask)
+    consistency = frequency_consistency(absolute, psi_l, f_h, f_l, mask, floor=consistency_floor)
     confidence = np.minimum(confidence, consistency)
     if method == "nt":  # a band whose prior took the other low order than the per-pixel lookup, solidly: no confidence
         both = valid if classical_valid is None else valid & np.asarray(classical_valid, dtype=bool)
