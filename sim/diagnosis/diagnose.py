@@ -60,6 +60,8 @@ BLUR_ROUNDS = 3
 BLUR_TOLERANCE = 0.03
 #: The pose the blurs are first fitted against is registered on the pixels this far inside the measured region.
 BLUR_POSE_MARGIN_PX = 6
+#: Fewer pixels that deep (a small region): the blurs are fitted against the registration itself.
+MIN_DEEP_PIXELS = 100
 
 
 @dataclass
@@ -325,10 +327,9 @@ def diagnose(measured, rig: Rig | None, *, reference=None, self_reference: bool 
         # the blurs first against the pose alone: a geometric model fitted beside an unmodelled blur absorbs part
         # of it, and a blur fitted against that geometry comes out too narrow
         blur_geometry = registration
-        if reference.kind != "scene":  # the pose from pixels deeper than a blur's reach
-            blur_geometry = register(rig, reference, measured.projector_x,
-                                     registration.mask & erode_mask(measured.valid, BLUR_POSE_MARGIN_PX),
-                                     pose0=registration.pose)
+        deep = registration.mask & erode_mask(measured.valid, BLUR_POSE_MARGIN_PX)
+        if reference.kind != "scene" and deep.sum() >= MIN_DEEP_PIXELS:  # the pose from pixels beyond a blur's reach
+            blur_geometry = register(rig, reference, measured.projector_x, deep, pose0=registration.pose)
         noise, footprint, edge_defocus = _blur_entries(measured, blur_geometry, reference, material, step)
         previous: list = []
         first = (lens, with_lens, calibration, with_calibration)
@@ -343,7 +344,7 @@ def diagnose(measured, rig: Rig | None, *, reference=None, self_reference: bool 
             step("lens_distortion and calibration_error under " + ", ".join(
                 f"{name} {width:.3g} px" for name, width in _blur_widths(blurs).items()))
             corrected_x = measured.projector_x - blur_bias(measured, blur_geometry, reference, material, blurs)
-            geometry_base = register(rig, reference, corrected_x, registration.mask, pose0=registration.pose)
+            geometry_base = register(rig, reference, corrected_x, blur_geometry.mask, pose0=registration.pose)
             lens, with_lens = fit_lens_distortion(rig, reference, corrected_x, geometry_base)
             calibration, with_calibration = fit_calibration_error(rig, reference, corrected_x, geometry_base)
             for entry in (lens, calibration):

@@ -49,8 +49,9 @@ def _hidden(name: str, seed: int) -> tuple[list, str, float]:
 
 
 def _phase_file(tmp_path, seed, effects, sequences=SEQUENCES):
-    """A sphere half the field wide on the random rig of ``seed``, rendered with ``effects`` and decoded (the
-    phase-stage ``phase_filter`` in the decoder); the frames dropped."""
+    """A sphere half the field wide on the random rig of ``seed``, rendered with ``effects`` and decoded by the
+    twin's decoder (:func:`dptpu.sim.diagnosis.rerender.decode`, the phase-stage ``phase_filter`` in it: the
+    phase file of someone else's processing); the frames dropped."""
     rig = random_outside_rig(seed, size=SIZE)
     distance = float(np.linalg.norm(working_point(rig) - rig.camera.center))
     diameter = 0.5 * SIZE[0] / rig.camera.K[0, 0] * distance
@@ -58,8 +59,7 @@ def _phase_file(tmp_path, seed, effects, sequences=SEQUENCES):
     folder = render_capture(rig, sphere_scene(rig, diameter_mm=diameter), sequences, tmp_path / "measured",
                             effects=frame_effects, seed=seed)
     measured = load_measured(folder)
-    if len(frame_effects) < len(effects):
-        measured.absolute_phase = decode(measured.frames, measured.sequences, effects=effects)
+    measured.absolute_phase = decode(measured.frames, measured.sequences, effects=effects)
     measured.frames = []
     return measured, rig, f"sphere:{diameter}"
 
