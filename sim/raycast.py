@@ -11,7 +11,9 @@ Per camera pixel (u, v) (0-based centres):
 3. the projector coordinate of the hit point through the projector model WITH its distortion,
    ``x_p = K_p distort(R_p X + T_p)``;
 4. a shadow ray from the hit point to the projector's centre: the point is ``lit`` when nothing blocks it, its
-   surface faces the projector, and ``x_p`` falls on the projector's panel.
+   surface faces the projector (the triangle's face normal and the interpolated shading normal both: the image is
+   shaded with the latter, so a point whose shading normal turns away is black however its triangle lies), and
+   ``x_p`` falls on the projector's panel.
 
 Everything is vectorized over pixels; the only Python loops are over meshes.
 """
@@ -247,7 +249,10 @@ def trace(rig: Rig, meshes) -> SurfaceSamples:
     to_projector = rig.projector.center - points
     distance = np.linalg.norm(to_projector, axis=1)
     to_projector /= distance[:, None]
-    faces_projector = np.einsum("ij,ij->i", face_normals, to_projector) > 0
+    # both normals: the face's (the mesh) and the shading normal the image is lit by (image_formation's cos_i); a
+    # point whose shading normal turns away from the projector gets no light (an attached shadow) and is not lit
+    faces_projector = ((np.einsum("ij,ij->i", face_normals, to_projector) > 0)
+                       & (np.einsum("ij,ij->i", normals, to_projector) > 0))
     candidates = np.flatnonzero(on_panel & faces_projector)
     lit = np.zeros(pixels, bool)
     if candidates.size:
