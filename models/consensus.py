@@ -38,6 +38,8 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
+from dptpu.fpp.order_support import phase_gradient as support_phase_gradient
+
 __all__ = ["CLASSICAL_SHARE", "DEFAULT_RADII", "WIDE_RADII", "WIDE_SHARE", "break_share", "consensus_order",
            "phase_gradient", "prefer_consistent_classical", "vote_orders"]
 
@@ -67,14 +69,6 @@ def _check(name: str, array, shape=None) -> np.ndarray:
     return array
 
 
-def _box_mean(values: np.ndarray, weights: np.ndarray, radius: int) -> np.ndarray:
-    """Weighted mean over the ``(2 radius + 1)^2`` window of each pixel (``cv2.boxFilter``, zeros outside)."""
-    size = (2 * radius + 1, 2 * radius + 1)
-    total = cv2.boxFilter(values * weights, -1, size, normalize=False, borderType=cv2.BORDER_CONSTANT)
-    count = cv2.boxFilter(weights, -1, size, normalize=False, borderType=cv2.BORDER_CONSTANT)
-    return total / np.maximum(count, 1.0)
-
-
 def phase_gradient(wrapped_high, valid, radius: int = GRADIENT_RADIUS) -> tuple[np.ndarray, np.ndarray]:
     """Local gradient of the absolute phase, periods per pixel, along rows (y) and columns (x).
 
@@ -93,17 +87,7 @@ def phase_gradient(wrapped_high, valid, radius: int = GRADIENT_RADIUS) -> tuple[
     gy, gx : ndarray (H, W) float32
         0 where the window has no valid pair.
     """
-    frac = (np.asarray(wrapped_high, dtype=np.float64) / (2.0 * np.pi)).astype(np.float32)
-    valid = np.asarray(valid, dtype=bool)
-    gradients = []
-    for axis in (0, 1):
-        step = np.diff(frac, axis=axis)
-        step -= np.rint(step)
-        pair = (valid[1:] & valid[:-1]) if axis == 0 else (valid[:, 1:] & valid[:, :-1])
-        pad = ((0, 1), (0, 0)) if axis == 0 else ((0, 0), (0, 1))
-        weights = np.pad(pair, pad).astype(np.float32)
-        gradients.append(_box_mean(np.pad(np.where(pair, step, 0.0).astype(np.float32), pad), weights, radius))
-    return gradients[0], gradients[1]
+    return support_phase_gradient(wrapped_high, valid, radius)  # one definition, fpp.order_support's
 
 
 def prefer_consistent_classical(model_order, classical_order, wrapped_high, valid,
