@@ -76,19 +76,13 @@ def keep_freed_memory() -> bool:
     """
     if any(name in os.environ for name in ("MALLOC_MMAP_THRESHOLD_", "MALLOC_TRIM_THRESHOLD_", "MALLOC_TOP_PAD_")):
         return False
-    try:
-        mallopt = ctypes.CDLL(None).mallopt
-    except (OSError, AttributeError):
-        return False
-    mallopt.argtypes = (ctypes.c_int, ctypes.c_int)
-    mallopt.restype = ctypes.c_int
-    return all(mallopt(param, value) == 1 for param, value in ((_M_MMAP_THRESHOLD, _MMAP_THRESHOLD_BYTES),
-                                                               (_M_TRIM_THRESHOLD, _TRIM_THRESHOLD_BYTES),
-                                                               (_M_TOP_PAD, _TOP_PAD_BYTES)))
+    return _mallopt(((_M_MMAP_THRESHOLD, _MMAP_THRESHOLD_BYTES), (_M_TRIM_THRESHOLD, _TRIM_THRESHOLD_BYTES),
+                     (_M_TOP_PAD, _TOP_PAD_BYTES)))
 
 
 def return_freed_memory() -> bool:
-    """Make glibc's ``malloc`` map every block of 64 KiB or more on its own and unmap it on ``free``.
+    """Make glibc's ``malloc`` map a block of 64 KiB or more on its own and unmap it on ``free`` (unless a free
+    chunk of the heap already holds it: glibc looks there first).
 
     Sets ``M_MMAP_THRESHOLD`` to 64 KiB, which also turns off glibc's moving threshold (it rises to the largest
     block freed, after which such blocks come from the heap again). Messages and arrays then never fragment the
@@ -102,13 +96,19 @@ def return_freed_memory() -> bool:
     """
     if "MALLOC_MMAP_THRESHOLD_" in os.environ:
         return False
+    return _mallopt(((_M_MMAP_THRESHOLD, _RETURNED_ABOVE_BYTES),))
+
+
+def _mallopt(settings) -> bool:
+    """glibc's ``mallopt(param, value)`` for each ``(param, value)``; True when every one was applied, False
+    without glibc (nothing changed)."""
     try:
         mallopt = ctypes.CDLL(None).mallopt
     except (OSError, AttributeError):
         return False
     mallopt.argtypes = (ctypes.c_int, ctypes.c_int)
     mallopt.restype = ctypes.c_int
-    return mallopt(_M_MMAP_THRESHOLD, _RETURNED_ABOVE_BYTES) == 1
+    return all(mallopt(param, value) == 1 for param, value in settings)
 
 
 #: Allocations (less deallocations) of container objects between two collections of the youngest generation.
