@@ -17,8 +17,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from dptpu.sim.image_formation import SequenceSpec
-
+from .footprint_fit import twin_sequences
 from .rerender import decode, render_twin
 
 __all__ = ["BLUR_EFFECTS", "blur_bias"]
@@ -38,12 +37,7 @@ def blur_bias(measured, geometry, reference, material, effects) -> np.ndarray:
     unknown = [n for n in names if n not in BLUR_EFFECTS]
     if unknown:
         raise ValueError(f"blur_bias: {', '.join(unknown)} not a blur; expected one of {', '.join(BLUR_EFFECTS)}")
-    if measured.has_frames:
-        sequences = list(measured.sequences)
-        kwargs = {"bit_depth": measured.bit_depth, "pattern": measured.pattern}
-    else:
-        sequences = [SequenceSpec(measured.frequency, 12), SequenceSpec(1.0, 12)]
-        kwargs = {}
+    sequences, kwargs = twin_sequences(measured)
     bit_depth = kwargs.get("bit_depth", 8)
     to_x = measured.extent / (2.0 * np.pi * measured.frequency)
     period = measured.extent / measured.frequency

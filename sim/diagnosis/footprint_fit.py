@@ -58,18 +58,21 @@ def _search(objective, grid) -> tuple[float, float]:
     return value, rss
 
 
+def twin_sequences(measured) -> tuple[list, dict]:
+    """The sequences the twin renders for ``measured`` (its own; a phase file: the paper's ``f x 12`` and
+    ``1 x 12``) and the render's keyword arguments (the frames' bit depth and pattern)."""
+    if measured.has_frames:
+        return list(measured.sequences), {"bit_depth": measured.bit_depth, "pattern": measured.pattern}
+    return [SequenceSpec(measured.frequency, 12), SequenceSpec(1.0, 12)], {}
+
+
 def fit_pixel_footprint(measured, geometry, reference, material, *, edge_px: int = 2,
                         phase_filter_sigma: float | None = None) -> dict:
     """The ``pixel_footprint`` entry (module docstring) against the registration ``geometry``.
 
     Frames are rendered with the data's sequences (a phase file: the paper's ``f x 12`` and ``1 x 12``).
     """
-    if measured.has_frames:
-        sequences = list(measured.sequences)
-        kwargs = {"bit_depth": measured.bit_depth, "pattern": measured.pattern}
-    else:
-        sequences = [SequenceSpec(measured.frequency, 12), SequenceSpec(1.0, 12)]
-        kwargs = {}
+    sequences, kwargs = twin_sequences(measured)
     to_x = measured.extent / (2.0 * np.pi * measured.frequency)
     period = measured.extent / measured.frequency
     edge = edge_band(measured.valid, edge_px)
