@@ -30,7 +30,8 @@ def test_frames_of_the_plane_become_its_points(tmp_path, method, frequencies):
     with NodeHarness() as harness:
         harness.start(PhaseNode, timeout_s=1.0, projector_width=912, projector_height=1140)
         harness.start(UnwrapNode, method=method)
-        cloud_node = harness.start(CloudNode, rig=str(rig_path), normal_window_px=5)
+        cloud_node = harness.start(CloudNode, rig=str(rig_path), normal_window_px=5,
+                                   intensity_wait_s=10.0)  # the texture is checked: never published without it
         camera = harness.publisher(FringeFrame, "/camera/image_raw")
         points = harness.collect(PointCloud2, "/scanner/points")
         status = harness.collect(ScanStatus, "/scanner/status")
