@@ -21,7 +21,8 @@ least ``DPTPU_SHM_MIN_BYTES`` goes through shared memory: its arrays are copied 
 publisher's pool and ZeroMQ carries the header and a descriptor (:mod:`.shared_memory`, :mod:`.segment_pool`).
 A TRANSIENT_LOCAL publisher always sends through ZeroMQ (its history is replayed to late joiners).
 A writer that fills its arrays in place can borrow them in a segment (:meth:`Publisher.borrow_loaned_arrays`, as
-rclpy's ``borrow_loaned_message``): publishing a message made of them copies nothing.
+rclpy's ``borrow_loaned_message``): publishing a message made of them copies nothing. A loan the writer lets go of
+unpublished (its arrays garbage, e.g. a frame it dropped) goes back to the pool by itself.
 """
 
 from __future__ import annotations
@@ -29,6 +30,7 @@ from __future__ import annotations
 import threading
 import time
 import uuid
+import weakref
 from collections import deque
 
 import numpy as np
@@ -107,7 +109,8 @@ class Publisher:
         self._shm_min_bytes = shared.min_bytes if shared is not None else 0
         self._shm_subscriber_count = 0
         self.shared_count = 0
-        self._loans: dict[tuple, tuple] = {}  # ((address, nbytes) of each array) -> (segment, entries, arrays)
+        self._loans: dict[tuple, _Loan] = {}  # ((address, nbytes) of each array) -> the loan of exactly them
+        self._abandoned: deque[_Loan] = deque()  # loans whose arrays became garbage (appended by finalizers)
         # (sequence number, stamp in ns, encoded frames) of the last messages, replayed to late joiners
         self._history: deque[tuple[int, int, list]] | None = (
             deque(maxlen=queue_limit(resolved)) if self._transient else None)
@@ -158,6 +161,8 @@ class Publisher:
             stamp_ns = time.time_ns()
             if self._pool is not None and len(frames) > 2:
                 self._handle_events_locked()  # current counts of subscribers (and of those who can map)
+                if self._abandoned:
+                    self._take_back_abandoned_locked()
                 loan = self._loans.pop(_addresses(frames), None) if self._loans else None
                 head = self._shared_frames(frames) if loan is None else self._loaned_frames(frames, loan)
                 _send(sock, head, pack_envelope(0, self._seq, stamp_ns, self.gid))
@@ -180,12 +185,14 @@ class Publisher:
         self.shared_count += 1
         return [self._shm_topic, frames[1], descriptor]
 
-    def _loaned_frames(self, frames: list, loan: tuple) -> list:
+    def _loaned_frames(self, frames: list, loan: _Loan) -> list:
         """``[shm topic, header, descriptor]`` of a message made of loaned arrays (no copy); or, when a subscriber
         cannot map, the frames with the arrays copied out, and the segment taken back."""
-        segment, entries, arrays = loan
-        for array in arrays:
-            array.flags.writeable = False  # the message's now: a subscriber may be reading it
+        segment, entries = loan.segment, loan.entries
+        for ref in loan.arrays:
+            array = ref()
+            if array is not None:  # alive: the message being published holds views of it
+                array.flags.writeable = False  # the message's now: a subscriber may be reading it
         readers, pool = self._subscriber_count, self._pool
         if pool is None:
             return frames
@@ -203,7 +210,8 @@ class Publisher:
         ``cv2.merge(channels, dst=cloud)`` then ``PointCloud2.from_array(cloud, ...)``) and :meth:`publish` it;
         the arrays are read-only from then on. Without shared memory (off, over tcp, a TRANSIENT_LOCAL
         publisher, a full pool) they are plain arrays and the message goes as any other. Give back arrays that
-        will not be published with :meth:`return_loaned_arrays`.
+        will not be published with :meth:`return_loaned_arrays`; a loan whose arrays become garbage unpublished
+        goes back to the pool by itself (at the next publish or borrow).
 
         Parameters
         ----------
@@ -213,19 +221,26 @@ class Publisher:
         Returns
         -------
         list of ndarray
-            C-contiguous, uninitialized, each starting at a 64-byte boundary.
+            C-contiguous, uninitialized, each starting at a 64-byte boundary. Keep them (not only views of them)
+            until the message is published: a loan is matched by its arrays' addresses, and one whose arrays are
+            garbage counts as let go.
         """
         specs = [(tuple(int(n) for n in shape), np.dtype(dtype)) for shape, dtype in specs]
         sizes = [int(np.prod(shape)) * dtype.itemsize for shape, dtype in specs]
         with self._lock:
-            loan = self._pool.loan(sizes) if self._pool is not None and self._socket is not None else None
-            if loan is None:
+            if self._abandoned:
+                self._take_back_abandoned_locked()
+            taken = self._pool.loan(sizes) if self._pool is not None and self._socket is not None else None
+            if taken is None:
                 return [np.empty(shape, dtype) for shape, dtype in specs]
-            segment, entries = loan
+            segment, entries = taken
             arrays = [segment.array[offset:offset + nbytes].view(dtype).reshape(shape)
                       for (offset, nbytes), (shape, dtype) in zip(entries, specs)]
             key = tuple((array.ctypes.data, nbytes) for array, (_, nbytes) in zip(arrays, entries))
-            self._loans[key] = (segment, entries, arrays)
+            loan = self._loans[key] = _Loan(segment, entries, key, arrays)
+            abandoned = self._abandoned
+            for array in arrays:  # garbage before it was published: back to the pool (deque.append: thread-safe)
+                weakref.finalize(array, abandoned.append, loan)
         return arrays
 
     def return_loaned_arrays(self, arrays) -> None:
@@ -234,7 +249,16 @@ class Publisher:
         with self._lock:
             loan = self._loans.pop(key, None)
             if loan is not None and self._pool is not None:
-                self._pool.cancel_loan(loan[0])
+                self._pool.cancel_loan(loan.segment)
+
+    def _take_back_abandoned_locked(self) -> None:
+        """Cancel the loans whose arrays became garbage before they were published (holding the lock)."""
+        while self._abandoned:
+            loan = self._abandoned.popleft()
+            if self._loans.get(loan.key) is loan:  # not published, returned or lent again since
+                del self._loans[loan.key]
+                if self._pool is not None:
+                    self._pool.cancel_loan(loan.segment)
 
     def get_subscription_count(self) -> int:
         """Subscriptions connected now (as the socket has seen them join and leave)."""
@@ -299,6 +323,7 @@ class Publisher:
             if self._history is not None:
                 self._history.clear()
             self._loans.clear()
+            self._abandoned.clear()
         if sock is not None:
             sock.close(linger=PUBLISHER_LINGER_MS)
             if self._pool is not None:
@@ -314,6 +339,19 @@ class Publisher:
 
     def __repr__(self):
         return f"<Publisher {self.topic_name} [{self.msg_type.TYPE_NAME}]>"
+
+
+class _Loan:
+    """Arrays lent in one segment: the segment, each array's ``(offset, nbytes)``, the key (each array's
+    ``(address, nbytes)``) and weak references to the arrays (a loan let go of unpublished goes back)."""
+
+    __slots__ = ("segment", "entries", "key", "arrays")
+
+    def __init__(self, segment, entries, key: tuple, arrays: list[np.ndarray]):
+        self.segment = segment
+        self.entries = entries
+        self.key = key
+        self.arrays = [weakref.ref(array) for array in arrays]
 
 
 def _addresses(frames: list) -> tuple:

@@ -197,6 +197,24 @@ def test_loaned_arrays_are_published_without_a_copy_or_copied_out_for_a_subscrib
     assert not publisher._loans
 
 
+def test_a_loan_let_go_unpublished_goes_back_to_the_pool(context):
+    node = Node("loan_dropper", context=context)
+    publisher = node.create_publisher(Image, "/shm/dropped", 10)
+    (pixels,) = publisher.borrow_loaned_arrays([((480, 640), np.uint16)])
+    first = pixels.ctypes.data
+    del pixels  # a frame the writer dropped (e.g. one no Trigger claimed): garbage, never published
+    gc.collect()
+    for _ in range(3):  # each borrow takes the let-go segment back first: the pool never grows
+        (pixels,) = publisher.borrow_loaned_arrays([((480, 640), np.uint16)])
+        assert pixels.ctypes.data == first and publisher._pool.segment_count == 1
+        del pixels
+    publisher.publish(Image())  # no arrays: through ZeroMQ, and the last let-go loan is taken back too
+    assert not publisher._loans and publisher._pool.segment_count == 1
+    (kept,) = publisher.borrow_loaned_arrays([((480, 640), np.uint16)])  # a loan still held is not taken back
+    (other,) = publisher.borrow_loaned_arrays([((480, 640), np.uint16)])
+    assert kept.ctypes.data != other.ctypes.data and publisher._pool.segment_count == 2
+
+
 def test_a_subscriber_that_cannot_open_segments_unsubscribes_and_gets_zeromq(spawn, domain_dir):
     listener = spawn("listener", "--count", "1", "--timeout", "30")
     listener.wait_event("ready")
