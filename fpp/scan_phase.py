@@ -148,10 +148,13 @@ class IncrementalScanPhase:
                 self.noise[start], self.noise_floor[start] = _entry_noise(stack, sums[2], np.hypot(sums[0], sums[1]))
 
     def maps(self, layout: Sequence[ImageSlot], *, min_modulation: float, saturation_level: float | None,
-             max_noise_ratio: float = DEFAULT_MAX_NOISE_RATIO):
+             max_noise_ratio: float = DEFAULT_MAX_NOISE_RATIO, out=None):
         """Wrapped phase (F, H, W), modulation (F, H, W) and validity (H, W), as :func:`scan_phase_maps` gives
         them from the stacked images; None when the images added are not ``layout`` (image ``i`` at
-        ``layout[i]``: the scan's final layout), and the caller then computes the maps from the stacks."""
+        ``layout[i]``: the scan's final layout), and the caller then computes the maps from the stacks.
+
+        ``out``: ``(phases, modulations, valid)`` arrays of those shapes and dtypes (float32, float32, bool) to
+        compute into (e.g. a publisher's loaned segment), returned as the maps; None: new arrays."""
         if len(self.slots) != len(layout) or self.brightest is None:
             return None
         for index, slot in self.slots.items():
@@ -161,9 +164,17 @@ class IncrementalScanPhase:
         if any(start not in self.sums for start in starts):
             return None
         height, width = self.brightest.shape
-        phases = np.empty((len(starts), height, width), dtype=np.float32)
-        modulations = np.empty((len(starts), height, width), dtype=np.float32)
-        valid = np.ones((height, width), dtype=bool)
+        if out is None:
+            phases = np.empty((len(starts), height, width), dtype=np.float32)
+            modulations = np.empty((len(starts), height, width), dtype=np.float32)
+            valid = np.ones((height, width), dtype=bool)
+        else:
+            phases, modulations, valid = out
+            expected = [((len(starts), height, width), np.dtype(np.float32))] * 2 + [((height, width), np.dtype(bool))]
+            got = [(array.shape, array.dtype) for array in out]
+            if got != expected:
+                raise ValueError(f"out must be arrays of (shape, dtype) {expected}; got {got}")
+            valid.fill(True)
         for index, start in enumerate(starts):
             maps = maps_from_sums(self.sums[start])
             phases[index] = maps.phase  # in [0, 2*pi) in float32
@@ -178,13 +189,16 @@ class IncrementalScanPhase:
                                      [self.noise_floor.get(start) for start in starts])
         return phases, modulations, valid
 
-    def background(self) -> np.ndarray | None:
+    def background(self, out: np.ndarray | None = None) -> np.ndarray | None:
         """Mean intensity ``A`` (H, W) float32 of the scan's complete entries (Eq. (2): ``A = mean_n I_n``),
-        averaged over the entries; None before an entry is complete."""
+        averaged over the entries (into ``out``, an (H, W) float32 array, when given); None before an entry is
+        complete."""
         if not self.sums:
             return None
         starts = sorted(self.sums)
-        total = self.sums[starts[0]][2].copy()  # (H, W) float32
+        total = self.sums[starts[0]][2].copy() if out is None else out  # (H, W) float32
+        if out is not None:
+            np.copyto(out, self.sums[starts[0]][2])
         for start in starts[1:]:
             total += self.sums[start][2]
         total /= np.float32(len(starts))

@@ -219,6 +219,10 @@ class PhaseNode(Node):
         saturation = self.saturation_level if self.saturation_level > 0 else None
         sums = self._sums.pop(scan.sequence_id, None) or IncrementalScanPhase()
         slots = scan.slots()
+        layout = scan.layout
+        # the maps and the texture are computed in place in loaned shared-memory segments and published without a
+        # copy (plain arrays where there is no shared memory)
+        phase_maps, texture_out = self._borrow_maps(len(scan.images), scan.images[0][0].shape)
         try:
             pattern_index = 0
             for images in scan.images:
@@ -227,25 +231,32 @@ class PhaseNode(Node):
                         sums.add(pattern_index, image, slots[pattern_index])
                     pattern_index += 1
             maps = sums.maps(slots, min_modulation=self.min_modulation, saturation_level=saturation,
-                             max_noise_ratio=self.max_noise_ratio)
-            background = sums.background()
+                             max_noise_ratio=self.max_noise_ratio, out=phase_maps)
+            background = sums.background(out=None if scan.references.get("white") is not None
+                                         else texture_out)
             if maps is None:
-                maps = scan_phase_maps(scan.stacks, scan.layout.phase_offsets, shift_sign=scan.layout.shift_sign,
-                                       min_modulation=self.min_modulation, saturation_level=saturation,
-                                       max_noise_ratio=self.max_noise_ratio)
+                computed = scan_phase_maps(scan.stacks, layout.phase_offsets, shift_sign=layout.shift_sign,
+                                           min_modulation=self.min_modulation, saturation_level=saturation,
+                                           max_noise_ratio=self.max_noise_ratio)
+                for target, values in zip(phase_maps, computed):
+                    np.copyto(target, values)
+                maps = phase_maps
                 background = np.mean([stack.mean(axis=0, dtype=np.float32) for stack in scan.stacks], axis=0)
             phases, modulation, valid = maps
             if self.phase_response is not None:
-                phases = self._corrected(phases, scan.layout)
+                self._correct_in_place(phases, layout)
             texture = texture_image(background=background, white=scan.references.get("white"),
                                     black=scan.references.get("black"))  # (H, W) float32 DN
+            if texture is not texture_out:
+                np.copyto(texture_out, texture)
         except ValueError as exc:
+            self.phase_publisher.return_loaned_arrays(phase_maps)
+            self.texture_publisher.return_loaned_arrays([texture_out])
             self._report(DroppedScan(scan.sequence_id, f"phase computation refused the frames: {exc}",
                                      scan.frame_count, scan.frame_count, scan.first_arrival_s))
             return
-        layout = scan.layout
         header = Header(stamp=Time.from_ns(scan.last_stamp_ns), frame_id=self._frame_id)
-        self.texture_publisher.publish(Image.from_array(texture, "32FC1", header=header))
+        self.texture_publisher.publish(Image.from_array(texture_out, "32FC1", header=header))
         self.phase_publisher.publish(PhaseMaps(
             header=header, sequence_id=scan.sequence_id, fringe_axis=layout.fringe_axis,
             projector_width=layout.projector_size[0], projector_height=layout.projector_size[1],
@@ -257,16 +268,24 @@ class PhaseNode(Node):
                      frames_received=scan.frame_count + len(scan.references),
                      valid_pixels=int(np.count_nonzero(valid)), total_pixels=int(valid.size))
 
-    def _corrected(self, phases: np.ndarray, layout: ScanLayout) -> np.ndarray:
-        """``phases`` (F, H, W) with the projector's harmonic phase error removed from each entry whose step count
-        the rig's response holds (others untouched)."""
+    def _borrow_maps(self, entries: int, shape: tuple[int, ...]) -> tuple[list[np.ndarray], np.ndarray]:
+        """``([phases (F, H, W) float32, modulation (F, H, W) float32, valid (H, W) bool], texture (H, W)
+        float32)``: arrays lent by the publishers (:meth:`dptpu.graph.publisher.Publisher.borrow_loaned_arrays`),
+        in the order PhaseMaps encodes them."""
+        maps = self.phase_publisher.borrow_loaned_arrays([((entries, *shape), np.float32),
+                                                          ((entries, *shape), np.float32), (shape, np.bool_)])
+        (texture,) = self.texture_publisher.borrow_loaned_arrays([(shape, np.float32)])
+        return maps, texture
+
+    def _correct_in_place(self, phases: np.ndarray, layout: ScanLayout) -> None:
+        """Remove the projector's harmonic phase error from each entry of ``phases`` (F, H, W) whose step count the
+        rig's response holds (others untouched)."""
         response = self.phase_response
-        if response is None or not any(response.for_steps(n) is not None for n in layout.steps):
-            return phases
-        phases = phases.copy()
+        if response is None:
+            return
         for index, (steps, offset) in enumerate(zip(layout.steps, layout.phase_offsets)):
-            phases[index] = response.correct(phases[index], steps, phase_offset=offset)
-        return phases
+            if response.for_steps(steps) is not None:
+                phases[index] = response.correct(phases[index], steps, phase_offset=offset)
 
     def _status(self, sequence_id, level, state, reason, first_arrival_s, **counts) -> None:
         self.status_publisher.publish(scan_status(
