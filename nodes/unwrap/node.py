@@ -137,12 +137,18 @@ class UnwrapNode(Node):
         f_h = float(msg.frequencies[high])
         valid, low_confidence = self._valid_pixels(result, msg.valid, f_h)
         invalid = ~valid
+        # the message's arrays are written once, into a loaned shared-memory segment, and published without a copy
+        # (plain arrays where there is no shared memory)
+        absolute_phase, fringe_order, valid_out, reliability = self.absolute_publisher.borrow_loaned_arrays(
+            [(valid.shape, np.float32), (valid.shape, np.int32), (valid.shape, np.bool_), (valid.shape, np.float32)])
+        _masked_into(absolute_phase, result.absolute_phase, invalid, np.nan)
+        _masked_into(fringe_order, result.fringe_order, invalid, 0)
+        np.copyto(valid_out, valid)
+        _masked_into(reliability, result.reliability, invalid, 0.0)
         absolute = AbsolutePhase(
             header=msg.header, sequence_id=msg.sequence_id, frequency=f_h, fringe_axis=msg.fringe_axis,
             projector_width=msg.projector_width, projector_height=msg.projector_height,
-            absolute_phase=_masked_in_place(result.absolute_phase, invalid, np.nan, np.float32),
-            fringe_order=_masked_in_place(result.fringe_order, invalid, 0, np.int32), valid=valid,
-            reliability=_masked_in_place(result.reliability, invalid, 0.0, np.float32),
+            absolute_phase=absolute_phase, fringe_order=fringe_order, valid=valid_out, reliability=reliability,
             method="dptpu" if self.model is not None and not model_note else self.method)
         # the cloud's intensity: the unwrapped frequency's modulation (a view of the received maps, sent without a
         # copy), so the cloud node takes 1.2 MB a 640x480 scan instead of the whole PhaseMaps (5.2 MB)
@@ -301,15 +307,12 @@ def _model_setup(method: str, model_path: str, consensus: bool) -> _ModelSetup:
                        _load_refine_order() if model is not None else None)
 
 
-def _masked_in_place(values: np.ndarray, invalid: np.ndarray, fill, dtype) -> np.ndarray:
-    """``values`` (H, W) as ``dtype`` with ``fill`` where ``invalid``: in place when it already has that dtype (the
-    arrays of one scan's result, which nothing else holds), else one new array."""
-    if values.dtype == dtype and values.flags.writeable:
-        np.copyto(values, fill, where=invalid)
-        return values
-    out = np.full(values.shape, fill, dtype=dtype)
-    np.copyto(out, values, where=~invalid, casting="unsafe")
-    return out
+def _masked_into(out: np.ndarray, values: np.ndarray, invalid: np.ndarray, fill) -> None:
+    """``out`` (H, W) = ``values`` cast to its dtype, ``fill`` where ``invalid`` (what a NaN or an order of an invalid
+    pixel becomes in the cast does not matter: it is overwritten)."""
+    with np.errstate(invalid="ignore"):
+        np.copyto(out, values, casting="unsafe")
+    np.copyto(out, fill, where=invalid)
 
 
 def _finite(valid, phases) -> np.ndarray:
