@@ -94,7 +94,7 @@ class CameraNode(Node):
         frame_timeout_s = rules.read_only("frame_timeout_s", 1.0, description=device)
         publish_unpaired = rules.read_only("publish_unpaired", False, description=device)
         rig_path = rules.read_only("rig", "", description="the CameraInfo published at start-up")
-        self.frame_id = rules.settable("frame_id", DEFAULT_FRAME_ID, check=frame_id)
+        self.frame_id = rules.settable("frame_id", DEFAULT_FRAME_ID, check=frame_id, apply=self._set_frame_id)
         initial_s = rules.read_only("reconnect_initial_s", 0.5, description=device)
         max_s = rules.read_only("reconnect_max_s", 5.0, description=device)
         self.camera_info = self.rig_camera_info(rig_path) if rig_path else None
@@ -124,6 +124,14 @@ class CameraNode(Node):
         """``param set /camera exposure_us``: the acquisition thread writes it before the next frame."""
         if exposure_us > 0:
             self.acquisition.write_setting("exposure_us", exposure_us)
+
+    def _set_frame_id(self, value: str) -> None:
+        """``param set /camera frame_id``: the next frames carry it, and the latched CameraInfo is published again
+        with it (a late subscriber would otherwise get the old frame)."""
+        self.frame_id = value
+        if self.camera_info is not None:
+            self.camera_info.header = Header(stamp=self.get_clock().now().to_msg(), frame_id=value)
+            self.info_pub.publish(self.camera_info)
 
     def _set_frame_rate_hz(self, frame_rate_hz: float) -> None:
         """``param set /camera frame_rate_hz`` (free-running): the acquisition thread writes it before the next

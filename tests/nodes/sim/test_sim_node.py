@@ -192,3 +192,25 @@ def test_a_trigger_with_zero_steps_is_refused_with_its_reason_and_the_next_scan_
                              "(unknown); the sim needs N >= 1 to pick the frame")
     assert node.triggers_unknown == 2 and node.frames_published == 8
     assert {m.trigger.sequence_id for m in frames.messages} == {5}
+
+
+def test_a_frame_id_set_at_run_time_reaches_the_latched_camera_info_and_the_next_frames():
+    """``param set /sim frame_id`` changed the frames but the latched /camera/camera_info kept the old frame, so a
+    subscriber that came later (the cloud node restarted, rviz) paired the new frames with the old frame's info."""
+    with NodeHarness() as harness:
+        node = harness.start(SimNode, **PARAMS)
+        trigger_pub = harness.publisher(Trigger, "/projector/trigger", 100)
+        frames = harness.collect(FringeFrame, "/camera/image_raw")
+        harness.connect(timeout_s=30.0)
+        (result,) = node.set_parameters([Parameter("frame_id", value="left_camera_optical_frame")])
+        assert result.successful
+        (refused,) = node.set_parameters([Parameter("frame_id", value="")])
+        assert not refused.successful and node.frame_id == "left_camera_optical_frame"
+        late = harness.collect(CameraInfo, "/camera/camera_info", LATCHED_QOS)  # joins after the set
+        harness.wait(late, 1)
+        for trigger in _triggers(2):
+            trigger_pub.publish(trigger)
+        harness.wait(frames, 8)
+    assert [m.header.frame_id for m in late.messages] == ["left_camera_optical_frame"]
+    assert late.messages[0].width == 64  # the same rig's camera, announced again
+    assert {m.image.header.frame_id for m in frames.messages} == {"left_camera_optical_frame"}
