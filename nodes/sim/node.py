@@ -289,7 +289,12 @@ class SimNode(Node):
             self.get_logger().info(f"dropping pattern {trigger.pattern_index} of scan {sequence_id} (drop_frames)")
             return
         header = Header(stamp=trigger.header.stamp, frame_id=self.frame_id)
-        self.image_pub.publish(FringeFrame(image=Image.from_array(stack[step], header=header), trigger=trigger))
+        # the frame is copied once, as a camera's driver copies it out of its buffer: into a loaned shared-memory
+        # segment, which is published without a further copy (a plain array where there is no shared memory)
+        frame = stack[step]
+        (image,) = self.image_pub.borrow_loaned_arrays([(frame.shape, frame.dtype)])
+        np.copyto(image, frame)
+        self.image_pub.publish(FringeFrame(image=Image.from_array(image, header=header), trigger=trigger))
         self.frames_published += 1
 
     def _publish_truth(self, trigger: Trigger, index: int) -> None:

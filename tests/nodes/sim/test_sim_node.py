@@ -11,6 +11,7 @@ from dptpu.nodes.plumbing import LATCHED_QOS
 from dptpu.nodes.sim import SimNode
 from dptpu.nodes.sim.node import parse_drop_frames
 from dptpu.nodes.sim.source import SimScene, capture_scenes, load_source
+from tests.graph.nodes.shm_peer import is_shared
 
 SEQUENCE = "16x4,1x4"
 PARAMS = dict(source="raycast", size="64x48", scenes="plane,sphere", sequence=SEQUENCE)
@@ -214,3 +215,27 @@ def test_a_frame_id_set_at_run_time_reaches_the_latched_camera_info_and_the_next
     assert [m.header.frame_id for m in late.messages] == ["left_camera_optical_frame"]
     assert late.messages[0].width == 64  # the same rig's camera, announced again
     assert {m.image.header.frame_id for m in frames.messages} == {"left_camera_optical_frame"}
+
+
+def test_frames_are_copied_once_into_loaned_segments_and_arrive_bit_for_bit(monkeypatch):
+    monkeypatch.setenv("DPTPU_SHM_MIN_BYTES", "1024")  # the 64x48 frames (3 kB) through shared memory
+    with NodeHarness() as harness:
+        node = harness.start(SimNode, **PARAMS)
+
+        def no_copy(*args, **kwargs):
+            raise AssertionError("a loaned frame was copied into a segment a second time")
+
+        node.image_pub._pool.write = no_copy
+        trigger_pub = harness.publisher(Trigger, "/projector/trigger", 100)
+        frames = harness.collect(FringeFrame, "/camera/image_raw")
+        harness.connect(timeout_s=30.0)
+        for trigger in _triggers(1):
+            trigger_pub.publish(trigger)
+        harness.wait(frames, 8)
+        plane = node.source.scenes[0]
+        for message in frames.messages:
+            image = message.image.to_array()
+            assert is_shared(image) and not image.flags.writeable
+            np.testing.assert_array_equal(image, plane.stack(message.trigger.frequency,
+                                                             message.trigger.steps)[message.trigger.step])
+        assert node.image_pub.shared_count == 8
