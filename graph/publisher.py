@@ -209,8 +209,9 @@ class Publisher:
         As rclpy's ``borrow_loaned_message``: build the message from exactly these arrays, in this order (e.g.
         ``cv2.merge(channels, dst=cloud)`` then ``PointCloud2.from_array(cloud, ...)``) and :meth:`publish` it;
         the arrays are read-only from then on. Without shared memory (off, over tcp, a TRANSIENT_LOCAL
-        publisher, a full pool) they are plain arrays and the message goes as any other. Give back arrays that
-        will not be published with :meth:`return_loaned_arrays`; a loan whose arrays become garbage unpublished
+        publisher, a full pool, arrays of fewer than ``DPTPU_SHM_MIN_BYTES`` together) they are plain arrays and
+        the message goes as any other. Give back arrays that will not be published with
+        :meth:`return_loaned_arrays`; a loan whose arrays become garbage unpublished
         goes back to the pool by itself (at the next publish or borrow).
 
         Parameters
@@ -230,7 +231,8 @@ class Publisher:
         with self._lock:
             if self._abandoned:
                 self._take_back_abandoned_locked()
-            taken = self._pool.loan(sizes) if self._pool is not None and self._socket is not None else None
+            lend = self._pool is not None and self._socket is not None and sum(sizes) >= self._shm_min_bytes
+            taken = self._pool.loan(sizes) if lend else None
             if taken is None:
                 return [np.empty(shape, dtype) for shape, dtype in specs]
             segment, entries = taken
