@@ -386,14 +386,18 @@ def floor_ms_per_scan(*, steps: int, size: str, repeats: int = 30, source: str =
         coord = state["coord"] = projector_coordinate(result.absolute_phase, 64.0, extent)
         state["xyz"] = [triangulator.camera_points(coord, scale=rig.scale_to_m, dtype=np.float32)]
 
-    def camera_depth(projector_x):
-        return triangulator.camera_points(projector_x, scale=rig.scale_to_m, dtype=np.float32)[..., 2]
+    def depth_at(projector_x, pixels):
+        return triangulator.camera_points(projector_x, scale=rig.scale_to_m, dtype=np.float32, pixels=pixels)[:, 2]
 
     def filter_step():  # as the cloud node does by default: the points at depth edges (with the partly shadowed
-        # ones judged by their predicted depth error: one more triangulation), the islands of wrong orders
+        # ones judged by their predicted depth error: one more triangulation of those pixels), the islands of wrong
+        # orders
         xyz, result, modulation = state["xyz"][0], state["unwrapped"], state["maps"][0].modulation
         depth = np.ascontiguousarray(xyz[..., 2])
-        per_px = depth_per_pixel(state["coord"], camera_depth, "x", depth=depth)
+
+        def per_px(where):
+            return depth_per_pixel(state["coord"], depth_at, "x", depth=depth, where=where)
+
         dropped = edge_points(depth, focal_px, modulation, lit=result.valid, depth_per_px=per_px,
                               max_edge_error=DEFAULT_MAX_EDGE_ERROR_MM * 1e-3, axis="x").dropped
         dropped |= order_islands(result.absolute_phase, modulation, result.valid).islands

@@ -28,7 +28,7 @@ from dptpu.fpp.capture import CAPTURE_FILE, read_capture
 from dptpu.fpp.depth_edges import DEFAULT_MAX_EDGE_ERROR_MM, DEFAULT_MAX_SLOPE, depth_per_pixel, edge_points
 from dptpu.fpp.order_islands import order_islands
 from dptpu.fpp.point_cloud_file import write_point_cloud
-from dptpu.fpp.triangulate import Triangulator, projector_coordinate
+from dptpu.fpp.triangulate import Triangulator, camera_depth, projector_coordinate
 
 
 def register(subparsers) -> None:
@@ -85,12 +85,15 @@ def run(args: argparse.Namespace) -> int:
     keep = np.all(np.isfinite(points), axis=-1)  # (H, W)
     edges_note = "depth edges kept"
     if not args.keep_edges:
-        depth = np.where(keep, (points @ rig.camera.R.T + rig.camera.T)[..., 2], np.nan)  # (H, W) camera z
+        depth = np.where(keep, camera_depth(points, rig.camera), np.nan)  # (H, W) camera z
         focal_px = 0.5 * float(rig.camera.K[0, 0] + rig.camera.K[1, 1])
-        def camera_depth(projector_x: np.ndarray) -> np.ndarray:
-            return (triangulator.points(projector_x) @ rig.camera.R.T + rig.camera.T)[..., 2]
 
-        per_px = depth_per_pixel(x_p, camera_depth, capture.fringe_axis, depth=depth)
+        def depth_at(projector_x: np.ndarray, pixels: np.ndarray) -> np.ndarray:  # the few pixels asked for
+            return camera_depth(triangulator.points(projector_x, pixels=pixels), rig.camera)
+
+        def per_px(where: np.ndarray) -> np.ndarray:  # the second triangulation, where edge_points needs it
+            return depth_per_pixel(x_p, depth_at, capture.fringe_axis, depth=depth, where=where)
+
         edges = edge_points(depth, focal_px, result.modulation, lit=result.valid, depth_per_px=per_px,
                             max_edge_error=DEFAULT_MAX_EDGE_ERROR_MM * 1e-3 / rig.scale_to_m,
                             axis=capture.fringe_axis, max_slope=args.max_edge_slope)

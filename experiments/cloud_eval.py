@@ -51,7 +51,7 @@ from dptpu.fpp.confidence import DEFAULT_MIN_CONFIDENCE, confident
 from dptpu.fpp.depth_edges import DEFAULT_MAX_EDGE_ERROR_MM, depth_per_pixel, edge_points
 from dptpu.fpp.order_islands import order_islands
 from dptpu.fpp.reconstruct import CaptureResult, unwrap_capture
-from dptpu.fpp.triangulate import Triangulator, projector_coordinate
+from dptpu.fpp.triangulate import Triangulator, camera_depth, projector_coordinate
 from dptpu.models.inference import FringeOrderModel
 from dptpu.models.refine import refine_capture_result, refine_order_and_confidence
 from dptpu.sim.diagnosis.cfpe_inputs import cfpe_pair, cfpe_phase_response
@@ -170,15 +170,17 @@ def published_cloud(result: CaptureResult, rig: Rig, extent_px: int, axis: str, 
     x_p = projector_coordinate(np.where(valid, result.absolute_phase, np.nan), result.frequency, extent_px)
     triangulator = Triangulator(rig, axis=axis)
 
-    def camera_depth(projector_x: np.ndarray) -> np.ndarray:
-        return (triangulator.points(projector_x) @ np.asarray(rig.camera.R).T + np.asarray(rig.camera.T))[..., 2]
+    def depth_at(projector_x: np.ndarray, pixels: np.ndarray) -> np.ndarray:  # the few pixels asked for
+        return camera_depth(triangulator.points(projector_x, pixels=pixels), rig.camera)
 
-    depth = camera_depth(x_p)  # (H, W), NaN where no point
+    def per_px(where: np.ndarray) -> np.ndarray:  # the second triangulation, where edge_points needs it
+        return depth_per_pixel(x_p, depth_at, axis, depth=depth, where=where)
+
+    depth = camera_depth(triangulator.points(x_p), rig.camera)  # (H, W), NaN where no point
     published = np.isfinite(depth)
     at_edges = 0
     if edges:
         focal_px = 0.5 * float(rig.camera.K[0, 0] + rig.camera.K[1, 1])
-        per_px = depth_per_pixel(x_p, camera_depth, axis, depth=depth)
         max_error = DEFAULT_MAX_EDGE_ERROR_MM / {"mm": 1.0, "m": 1e3}.get(rig.units, 1.0)
         dropped = edge_points(depth, focal_px, result.modulation, lit=result.valid, depth_per_px=per_px,
                               max_edge_error=max_error, axis=axis).dropped & published

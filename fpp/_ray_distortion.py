@@ -156,25 +156,44 @@ class RayDistortion:
         row = self._projector.K[self._axis]
         return row[0] * xy_d[..., 0] + row[1] * xy_d[..., 1] + row[2]
 
-    def ideal_u(self, measured_px: np.ndarray, *, max_iterations: int = 6) -> np.ndarray:
+    def ideal_u(self, measured_px: np.ndarray, *, max_iterations: int = 6,
+                pixels: np.ndarray | None = None) -> np.ndarray:
         """Ideal (undistorted) coordinate as ``u = (c - mid) / half`` (H, W) of the measured one (H, W), pixels.
 
         The quintic guess and :attr:`float32_passes` Newton passes in float32, then float64 Newton passes until
         the largest correction is below :data:`STEP_TOLERANCE_PX`, the predicted error below
         :data:`PREDICTED_ERROR_PX`, or after ``max_iterations`` passes. NaN stays NaN.
+
+        ``pixels`` (M,) flat pixel indices: ``measured_px`` (M,) holds those pixels' coordinates only, and so does
+        the result. Each pixel goes through the same operations as in a whole image, so it gets the same value
+        bit for bit whenever the passes stop after as many passes (the largest correction is taken over the pixels
+        given: never more passes than the whole image needs, fewer only where the whole image held a pixel slower
+        to converge, whose extra pass moves the others by less than :data:`STEP_TOLERANCE_PX`).
         """
         measured_px = np.asarray(measured_px, dtype=np.float64)
+        guess, coefficients, coefficients32, derivative = self._at(pixels)
         measured32 = measured_px.astype(np.float32)
         u32 = measured32 - np.float32(self.mid_px)
         u32 *= np.float32(1.0 / self.half_px)
-        u32 = horner(self.guess, u32)  # (H, W) ideal u, float32
+        u32 = horner(guess, u32)  # (H, W) ideal u, float32
         with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
             for _ in range(self.float32_passes):
-                step = horner(self._coefficients32, u32)
+                step = horner(coefficients32, u32)
                 step -= measured32
-                step /= horner(self.derivative, u32)
+                step /= horner(derivative, u32)
                 u32 -= step
-        return self._solve(measured_px, u32.astype(np.float64), max_iterations, u32)
+        return self._solve(measured_px, u32.astype(np.float64), max_iterations, u32, coefficients, derivative)
+
+    def _at(self, pixels: np.ndarray | None) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """The float32 guess, the float64 and float32 coefficients and the derivative, (k, H, W) each, or (k, M) at
+        the flat pixel indices ``pixels`` (M,)."""
+        arrays = (self.guess, self.coefficients, self._coefficients32, self.derivative)
+        if pixels is None:
+            return arrays
+        index = np.asarray(pixels, dtype=np.intp)
+        guess, coefficients, coefficients32, derivative = (np.take(array.reshape(len(array), -1), index, axis=1)
+                                                           for array in arrays)
+        return guess, coefficients, coefficients32, derivative
 
     def ideal(self, measured_px: np.ndarray, *, max_iterations: int = 6) -> np.ndarray:
         """Ideal (undistorted) projector coordinate (H, W), pixels, of the measured one (H, W); see :meth:`ideal_u`."""
@@ -183,12 +202,16 @@ class RayDistortion:
         u += self.mid_px
         return u
 
-    def _solve(self, measured_px, u, max_iterations: int, u32=None) -> np.ndarray:
+    def _solve(self, measured_px, u, max_iterations: int, u32=None, coefficients=None,
+               derivative=None) -> np.ndarray:
         """Newton passes on ``m(u) = measured_px`` (H, W) from ``u`` (scalar or (H, W), overwritten); returns ``u``.
 
         ``m(u)`` is evaluated in float64, ``m'`` in float32 at ``u32`` (``u`` in float32, given or cast): its
-        relative error, about 1e-7, only adds ``1e-7 * step`` to a pass's error.
+        relative error, about 1e-7, only adds ``1e-7 * step`` to a pass's error. ``coefficients`` and
+        ``derivative``: those of the pixels ``measured_px`` holds (default: every pixel's, (k, H, W)).
         """
+        coefficients = self.coefficients if coefficients is None else coefficients
+        derivative = self.derivative if derivative is None else derivative
         if np.shape(u) != np.shape(measured_px):
             u = np.array(np.broadcast_to(u, np.shape(measured_px)), dtype=np.float64)
         if u32 is None:
@@ -197,9 +220,9 @@ class RayDistortion:
         kappa_px = _KAPPA_SAFETY * self.kappa * self.half_px  # predicted error (px) per squared step (u units)
         with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
             for _ in range(max_iterations):
-                step = horner(self.coefficients, u)  # m(u), pixels
+                step = horner(coefficients, u)  # m(u), pixels
                 step -= measured_px
-                step /= horner(self.derivative, u32)  # / m'(u) (pixels per unit u): Newton's step, u units
+                step /= horner(derivative, u32)  # / m'(u) (pixels per unit u): Newton's step, u units
                 u -= step
                 largest = np.fmax.reduce(np.abs(step, out=step), axis=None)  # ignores NaN pixels
                 if not largest > step_tolerance or kappa_px * largest**2 <= PREDICTED_ERROR_PX:

@@ -43,6 +43,11 @@ Four more signs of a pixel that straddles an edge, all used by :func:`edge_point
 An albedo edge at a depth edge or a shadow also dips the modulation; its pixels are dropped though their depth is
 right (completeness, never precision, pays for it).
 
+The tests that concern a few pixels are computed at those pixels only, each with the arithmetic it has on the whole
+image (the same marks bit for bit): the lit fraction and the predicted error of the pixels beside an unlit one
+(``depth_per_px`` as a callable: the second triangulation of :func:`depth_per_pixel` at those pixels), the
+continuation of a side at the dips it could keep.
+
 Parameters and why (``docs/nodes.md``, "Flying points", has the measurements behind the defaults):
 
 - ``max_slope`` (default :data:`DEFAULT_MAX_SLOPE` = 4, a surface inclined ``atan(4) = 76`` degrees from facing
@@ -93,6 +98,8 @@ _SIDES = np.array([[0, 1, 0], [1, 0, 1], [0, 1, 0]], dtype=np.uint8)
 _DIAGONALS = np.array([[1, 0, 1], [0, 0, 0], [1, 0, 1]], dtype=np.uint8)
 # (row step, column step, footprint factor) of the four lines through a pixel
 _LINES = ((0, 1, 1.0), (1, 0, 1.0), (1, 1, np.sqrt(2.0)), (1, -1, np.sqrt(2.0)))
+# (row step, column step) of the 8 directions from a pixel
+_DIRECTIONS = ((0, 1), (0, -1), (1, 0), (-1, 0), (1, 1), (-1, -1), (1, -1), (-1, 1))
 
 
 def beside_steps(depth: np.ndarray, focal_px: float, *, max_step: float, side: str = "both") -> np.ndarray:
@@ -160,8 +167,9 @@ def flying_points(depth: np.ndarray, focal_px: float, *, max_slope: float = DEFA
     return flying
 
 
-def depth_per_pixel(projector_x: np.ndarray, depth_at: Callable[[np.ndarray], np.ndarray], axis: str = "x",
-                    depth: np.ndarray | None = None) -> np.ndarray:
+def depth_per_pixel(projector_x: np.ndarray, depth_at: Callable[[np.ndarray, np.ndarray], np.ndarray],
+                    axis: str = "x", depth: np.ndarray | None = None,
+                    where: np.ndarray | None = None) -> np.ndarray:
     """The depth change along each pixel's ray when its projector coordinate moves by one camera pixel's worth of
     fringe, ``|dz/dx_p| * g`` (H, W): what a phase taken one camera pixel off the pixel's centre costs in depth.
 
@@ -173,20 +181,37 @@ def depth_per_pixel(projector_x: np.ndarray, depth_at: Callable[[np.ndarray], np
     projector_x : ndarray (H, W)
         Projector coordinate of every pixel (NaN where none).
     depth_at : callable
-        Camera depth ``z`` (H, W) of a projector coordinate image (the caller's triangulation).
+        ``depth_at(x, pixels)``: camera depth ``z`` (M,) of the projector coordinates ``x`` (M,) at the flat pixel
+        indices ``pixels`` (M,) (the caller's triangulation, e.g.
+        ``Triangulator.camera_points(x, pixels=pixels)[:, 2]``).
     axis : str
         ``"x"`` or ``"y"``: the camera axis the fringes vary along most (the capture's fringe axis).
     depth : ndarray (H, W), optional
-        ``depth_at(projector_x)`` when the caller has it already.
+        ``depth_at`` of ``projector_x`` at every pixel when the caller has it already.
+    where : ndarray (H, W) bool, optional
+        The pixels it is computed at (NaN elsewhere): :func:`edge_points` asks for the few beside an unlit pixel,
+        so the second triangulation costs those pixels only. None: every pixel.
     """
     x_p = np.asarray(projector_x, dtype=np.float64)
+    out = np.full(x_p.shape, np.nan)
+    if where is None:
+        pixels = np.arange(x_p.size)
+    else:
+        if np.shape(where) != x_p.shape:
+            raise ValueError(f"where must have the projector coordinate's shape {x_p.shape}; got {np.shape(where)}")
+        pixels = np.flatnonzero(where)
+        if pixels.size == 0:
+            return out
     steps = np.abs(np.diff(x_p, axis=1 if axis == "x" else 0))
     steps = steps[np.isfinite(steps)]
     if steps.size == 0:
-        return np.full(x_p.shape, np.nan)
+        return out
     g = float(np.median(steps))
-    base = depth_at(x_p) if depth is None else np.asarray(depth, dtype=np.float64)
-    return np.abs(np.asarray(depth_at(x_p + g), dtype=np.float64) - base)
+    x = x_p.ravel()[pixels]  # (M,)
+    base = (np.asarray(depth_at(x, pixels), dtype=np.float64) if depth is None
+            else np.asarray(depth).ravel()[pixels].astype(np.float64))
+    out.ravel()[pixels] = np.abs(np.asarray(depth_at(x + g, pixels), dtype=np.float64) - base)
+    return out
 
 
 @dataclass(frozen=True, eq=False)
@@ -216,7 +241,8 @@ class EdgePoints:
 
 
 def edge_points(depth: np.ndarray, focal_px: float, modulation: np.ndarray | None = None, *,
-                lit: np.ndarray | None = None, depth_per_px: np.ndarray | None = None,
+                lit: np.ndarray | None = None,
+                depth_per_px: np.ndarray | Callable[[np.ndarray], np.ndarray] | None = None,
                 max_edge_error: float | None = None, axis: str = "x", max_slope: float = DEFAULT_MAX_SLOPE,
                 max_step: float = DEFAULT_MAX_STEP, min_modulation_ratio: float = DEFAULT_MIN_MODULATION_RATIO,
                 min_neighbours: int = DEFAULT_MIN_NEIGHBOURS) -> EdgePoints:
@@ -235,9 +261,12 @@ def edge_points(depth: np.ndarray, focal_px: float, modulation: np.ndarray | Non
     lit : ndarray (H, W) bool, optional
         Pixels with a phase (the unwrapping's valid mask, before any confidence threshold): their complement is the
         projector's shadow and what lies off it. None: the pixels with a point.
-    depth_per_px : ndarray (H, W), optional
+    depth_per_px : ndarray (H, W) or callable, optional
         :func:`depth_per_pixel`, in the depth's unit: with ``max_edge_error``, a partly shadowed point predicted
-        farther off is dropped.
+        farther off is dropped. A callable is asked once, with the (H, W) bool mask of the pixels it is needed at
+        (those beside an unlit pixel and not already in the shadow), and returns it there (NaN elsewhere):
+        ``lambda where: depth_per_pixel(x_p, depth_at, axis, depth=depth, where=where)`` triangulates those pixels
+        only, with the same marks as the whole image's array.
     max_edge_error : float, optional
         Largest depth error of a point kept at an edge, in the depth's unit (:data:`DEFAULT_MAX_EDGE_ERROR_MM`
         converted). None: no predicted-error test and no point kept for a side continuing to it.
@@ -262,10 +291,13 @@ def edge_points(depth: np.ndarray, focal_px: float, modulation: np.ndarray | Non
         raise ValueError(f"max_edge_error must be > 0 (a depth, the depth's unit) or None; got {max_edge_error}")
     if axis not in ("x", "y"):
         raise ValueError(f"axis must be 'x' or 'y' (the camera axis the fringes vary along); got {axis!r}")
-    z = np.asarray(depth, dtype=np.float64)
-    flying = flying_points(z, focal_px, max_slope=max_slope)
-    solid = np.where(flying, np.nan, z)  # a flying point (a lone wrong order too) makes no step
-    has_point = np.isfinite(z)
+    z = np.asarray(depth)
+    if z.ndim != 2:
+        raise ValueError(f"depth must be an (H, W) image; got shape {z.shape}")
+    z32 = z.astype(np.float32, copy=False)  # what the neighbour tests compare (OpenCV's morphology in float32)
+    flying = flying_points(z32, focal_px, max_slope=max_slope)
+    solid = np.where(flying, np.float32(np.nan), z32)  # a flying point (a lone wrong order too) makes no step
+    has_point = np.isfinite(z32)
     unlit = ~(has_point if lit is None else np.asarray(lit, dtype=bool))
     if unlit.shape != z.shape:
         raise ValueError(f"lit must have the depth's shape {z.shape}; got {unlit.shape}")
@@ -277,28 +309,40 @@ def edge_points(depth: np.ndarray, focal_px: float, modulation: np.ndarray | Non
         if b.shape != z.shape:
             raise ValueError(f"modulation must have the depth's shape {z.shape}; got {b.shape}")
         brightest = _neighbour_max(np.where(np.isfinite(b), b, -np.inf))
-        with np.errstate(invalid="ignore", divide="ignore"):
-            lit_fraction = np.clip(b / brightest, 0.0, 1.0)  # NaN where B is
-            if min_modulation_ratio > 0:
+        if min_modulation_ratio > 0:
+            with np.errstate(invalid="ignore"):
                 dipped = has_point & (b < min_modulation_ratio * brightest)
-        shadow = beside_unlit & ~(lit_fraction >= MIN_LIT_FRACTION)
+        # the shadow tests judge the pixels beside an unlit one: computed there only, each as on the whole image
+        border = np.flatnonzero(beside_unlit)  # (M,) flat indices
+        with np.errstate(invalid="ignore", divide="ignore"):
+            lit_fraction = np.clip(b.ravel()[border] / brightest.ravel()[border], 0.0, 1.0)  # NaN where B is
+        in_shadow = ~(lit_fraction >= MIN_LIT_FRACTION)
+        np.put(shadow, border[in_shadow], True)
         if depth_per_px is not None and max_edge_error is not None:
-            per_px = np.asarray(depth_per_px, dtype=np.float64)
+            judged = border[~in_shadow]  # the only pixels the predicted error can add
+            if callable(depth_per_px):
+                where = np.zeros(z.shape, dtype=bool)
+                np.put(where, judged, True)
+                per_px = np.asarray(depth_per_px(where), dtype=np.float64)
+            else:
+                per_px = np.asarray(depth_per_px, dtype=np.float64)
             if per_px.shape != z.shape:
                 raise ValueError(f"depth_per_px must have the depth's shape {z.shape}; got {per_px.shape}")
             with np.errstate(invalid="ignore"):
-                error = 0.5 * (1.0 - lit_fraction) * per_px * _across_fringes(unlit, axis)
-                shadow |= beside_unlit & (error > max_edge_error)
+                error = (0.5 * (1.0 - lit_fraction[~in_shadow]) * per_px.ravel()[judged]
+                         * _across_fringes(unlit, axis, judged))
+            np.put(shadow, judged[error > max_edge_error], True)
     step = np.zeros(z.shape, dtype=bool)
     if np.isfinite(max_step):
         step = beside_steps(solid, focal_px, max_step=max_step) & ~flying  # both sides: see the module docstring
-    # a pure side (no flying point, no dip, not beside a step: a line of mixed pixels along an edge continues
-    # itself) that continues to a dipped point vouches for it. Not for a point beside a step (module docstring)
-    continued = (continues_a_side(z, has_point & ~flying & ~dipped & ~step, 0.5 * max_edge_error)
-                 if max_edge_error is not None else np.zeros(z.shape, dtype=bool))
     edge = beside_steps(solid, focal_px, max_step=max_slope)
     dip = dipped & (edge | (_neighbour_count(edge) > 0))  # within one pixel of a depth edge
-    dip &= beside_unlit | ~continued  # (a partly shadowed point is judged by the shadow test)
+    # a pure side (no flying point, no dip, not beside a step: a line of mixed pixels along an edge continues
+    # itself) that continues to a dipped point vouches for it. Not for a point beside a step (module docstring), nor
+    # for a partly shadowed point (the shadow test judges it); asked at the dips it could keep only
+    if max_edge_error is not None:
+        pure = has_point & ~flying & ~dipped & ~step
+        dip &= ~continues_a_side(z, pure, 0.5 * max_edge_error, where=dip & ~beside_unlit)
     isolated = np.zeros(z.shape, dtype=bool)
     if min_neighbours > 0:
         kept = has_point & ~flying & ~step & ~dip & ~shadow
@@ -306,30 +350,63 @@ def edge_points(depth: np.ndarray, focal_px: float, modulation: np.ndarray | Non
     return EdgePoints(flying=flying, beside_step=step, modulation_dip=dip, isolated=isolated, shadow_border=shadow)
 
 
-def _across_fringes(unlit: np.ndarray, axis: str) -> np.ndarray:
+def _across_fringes(unlit: np.ndarray, axis: str, pixels: np.ndarray | None = None) -> np.ndarray:
     """``|cos|`` of the angle between the shadow border's normal (the gradient of the unlit mask, 3x3 Sobel) and
-    the fringe axis, (H, W) float32: the share of a lit part's offset that moves the phase."""
-    mask = np.asarray(unlit, dtype=np.float32)
-    gx = cv2.Sobel(mask, cv2.CV_32F, 1, 0, ksize=3, borderType=cv2.BORDER_REPLICATE)
-    gy = cv2.Sobel(mask, cv2.CV_32F, 0, 1, ksize=3, borderType=cv2.BORDER_REPLICATE)
+    the fringe axis, (H, W) float32, or (M,) at the flat indices ``pixels``: the share of a lit part's offset that
+    moves the phase. (The Sobel sums of a 0/1 mask are small integers: exact in int16 as in float32.)"""
+    mask = np.asarray(unlit, dtype=np.uint8)
+    gx = cv2.Sobel(mask, cv2.CV_16S, 1, 0, ksize=3, borderType=cv2.BORDER_REPLICATE)
+    gy = cv2.Sobel(mask, cv2.CV_16S, 0, 1, ksize=3, borderType=cv2.BORDER_REPLICATE)
+    if pixels is None:
+        gx, gy = gx.astype(np.float32), gy.astype(np.float32)
+    else:
+        gx, gy = gx.ravel()[pixels].astype(np.float32), gy.ravel()[pixels].astype(np.float32)
     along = np.abs(gx if axis == "x" else gy)
     return along / np.maximum(np.hypot(gx, gy), np.float32(1e-6))
 
 
-def continues_a_side(depth: np.ndarray, pure: np.ndarray, tolerance: float) -> np.ndarray:
+def continues_a_side(depth: np.ndarray, pure: np.ndarray, tolerance: float,
+                     where: np.ndarray | None = None) -> np.ndarray:
     """Pixels whose depth the straight continuation of two ``pure`` pixels in a row predicts within ``tolerance``,
     in any of the 8 directions: ``|z - (2 z_1 - z_2)| <= tolerance``, ``z_1``, ``z_2`` the next two pixels that way
-    (the surface on that side, linearly extrapolated), (H, W) bool.
+    (the surface on that side, linearly extrapolated), (H, W) bool. ``where`` (H, W) bool: judged at those pixels
+    only (False elsewhere), the same arithmetic on the pixels gathered.
     """
+    if where is not None:
+        return _continues_at(np.asarray(depth), np.asarray(pure, dtype=bool), tolerance,
+                             np.asarray(where, dtype=bool))
     z = np.asarray(depth, dtype=np.float64)
     height, width = z.shape
     padded = cv2.copyMakeBorder(np.where(pure, z, np.nan), 2, 2, 2, 2, cv2.BORDER_CONSTANT, value=np.nan)
     out = np.zeros(z.shape, dtype=bool)
     with np.errstate(invalid="ignore"):
-        for dr, dc in ((0, 1), (0, -1), (1, 0), (-1, 0), (1, 1), (-1, -1), (1, -1), (-1, 1)):
+        for dr, dc in _DIRECTIONS:
             first = padded[2 + dr:2 + dr + height, 2 + dc:2 + dc + width]
             second = padded[2 + 2 * dr:2 + 2 * dr + height, 2 + 2 * dc:2 + 2 * dc + width]
             out |= np.abs(z - (2.0 * first - second)) <= tolerance
+    return out
+
+
+def _continues_at(depth: np.ndarray, pure: np.ndarray, tolerance: float, where: np.ndarray) -> np.ndarray:
+    """:func:`continues_a_side` at the pixels of ``where`` only (float64 arithmetic on the gathered depths)."""
+    height, width = depth.shape
+    flat_depth, flat_pure = depth.ravel(), pure.ravel()
+    pixels = np.flatnonzero(where)
+    rows, cols = np.divmod(pixels, width)
+    z = flat_depth[pixels].astype(np.float64)
+
+    def pure_depth(r: np.ndarray, c: np.ndarray) -> np.ndarray:  # the pure pixels' depth, NaN elsewhere and outside
+        inside = (r >= 0) & (r < height) & (c >= 0) & (c < width)
+        index = np.clip(r, 0, height - 1) * width + np.clip(c, 0, width - 1)
+        return np.where(inside & flat_pure[index], flat_depth[index].astype(np.float64), np.nan)
+
+    hit = np.zeros(pixels.size, dtype=bool)
+    with np.errstate(invalid="ignore"):
+        for dr, dc in _DIRECTIONS:
+            first, second = pure_depth(rows + dr, cols + dc), pure_depth(rows + 2 * dr, cols + 2 * dc)
+            hit |= np.abs(z - (2.0 * first - second)) <= tolerance
+    out = np.zeros(depth.shape, dtype=bool)
+    np.put(out, pixels[hit], True)
     return out
 
 

@@ -120,20 +120,30 @@ class Triangulator:
         """Points (H, W, 3) where each pixel's ray meets the projector plane of ideal coordinate ``coord``."""
         return self.origin + self.ray_parameter(coord, ideal=True)[..., None] * self.rays
 
-    def ray_parameter(self, projector_coord: np.ndarray, *, ideal: bool = False) -> np.ndarray:
+    def ray_parameter(self, projector_coord: np.ndarray, *, ideal: bool = False,
+                      pixels: np.ndarray | None = None) -> np.ndarray:
         """Distance ``t`` (H, W) along each unit ray from the camera centre to its point, rig units.
 
         ``X = C + t w`` in world coordinates, and ``X_cam = t w_cam`` in the camera frame, so ``t`` is also the
         range from the camera. ``projector_coord`` (H, W) is measured (distorted) unless ``ideal``. NaN where
-        the coordinate is NaN; ``t <= 0`` for a point behind the camera.
+        the coordinate is NaN; ``t <= 0`` for a point behind the camera. With ``pixels`` (M,) flat pixel indices,
+        ``projector_coord`` and the result are (M,): those pixels only, each computed as in a whole image
+        (:meth:`camera_points`).
         """
         coord = np.asarray(projector_coord, dtype=np.float64)
-        if coord.shape != self.shape:
-            raise ValueError(f"projector_coord must have the camera's shape {self.shape}; got {coord.shape}")
         alpha, beta, gamma, delta = self._alpha, self._beta, self._gamma, self._delta
-        if not ideal and self._projector_distortion is not None:
-            coord = self._projector_distortion.ideal_u(coord, max_iterations=self.projector_iterations)
+        distorted = not ideal and self._projector_distortion is not None
+        if distorted:
             alpha, beta, gamma, delta = self._alpha_u, self._beta_u, self._gamma_u, self._delta_u
+        if pixels is None:
+            if coord.shape != self.shape:
+                raise ValueError(f"projector_coord must have the camera's shape {self.shape}; got {coord.shape}")
+        else:
+            pixels = self._pixel_indices(pixels, coord)
+            gamma, delta = np.take(gamma, pixels), np.take(delta, pixels)
+        if distorted:
+            coord = self._projector_distortion.ideal_u(coord, max_iterations=self.projector_iterations,
+                                                       pixels=pixels)
         with np.errstate(divide="ignore", invalid="ignore"):
             numerator = coord * beta
             numerator -= alpha
@@ -142,23 +152,40 @@ class Triangulator:
             numerator /= denominator
         return numerator  # (H, W): t = (c beta - alpha) / (gamma - c delta)
 
-    def points(self, projector_coord: np.ndarray) -> np.ndarray:
+    def _pixel_indices(self, pixels: np.ndarray, coord: np.ndarray) -> np.ndarray:
+        """``pixels`` as (M,) flat indices into the camera image, checked against ``coord`` (M,)."""
+        index = np.asarray(pixels)
+        if index.ndim != 1 or not np.issubdtype(index.dtype, np.integer) or coord.shape != index.shape:
+            raise ValueError(f"pixels must be (M,) flat pixel indices and projector_coord (M,) beside them; got "
+                             f"{index.shape} {index.dtype} and {coord.shape}")
+        size = self.shape[0] * self.shape[1]
+        if index.size and not (0 <= int(index.min()) and int(index.max()) < size):
+            raise ValueError(f"pixels must be flat indices in [0, {size}); got {index.min()}..{index.max()}")
+        return index.astype(np.intp, copy=False)
+
+    def points(self, projector_coord: np.ndarray, *, pixels: np.ndarray | None = None) -> np.ndarray:
         """3D points in world coordinates (rig units), (H, W, 3) float64; NaN where the coordinate is NaN.
 
         Parameters
         ----------
         projector_coord : ndarray (H, W)
             Measured (distorted) projector coordinate along the fringe axis, pixels, NaN where invalid.
+        pixels : ndarray (M,) int, optional
+            Flat indices of the pixels to triangulate: ``projector_coord`` is then (M,) and the result (M, 3), each
+            pixel's point as in a whole image (see :meth:`camera_points`).
         """
-        t = self.ray_parameter(projector_coord)  # (H, W)
-        points = np.empty(self.rays.shape)  # (H, W, 3)
+        t = self.ray_parameter(projector_coord, pixels=pixels)  # (H, W) or (M,)
+        rays = self._rays_planar
+        if pixels is not None:
+            rays = np.take(rays.reshape(3, -1), np.asarray(pixels, dtype=np.intp), axis=1)  # (3, M)
+        points = np.empty((*t.shape, 3))  # (H, W, 3) or (M, 3)
         for k in range(3):  # per coordinate: a broadcast over the last axis of 3 is several times slower
-            np.multiply(t, self._rays_planar[k], out=points[..., k])
+            np.multiply(t, rays[k], out=points[..., k])
             points[..., k] += self.origin[k]
         return points
 
     def camera_points(self, projector_coord: np.ndarray, *, scale: float = 1.0, dtype=np.float32,
-                      out: np.ndarray | None = None) -> np.ndarray:
+                      out: np.ndarray | None = None, pixels: np.ndarray | None = None) -> np.ndarray:
         """3D points in the camera frame, ``(R X + T) * scale``, (H, W, 3) of ``dtype``; the cloud's output.
 
         Parameters
@@ -172,6 +199,12 @@ class Triangulator:
         out : ndarray (H, W, 3) of ``dtype``, optional
             Where to write the points; may be a strided view, e.g. the x, y, z channels of an (H, W, C) point
             cloud buffer, so the cloud is filled without a copy.
+        pixels : ndarray (M,) int, optional
+            Flat indices of the pixels to triangulate: ``projector_coord`` is then (M,), their coordinates, and the
+            result (M, 3) (``out`` not allowed). Each pixel goes through the same operations as in a whole image:
+            the same points bit for bit whenever the projector distortion's Newton passes stop after as many
+            passes (:meth:`dptpu.fpp._ray_distortion.RayDistortion.ideal_u`), and always without it. For a
+            caller that needs a few pixels of a second triangulation (``fpp.depth_edges.depth_per_pixel``).
 
         Returns
         -------
@@ -180,7 +213,9 @@ class Triangulator:
             is NaN or the point is not in front of the camera (``z <= 0``). Equals
             ``(points(c) @ R.T + T) * scale`` up to rounding, in one pass over the output.
         """
-        t = self.ray_parameter(projector_coord).astype(dtype)  # (H, W) rig units; NaN stays NaN
+        if pixels is not None and out is not None:
+            raise ValueError("out is for whole images; camera_points with pixels returns a new (M, 3) array")
+        t = self.ray_parameter(projector_coord, pixels=pixels).astype(dtype)  # (H, W) rig units; NaN stays NaN
         np.copyto(t, np.nan, where=t <= 0)  # behind the camera
         key = (np.dtype(dtype), float(scale))
         if key not in self._rays_camera_cast:  # (3, H, W) planar unit rays times scale, in the output dtype
@@ -189,7 +224,10 @@ class Triangulator:
             self._rays_camera_cast[key] = np.ascontiguousarray(rays_camera.T.reshape(self._rays_planar.shape),
                                                                dtype=dtype)
         rays = self._rays_camera_cast[key]
-        if out is None:
+        if pixels is not None:
+            rays = np.take(rays.reshape(3, -1), np.asarray(pixels, dtype=np.intp), axis=1)  # (3, M)
+            points = np.empty((t.size, 3), dtype=dtype)
+        elif out is None:
             points = np.empty(self.rays.shape, dtype=dtype)  # (H, W, 3)
         elif out.shape != self.rays.shape or out.dtype != np.dtype(dtype):
             raise ValueError(f"out must be an array of shape {self.rays.shape} and dtype {np.dtype(dtype)}; got "
@@ -203,6 +241,16 @@ class Triangulator:
     def depth(self, points: np.ndarray) -> np.ndarray:
         """Z of ``points`` (H, W, 3) in the camera frame, rig units, (H, W)."""
         return points @ self.rig.camera.R[2] + self.rig.camera.T[2]
+
+
+def camera_depth(points: np.ndarray, camera: DeviceModel) -> np.ndarray:
+    """Camera ``z`` (...) of world points (..., 3): ``(points @ R.T + T)[..., 2]``, the same values bit for bit for
+    a whole image and for any rows of it (numpy's matmul takes BLAS's matrix-vector path for a single row, whose
+    rounding may differ from the matrix product's: one row is evaluated as two)."""
+    rotation, translation = np.asarray(camera.R), np.asarray(camera.T)
+    if points.ndim == 2 and points.shape[0] == 1:
+        return (np.concatenate([points, points]) @ rotation.T + translation)[:1, 2]
+    return (points @ rotation.T + translation)[..., 2]
 
 
 def triangulate_reference(rig: Rig, pixels: np.ndarray, projector_coord: np.ndarray, *, axis: str = "x",

@@ -97,6 +97,7 @@ from __future__ import annotations
 
 import time
 from collections import OrderedDict
+from collections.abc import Callable
 from pathlib import Path
 
 import cv2
@@ -441,20 +442,23 @@ class CloudNode(Node):
 
         ``coord``: the scan's projector coordinate (NaN where no point); ``lit``: the pixels with a phase (the
         message's ``valid``): with the modulation image, the partly shadowed points are judged by their predicted
-        depth error (:func:`dptpu.fpp.depth_edges.depth_per_pixel`, one more triangulation).
+        depth error (:func:`dptpu.fpp.depth_edges.depth_per_pixel`, one more triangulation of those pixels only).
         """
         if not self.drop_edges:
             return {"flying": 0, "beside_step": 0, "modulation_dip": 0, "shadow_border": 0, "isolated": 0,
                     "total": 0}
         K = triangulator.rig.camera.K
         scale = triangulator.rig.scale_to_m
-        per_px = None
+        per_px: Callable[[np.ndarray], np.ndarray] | None = None
         axis = "x" if triangulator.axis == 0 else "y"
         if modulation is not None:
-            def camera_depth(projector_x: np.ndarray) -> np.ndarray:
-                return triangulator.camera_points(projector_x, scale=scale, dtype=np.float32)[..., 2]
+            def depth_at(projector_x: np.ndarray, pixels: np.ndarray) -> np.ndarray:  # the few pixels asked for
+                return triangulator.camera_points(projector_x, scale=scale, dtype=np.float32, pixels=pixels)[:, 2]
 
-            per_px = depth_per_pixel(coord, camera_depth, axis, depth=planes[2])
+            def depth_per_px(where: np.ndarray) -> np.ndarray:  # the second triangulation, where edge_points asks
+                return depth_per_pixel(coord, depth_at, axis, depth=planes[2], where=where)
+
+            per_px = depth_per_px
         edges = edge_points(planes[2], 0.5 * float(K[0, 0] + K[1, 1]), modulation, lit=lit, depth_per_px=per_px,
                             max_edge_error=DEFAULT_MAX_EDGE_ERROR_MM * 1e-3, axis=axis,
                             max_slope=self.max_edge_slope)

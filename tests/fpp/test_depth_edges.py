@@ -97,8 +97,16 @@ def test_a_partly_shadowed_point_is_dropped_by_its_predicted_depth_error():
 
 def test_depth_per_pixel_is_the_depth_change_of_one_camera_pixel_of_fringe():
     x_p = np.tile(np.arange(10.0) * 2.0, (3, 1))  # 2 projector pixels per camera pixel
-    per_px = depth_per_pixel(x_p, lambda x: 1000.0 - 3.0 * x, "x")  # 3 mm per projector pixel
+    per_px = depth_per_pixel(x_p, lambda x, pixels: 1000.0 - 3.0 * x, "x")  # 3 mm per projector pixel
     np.testing.assert_allclose(per_px, 6.0)
+    where = np.zeros(x_p.shape, dtype=bool)
+    where[1, 2:5] = True  # only there: NaN elsewhere, and depth_at sees those pixels' flat indices
+    asked = []
+    per_px = depth_per_pixel(x_p, lambda x, pixels: asked.append(pixels.tolist()) or 1000.0 - 3.0 * x, "x",
+                             where=where)
+    np.testing.assert_allclose(per_px[where], 6.0)
+    assert np.isnan(per_px[~where]).all() and asked == [[12, 13, 14]] * 2
+    assert np.isnan(depth_per_pixel(x_p, lambda x, pixels: x, "x", where=np.zeros(x_p.shape, bool))).all()
 
 
 def test_isolated_points_and_bad_parameters():
@@ -136,7 +144,8 @@ def test_edge_filter_leaves_no_point_off_the_surface_on_a_12_step_capture_with_m
     off = has_point & (capture.scene.distance_mm(np.nan_to_num(points)) > 1.0)
     assert off.sum() > 0.005 * has_point.sum()  # the mixed pixels are there
     triangulator = Triangulator(capture.rig, axis="x", distortion=False)
-    per_px = depth_per_pixel(x_p, lambda x: triangulator.camera_points(x, dtype=np.float64)[..., 2], "x",
+    per_px = depth_per_pixel(x_p, lambda x, pixels: triangulator.camera_points(x, dtype=np.float64,
+                                                                               pixels=pixels)[:, 2], "x",
                              depth=points[..., 2])
     keep = has_point & ~edge_points(points[..., 2], outside.camera_focal_px, maps[0].modulation, lit=result.valid,
                                     depth_per_px=per_px, max_edge_error=1.0).dropped

@@ -1,0 +1,103 @@
+"""The cloud filters' kernels for a few pixels agree bit for bit with their whole-image versions: the triangulation
+of chosen pixels (:meth:`dptpu.fpp.triangulate.Triangulator.camera_points` with ``pixels``), the shadow test's
+second triangulation asked only where :func:`dptpu.fpp.depth_edges.edge_points` needs it, the continuation of a
+side at chosen pixels. On outside rigs (projector and camera distortion drawn by a seed, several focal lengths,
+baselines and angles) rendered with mixed pixels at depth edges, projector shadows and the paper's camera noise."""
+from functools import cache
+
+import numpy as np
+import pytest
+
+from dptpu.fpp.depth_edges import continues_a_side, depth_per_pixel, edge_points
+from dptpu.fpp.triangulate import Triangulator, camera_depth, projector_coordinate
+from dptpu.sim.outside_rigs import SIGMA_2, issue16_rig, random_outside_rig, render_phases, spheres_and_plane
+
+FREQUENCY = 16.0
+
+
+RIGS = {"random-3": (lambda: random_outside_rig(3, size=(160, 120)), 3),
+        "random-8": (lambda: random_outside_rig(8, size=(160, 120)), 8),
+        "issue16": (lambda: issue16_rig(size=(160, 120)), 1)}
+
+
+@cache
+def rendered(name):
+    """``(rig, projector coordinate (H, W), modulation, lit)`` of a noisy 12-step capture of spheres before a plane
+    on rig ``name`` (the true order on the rendered wrapped phase: mixed pixels at the depth edges, NaN in the
+    projector's shadow)."""
+    make_rig, seed = RIGS[name]
+    rig = make_rig()
+    capture = render_phases(rig, spheres_and_plane(rig, seed), [FREQUENCY], steps=12, noise_dn=SIGMA_2, seed=seed)
+    phase = capture.phases[FREQUENCY] + 2 * np.pi * capture.order(FREQUENCY)
+    lit = capture.valid & (capture.modulation[FREQUENCY] > 3.0)
+    x_p = projector_coordinate(np.where(lit, phase, np.nan), FREQUENCY, capture.extent)
+    return rig, x_p, capture.modulation[FREQUENCY], lit
+
+
+@pytest.mark.parametrize("name", RIGS)
+def test_edge_points_with_the_second_triangulation_where_needed_marks_what_the_whole_image_marks(name):
+    rig, x_p, modulation, lit = rendered(name)
+    triangulator = Triangulator(rig, axis="x")
+    assert (triangulator._projector_distortion is not None) == name.startswith("random")  # Newton's passes too
+    points = triangulator.camera_points(x_p, dtype=np.float32)
+    depth = np.ascontiguousarray(points[..., 2])
+    focal_px = 0.5 * float(rig.camera.K[0, 0] + rig.camera.K[1, 1])
+
+    def whole_image(x):  # the second triangulation of every pixel (the kernels before this change)
+        return triangulator.camera_points(x, dtype=np.float32)[..., 2]
+
+    def depth_at(x, pixels):
+        return triangulator.camera_points(x, dtype=np.float32, pixels=pixels)[:, 2]
+
+    steps = np.abs(np.diff(x_p, axis=1))
+    g = float(np.median(steps[np.isfinite(steps)]))
+    everywhere = np.abs(whole_image(x_p + g).astype(np.float64) - depth)
+    asked = []
+
+    def per_px(where):
+        asked.append(int(np.count_nonzero(where)))
+        return depth_per_pixel(x_p, depth_at, "x", depth=depth, where=where)
+
+    reference = edge_points(depth, focal_px, modulation, lit=lit, depth_per_px=everywhere, max_edge_error=1.0)
+    masked = edge_points(depth, focal_px, modulation, lit=lit, depth_per_px=per_px, max_edge_error=1.0)
+    for reason in ("flying", "beside_step", "modulation_dip", "isolated", "shadow_border"):
+        assert np.array_equal(getattr(masked, reason), getattr(reference, reason)), reason
+    assert reference.shadow_border.any() and reference.modulation_dip.any()  # the tests had something to mark
+    assert 0 < asked[0] < 0.2 * np.count_nonzero(np.isfinite(depth))  # a few pixels triangulated again
+    where = np.isfinite(depth) & ~lit[:, ::-1]  # any pixels: the same values bit for bit
+    assert np.array_equal(per_px(where)[where], everywhere[where], equal_nan=True)
+
+
+@pytest.mark.parametrize("name", RIGS)
+def test_points_of_chosen_pixels_are_the_whole_image_points_bit_for_bit(name):
+    rig, x_p, _, _ = rendered(name)
+    triangulator = Triangulator(rig, axis="x")
+    whole32 = triangulator.camera_points(x_p, scale=1e-3, dtype=np.float32)
+    whole = triangulator.points(x_p)
+    rng = np.random.default_rng(len(name))
+    for count in (1, 2, 7, 500):
+        pixels = np.sort(rng.choice(x_p.size, count, replace=False))
+        chosen = x_p.ravel()[pixels]
+        assert np.array_equal(triangulator.camera_points(chosen, scale=1e-3, dtype=np.float32, pixels=pixels),
+                              whole32.reshape(-1, 3)[pixels], equal_nan=True)
+        assert np.array_equal(triangulator.points(chosen, pixels=pixels), whole.reshape(-1, 3)[pixels],
+                              equal_nan=True)
+        assert np.array_equal(camera_depth(triangulator.points(chosen, pixels=pixels), rig.camera),
+                              camera_depth(whole, rig.camera).ravel()[pixels], equal_nan=True)
+    with pytest.raises(ValueError, match="pixels"):
+        triangulator.camera_points(x_p.ravel()[:3], pixels=np.array([0, 1, x_p.size]))
+    with pytest.raises(ValueError, match="out"):
+        triangulator.camera_points(x_p.ravel()[:1], pixels=np.array([0]), out=whole32)
+
+
+def test_a_side_continued_at_chosen_pixels_is_the_whole_image_answer():
+    rng = np.random.default_rng(5)
+    rows, cols = np.mgrid[0:40, 0:50]
+    depth = (600.0 + 0.3 * cols + 0.1 * rows + rng.normal(0, 0.2, rows.shape)).astype(np.float32)
+    depth[rng.random(depth.shape) < 0.1] = np.nan
+    pure = np.isfinite(depth) & (rng.random(depth.shape) < 0.8)
+    where = rng.random(depth.shape) < 0.3
+    where[0, :] = where[:, -1] = True  # the image's border: neighbours outside it count as not pure
+    whole = continues_a_side(depth, pure, 0.25)
+    assert 0 < np.count_nonzero(whole & where) < np.count_nonzero(where)
+    assert np.array_equal(continues_a_side(depth, pure, 0.25, where=where), whole & where)
