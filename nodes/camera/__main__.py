@@ -1,6 +1,4 @@
 """``python -m dptpu.nodes.camera [--ros-args ...]``."""
-import sys
+from dptpu.nodes.node_start import run_node_module
 
-from .node import main
-
-sys.exit(main())
+run_node_module("dptpu.nodes.camera")

@@ -2,6 +2,12 @@
 
 Run: ``python -m dptpu.nodes.cloud``, or ``pkg: dptpu, exec: cloud`` in a launch file.
 """
-from .node import CloudNode, main
+from typing import TYPE_CHECKING
+
+from dptpu.nodes.node_start import node_exports
+
+if TYPE_CHECKING:
+    from .node import CloudNode, main
 
 __all__ = ["CloudNode", "main"]
+__getattr__ = node_exports(__name__, __all__)  # the node module on first use: a quiet Ctrl-C while it imports

@@ -6,6 +6,12 @@ dptpu.nodes.projector.emulator``).
 
 Run: ``python -m dptpu.nodes.projector``, or ``pkg: dptpu, exec: projector`` in a launch file.
 """
-from .node import ProjectorNode, main
+from typing import TYPE_CHECKING
+
+from dptpu.nodes.node_start import node_exports
+
+if TYPE_CHECKING:
+    from .node import ProjectorNode, main
 
 __all__ = ["ProjectorNode", "main"]
+__getattr__ = node_exports(__name__, __all__)  # the node module on first use: a quiet Ctrl-C while it imports

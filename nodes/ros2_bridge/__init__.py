@@ -5,6 +5,12 @@ profiles, the Cyclone configuration).
 
 Run: ``python -m dptpu.nodes.ros2_bridge``, or ``pkg: dptpu, exec: ros2_bridge`` in a launch file.
 """
-from .node import Ros2BridgeNode, main
+from typing import TYPE_CHECKING
+
+from dptpu.nodes.node_start import node_exports
+
+if TYPE_CHECKING:
+    from .node import Ros2BridgeNode, main
 
 __all__ = ["Ros2BridgeNode", "main"]
+__getattr__ = node_exports(__name__, __all__)  # the node module on first use: a quiet Ctrl-C while it imports

@@ -1,8 +1,15 @@
-"""What every node process sets up: freed memory kept, start-up objects frozen for the garbage collector."""
+"""What every node process sets up: freed memory kept, start-up objects frozen for the garbage collector; a quiet
+stop on Ctrl-C while it still starts."""
 from __future__ import annotations
 
 import gc
+import pkgutil
+import subprocess
+import sys
 
+import pytest
+
+import dptpu.nodes
 from dptpu.nodes.node_main import _GC_YOUNG_THRESHOLD, freeze_startup_objects, run_node
 
 
@@ -28,3 +35,29 @@ def test_ctrl_c_while_a_node_starts_ends_quietly(capsys):
 
     assert run_node("sim", starting, ["sim"]) == 0
     assert capsys.readouterr().err == ""
+
+#: Every node package (each runs as ``python -m dptpu.nodes.NAME``).
+NODE_PACKAGES = sorted(m.name for m in pkgutil.iter_modules(dptpu.nodes.__path__) if m.ispkg)
+
+# A real SIGINT while the node's module imports numpy (deterministic: an import hook sends it), then what
+# ``python -m dptpu.nodes.NAME`` does. Before: "Traceback ... KeyboardInterrupt" in the launch output.
+_INTERRUPT_WHILE_IMPORTING = """
+import os, runpy, signal, sys, time
+
+class InterruptAtNumpy:
+    def find_spec(self, name, path=None, target=None):
+        if name == "numpy":
+            os.kill(os.getpid(), signal.SIGINT)
+            time.sleep(5.0)  # the KeyboardInterrupt is raised here, inside the import
+        return None
+
+sys.meta_path.insert(0, InterruptAtNumpy())
+runpy.run_module(sys.argv_module, run_name="__main__", alter_sys=True)
+"""
+
+
+@pytest.mark.parametrize("name", NODE_PACKAGES)
+def test_ctrl_c_while_a_node_still_imports_ends_quietly(name):
+    script = _INTERRUPT_WHILE_IMPORTING.replace("sys.argv_module", repr(f"dptpu.nodes.{name}"))
+    result = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=60)
+    assert (result.returncode, result.stderr) == (0, "")
