@@ -109,12 +109,16 @@ class Acquisition:
     publish_unpaired : bool
     initial_s, max_s : float
         Reconnection backoff.
+    allocate : callable(shape, dtype) -> ndarray, optional
+        Where each frame is copied out of the producer's buffer (the node: an array loaned by its publisher);
+        default new arrays. A frame that is dropped unpublished is simply let go.
     """
 
     def __init__(self, settings: CameraSettings, *, logger, on_frame, on_timeout, on_connected,
                  frame_timeout_s: float = 1.0, publish_unpaired: bool = False, initial_s: float = 0.5,
-                 max_s: float = 5.0):
+                 max_s: float = 5.0, allocate=None):
         self.settings = settings
+        self.allocate = allocate
         self.logger = logger
         self.on_frame = on_frame
         self.on_timeout = on_timeout
@@ -224,7 +228,7 @@ class Acquisition:
             except queue.Empty:
                 continue
             device.software_trigger()
-            got = device.fetch(self.frame_timeout_s)
+            got = device.fetch(self.frame_timeout_s, allocate=self.allocate)
             if got is None:
                 misses += 1
                 self.on_timeout(trigger, f"no frame within {self.frame_timeout_s:.3f} s of the software trigger")
@@ -239,7 +243,7 @@ class Acquisition:
         pairer = FramePairer(self.settings.trigger_mode, self.frame_timeout_s)
         while not self._stop.is_set():
             self._write_settings(device)
-            got = device.fetch(_FETCH_SLICE_S)
+            got = device.fetch(_FETCH_SLICE_S, allocate=self.allocate)
             arrived = time.monotonic()
             pairs = []
             while True:  # Triggers that came while fetch waited; a frame pairs only with earlier ones

@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import dataclasses
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -96,7 +97,8 @@ def list_devices(cti_paths) -> list[dict]:
         harvester.reset()
 
 
-def buffer_to_array(data: np.ndarray, width: int, height: int, pixel_format: str) -> np.ndarray:
+def buffer_to_array(data: np.ndarray, width: int, height: int, pixel_format: str, *,
+                    allocate: Callable[[tuple[int, int], np.dtype], np.ndarray] | None = None) -> np.ndarray:
     """A copy of a frame's payload as ``(height, width)`` of the format's dtype.
 
     Parameters
@@ -108,6 +110,9 @@ def buffer_to_array(data: np.ndarray, width: int, height: int, pixel_format: str
         Pixels.
     pixel_format : str
         A key of :data:`PIXEL_FORMATS`.
+    allocate : callable(shape, dtype) -> ndarray, optional
+        Where the copy goes (e.g. an array loaned by the frames' publisher, so that the copy out of the producer's
+        buffer is the only one); default a new array.
     """
     dtype, _ = PIXEL_FORMATS[pixel_format]
     flat = np.asarray(data)
@@ -116,7 +121,11 @@ def buffer_to_array(data: np.ndarray, width: int, height: int, pixel_format: str
     if flat.size != width * height:
         raise CameraUnavailable(f"a {pixel_format} frame of {width}x{height} has {flat.size} pixels; expected "
                                 f"{width * height} (packed or padded format?)")
-    return np.array(flat.reshape(height, width), dtype=dtype)
+    if allocate is None:
+        return np.array(flat.reshape(height, width), dtype=dtype)
+    frame = allocate((height, width), np.dtype(dtype))
+    np.copyto(frame, flat.reshape(height, width))
+    return frame
 
 
 class GenICamDevice:
@@ -196,8 +205,9 @@ class GenICamDevice:
         except Exception as exc:  # noqa: BLE001 -- any GenTL error here means the camera is gone
             raise CameraUnavailable(f"software trigger failed ({exc}); camera lost?") from None
 
-    def fetch(self, timeout_s: float) -> tuple[np.ndarray, int] | None:
-        """The next frame ``((H, W) array, host receive time ns)``, or None after ``timeout_s`` seconds."""
+    def fetch(self, timeout_s: float, *, allocate=None) -> tuple[np.ndarray, int] | None:
+        """The next frame ``((H, W) array, host receive time ns)``, or None after ``timeout_s`` seconds; the frame
+        is copied out of the producer's buffer into ``allocate(shape, dtype)`` (:func:`buffer_to_array`)."""
         try:
             buffer = self._acquirer.fetch(timeout=timeout_s)
         except TimeoutException:
@@ -210,7 +220,8 @@ class GenICamDevice:
             fmt = str(component.data_format)
             if fmt != self.settings.pixel_format:
                 raise CameraUnavailable(f"camera sent {fmt} frames; pixel_format is {self.settings.pixel_format}")
-            frame = buffer_to_array(component.data, int(component.width), int(component.height), fmt)
+            frame = buffer_to_array(component.data, int(component.width), int(component.height), fmt,
+                                    allocate=allocate)
         self.frames += 1
         return frame, stamp_ns
 

@@ -55,6 +55,8 @@ from __future__ import annotations
 
 from collections import deque
 
+import numpy as np
+
 from dptpu.fpp.calibration import load_rig
 from dptpu.graph.known_publishers import SOLE_PUBLISHER
 from dptpu.graph.node import Node
@@ -115,7 +117,7 @@ class CameraNode(Node):
         self.acquisition = Acquisition(self.settings, logger=self.get_logger(), on_frame=self.on_frame,
                                        on_timeout=self.on_timeout, on_connected=self.on_connected,
                                        frame_timeout_s=frame_timeout_s, publish_unpaired=publish_unpaired,
-                                       initial_s=initial_s, max_s=max_s)
+                                       initial_s=initial_s, max_s=max_s, allocate=self._loaned_frame)
         self.acquisition.start()
 
     # --- callbacks ---------------------------------------------------------------------------------
@@ -150,6 +152,13 @@ class CameraNode(Node):
         self.image_pub.publish(FringeFrame(image=Image.from_array(frame, header=header),
                                            trigger=trigger if trigger is not None else Trigger()))
         self.frames_published += 1
+
+    def _loaned_frame(self, shape: tuple[int, int], dtype: np.dtype) -> np.ndarray:
+        """Acquisition thread: the array a frame is copied into out of the producer's buffer, loaned by the frames'
+        publisher (a shared-memory segment, published without a further copy; a frame no Trigger claims goes back
+        to the pool when it is let go)."""
+        (frame,) = self.image_pub.borrow_loaned_arrays([(shape, dtype)])
+        return frame
 
     def on_timeout(self, trigger: Trigger, reason: str) -> None:
         """Acquisition thread: ``trigger`` got no frame; log it, and report its scan failed once."""

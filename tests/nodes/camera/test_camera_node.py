@@ -8,6 +8,7 @@ CameraInfo and ScanStatus. ``viky.cti`` (genicam wheel) is free-running only; ``
 from __future__ import annotations
 
 import os
+import time
 
 import numpy as np
 import pytest
@@ -16,6 +17,7 @@ from dptpu.fpp.calibration import DeviceModel, Rig, save_rig
 from dptpu.graph.qos import DurabilityPolicy, QoSProfile
 from dptpu.messages import CameraInfo, FringeFrame, ScanStatus, Trigger
 from dptpu.nodes.camera.genicam_producers import shipped_producer
+from tests.graph.nodes.shm_peer import is_shared
 
 NODE = "dptpu.nodes.camera"
 VIKY = shipped_producer("viky.cti")
@@ -141,3 +143,31 @@ def test_bad_parameters_exit_with_code_2_naming_them(spawn_node, params, message
     node = spawn_node(NODE, "--ros-args", *args)
     assert node.wait(timeout=20) == 2
     assert message in node.stderr
+
+
+def _segments_mapped(pid: int, label: str) -> int:
+    """Shared-memory segments of ``label`` the process maps (each segment of its pool is one memfd mapping)."""
+    with open(f"/proc/{pid}/maps") as maps:
+        return sum(f"memfd:{label}" in line for line in maps)
+
+
+def test_viky_frames_are_copied_once_into_loaned_segments_and_dropped_ones_go_back(spawn_node, probe):
+    frames = probe.subscribe(FringeFrame, "/camera/image_raw")
+    trigger_pub = probe.publisher(Trigger, "/projector/trigger")
+    # 160x120 mono8 (19 kB) through shared memory; free-running at 100 Hz: most frames meet no Trigger and are let go
+    node = spawn_node(NODE, "--ros-args", "-p", "trigger_mode:=free-running", "-p", "frame_rate_hz:=100.0",
+                      "-p", "serial:=1", *SMALL, *FAST, env={"DPTPU_SHM_MIN_BYTES": "1024"})
+    assert node.wait_for_stderr("trigger mode free-running", timeout=20)
+    assert trigger_pub.wait_for_subscriptions(1, timeout_sec=10)
+    frames.wait_for_publishers(1)
+    sent = triggers(4, 6)
+    publish_spaced(trigger_pub, sent)
+    received = frames.wait(6, timeout=10)
+    assert [f.trigger for f in received] == sent
+    for frame in received:
+        image = frame.image.to_array()
+        assert is_shared(image) and np.count_nonzero(image == 0) == 400  # viky's 20x20 square, in a segment
+    time.sleep(1.0)  # ~100 more frames copied out and let go, unpublished
+    # the frames let go went back to the pool: a few segments (the 6 the probe holds, one in hand), not one a frame
+    mapped = _segments_mapped(node.proc.pid, "dptpu:camera:image_raw")
+    assert mapped <= 12
