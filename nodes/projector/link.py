@@ -112,6 +112,7 @@ class ProjectorLink:
         self._emulator: TriggerBoxEmulator | None = None
         self._buffer = b""
         self._requests: queue.Queue = queue.Queue(maxsize=max_waiting)
+        self._new_sequence: SequenceSpec | None = None  # to load before the next scan (load_sequence)
         self._connected = threading.Event()
         self._busy = threading.Event()
         self._stop = threading.Event()
@@ -146,6 +147,11 @@ class ProjectorLink:
             waiting = self._requests.maxsize
             return f"{waiting} scan{'s are' if waiting > 1 else ' is'} already waiting to start"
         return ""
+
+    def load_sequence(self, sequence: SequenceSpec) -> None:
+        """Load ``sequence`` (e.g. another exposure) into the box before its next scan; a scan on screen keeps the
+        sequence it started with. After a reconnection the box gets ``sequence`` too."""
+        self._new_sequence = sequence
 
     # --- the link thread -------------------------------------------------------------------------
 
@@ -213,16 +219,30 @@ class ProjectorLink:
 
     def _serve(self) -> None:
         while not self._stop.is_set():
+            self._load_new_sequence()
             try:
                 scan_id = self._requests.get(timeout=0.05)
             except queue.Empty:
                 self._idle_read()
                 continue
+            self._load_new_sequence()  # set while this request waited
             self._busy.set()
             try:
                 self._scan(scan_id)
             finally:
                 self._busy.clear()
+
+    def _load_new_sequence(self) -> None:
+        """Between scans: ``LOAD`` the sequence :meth:`load_sequence` was given (the handshake's ``LOAD`` again)."""
+        sequence, self._new_sequence = self._new_sequence, None
+        if sequence is None:
+            return
+        self.sequence = sequence  # a reconnection loads it too
+        loaded = self._command(Command("LOAD", sequence=sequence), "LOADED")
+        if loaded.count != sequence.pattern_count:
+            raise LinkError(f"the box loaded {loaded.count} patterns, the sequence has {sequence.pattern_count}")
+        self.logger.info(f"trigger box on {self.port_name}: {loaded.count} patterns loaded again, exposure "
+                         f"{sequence.exposure_us} us")
 
     def _idle_read(self) -> None:
         """Between scans: notice a vanished port, and count anything the box says unasked."""

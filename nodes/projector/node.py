@@ -35,7 +35,7 @@ name                     default            meaning
                                             ``white`` and ``black`` reference frames (the texture)
 ``fringe_axis``          ``"x"``            ``x`` (vertical stripes, extent = width) or ``y``
 ``projector_size``       ``[912, 1140]``    width, height in projector pixels (LightCrafter 4500)
-``exposure_us``          8333               display time of one pattern, microseconds
+``exposure_us``          8333               display time of one pattern, microseconds (100 .. 10,000,000)
 ``shift_sign``           -1                 phase step sign of the patterns (-1: the paper's Eq. (1))
 ``scans``                0                  scans started by the node itself: 0 none (service only),
                                             N > 0 that many, -1 forever
@@ -50,8 +50,9 @@ name                     default            meaning
 ``reconnect_max_s``      5.0                longest reconnection delay
 =======================  =================  ================================================================
 
-``period_s``, ``min_subscribers`` and ``frame_id`` apply at run time (``dptpu param set``); the others are loaded
-into the box or set the node up at start-up and are read-only.
+``exposure_us``, ``period_s``, ``min_subscribers`` and ``frame_id`` apply at run time (``dptpu param set``): a new
+exposure is loaded into the box (``LOAD`` again) before its next scan; a scan on screen keeps the exposure it started
+with. The others are loaded into the box or set the node up at start-up and are read-only.
 
 Convention: a Trigger's stamp is the host time at which the box's ``ACK`` line was read (the box sends it
 when the DLP's trigger output marks the pattern on screen; at 115200 baud the line takes about 1 ms).
@@ -61,6 +62,7 @@ from __future__ import annotations
 
 import threading
 import time
+from dataclasses import replace
 
 from dptpu.graph.interfaces import Trigger as TriggerService
 from dptpu.graph.node import Node
@@ -87,7 +89,8 @@ class ProjectorNode(Node):
         sequence_text = rules.read_only("sequence", "96x12,1x12", description=box)
         fringe_axis = rules.read_only("fringe_axis", "x", description=box)
         projector_size = rules.read_only("projector_size", [912, 1140], description=box)
-        exposure_us = rules.read_only("exposure_us", 8333, description=box)
+        exposure_us = rules.settable("exposure_us", 8333, check=self._exposure_problem, apply=self._set_exposure_us,
+                                     description="loaded into the trigger box before its next scan")
         self.shift_sign = rules.read_only("shift_sign", -1, description="published in the PatternSequence at start-up")
         self.scans = rules.read_only("scans", 0, description="sets the node's own scan timer up")
         self.period_s = rules.settable("period_s", 0.0, check=at_least(0.0))
@@ -172,6 +175,16 @@ class ProjectorNode(Node):
             self, sequence_id, ScanStatus.ERROR if reason else ScanStatus.OK, "failed" if reason else "done",
             f"projector: {reason}" if reason else "", frames_expected=self.spec.pattern_count,
             frames_received=displayed, duration_s=time.monotonic() - started))
+
+    def _exposure_problem(self, exposure_us) -> None:
+        """Refuse an exposure the box's sequence cannot take (ValueError: the sequence's own check)."""
+        if hasattr(self, "spec"):  # at start-up the sequence is built (and checked) from the parameters
+            replace(self.spec, exposure_us=exposure_us)
+
+    def _set_exposure_us(self, exposure_us: int) -> None:
+        """``param set /projector exposure_us``: the link loads the sequence with it before the next scan."""
+        self.spec = replace(self.spec, exposure_us=exposure_us)
+        self.link.load_sequence(self.spec)
 
     # --- helpers -----------------------------------------------------------------------------------
 

@@ -12,7 +12,9 @@ import time
 
 import numpy as np
 
+from dptpu.graph import Parameter
 from dptpu.graph.interfaces import Trigger as TriggerService
+from dptpu.graph.parameter_client import AsyncParameterClient
 from dptpu.graph.qos import DurabilityPolicy, QoSProfile
 from dptpu.messages import PatternSequence, ScanStatus, Trigger
 
@@ -31,6 +33,12 @@ def call_start_scan(probe, timeout=10.0):
     client = probe.client(TriggerService, "/projector/start_scan")
     assert client.wait_for_service(timeout_sec=timeout)
     return client.call(TriggerService.Request(), timeout_sec=5.0)
+
+
+def _set(client: AsyncParameterClient, name: str, value):
+    future = client.set_parameters([Parameter(name, value=value)])
+    assert future.wait(timeout_sec=20), f"no answer to set_parameters {name}"
+    return future.result().results[0]
 
 
 def wait_until(condition, timeout):
@@ -195,3 +203,29 @@ def test_own_scans_start_at_least_period_s_apart(spawn_node, probe):
     assert [sequence_id for sequence_id, _ in firsts] == [1, 2, 3]
     gaps_s = np.diff([stamp for _, stamp in firsts]) * 1e-9
     assert (gaps_s > 0.3 - 0.01).all(), gaps_s  # each started one period after the previous one was due
+
+
+def test_exposure_set_at_run_time_is_loaded_into_the_box_before_the_next_scan(spawn_node, probe, tmp_path):
+    """``exposure_us`` was read-only although the issue lists exposure among what applies at run time."""
+    triggers = probe.subscribe(Trigger, "/projector/trigger")
+    status = probe.subscribe(ScanStatus, "/scanner/status")
+    box = spawn_node(EMULATOR, "--link", str(tmp_path / "ttyBOX"))
+    assert box.wait_event("ready")["device"].startswith("/dev/pts/")
+    node = start_projector(spawn_node, tmp_path / "ttyBOX")
+    assert [box.wait_event("command")["line"] for _ in range(2)] == ["HELLO", "LOAD x 912 1140 2000 8x4,1x3"]
+    client = AsyncParameterClient(probe.node, "/projector")
+    assert client.wait_for_services(timeout_sec=20)
+    refused = _set(client, "exposure_us", 50)
+    assert (refused.successful, refused.reason) == (
+        False, "exposure_us must be an integer in [100, 10000000] microseconds; got 50")
+    assert _set(client, "exposure_us", 60_000).successful
+    assert box.wait_event("command")["line"] == "LOAD x 912 1140 60000 8x4,1x3"  # at once: the box is idle
+    assert node.wait_for_stderr("7 patterns loaded again, exposure 60000 us", timeout=10)
+    assert call_start_scan(probe).success
+    assert box.wait_event("command")["line"] == "START 1"
+    done = status.wait_for(lambda s: s.sequence_id == 1, timeout=10.0)
+    assert (done.state, done.frames_received) == ("done", 7)
+    stamps = sorted(t.header.stamp.to_ns() for t in triggers.messages if t.sequence_id == 1)
+    assert len(stamps) == 7 and (np.diff(stamps) * 1e-9 > 0.055).all()  # paced by the new exposure (a lower bound)
+    future = client.get_parameters(["exposure_us"])
+    assert future.wait(timeout_sec=20) and client.values_of(future.result()) == [60_000]
