@@ -51,6 +51,20 @@ the other, on the same machine; compare ratios within one run only.
     over ZeroMQ / raw) and ``memcpy_ratio`` (ours / memcpy, goal >= 0.5: within 2x of a memcpy);
     ``shared_count``: the messages ours sent through shared memory (0 below the threshold, e.g. ``--size small``).
 
+(d) Writers that fill in place (``shared_memory.loaned``). "Ours, loaned": the sender borrows the message's array
+    in a segment (``Publisher.borrow_loaned_arrays``), fills it with the message's bytes (``np.copyto`` of the
+    pool's array: the work of making the message, which the raw sender does not do at all, its arrays being made
+    before the timed rounds) and publishes it (no copy). Its figures leave the fill out: each round's time and the
+    sender's CPU less the fills' own wall and thread CPU time (measured around each ``np.copyto``); so every
+    variant times the same thing, moving a message that exists from one process to the other. The figures with
+    the fills (``gross``) and the fill alone (``fill_us_per_message``) are reported beside them. Ratios for each
+    writer (``writers``): ``publish`` (a ready-made array, one copy into the segment) and ``loaned``, each against
+    raw pyzmq and the memcpy, by wall time and per CPU second, and ``loaned_with_fills`` (the fills timed too).
+    The per-CPU-second ratios are exact for the loaned writer (CPU times add up); its wall figures bracket the
+    truth: with the fills taken off they are an upper bound (the receiver works on earlier messages while the
+    sender fills the next one, so not all of a fill's time is on the critical path), with them a lower bound (they
+    time making the message, which the raw variant does not).
+
 The processes join a private graph (a fresh ``DPTPU_DISCOVERY_DIR`` under /tmp, domain 0), so the
 benchmark never sees or disturbs another graph.
 """
@@ -186,11 +200,13 @@ def _emit(**fields) -> None:
 # Throughput: senders and receivers
 # --------------------------------------------------------------------------------------------------
 
-def _run_sender(send, receive_ack, options) -> dict:
+def _run_sender(send, receive_ack, options, untimed=None) -> dict:
     """Warm up until the link carries messages, then run the timed rounds; returns the sender's figures.
 
     ``send(seq, phase, pool_index)`` sends one message; ``receive_ack(timeout_ms)`` returns an acked
-    sequence number or None.
+    sequence number or None. ``untimed()``, when given, returns the ``(wall s, CPU s)`` the sender has spent so far
+    on work that is not transport (a loaned writer's fill): taken off each round's time and off the CPU, and
+    reported as ``rounds_gross_s``, ``gross_cpu_s_per_message`` and ``fill_*``.
     """
     seq = 0
     while True:  # a subscriber joins late: send single warm-up messages until one is acknowledged
@@ -205,10 +221,12 @@ def _run_sender(send, receive_ack, options) -> dict:
         seq += 1
         if receive_ack(10_000) is None:
             raise RuntimeError("a warm-up message was not acknowledged within 10 s")
-    rounds_s = []
+    rounds_s, rounds_gross_s = [], []
     cpu_start = time.process_time()
+    untimed_start = untimed() if untimed is not None else (0.0, 0.0)
     for _ in range(options.rounds):
         sent = acked = 0
+        round_untimed = untimed()[0] if untimed is not None else 0.0
         start = time.perf_counter()
         while acked < options.messages:
             while sent < options.messages and sent - acked < options.window:
@@ -218,11 +236,20 @@ def _run_sender(send, receive_ack, options) -> dict:
             if receive_ack(10_000) is None:
                 raise RuntimeError(f"no acknowledgement within 10 s ({acked} of {options.messages} acked)")
             acked += 1
-        rounds_s.append(time.perf_counter() - start)
+        gross_s = time.perf_counter() - start
+        rounds_gross_s.append(gross_s)
+        rounds_s.append(gross_s - ((untimed()[0] if untimed is not None else 0.0) - round_untimed))
     cpu_s = time.process_time() - cpu_start  # every thread of the sender process, timed rounds only
+    untimed_wall_s, untimed_cpu_s = (np.subtract(untimed(), untimed_start) if untimed is not None else (0.0, 0.0))
     send(seq, STOP, 0)
     receive_ack(5_000)
-    return {"rounds_s": rounds_s, "cpu_s_per_message": cpu_s / (options.rounds * options.messages)}
+    timed = options.rounds * options.messages
+    result = {"rounds_s": rounds_s, "cpu_s_per_message": (cpu_s - untimed_cpu_s) / timed}
+    if untimed is not None:
+        result.update(rounds_gross_s=rounds_gross_s, gross_cpu_s_per_message=cpu_s / timed,
+                      fill_wall_s_per_message=float(untimed_wall_s) / timed,
+                      fill_cpu_s_per_message=float(untimed_cpu_s) / timed)
+    return result
 
 
 def _data_context():
@@ -274,6 +301,34 @@ def role_ours_source(options) -> dict:
             publisher.publish(frame_stack(seq=seq, phase=phase, pool_index=pool_index, frames=pool[pool_index]))
 
         return {**_run_sender(send, receive_ack, options), "shared_count": publisher.shared_count}
+    finally:
+        rclpy.try_shutdown()
+
+
+def role_ours_loan_source(options) -> dict:
+    """Ours with a writer that fills its message in a loaned segment (issue 20): the fills are not timed."""
+    import dptpu.graph as rclpy
+    from dptpu.graph import QoSProfile
+
+    frame_stack, _ = bench_types()
+    pool = make_pool(options.shape)
+    _pull, receive_ack = _ack_pull(options.ack)
+    fills = [0.0, 0.0]  # wall s, CPU s of the sender's fills so far
+    rclpy.init(args=[])
+    try:
+        node = rclpy.create_node("bench_loan_source")
+        publisher = node.create_publisher(frame_stack, FRAMES_TOPIC, QoSProfile(depth=2 * options.window))
+
+        def send(seq, phase, pool_index):
+            (frames,) = publisher.borrow_loaned_arrays([(options.shape, np.uint8)])
+            wall_s, cpu_s = time.perf_counter(), time.thread_time()
+            np.copyto(frames, pool[pool_index])  # the writer makes its message where it will be read
+            fills[0] += time.perf_counter() - wall_s
+            fills[1] += time.thread_time() - cpu_s
+            publisher.publish(frame_stack(seq=seq, phase=phase, pool_index=pool_index, frames=frames))
+
+        figures = _run_sender(send, receive_ack, options, untimed=lambda: (fills[0], fills[1]))
+        return {**figures, "shared_count": publisher.shared_count}
     finally:
         rclpy.try_shutdown()
 
@@ -515,7 +570,8 @@ def role_raw_pong(options) -> dict:
     return {"answered": count}
 
 
-ROLES = {"ours-source": role_ours_source, "ours-sink": role_ours_sink, "raw-source": role_raw_source,
+ROLES = {"ours-source": role_ours_source, "ours-loan-source": role_ours_loan_source, "ours-sink": role_ours_sink,
+         "raw-source": role_raw_source,
          "raw-sink": role_raw_sink, "ours-ping": role_ours_ping, "ours-pong": role_ours_pong,
          "raw-ping": role_raw_ping, "raw-pong": role_raw_pong, "memcpy": role_memcpy}
 
@@ -666,8 +722,8 @@ def measure(args) -> dict:
     zeromq_env = dict(env, DPTPU_SHM="off")  # ours as before shared memory: every byte through ZeroMQ
     # (receiver, sender, tag, environment): raw and ours alternate, so a load that drifts hits both alike
     pairs = (("raw-sink", "raw-source", "rt", env), ("ours-sink", "ours-source", "ot", env),
-             ("ours-sink", "ours-source", "oz", zeromq_env), ("raw-pong", "raw-ping", "rl", env),
-             ("ours-pong", "ours-ping", "ol", env))
+             ("ours-sink", "ours-loan-source", "lt", env), ("ours-sink", "ours-source", "oz", zeromq_env),
+             ("raw-pong", "raw-ping", "rl", env), ("ours-pong", "ours-ping", "ol", env))
     results: dict[str, dict[str, list]] = {tag: {"receiver": [], "sender": []} for *_, tag, _env in pairs}
     copies = []
     repeats = []
@@ -681,10 +737,11 @@ def measure(args) -> dict:
             if options.repeat > 1:
                 single = argparse.Namespace(**{**vars(options), "repeat": 1})
                 figures = {tag: _throughput_figures(results[tag]["sender"][-1], results[tag]["receiver"][-1], single)
-                           for tag in ("rt", "ot", "oz")}
+                           for tag in ("rt", "ot", "lt", "oz")}
                 times = {tag: _latency_figures(results[tag]["sender"][-1], results[tag]["receiver"][-1], single)
                          for tag in ("rl", "ol")}
                 repeats.append({"throughput_ratio": figures["ot"]["mb_per_s"] / figures["rt"]["mb_per_s"],
+                                "loaned_throughput_ratio": figures["lt"]["mb_per_s"] / figures["rt"]["mb_per_s"],
                                 "zeromq_throughput_ratio": figures["oz"]["mb_per_s"] / figures["rt"]["mb_per_s"],
                                 "memcpy_ratio": figures["ot"]["mb_per_s"] / _memcpy_figures([copies[-1]],
                                                                                              single)["mb_per_s"],
@@ -698,12 +755,13 @@ def measure(args) -> dict:
     latency = {name: _latency_figures(pooled[tag]["sender"], pooled[tag]["receiver"], options)
                for name, tag in (("ours", "ol"), ("raw", "rl"))}
     zeromq = _throughput_figures(pooled["oz"]["sender"], pooled["oz"]["receiver"], options)
+    loaned = _throughput_figures(pooled["lt"]["sender"], pooled["lt"]["receiver"], options)
     memcpy = _memcpy_figures(copies, options)
     throughput_ratio = throughput["ours"]["mb_per_s"] / throughput["raw"]["mb_per_s"]
     p50_ratio = latency["ours"]["p50_us"] / latency["raw"]["p50_us"]
     p99_ratio = latency["ours"]["p99_us"] / latency["raw"]["p99_us"]
     intact = all(entry["intact"] for part in (throughput, latency) for entry in part.values()) \
-        and zeromq["intact"] and memcpy["intact"]
+        and zeromq["intact"] and loaned["intact"] and memcpy["intact"]
     shared_ratio, memcpy_ratio = throughput_ratio, throughput["ours"]["mb_per_s"] / memcpy["mb_per_s"]
     return {
         "machine": machine(), "transport": "ipc", "size": options.size,
@@ -736,6 +794,13 @@ def measure(args) -> dict:
             "goals": {"throughput_ratio_min": SHARED_THROUGHPUT_GOAL, "memcpy_ratio_min": MEMCPY_GOAL,
                       "throughput_met": shared_ratio >= SHARED_THROUGHPUT_GOAL,
                       "memcpy_met": memcpy_ratio >= MEMCPY_GOAL},
+            "loaned": {**loaned, "shared_count": int(pooled["lt"]["sender"]["shared_count"]),
+                       "gross": _gross_figures(pooled["lt"]["sender"], pooled["lt"]["receiver"], options),
+                       "fill_us_per_message": pooled["lt"]["sender"]["fill_wall_s_per_message"] * 1e6,
+                       "fill_cpu_us_per_message": pooled["lt"]["sender"]["fill_cpu_s_per_message"] * 1e6},
+            "writers": {name: _writer_ratios(figures, throughput["raw"], memcpy) for name, figures in (
+                ("publish", throughput["ours"]), ("loaned", loaned),
+                ("loaned_with_fills", _gross_figures(pooled["lt"]["sender"], pooled["lt"]["receiver"], options)))},
         },
     }
 
@@ -746,6 +811,28 @@ def _memcpy_figures(results: list[dict], options) -> dict:
     cpu_us = float(np.mean([result["cpu_s_per_message"] for result in results])) * 1e6
     return {"mb_per_s": float(np.median(rates)), "rounds_mb_per_s": rates, "cpu_us_per_message": cpu_us,
             "cpu_mb_per_s": nbytes / cpu_us, "intact": all(result["intact"] for result in results)}
+
+
+def _gross_figures(sender: dict, receiver: dict, options) -> dict:
+    """A loaned writer's figures with its fills in: MB/s (median of the rounds), the sender's CPU a message, and
+    both processes' CPU a message and bytes per CPU second."""
+    nbytes = int(np.prod(options.shape))
+    rates = [options.messages * nbytes / seconds / 1e6 for seconds in sender["rounds_gross_s"]]
+    cpu_us = sender["gross_cpu_s_per_message"] * 1e6 + receiver.get("cpu_us_per_message", float("nan"))
+    return {"mb_per_s": float(np.median(rates)), "rounds_mb_per_s": rates,
+            "sender_cpu_us_per_message": sender["gross_cpu_s_per_message"] * 1e6, "cpu_us_per_message": cpu_us,
+            "cpu_mb_per_s": nbytes / cpu_us}
+
+
+def _writer_ratios(figures: dict, raw: dict, memcpy: dict) -> dict:
+    """One writer's ratios against raw pyzmq and the memcpy (wall and per CPU second), and whether it meets the
+    transport goal (>= 3x raw pyzmq and within 2x of a memcpy, by wall time)."""
+    ratios = {"throughput_ratio": figures["mb_per_s"] / raw["mb_per_s"],
+              "memcpy_ratio": figures["mb_per_s"] / memcpy["mb_per_s"],
+              "cpu_throughput_ratio": figures["cpu_mb_per_s"] / raw["cpu_mb_per_s"],
+              "cpu_memcpy_ratio": figures["cpu_mb_per_s"] / memcpy["cpu_mb_per_s"]}
+    ratios["goal_met"] = ratios["throughput_ratio"] >= SHARED_THROUGHPUT_GOAL and ratios["memcpy_ratio"] >= MEMCPY_GOAL
+    return ratios
 
 
 def _receiver_cpu(figures: dict) -> str:
@@ -777,6 +864,10 @@ def format_report(report: dict) -> str:
         f"    ours over ZeroMQ  : {shm['ours_zeromq']['mb_per_s']:9.1f} MB/s  (DPTPU_SHM=off, sender CPU "
         f"{shm['ours_zeromq']['sender_cpu_us_per_message']:.0f} us/msg, receiver CPU "
         f"{_receiver_cpu(shm['ours_zeromq'])})",
+        f"    ours, loaned      : {shm['loaned']['mb_per_s']:9.1f} MB/s  (the writer fills a loaned segment; "
+        f"fills not timed: {shm['loaned']['fill_us_per_message']:.0f} us/msg; with them "
+        f"{shm['loaned']['gross']['mb_per_s']:.1f} MB/s; sender CPU "
+        f"{shm['loaned']['sender_cpu_us_per_message']:.0f} us/msg, receiver CPU {_receiver_cpu(shm['loaned'])})",
         f"    memcpy            : {shm['memcpy']['mb_per_s']:9.1f} MB/s  (np.copyto, one process)",
         f"    throughput_ratio  : {report['throughput_ratio']:.3f}  (goal >= {THROUGHPUT_GOAL}; through shared "
         f"memory >= {SHARED_THROUGHPUT_GOAL}: {shm['shared_count']} of {shm['messages_sent']} messages were)",
@@ -786,6 +877,10 @@ def format_report(report: dict) -> str:
         f"over ZeroMQ {shm['ours_zeromq']['cpu_mb_per_s']:.0f}, memcpy {shm['memcpy']['cpu_mb_per_s']:.0f} MB; "
         f"ours / raw "
         f"{shm['cpu_throughput_ratio']:.2f}, ours / memcpy {shm['cpu_memcpy_ratio']:.2f} (both processes' CPU)",
+        *(f"    writer {name:<17}: {w['throughput_ratio']:.2f}x raw, {w['memcpy_ratio']:.2f} of a memcpy (per CPU "
+          f"second {w['cpu_throughput_ratio']:.2f}x, {w['cpu_memcpy_ratio']:.2f}); goal >= {SHARED_THROUGHPUT_GOAL:g}x "
+          f"raw and >= {MEMCPY_GOAL} of a memcpy: {'met' if w['goal_met'] else 'not met'}"
+          for name, w in shm["writers"].items()),
         f"(b) round trip, {lat['payload_bytes']}-byte payload, {lat['ours']['round_trips']} round trips each",
         f"    raw pyzmq         : p50 {lat['raw']['p50_us']:8.1f} us  p99 {lat['raw']['p99_us']:8.1f} us",
         f"    ours (graph)      : p50 {lat['ours']['p50_us']:8.1f} us  p99 {lat['ours']['p99_us']:8.1f} us",

@@ -107,9 +107,33 @@ def test_shared_memory_section_compares_ours_with_zeromq_and_a_memcpy(report):
     assert goals["memcpy_met"] == (shared["memcpy_ratio"] >= 0.5)
 
 
+def test_the_loaned_writer_fills_segments_and_its_fills_are_left_out_of_its_figures(report):
+    data = report[1]
+    shared, raw = data["shared_memory"], data["throughput"]["raw"]
+    loaned = shared["loaned"]
+    assert loaned["intact"] and loaned["receiver"]["timed"] == 20 and loaned["receiver"]["full_checks"] >= 4
+    assert loaned["shared_count"] >= 24  # every message through a loaned segment
+    # the fills are timed apart and taken off: the net rate is at least the gross one, the CPU at most
+    assert loaned["fill_us_per_message"] > 0 and loaned["fill_cpu_us_per_message"] >= 0
+    assert loaned["mb_per_s"] >= loaned["gross"]["mb_per_s"]
+    assert loaned["sender_cpu_us_per_message"] <= loaned["gross"]["sender_cpu_us_per_message"]
+    writers = shared["writers"]
+    assert set(writers) == {"publish", "loaned", "loaned_with_fills"}
+    assert writers["publish"]["throughput_ratio"] == pytest.approx(data["throughput_ratio"])
+    assert writers["loaned"]["throughput_ratio"] == pytest.approx(loaned["mb_per_s"] / raw["mb_per_s"])
+    assert writers["loaned"]["memcpy_ratio"] == pytest.approx(loaned["mb_per_s"] / shared["memcpy"]["mb_per_s"])
+    assert writers["loaned"]["cpu_throughput_ratio"] == pytest.approx(loaned["cpu_mb_per_s"] / raw["cpu_mb_per_s"])
+    assert writers["loaned_with_fills"]["throughput_ratio"] == pytest.approx(loaned["gross"]["mb_per_s"]
+                                                                            / raw["mb_per_s"])
+    assert writers["loaned_with_fills"]["cpu_throughput_ratio"] <= writers["loaned"]["cpu_throughput_ratio"]
+    for ratios in writers.values():
+        assert ratios["goal_met"] == (ratios["throughput_ratio"] >= 3.0 and ratios["memcpy_ratio"] >= 0.5)
+
+
 def test_text_report_names_both_variants_and_the_ratios(report):
     text = bench_cmd.load_transport_bench().format_report(report[1])
-    assert "raw pyzmq PUB/SUB" in text and "ours (graph)" in text
+    assert "raw pyzmq PUB/SUB" in text and "ours (graph)" in text and "ours, loaned" in text
+    assert "writer publish" in text and "writer loaned" in text
     assert f"throughput_ratio  : {report[1]['throughput_ratio']:.3f}  (goal >= 0.9; through shared memory >= 3.0" \
         in text
     assert text.endswith("messages intact: yes")
