@@ -72,6 +72,8 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
+from .bracketed_median import bracketed_median
+
 __all__ = ["DEFAULT_MAX_EDGE_ERROR_MM", "DEFAULT_MAX_SLOPE", "DEFAULT_MAX_STEP", "DEFAULT_MIN_MODULATION_RATIO",
            "DEFAULT_MIN_NEIGHBOURS", "MIN_LIT_FRACTION", "EdgePoints", "beside_steps", "continues_a_side",
            "depth_per_pixel", "edge_points", "flying_points"]
@@ -206,7 +208,7 @@ def depth_per_pixel(projector_x: np.ndarray, depth_at: Callable[[np.ndarray, np.
     steps = steps[np.isfinite(steps)]
     if steps.size == 0:
         return out
-    g = float(np.median(steps))
+    g = float(bracketed_median(steps))
     x = x_p.ravel()[pixels]  # (M,)
     base = (np.asarray(depth_at(x, pixels), dtype=np.float64) if depth is None
             else np.asarray(depth).ravel()[pixels].astype(np.float64))

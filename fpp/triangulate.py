@@ -132,8 +132,8 @@ class Triangulator:
         """
         coord = np.asarray(projector_coord, dtype=np.float64)
         alpha, beta, gamma, delta = self._alpha, self._beta, self._gamma, self._delta
-        distorted = not ideal and self._projector_distortion is not None
-        if distorted:
+        distortion = None if ideal else self._projector_distortion
+        if distortion is not None:
             alpha, beta, gamma, delta = self._alpha_u, self._beta_u, self._gamma_u, self._delta_u
         if pixels is None:
             if coord.shape != self.shape:
@@ -141,9 +141,8 @@ class Triangulator:
         else:
             pixels = self._pixel_indices(pixels, coord)
             gamma, delta = np.take(gamma, pixels), np.take(delta, pixels)
-        if distorted:
-            coord = self._projector_distortion.ideal_u(coord, max_iterations=self.projector_iterations,
-                                                       pixels=pixels)
+        if distortion is not None:
+            coord = distortion.ideal_u(coord, max_iterations=self.projector_iterations, pixels=pixels)
         with np.errstate(divide="ignore", invalid="ignore"):
             numerator = coord * beta
             numerator -= alpha
