@@ -1,9 +1,11 @@
 """What the cloud node's ``~/capture_and_save`` service keeps and writes (pure logic and files, no sockets).
 
-The service saves the last scan: its cloud as a point-cloud file (PLY or PCD, metres, grey colours from the
-texture; :func:`dptpu.fpp.point_cloud_file.write_point_cloud`) and the camera frames it was made of as a
-``dptpu-capture/1`` folder (:func:`dptpu.fpp.capture.write_capture`, with the rig file as its calibration), so the
-scan can be triangulated again offline (``dptpu triangulate``), unwrapped by another method or kept as a test case.
+The service saves the last scan: its cloud as a point-cloud file (PLY or PCD, metres unless asked for millimetres,
+with every field the cloud node publishes: ``intensity`` (the texture, also as grey colours), ``modulation``,
+``confidence`` and the normals; :func:`dptpu.fpp.point_cloud_file.write_point_cloud`) and the camera frames it was
+made of as a ``dptpu-capture/1`` folder (:func:`dptpu.fpp.capture.write_capture`, with the rig file as its
+calibration), so the scan can be triangulated again offline (``dptpu triangulate``), unwrapped by another method or
+kept as a test case.
 
 :class:`RecentScanFrames` keeps the fringe frames of the last few scans by ``sequence_id`` (references to the
 received frames, no copies); :func:`save_scan` writes one scan.
@@ -21,10 +23,14 @@ from dptpu.fpp.point_cloud_file import write_point_cloud
 from dptpu.messages import FringeFrame, PatternSequence, PointCloud2
 from dptpu.messages.scanner import REFERENCE_KINDS
 
-__all__ = ["CLOUD_FORMATS", "RecentScanFrames", "SavedScan", "save_scan"]
+from .cloud_fields import NORMAL_FIELDS
+
+__all__ = ["CLOUD_FORMATS", "CLOUD_UNITS", "RecentScanFrames", "SavedScan", "save_scan"]
 
 #: File formats of the saved cloud (the suffix open3d writes).
 CLOUD_FORMATS = ("ply", "pcd")
+#: Units of the saved cloud's coordinates: metres (ROS's, the default) or millimetres.
+CLOUD_UNITS = ("m", "mm")
 
 
 class RecentScanFrames:
@@ -60,16 +66,17 @@ class SavedScan:
 
 def save_scan(folder, cloud: PointCloud2, frames: list[FringeFrame], *, projector_size: tuple[int, int],
               fringe_axis: str = "x", cloud_format: str = "ply", layout: PatternSequence | None = None,
-              rig_path: str = "") -> SavedScan:
-    """Write ``cloud`` as ``folder/cloud.<cloud_format>`` (metres) and ``frames`` as a capture folder
-    ``folder/capture``.
+              rig_path: str = "", cloud_unit: str = "m") -> SavedScan:
+    """Write ``cloud`` as ``folder/cloud.<cloud_format>`` (every field, in ``cloud_unit``) and ``frames`` as a
+    capture folder ``folder/capture``.
 
     Parameters
     ----------
     folder : path-like
         Created if absent.
     cloud : PointCloud2
-        The scan's cloud (fields ``x, y, z`` in metres, ``intensity`` for the colours when present).
+        The scan's cloud: ``x, y, z`` in metres; ``normal_x/y/z`` written as the file's normals; every other field
+        under its name (``intensity`` also as grey colours, when it has a finite value).
     frames : list of FringeFrame
         The scan's fringe frames in pattern order; empty: no capture folder.
     projector_size : (int, int)
@@ -82,6 +89,8 @@ def save_scan(folder, cloud: PointCloud2, frames: list[FringeFrame], *, projecto
         shift sign and no phase offsets. The triggers' frequency, steps and step place the frames either way.
     rig_path : str
         The rig file, copied into the capture as its calibration ("" = none).
+    cloud_unit : {"m", "mm"}
+        The unit of the cloud file's coordinates.
 
     Raises
     ------
@@ -90,15 +99,21 @@ def save_scan(folder, cloud: PointCloud2, frames: list[FringeFrame], *, projecto
     """
     if cloud_format not in CLOUD_FORMATS:
         raise ValueError(f"cloud format must be one of {', '.join(CLOUD_FORMATS)}; got {cloud_format!r}")
+    if cloud_unit not in CLOUD_UNITS:
+        raise ValueError(f"cloud unit must be one of {', '.join(CLOUD_UNITS)}; got {cloud_unit!r}")
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
     names = [field.name for field in cloud.fields]
     points = cloud.to_array(["x", "y", "z"])  # (H, W, 3) metres
-    intensity = cloud.to_array(["intensity"])[..., 0] if "intensity" in names else None
+    normals = cloud.to_array(list(NORMAL_FIELDS)) if set(NORMAL_FIELDS) <= set(names) else None  # (H, W, 3)
+    fields = {name: cloud.to_array([name])[..., 0] for name in names  # (H, W) each
+              if name not in ("x", "y", "z") and name not in NORMAL_FIELDS}
+    intensity = fields.get("intensity")
     if intensity is not None and not np.isfinite(intensity).any():
         intensity = None
     cloud_path = folder / f"cloud.{cloud_format}"
-    count = write_point_cloud(cloud_path, points, unit="m", intensity=intensity)
+    count = write_point_cloud(cloud_path, points, unit="m", file_unit=cloud_unit, intensity=intensity,
+                              normals=normals, fields=fields)
     capture_folder = None
     if frames:
         capture_folder = folder / "capture"

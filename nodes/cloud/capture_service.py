@@ -7,14 +7,16 @@ name                             kind             meaning
 ================================ ================ ===================================================================
 ``~/capture_and_save``           service          std_srvs/Trigger: write the last scan (:func:`.capture_saver.
                                                   save_scan`) to ``save_dir/scan_<sequence_id>/``: ``cloud.ply`` (or
-                                                  ``.pcd``, metres) and ``capture/`` (``dptpu-capture/1``, with the
-                                                  rig as its calibration); ``message`` names what was written, or why
-                                                  nothing was (``success`` false)
+                                                  ``.pcd``; metres; every field of the cloud: intensity = texture,
+                                                  modulation, confidence, normals) and ``capture/``
+                                                  (``dptpu-capture/1``, with the rig as its calibration); ``message``
+                                                  names what was written, or why nothing was (``success`` false)
 ``/camera/image_raw``            FringeFrame in   best effort, depth 100: the frames of the last scans (only with
                                                   ``save_frames``)
 ``/projector/pattern_sequence``  PatternSequence  transient local: the layout written into the capture
 ``save_dir``                     "captures"       parameter: where scans are saved (settable)
 ``save_format``                  "ply"            parameter: ``ply`` or ``pcd`` (settable)
+``save_units``                   "m"              parameter: the cloud file's unit, ``m`` or ``mm`` (settable)
 ``save_frames``                  true             parameter (read-only): keep the last scans' frames for the capture
                                                   folder (the frames' cost: one more subscriber of the camera)
 ================================ ================ ===================================================================
@@ -30,7 +32,7 @@ from dptpu.graph.qos import QoSProfile, ReliabilityPolicy
 from dptpu.messages import FringeFrame, PatternSequence, PointCloud2
 from dptpu.nodes.plumbing import LATCHED_QOS
 
-from .capture_saver import CLOUD_FORMATS, RecentScanFrames, save_scan
+from .capture_saver import CLOUD_FORMATS, CLOUD_UNITS, RecentScanFrames, save_scan
 
 __all__ = ["CaptureAndSave"]
 
@@ -56,6 +58,8 @@ class CaptureAndSave:
         self.save_dir = rules.settable("save_dir", "captures", apply=lambda value: setattr(self, "save_dir", value))
         self.save_format = rules.settable("save_format", "ply", check=one_of(CLOUD_FORMATS),
                                           apply=lambda value: setattr(self, "save_format", value))
+        self.save_units = rules.settable("save_units", "m", check=one_of(CLOUD_UNITS),
+                                         apply=lambda value: setattr(self, "save_units", value))
         self.save_frames = rules.read_only("save_frames", True, description="sets the frame subscription up")
         self.frames = RecentScanFrames(kept_scans=3)
         self.layout: PatternSequence | None = None
@@ -89,13 +93,14 @@ class CaptureAndSave:
         try:
             saved = save_scan(folder, cloud, frames, projector_size=tuple(self._node.rig.projector.size),
                               fringe_axis=fringe_axis, cloud_format=self.save_format, layout=self.layout,
-                              rig_path=self.rig_path)
+                              rig_path=self.rig_path, cloud_unit=self.save_units)
         except (OSError, ImportError, RuntimeError, ValueError) as exc:
             response.success, response.message = False, f"cannot save scan {sequence_id} to {folder}: {exc}"
             self._node.get_logger().warning(response.message)
             return response
         self.saved += 1
-        written = f"{saved.cloud_path} ({saved.points} points, metres)"
+        unit = "metres" if self.save_units == "m" else "millimetres"
+        written = f"{saved.cloud_path} ({saved.points} points, {unit})"
         if saved.capture_folder is not None:
             written += f" and {saved.capture_folder} ({len(frames)} frames)"
         elif self.save_frames:

@@ -24,9 +24,10 @@ topic                       type          dir   notes
 ``/scanner/confidence/image`` Image       out   32FC1, the cloud's ``confidence`` (in [0, 1] for each published
                                                  point, 0 where none), the cloud's stamp
 ``/scanner/confidence/camera_info`` CameraInfo out as for the depth image
-``~/capture_and_save``      Trigger (srv)       the last scan's cloud (PLY/PCD, metres) and frames (a capture
-                                                 folder) to ``save_dir`` (:mod:`.capture_service`: its parameters
-                                                 ``save_dir``, ``save_format``, ``save_frames`` and topics)
+``~/capture_and_save``      Trigger (srv)       the last scan's cloud (PLY/PCD, metres, every field) and frames (a
+                                                 capture folder) to ``save_dir`` (:mod:`.capture_service`: its
+                                                 parameters ``save_dir``, ``save_format``, ``save_units``,
+                                                 ``save_frames`` and topics)
 ``/scanner/status``         ScanStatus    out   one per scan: ``done`` (OK, WARN) or ``failed``; ``duration_s`` =
                                                  ``header.stamp`` - the scan's stamp (its cloud's), to the ns
 ``/tf_static``              TFMessage     out   latched (transient local): ``mount_frame`` -> ``frame_id`` (the

@@ -1,5 +1,6 @@
 """The cloud node's ~/capture_and_save: phase -> unwrap -> cloud in one harness (real sockets), then the service
-writes the last scan's cloud (PLY and PCD, metres) and its frames as a dptpu-capture/1 folder that reads back."""
+writes the last scan's cloud (PLY and PCD, metres or millimetres, every field the node publishes) and its frames as a
+dptpu-capture/1 folder that reads back."""
 from __future__ import annotations
 
 import numpy as np
@@ -51,17 +52,34 @@ def test_the_last_scan_is_saved_as_a_cloud_in_metres_and_a_capture_folder(tmp_pa
         answers = [_call(harness, client)]
         assert cloud_node.set_parameters([Parameter("save_format", value="pcd")])[0].successful  # applies at once
         answers.append(_call(harness, client))
+        assert not cloud_node.set_parameters([Parameter("save_units", value="inch")])[0].successful
+        assert cloud_node.set_parameters([Parameter("save_units", value="mm"),
+                                          Parameter("save_dir", value=str(tmp_path / "mm"))])[0].successful
+        in_mm = _call(harness, client)
     folder = tmp_path / "saved" / "scan_00000007"
     xyz = cloud.to_array(["x", "y", "z"]).reshape(-1, 3)
     for answer, save_format in zip(answers, ("ply", "pcd")):
         assert answer.success, answer.message
         assert answer.message == (f"saved scan 7: {folder / f'cloud.{save_format}'} (19200 points, metres) and "
                                   f"{folder / 'capture'} (8 frames)")
-        written = np.asarray(o3d.io.read_point_cloud(str(folder / f"cloud.{save_format}")).points)  # (M, 3) m
-        assert np.abs(written - xyz[np.isfinite(xyz).all(axis=1)]).max() < 1e-6
+        written = o3d.t.io.read_point_cloud(str(folder / f"cloud.{save_format}")).point
+        finite = np.isfinite(xyz).all(axis=1)
+        assert np.abs(written.positions.numpy() - xyz[finite]).max() < 1e-6  # (M, 3) m
+        # every field of the published cloud (before: x y z and grey colours only)
+        names = [f.name for f in cloud.fields]
+        assert names == ["x", "y", "z", "intensity", "modulation", "confidence", "normal_x", "normal_y", "normal_z"]
+        normals = cloud.to_array(["normal_x", "normal_y", "normal_z"]).reshape(-1, 3)[finite]
+        np.testing.assert_array_equal(written.normals.numpy(), normals)
+        for name in ("intensity", "modulation", "confidence"):
+            np.testing.assert_array_equal(written[name].numpy()[:, 0], cloud.to_array([name]).reshape(-1)[finite])
+        assert np.isfinite(written.confidence.numpy()).all() and np.isfinite(written.modulation.numpy()).all()
+    assert in_mm.message == (f"saved scan 7: {tmp_path / 'mm' / 'scan_00000007' / 'cloud.pcd'} (19200 points, "
+                             f"millimetres) and {tmp_path / 'mm' / 'scan_00000007' / 'capture'} (8 frames)")
+    in_mm_points = o3d.t.io.read_point_cloud(str(tmp_path / "mm" / "scan_00000007" / "cloud.pcd")).point.positions
+    assert np.abs(in_mm_points.numpy() - 1000.0 * xyz[finite]).max() < 1e-3
     remade = cloud_node.capture._last[1]()  # every field, bit for bit the published cloud
     assert remade.fields == cloud.fields and np.array_equal(remade.to_array(), cloud.to_array(), equal_nan=True)
-    assert cloud_node.capture.saved == 2
+    assert cloud_node.capture.saved == 3
     capture = read_capture(folder / "capture")
     assert [(s.frequency, s.steps) for s in capture.sequences if isinstance(s, PhaseSequence)] == [(16.0, 4),
                                                                                                    (1.0, 4)]
