@@ -132,12 +132,14 @@ def _run_twin(args, board) -> int:
 
 def _run_hand_eye(args, board) -> int:
     # imported when the command runs, not at start-up: keeps `dptpu --help` fast
+    from dataclasses import replace
+
     import numpy as np
     from scipy.spatial.transform import Rotation
     from tqdm import tqdm
 
     from dptpu.fpp.calibration import load_rig
-    from dptpu.fpp.hand_eye import calibrate_hand_eye
+    from dptpu.fpp.hand_eye import MIN_VIEWS, calibrate_hand_eye
     from dptpu.fpp.hand_eye_file import load_board_image, read_hand_eye_views, write_mount_file
     from dptpu.fpp.rig_calibration import find_board_corners
 
@@ -150,13 +152,25 @@ def _run_hand_eye(args, board) -> int:
         raise ValueError("dptpu calibrate hand-eye needs --rig RIG (the scanner's rig file: the camera's model)")
     views = read_hand_eye_views(args.pose_dirs[1])
     camera = load_rig(args.rig).camera
-    corners = []
-    for capture in tqdm(views.captures, desc="finding the board", unit="view", disable=args.quiet, file=sys.stderr):
+    corners, used, skipped = [], [], []  # the board's corners in the views where it was found; why the others not
+    for index, capture in enumerate(tqdm(views.captures, desc="finding the board", unit="view", disable=args.quiet,
+                                         file=sys.stderr)):
         image = load_board_image(capture)
         if (image.shape[1], image.shape[0]) != tuple(camera.size):
             raise ValueError(f"{capture}: the image is {image.shape[1]}x{image.shape[0]}; the rig's camera is "
                              f"{camera.size[0]}x{camera.size[1]}")
-        corners.append(find_board_corners(image, board, where=str(capture)))
+        try:
+            corners.append(find_board_corners(image, board, where=capture.name))
+        except ValueError as exc:  # a view without the whole board (out of the image, glare): left out, said why
+            skipped.append(str(exc))
+            tqdm.write(f"skipped view {index} ({exc})", file=sys.stderr)
+            continue
+        used.append(index)
+    if len(used) < MIN_VIEWS:
+        raise ValueError(f"{views.path}: the board was found in {len(used)} of {len(views.captures)} views; "
+                         f"hand-eye calibration needs at least {MIN_VIEWS} (skipped: {'; '.join(skipped)})")
+    views = replace(views, captures=tuple(views.captures[i] for i in used),
+                    flange_poses=tuple(views.flange_poses[i] for i in used))
     result = calibrate_hand_eye(views.flange_poses, corners, board, camera, setup=views.setup)
     write_mount_file(args.out, result, views, camera_frame=args.camera_frame)
     parent = views.flange_frame if views.setup == "eye-in-hand" else views.base_frame
@@ -168,8 +182,9 @@ def _run_hand_eye(args, board) -> int:
         print(f"  {capture.name}: {rms:.4f} px")
     print(f"camera optical frame in {parent}: x {x_mm[0]:.3f} mm, y {x_mm[1]:.3f} mm, z {x_mm[2]:.3f} mm; "
           f"roll {rpy[0]:.4f}, pitch {rpy[1]:.4f}, yaw {rpy[2]:.4f} deg (fixed axes x, y, z)")
-    print(f"hand-eye ({views.setup}) from {len(corners)} views -> {args.out}: reprojection RMS {result.rms_px:.3f} px "
-          f"(worst view {float(np.max(result.view_rms_px)):.3f} px); mount_frame {parent}")
+    left_out = f" ({len(skipped)} skipped: no board)" if skipped else ""
+    print(f"hand-eye ({views.setup}) from {len(corners)} views{left_out} -> {args.out}: reprojection RMS "
+          f"{result.rms_px:.3f} px (worst view {float(np.max(result.view_rms_px)):.3f} px); mount_frame {parent}")
     return 0
 
 

@@ -94,3 +94,50 @@ def test_calibrate_hand_eye_command_writes_the_mount_the_cloud_node_publishes(tw
     assert (mount.header.frame_id, mount.child_frame_id) == ("world", "scanner_optical_frame")
     t, q = mount.transform.translation, mount.transform.rotation
     np.testing.assert_allclose([t.x, t.y, t.z, q.x, q.y, q.z, q.w], xyzq, atol=1e-9)
+
+
+def _views_file(tmp_path, images, flange, setup: str) -> object:
+    poses = []
+    for k, (image, pose) in enumerate(zip(images, flange)):
+        cv2.imwrite(str(tmp_path / f"view_{k:02d}.png"), image)
+        xyzq = pose_to_xyz_quaternion(pose[:3, :3], pose[:3, 3])
+        poses.append({"capture": f"view_{k:02d}.png", "translation": xyzq[:3], "quaternion": xyzq[3:]})
+    views = tmp_path / "views.yaml"
+    views.write_text(yaml.safe_dump({"format": "dptpu-hand-eye/1", "setup": setup, "poses": poses}))
+    return views
+
+
+def test_a_view_without_the_board_is_skipped_with_its_reason_and_too_few_views_stop_in_one_line(twin, tmp_path,
+                                                                                                capsys):
+    """The command stopped at the first view whose board was not found (a robot pose that put the board half out
+    of the image); now it leaves that view out, says so, and calibrates from the rest."""
+    rig, world, images, _ = twin
+    X, Y = random_mounting("eye-in-hand", np.random.default_rng(3))
+    flange = flange_poses(rig, world[:USED], setup="eye-in-hand", mount=X, board_place=Y)
+    blank = np.full_like(images[0], 128)  # the board out of view: a grey image
+    shown = [*images[:2], blank, *images[2:USED]]
+    poses = [*flange[:2], flange[0], *flange[2:]]  # the blank view's pose does not matter: it is left out
+    views = _views_file(tmp_path, shown, poses, "eye-in-hand")
+    rig_path = save_rig(rig, tmp_path / "rig.yaml")
+    mount_path = tmp_path / "mount.yaml"
+    code = main(["calibrate", "hand-eye", str(views), "--rig", str(rig_path), "--board", "10x8:13",
+                 "--out", str(mount_path), "--quiet"])
+    captured = capsys.readouterr()
+    assert code == 0, captured.err
+    assert "skipped view 2 (view_02.png: no 10x8 checkerboard corners found" in captured.err
+    assert f"hand-eye (eye-in-hand) from {USED} views (1 skipped: no board) -> {mount_path}" in captured.out
+    xyzq = np.array(yaml.safe_load(mount_path.read_text())["/**"]["ros__parameters"]["mount_transform"])
+    estimate = np.eye(4)
+    estimate[:3, :3], estimate[:3, 3] = Rotation.from_quat(xyzq[3:]).as_matrix(), xyzq[:3]
+    rotation_deg, translation_mm = _errors(estimate, X)
+    assert rotation_deg < MAX_ROTATION_DEG and translation_mm < MAX_TRANSLATION_MM, (rotation_deg, translation_mm)
+
+    few = tmp_path / "few"
+    few.mkdir()
+    views = _views_file(few, [images[0], blank, images[1], blank], flange[:4], "eye-in-hand")
+    code = main(["calibrate", "hand-eye", str(views), "--rig", str(rig_path), "--board", "10x8:13",
+                 "--out", str(few / "mount.yaml"), "--quiet"])
+    err = capsys.readouterr().err.splitlines()
+    assert code == 2 and not (few / "mount.yaml").exists()
+    assert err[-1].startswith(f"dptpu calibrate: error: {views}: the board was found in 2 of 4 views; hand-eye "
+                              "calibration needs at least 3 (skipped: view_01.png: no 10x8 checkerboard corners")
