@@ -116,20 +116,33 @@ def beside_steps(depth: np.ndarray, focal_px: float, *, max_step: float, side: s
     if side not in ("both", "far", "near"):
         raise ValueError(f"side must be 'both', 'far' or 'near'; got {side!r}")
     z = np.asarray(depth, dtype=np.float32)
+    return _beside(z, _neighbour_extremes(z), focal_px, max_step, side)
+
+
+def _neighbour_extremes(z: np.ndarray) -> list[tuple[np.float32, np.ndarray, np.ndarray]]:
+    """``(footprint factor, farthest, nearest)`` of the 4 side and of the 4 diagonal neighbours of every pixel of
+    the float32 depth ``z`` (OpenCV's grey-level dilate and erode; NaN neighbours and the outside never count)."""
     finite = np.isfinite(z)
     nearest_fill = np.where(finite, z, np.float32(np.inf))
     farthest_fill = np.where(finite, z, np.float32(-np.inf))
+    return [(factor, cv2.dilate(farthest_fill, kernel, borderType=cv2.BORDER_CONSTANT, borderValue=-np.inf),
+             cv2.erode(nearest_fill, kernel, borderType=cv2.BORDER_CONSTANT, borderValue=np.inf))
+            for kernel, factor in ((_SIDES, np.float32(1.0)), (_DIAGONALS, np.float32(np.sqrt(2.0))))]
+
+
+def _beside(z: np.ndarray, extremes: list[tuple[np.float32, np.ndarray, np.ndarray]], focal_px: float,
+            max_step: float, side: str) -> np.ndarray:
+    """:func:`beside_steps` of the float32 depth ``z`` from its :func:`_neighbour_extremes` (one morphology for
+    several thresholds)."""
     limit = np.float32(max_step / focal_px) * np.abs(z)  # (H, W), one side step
     out = np.zeros(z.shape, dtype=bool)
     with np.errstate(invalid="ignore"):
-        for kernel, factor in ((_SIDES, np.float32(1.0)), (_DIAGONALS, np.float32(np.sqrt(2.0)))):
-            farthest = cv2.dilate(farthest_fill, kernel, borderType=cv2.BORDER_CONSTANT, borderValue=-np.inf)
-            nearest = cv2.erode(nearest_fill, kernel, borderType=cv2.BORDER_CONSTANT, borderValue=np.inf)
+        for factor, farthest, nearest in extremes:
             if side != "far":
                 out |= farthest - z > factor * limit
             if side != "near":
                 out |= z - nearest > factor * limit
-    return out & finite
+    return out & np.isfinite(z)
 
 
 def flying_points(depth: np.ndarray, focal_px: float, *, max_slope: float = DEFAULT_MAX_SLOPE) -> np.ndarray:
@@ -334,10 +347,11 @@ def edge_points(depth: np.ndarray, focal_px: float, modulation: np.ndarray | Non
                 error = (0.5 * (1.0 - lit_fraction[~in_shadow]) * per_px.ravel()[judged]
                          * _across_fringes(unlit, axis, judged))
             np.put(shadow, judged[error > max_edge_error], True)
+    extremes = _neighbour_extremes(solid)  # the nearest and farthest neighbours, for both thresholds below
     step = np.zeros(z.shape, dtype=bool)
     if np.isfinite(max_step):
-        step = beside_steps(solid, focal_px, max_step=max_step) & ~flying  # both sides: see the module docstring
-    edge = beside_steps(solid, focal_px, max_step=max_slope)
+        step = _beside(solid, extremes, focal_px, max_step, "both") & ~flying  # both sides: the module docstring
+    edge = _beside(solid, extremes, focal_px, max_slope, "both")
     dip = dipped & (edge | (_neighbour_count(edge) > 0))  # within one pixel of a depth edge
     # a pure side (no flying point, no dip, not beside a step: a line of mixed pixels along an edge continues
     # itself) that continues to a dipped point vouches for it. Not for a point beside a step (module docstring), nor

@@ -108,21 +108,25 @@ def _order_regions(phi: np.ndarray, valid: np.ndarray) -> tuple[np.ndarray, np.n
         ``Phi_b - Phi_a`` of those pairs.
     """
     height, width = phi.shape
-    with np.errstate(invalid="ignore"):
-        right = phi[:, 1:] - phi[:, :-1]  # (H, W-1)
-        down = phi[1:, :] - phi[:-1, :]  # (H-1, W)
+    with np.errstate(invalid="ignore"):  # in float64 whatever phi's dtype (a float32 difference could round)
+        right = np.subtract(phi[:, 1:], phi[:, :-1], dtype=np.float64)  # (H, W-1)
+        down = np.subtract(phi[1:, :], phi[:-1, :], dtype=np.float64)  # (H-1, W)
         pair_right = valid[:, 1:] & valid[:, :-1]
         pair_down = valid[1:, :] & valid[:-1, :]
-        link_right = pair_right & (np.abs(right) < np.pi)
-        link_down = pair_down & (np.abs(down) < np.pi)
+        link_right = np.abs(right) < np.pi
+        link_right &= pair_right
+        link_down = np.abs(down) < np.pi
+        link_down &= pair_down
     grid = np.zeros((2 * height - 1, 2 * width - 1), dtype=np.uint8)
     grid[::2, ::2] = valid
     grid[::2, 1::2] = link_right
     grid[1::2, ::2] = link_down
+    np.logical_xor(pair_right, link_right, out=pair_right)  # the valid pairs whose link is broken
+    np.logical_xor(pair_down, link_down, out=pair_down)
     _, grid_labels = cv2.connectedComponents(grid, connectivity=4, ltype=cv2.CV_32S)
     labels = np.ascontiguousarray(grid_labels[::2, ::2])
-    rows_r, cols_r = np.nonzero(pair_right & ~link_right)
-    rows_d, cols_d = np.nonzero(pair_down & ~link_down)
+    rows_r, cols_r = np.nonzero(pair_right)
+    rows_d, cols_d = np.nonzero(pair_down)
     a = np.concatenate([rows_r * width + cols_r, rows_d * width + cols_d]).astype(np.int64)
     b = np.concatenate([rows_r * width + cols_r + 1, (rows_d + 1) * width + cols_d]).astype(np.int64)
     difference = np.concatenate([right[rows_r, cols_r], down[rows_d, cols_d]])
@@ -146,7 +150,9 @@ def order_islands(absolute_phase: np.ndarray, modulation: np.ndarray, valid: np.
     min_share, min_pairs, min_modulation_ratio
         See the module docstring.
     """
-    phi = np.asarray(absolute_phase, dtype=np.float64)
+    phi = np.asarray(absolute_phase)
+    if not np.issubdtype(phi.dtype, np.floating):
+        phi = phi.astype(np.float64)
     valid = np.asarray(valid, dtype=bool) & np.isfinite(phi)
     if phi.ndim != 2 or phi.shape != valid.shape or np.shape(modulation) != phi.shape:
         raise ValueError(f"absolute_phase, modulation and valid must be (H, W) of one shape; got {phi.shape}, "
@@ -170,7 +176,8 @@ def order_islands(absolute_phase: np.ndarray, modulation: np.ndarray, valid: np.
     step = np.rint(np.where(a_smaller, -difference, difference) / _TWO_PI)  # order of R minus order of Q
     unequal = (sizes[small] < sizes[large]) & (sizes[small] <= max_island_share * np.count_nonzero(valid))
 
-    b_map = np.where(valid, np.nan_to_num(np.asarray(modulation, dtype=np.float32)), 0.0).astype(np.float32)
+    b_map = np.nan_to_num(np.asarray(modulation, dtype=np.float32))  # a copy: 0 where not valid
+    b_map[~valid] = 0.0
     brightest = cv2.dilate(b_map, np.ones((5, 5), np.uint8)).ravel()  # (H*W,) within two pixels
     flat_b = b_map.ravel()
     with np.errstate(invalid="ignore", divide="ignore"):
@@ -198,7 +205,10 @@ def order_islands(absolute_phase: np.ndarray, modulation: np.ndarray, valid: np.
     chosen = agreeing[island_border] == longest[island_region]
     region_step = np.zeros(sizes.size, dtype=np.int64)
     region_step[island_region[chosen]] = border_step[island_border[chosen]]
-    island_step = region_step[label_image].astype(np.int8)  # label 0 (no order) never has a step
+    if region_step.any():
+        island_step = region_step[label_image].astype(np.int8)  # label 0 (no order) never has a step
+    else:  # no island (a clean scan): no gather over the image
+        island_step = np.zeros(label_image.shape, dtype=np.int8)
     islands = island_step != 0
     return OrderIslands(islands=islands, step=island_step, regions=region_count,
                         island_regions=int(np.count_nonzero(region_step)))

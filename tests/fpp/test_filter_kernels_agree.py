@@ -1,14 +1,16 @@
-"""The cloud filters' kernels for a few pixels agree bit for bit with their whole-image versions: the triangulation
-of chosen pixels (:meth:`dptpu.fpp.triangulate.Triangulator.camera_points` with ``pixels``), the shadow test's
-second triangulation asked only where :func:`dptpu.fpp.depth_edges.edge_points` needs it, the continuation of a
-side at chosen pixels. On outside rigs (projector and camera distortion drawn by a seed, several focal lengths,
-baselines and angles) rendered with mixed pixels at depth edges, projector shadows and the paper's camera noise."""
+"""The cloud filters' faster kernels agree bit for bit with their whole-image versions: the triangulation of chosen
+pixels (:meth:`dptpu.fpp.triangulate.Triangulator.camera_points` with ``pixels``), the shadow test's second
+triangulation asked only where :func:`dptpu.fpp.depth_edges.edge_points` needs it, the continuation of a side at
+chosen pixels, the order islands of a float32 phase. On outside rigs (projector and camera distortion drawn by a
+seed, several focal lengths, baselines and angles) rendered with mixed pixels at depth edges, projector shadows and
+the paper's camera noise."""
 from functools import cache
 
 import numpy as np
 import pytest
 
 from dptpu.fpp.depth_edges import continues_a_side, depth_per_pixel, edge_points
+from dptpu.fpp.order_islands import order_islands
 from dptpu.fpp.triangulate import Triangulator, camera_depth, projector_coordinate
 from dptpu.sim.outside_rigs import SIGMA_2, issue16_rig, random_outside_rig, render_phases, spheres_and_plane
 
@@ -101,3 +103,20 @@ def test_a_side_continued_at_chosen_pixels_is_the_whole_image_answer():
     whole = continues_a_side(depth, pure, 0.25)
     assert 0 < np.count_nonzero(whole & where) < np.count_nonzero(where)
     assert np.array_equal(continues_a_side(depth, pure, 0.25, where=where), whole & where)
+
+
+@pytest.mark.parametrize("name", RIGS)
+def test_order_islands_of_a_float32_phase_are_those_of_its_float64_copy(name):
+    # the phase differences are taken in float64 from either dtype (a float32 difference could round across pi)
+    rig, x_p, modulation, lit = rendered(name)
+    phase = x_p * (2 * np.pi * FREQUENCY / rig.projector.size[0])
+    rng = np.random.default_rng(len(name))
+    for _ in range(8):  # patches whole orders off
+        row, col = rng.integers(5, 100), rng.integers(5, 140)
+        phase[row:row + rng.integers(2, 12), col:col + rng.integers(2, 12)] += 2 * np.pi * rng.choice([-1, 1, 2])
+    phase32 = phase.astype(np.float32)
+    single = order_islands(phase32, modulation.astype(np.float32), lit)
+    double = order_islands(phase32.astype(np.float64), modulation, lit)
+    assert single.island_regions >= 4  # the patches were found
+    assert np.array_equal(single.islands, double.islands) and np.array_equal(single.step, double.step)
+    assert (single.regions, single.island_regions) == (double.regions, double.island_regions)
