@@ -4,8 +4,9 @@ Each segment is an anonymous memfd of this process (mode 0600), mapped read-writ
 subscribers, who open it through ``/proc/<pid>/fd``. :meth:`SegmentPool.write` copies a message's arrays into a
 free segment under an exclusive ``flock`` and returns the descriptor to send; a segment is free when no
 subscriber holds its shared lock and either every subscriber the descriptor went to picked it up or the lease
-has passed (:mod:`.shared_memory`). The pool takes the least recently written free segment that fits, makes a
-new one while the pool stays within its bytes, and otherwise says no (the publisher sends through ZeroMQ).
+has passed (:mod:`.shared_memory`). The pool takes the first free segment that fits in the order of the last
+write or the last time it was found busy, makes a new one while the pool stays within its bytes, and otherwise
+says no (the publisher sends through ZeroMQ).
 Segments idle for :data:`IDLE_S` are closed.
 """
 
@@ -111,7 +112,7 @@ class SegmentPool:
     def __init__(self, config: SharedMemoryConfig, label: str):
         self._config = config
         self._label = label[:200]
-        self._segments: list[_Segment] = []  # least recently written first
+        self._segments: list[_Segment] = []  # least recently written (or found busy) first
         self._bytes = 0
         self._next_trim = 0.0
         self.written_count = 0
@@ -192,13 +193,18 @@ class SegmentPool:
         segment.unlock()
 
     def _take(self, need: int, now: float) -> _Segment | None:
-        """A free segment of ``need`` to ``2 * need`` bytes, exclusively locked, moved to the end; or a new one."""
+        """A free segment of ``need`` to ``2 * need`` bytes, exclusively locked, moved to the end; or a new one.
+
+        The segments looked at before it (busy, or of another size) go to the end with it, in their order: a reader
+        that holds many messages (a node assembling a scan of 24 frames) is not asked about each of them again at
+        every write (a ``flock`` call each), only once they have come round."""
         if now >= self._next_trim:
             self._trim(now)
         lease_s = self._config.lease_s
-        for index, segment in enumerate(self._segments):
+        segments = self._segments
+        for index, segment in enumerate(segments):
             if need <= segment.size <= 2 * need + _PAGE and segment.free(now, lease_s):
-                self._segments.append(self._segments.pop(index))
+                self._segments = [*segments[index + 1:], *segments[:index], segment]
                 return segment
         size = (need + need // 16 + _PAGE - 1) // _PAGE * _PAGE  # some room for a message a little larger
         if self._bytes + size > self._config.pool_bytes:

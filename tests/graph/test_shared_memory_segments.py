@@ -90,6 +90,30 @@ def test_a_held_message_is_never_written_again_and_its_segment_returns_when_let_
         pool.close()
 
 
+def test_segments_a_reader_holds_are_asked_about_once_a_round_not_at_every_write(monkeypatch):
+    monkeypatch.setattr(segment_pool, "IDLE_S", float("inf"))
+    pool = _pool(lease_s=0.0)
+    try:
+        held = [_read(pool.write(_payload(seed), readers=1)) for seed in range(24)]  # a scan's 24 frames, held
+        done = [_read(pool.write(_payload(seed), readers=1)) for seed in range(24, 48)]  # the next 24, let go
+        del done
+        gc.collect()
+        assert pool.segment_count == 48  # least recently written first: the held ones
+        asked = []
+        free = segment_pool._Segment.free
+        monkeypatch.setattr(segment_pool._Segment, "free", lambda self, *a: asked.append(self) or free(self, *a))
+        kept = [_read(pool.write(_payload(seed), readers=1)) for seed in range(48, 72)]  # the next scan, held too
+        # the first write asked the 24 held ones, then took a free one; they went to the end with it, so the other
+        # writes found free ones first (before: every write asked all 24 held ones again, 24 x 25 = 600 in all)
+        assert pool.segment_count == 48 and len(asked) == 24 + 1 + 23
+        assert [bytes(views[0]) for views in held] == [bytes(_payload(seed)[0]) for seed in range(24)]
+        assert len(kept) == 24
+    finally:
+        held = kept = []
+        gc.collect()
+        pool.close()
+
+
 def test_a_descriptor_not_yet_picked_up_keeps_its_segment_until_the_lease():
     pool = _pool(lease_s=0.3)
     try:
