@@ -32,6 +32,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from .processes import process_alive, process_start_ticks
 from .qos import QoSProfile
 from .transport import remove_ipc_file
 
@@ -134,30 +135,6 @@ def host_identity() -> tuple[str, str]:
     return _socket.gethostname(), boot_id
 
 
-def process_start_ticks(pid: int) -> int | None:
-    """Start time of process ``pid`` in clock ticks since boot (Linux), None if unknown or gone."""
-    try:
-        text = Path(f"/proc/{pid}/stat").read_text()
-    except OSError:
-        return None
-    try:
-        return int(text[text.rindex(")") + 2:].split()[19])
-    except (ValueError, IndexError):
-        return None
-
-
-def _pid_alive(pid: int) -> bool:
-    try:
-        os.kill(pid, 0)
-    except ProcessLookupError:
-        return False
-    except PermissionError:
-        return True
-    except OSError:
-        return False
-    return True
-
-
 def entry_is_alive(entry: dict, host: str, boot_id: str) -> bool:
     """Whether an announcement is current: not expired (peer entries) and, for this host, its process runs."""
     expires = entry.get("expires")
@@ -166,7 +143,7 @@ def entry_is_alive(entry: dict, host: str, boot_id: str) -> bool:
     if entry.get("host") != host or entry.get("boot_id") != boot_id:
         return True
     pid = entry.get("pid")
-    if not isinstance(pid, int) or not _pid_alive(pid):
+    if not isinstance(pid, int) or not process_alive(pid):
         return False
     announced = entry.get("pid_start")
     if announced is None:

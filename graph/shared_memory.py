@@ -63,6 +63,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .processes import process_alive
+
 __all__ = [
     "SharedMemoryConfig", "SharedMemoryError", "StaleSegmentError", "host_key", "shm_topic",
     "HEADER_BYTES", "SEGMENT_MAGIC", "pack_descriptor", "unpack_descriptor", "Descriptor", "read_message",
@@ -373,20 +375,10 @@ def _sweep_locked(now: float) -> None:
     """Unmap the segments no message here holds that were idle for a while or whose publisher is gone."""
     _next_sweep[0] = now + 1.0
     for key, mapping in list(_mappings.items()):
-        if mapping.holders or (now - mapping.last_used < MAPPING_IDLE_S and _alive(mapping.pid)):
+        if mapping.holders or (now - mapping.last_used < MAPPING_IDLE_S and process_alive(mapping.pid)):
             continue
         if mapping.close():
             del _mappings[key]
-
-
-def _alive(pid: int) -> bool:
-    try:
-        os.kill(pid, 0)
-    except ProcessLookupError:
-        return False
-    except PermissionError:
-        return True
-    return True
 
 
 def sweep_mappings() -> int:

@@ -10,33 +10,11 @@ from __future__ import annotations
 import os
 import signal
 
+from dptpu.graph.processes import process_alive, stat_fields
+
 __all__ = ["group_members", "group_alive", "signal_group", "process_alive"]
 
 _PROC = "/proc"
-
-
-def _stat_fields(pid: int) -> list[str] | None:
-    """Fields of ``/proc/PID/stat`` after the command name: ``[state, ppid, pgrp, session, ...]``."""
-    try:
-        with open(f"{_PROC}/{pid}/stat", "rb") as handle:
-            text = handle.read().decode("ascii", errors="replace")
-    except OSError:
-        return None
-    return text[text.rfind(")") + 2:].split()  # the command name may hold spaces and parentheses
-
-
-def process_alive(pid: int) -> bool:
-    """True when process ``pid`` exists and is not a zombie."""
-    if os.path.isdir(_PROC):
-        fields = _stat_fields(pid)
-        return fields is not None and fields[0] not in ("Z", "X")
-    try:
-        os.kill(pid, 0)
-    except ProcessLookupError:
-        return False
-    except PermissionError:
-        return True
-    return True
 
 
 def group_members(pgid: int) -> list[int]:
@@ -46,7 +24,7 @@ def group_members(pgid: int) -> list[int]:
     members = []
     for entry in os.listdir(_PROC):
         if entry.isdigit():
-            fields = _stat_fields(int(entry))
+            fields = stat_fields(int(entry))
             if fields is not None and len(fields) > 2 and fields[2] == str(pgid) and fields[0] not in ("Z", "X"):
                 members.append(int(entry))
     return members
@@ -55,7 +33,7 @@ def group_members(pgid: int) -> list[int]:
 def group_alive(pgid: int) -> bool:
     """True while process group ``pgid`` has a live member."""
     if os.path.isdir(_PROC):
-        if process_alive(pgid) and (_stat_fields(pgid) or ["", "", ""])[2] == str(pgid):
+        if process_alive(pgid) and (stat_fields(pgid) or ["", "", ""])[2] == str(pgid):
             return True  # the leader itself: no need to scan
         return bool(group_members(pgid))
     try:
