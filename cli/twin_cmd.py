@@ -77,8 +77,10 @@ def register(subparsers) -> None:
                                "'none' for every label (default: the pair design's, 4 for CFPE)")
     finetune.add_argument("--cfpe-scenes", default="01,04,06,08", help="CFPE scenes, comma separated (default "
                           "01,04,06,08)")
-    finetune.add_argument("--cfpe-low", default="het12", choices=("het12", "beat123"),
-                          help="CFPE low-frequency phase: het12 (default) or beat123 (sim/diagnosis/cfpe_inputs.py)")
+    finetune.add_argument("--cfpe-low", default="cascade", choices=("cascade", "het12", "beat123"),
+                          help="CFPE pairs: cascade (default: the heterodyne as two MF pairs, every solver at each "
+                               "level, sim/diagnosis/beat_cascade.py), or one pair with the low phase het12 or "
+                               "beat123 (sim/diagnosis/cfpe_inputs.py)")
     finetune.add_argument("--seed", type=int, default=0, help="seed of scenes and training (default 0)")
     finetune.add_argument("--threads", type=int, default=1, help="torch and onnxruntime threads (default 1)")
     finetune.add_argument("--out", required=True, help="output folder")

@@ -43,11 +43,12 @@ from dptpu.fpp.dataset import list_samples, read_sample
 from dptpu.models.consensus import consensus_order
 from dptpu.models.inference import FringeOrderModel
 from dptpu.models.refine import refine_order_and_confidence
-from dptpu.sim.diagnosis.cfpe_inputs import cfpe_pair, cfpe_phase_error
+from dptpu.sim.diagnosis.beat_cascade import CascadePair
+from dptpu.sim.diagnosis.cfpe_inputs import LOW_PHASES, cfpe_cascade, cfpe_pair, cfpe_phase_error
 from dptpu.sim.diagnosis.cfpe_response import cfpe_response_effects, cfpe_twin_rig, rendered_phase_error
 from dptpu.sim.diagnosis.measured_pair import MeasuredPair, order_accuracy
 from dptpu.sim.diagnosis.sphere_inputs import sphere_errors_um, sphere_pair, twin_levels
-from dptpu.sim.diagnosis.twin_pairs import CFPE_DESIGN, SPHERE_DESIGN, write_twin_set
+from dptpu.sim.diagnosis.twin_pairs import CASCADE, CFPE_DESIGN, SPHERE_DESIGN, twin_cascades, write_twin_set
 from dptpu.sim.effects import parse_effects
 from dptpu.sim.rig import load_twin_rig, resize_camera
 
@@ -86,7 +87,9 @@ class DownstreamOptions:
     cfpe_scenes : tuple of str
         CFPE scenes scored.
     cfpe_low : str
-        Low phase of the CFPE pair (:func:`.cfpe_inputs.low_phase`).
+        ``cascade`` (default): CFPE's heterodyne as two MF pairs, every solver applied at each level
+        (:mod:`dptpu.sim.diagnosis.beat_cascade`); or the low phase of one CFPE pair, ``het12`` / ``beat123``
+        (:func:`dptpu.sim.diagnosis.cfpe_inputs.low_phase`), the solvers at the top level only.
     cfpe_responses : tuple of str
         CFPE pairs scored: ``captured`` and/or ``compensated`` (:data:`RESPONSES`).
     max_correction : int or None
@@ -101,12 +104,14 @@ class DownstreamOptions:
     seed: int = 0
     heldout_scenes: int = 1
     cfpe_scenes: tuple = ("01", "04", "06", "08")
-    cfpe_low: str = "het12"
+    cfpe_low: str = CASCADE
     cfpe_responses: tuple = RESPONSES
     max_correction: int | None = -1
     finetune: FinetuneOptions = field(default_factory=FinetuneOptions)
 
     def __post_init__(self):
+        if self.cfpe_low not in (CASCADE, *LOW_PHASES):
+            raise ValueError(f"--cfpe-low must be one of {', '.join((CASCADE, *LOW_PHASES))}; got {self.cfpe_low!r}")
         if not self.cfpe_responses or any(r not in RESPONSES for r in self.cfpe_responses):
             raise ValueError(f"CFPE responses must be among {', '.join(RESPONSES)}; got {list(self.cfpe_responses)}")
 
@@ -129,26 +134,39 @@ def measured_pairs(path, options: DownstreamOptions) -> tuple:
     """``(design, pairs, rig)``: the pair design, the measured pairs, and the real rig for 3D errors (sphere)."""
     kind = measured_kind(path)
     if kind == "cfpe":
-        design = replace(CFPE_DESIGN, low=options.cfpe_low)
-        pairs = []
-        for scene in options.cfpe_scenes:
-            if "captured" in options.cfpe_responses:
-                pairs.append(cfpe_pair(path, scene, low=options.cfpe_low))
-            if "compensated" in options.cfpe_responses:
-                others = [s for s in ("01", "04", "06", "08") if s != scene]
-                error = cfpe_phase_error(path, others)
-                pair = cfpe_pair(path, scene, low=options.cfpe_low, phase_error=error)
-                provenance = {**pair.provenance, "response": (
-                    f"compensated: the 3-step phases' error {error.cos_rad:+.4f} cos(3 psi) {error.sin_rad:+.4f} "
-                    f"sin(3 psi) rad, fitted on scenes {', '.join(others)}, removed (fpp.phase_harmonics)")}
-                pairs.append(replace(pair, name=f"{pair.name}/compensated", provenance=provenance))
-        return design, pairs, None
+        return replace(CFPE_DESIGN, low=options.cfpe_low), _cfpe_pairs(path, options), None
     rig = real_sphere.load_rig(path, "real", relative_pose="all-views")
     levels = twin_levels(rig, real_sphere.load_phase(path, "real"))
     pairs = [sphere_pair(path, noise_sigma=s, seed=options.seed + i, rig=rig, levels=levels)
              for i, s in enumerate(options.noise)]
     return SPHERE_DESIGN, pairs, rig
 
+
+def _cfpe_pairs(path, options: DownstreamOptions) -> list[MeasuredPair | CascadePair]:
+    """The CFPE scenes' pairs (:class:`MeasuredPair`) or cascades (:class:`CascadePair`), as captured and/or with
+    the projector's response compensated (calibrated on the other three scenes, named ``cfpeSS/compensated``)."""
+    cascade = options.cfpe_low == CASCADE
+    pairs: list[MeasuredPair | CascadePair] = []
+    for scene in options.cfpe_scenes:
+        if "captured" in options.cfpe_responses:
+            pairs.append(cfpe_cascade(path, scene) if cascade else cfpe_pair(path, scene, low=options.cfpe_low))
+        if "compensated" in options.cfpe_responses:
+            others = [s for s in ("01", "04", "06", "08") if s != scene]
+            error = cfpe_phase_error(path, others)
+            response = (f"compensated: the 3-step phases' error {error.cos_rad:+.4f} cos(3 psi) {error.sin_rad:+.4f} "
+                        f"sin(3 psi) rad, fitted on scenes {', '.join(others)}, removed (fpp.phase_harmonics)")
+            if cascade:
+                levels = cfpe_cascade(path, scene, phase_error=error)
+                top = _compensated(levels.top, response)
+                pairs.append(replace(levels, top=top, beat=replace(levels.beat, name=f"{top.name}/beat")))
+            else:
+                pairs.append(_compensated(cfpe_pair(path, scene, low=options.cfpe_low, phase_error=error), response))
+    return pairs
+
+
+def _compensated(pair: MeasuredPair, response: str) -> MeasuredPair:
+    """``pair`` named ``NAME/compensated``, its provenance saying how the response was removed."""
+    return replace(pair, name=f"{pair.name}/compensated", provenance={**pair.provenance, "response": response})
 
 def split_rigs(extended, base_rig=None, *, measured=None) -> tuple:
     """``(baseline rig, extended rig)`` from a rig file with effects, or an effects file and a base rig.
@@ -190,29 +208,57 @@ def split_rigs(extended, base_rig=None, *, measured=None) -> tuple:
     return replace(rig, effects=()), replace(rig, effects=tuple(effects))
 
 
-def solver_orders(models: dict, pair: MeasuredPair, threads: int = 1) -> tuple[dict, dict]:
+def solver_orders(models: dict, pair: MeasuredPair | CascadePair, threads: int = 1) -> tuple[dict, dict]:
     """``(orders, voted)``: each solver's order map on ``pair`` (name -> (H, W) int32), and the same after the
     neighbour vote, the same step for every solver.
 
     ``classical`` is the pair's classical order; each model of ``models`` (name -> ONNX path) is run the way the
     unwrap node runs it (:func:`dptpu.models.refine.refine_order_and_confidence` without its vote: the physics
-    prior, the rounded output). ``voted`` is :func:`dptpu.models.consensus.consensus_order` of each order with
-    the pair's classical order voting beside it (for the classical order: the classical order on itself): the
-    vote uses only the wrapped phase and the orders (no network), so what it fixes counts for every solver alike.
-    (The unwrap node's own vote takes the network's prior instead of the classical order, for MF the order read
-    at the projector's ends, :mod:`dptpu.models.projector_ends`; on CFPE, whose camera sees the projector's whole
-    width, that prior is right on fewer pixels than the classical order: docs/sim-to-real.md.)
+    prior, the rounded output). A :class:`CascadePair` is solved level by level (:func:`cascade_orders`): each
+    solver at level 1, then at level 2 on the low phase of its own level-1 order. ``voted`` is
+    :func:`dptpu.models.consensus.consensus_order` of each (top-level) order with the classical order voting beside
+    it (for the classical order: the classical order on itself): the vote uses only the wrapped phase and the orders
+    (no network), so what it fixes counts for every solver alike. (The unwrap node's own vote takes the network's
+    prior instead of the classical order, for MF the order read at the projector's ends,
+    :mod:`dptpu.models.projector_ends`; on CFPE, whose camera sees the projector's whole width, that prior is
+    right on fewer pixels than the classical order: docs/sim-to-real.md.)
     """
+    if isinstance(pair, CascadePair):
+        orders = cascade_orders(models, pair, threads)[1]
+        return orders, _vote(orders, pair.top)
+    orders = {"classical": np.asarray(pair.coarse_order, dtype=np.int32)}
+    for name, path in models.items():
+        orders[name] = _model_order(FringeOrderModel.load(path, threads=threads), pair)
+    return orders, _vote(orders, pair)
+
+
+def _vote(orders: dict, pair: MeasuredPair) -> dict:
+    """Each order of ``orders`` after :func:`dptpu.models.consensus.consensus_order`, ``orders["classical"]``
+    voting beside it."""
     psi = np.where(pair.valid, pair.wrapped_high, 0.0)
-    classical = np.asarray(pair.coarse_order, dtype=np.int32)
-    orders = {"classical": classical}
+    return {name: consensus_order(order, orders["classical"], psi, pair.valid) for name, order in orders.items()}
+
+
+def _model_order(model: FringeOrderModel, pair: MeasuredPair) -> np.ndarray:
+    """The network's own order on an MF pair, as the unwrap node runs it without the vote, (H, W) int32."""
+    return refine_order_and_confidence(model, pair.method, pair.wrapped_high, pair.wrapped_low, pair.coarse_order,
+                                       pair.frequency_high, pair.frequency_low, pair.valid, consensus=False)[0]
+
+
+def cascade_orders(models: dict, cascade: CascadePair, threads: int = 1) -> tuple[dict, dict]:
+    """``(beat_orders, orders)``: each solver's level-1 order (level 1's convention) and its top-level order.
+
+    ``classical``: Eq. (5) at both levels (the heterodyne). Each model of ``models`` (name -> ONNX path): the
+    network on level 1's pair with its classical order as the prior, then on the level-2 pair built from its own
+    level-1 order (:meth:`CascadePair.top_pair`) with that pair's classical order as the prior.
+    """
+    beat_orders = {"classical": np.asarray(cascade.beat.coarse_order, dtype=np.int32)}
+    orders = {"classical": np.asarray(cascade.top.coarse_order, dtype=np.int32)}
     for name, path in models.items():
         model = FringeOrderModel.load(path, threads=threads)
-        orders[name] = refine_order_and_confidence(
-            model, pair.method, pair.wrapped_high, pair.wrapped_low, classical, pair.frequency_high,
-            pair.frequency_low, pair.valid, consensus=False)[0]
-    voted = {name: consensus_order(order, classical, psi, pair.valid) for name, order in orders.items()}
-    return orders, voted
+        beat_orders[name] = _model_order(model, cascade.beat)
+        orders[name] = _model_order(model, cascade.top_pair(beat_orders[name]))
+    return beat_orders, orders
 
 
 def evaluate_orders(pair: MeasuredPair, orders: dict, rig=None, *, voted: dict | None = None) -> dict[str, Any]:
@@ -229,9 +275,16 @@ def evaluate_orders(pair: MeasuredPair, orders: dict, rig=None, *, voted: dict |
     return row
 
 
-def _score(models: dict, pair: MeasuredPair, threads: int, rig=None) -> dict[str, Any]:
-    orders, voted = solver_orders(models, pair, threads)
-    return evaluate_orders(pair, orders, rig, voted=voted)
+def _score(models: dict, pair: MeasuredPair | CascadePair, threads: int, rig=None) -> dict[str, Any]:
+    """One row of the results: :func:`evaluate_orders` of :func:`solver_orders`; for a cascade also each solver's
+    level-1 order (``accuracy_beat``: the fraction of pixels with the reference beat order)."""
+    if not isinstance(pair, CascadePair):
+        orders, voted = solver_orders(models, pair, threads)
+        return evaluate_orders(pair, orders, rig, voted=voted)
+    beat_orders, orders = cascade_orders(models, pair, threads)
+    row = evaluate_orders(pair.top, orders, rig, voted=_vote(orders, pair.top))
+    row["accuracy_beat"] = {name: order_accuracy(order, pair.beat) for name, order in beat_orders.items()}
+    return row
 
 
 def response_check(measured, baseline_rig, extended_rig, size, seed: int = 0) -> dict[str, Any]:
@@ -308,11 +361,15 @@ def compare_finetunes(pairs: list, design, baseline_rig, extended_rig, out_dir, 
     out.mkdir(parents=True, exist_ok=True)
     if options.max_correction != -1:
         design = replace(design, max_correction=options.max_correction)
-    sets, heldout = {}, {}
+    sets: dict[str, Path] = {}
+    heldout: dict[str, Any] = {}  # name -> a held-out set's folder, or its cascades
     for name, twin in (("baseline", baseline_rig), ("extended", extended_rig)):
         sets[name] = write_twin_set(twin, design, out / f"twin_{name}", scenes=options.scenes, size=options.size,
                                     noise=options.noise, seed=options.seed)
-        if options.heldout_scenes > 0:
+        if options.heldout_scenes > 0 and design.low == CASCADE:
+            heldout[name] = twin_cascades(twin, design, scenes=options.heldout_scenes, size=options.size,
+                                          noise=options.noise, seed=options.seed + 1000, name=f"heldout_{name}")
+        elif options.heldout_scenes > 0:
             heldout[name] = write_twin_set(twin, replace(design, max_correction=None), out / f"heldout_{name}",
                                            scenes=options.heldout_scenes,
                                            size=options.size, noise=options.noise, seed=options.seed + 1000)
@@ -331,7 +388,8 @@ def compare_finetunes(pairs: list, design, baseline_rig, extended_rig, out_dir, 
         models[f"finetuned_{name}"] = runs[name]["onnx"]
         log(f"fine-tune on the {name} twin: {runs[name]['epochs']} epochs, {runs[name]['seconds']:.0f} s")
     rows = [_score(models, pair, threads, sphere_rig) for pair in pairs]
-    twin_rows = {name: [_score(models, p, threads) for p in twin_set_pairs(heldout[name])] for name in heldout}
+    twin_rows = {name: [_score(models, p, threads) for p in (held if design.low == CASCADE else twin_set_pairs(held))]
+                 for name, held in heldout.items()}
     return {
         "design": design.as_dict(),
         "effects": {"baseline": [dict(e) for e in baseline_rig.effects],
@@ -339,8 +397,8 @@ def compare_finetunes(pairs: list, design, baseline_rig, extended_rig, out_dir, 
         "base_model": str(model), "start": start[3], "models": models,
         "options": json.loads(json.dumps(asdict(options), default=str)), "finetune_runs": runs,
         "measured_results": rows,
-        "twin_results": {name: [{k: r[k] for k in ("pair", "pixels", "accuracy", "accuracy_vote")} for r in rs]
-                         for name, rs in twin_rows.items()},
+        "twin_results": {name: [{k: r[k] for k in ("pair", "pixels", "accuracy", "accuracy_vote", "accuracy_beat")
+                                 if k in r} for r in rs] for name, rs in twin_rows.items()},
         "summary": _summary(rows, twin_rows), "seconds": round(time.perf_counter() - started, 1),
     }
 
@@ -362,15 +420,19 @@ def _summary(rows: list, twin_rows: dict) -> dict[str, Any]:
         grouped = [r for r in rows if _group(r) == group]
         if not grouped:
             continue
-        for key, label in (("accuracy", "accuracy"), ("accuracy_vote", "accuracy_vote")):
+        for key, label in (("accuracy", "accuracy"), ("accuracy_vote", "accuracy_vote"),
+                           ("accuracy_beat", "accuracy_beat")):
+            if key not in grouped[0]:
+                continue
             means = {n: _mean([r[key][n] for r in grouped]) for n in names}
             summary[f"{group}_{label}_mean"] = means
             summary[f"{group}_{label}_above_classical_every_pair"] = {
                 n: all(r[key][n] > r[key]["classical"] for r in grouped) for n in MODEL_NAMES}
             summary[f"{group}_{label}_gain_of_extension"] = means["finetuned_extended"] - means["finetuned_baseline"]
     for twin, rs in twin_rows.items():
-        summary[f"twin_{twin}_accuracy_mean"] = {n: _mean([r["accuracy"][n] for r in rs]) for n in names}
-        summary[f"twin_{twin}_accuracy_vote_mean"] = {n: _mean([r["accuracy_vote"][n] for r in rs]) for n in names}
+        for key in ("accuracy", "accuracy_vote", "accuracy_beat"):
+            if rs and key in rs[0]:
+                summary[f"twin_{twin}_{key}_mean"] = {n: _mean([r[key][n] for r in rs]) for n in names}
     if rows and "3d" in rows[0]:
         summary["interior_sphere_rms_um"] = {r["pair"]: {n: r["3d"][n]["interior_sphere_rms_um"]
                                                          for n in ["reference", *names]} for r in rows}
@@ -401,7 +463,10 @@ def _markdown(report: dict) -> str:
                   + "."]
     twins = [r for rows in report["twin_results"].values() for r in rows]
     for key, what in (("accuracy", "each solver's own order (the networks without the vote)"),
-                      ("accuracy_vote", "each solver's order after the same neighbour vote")):
+                      ("accuracy_vote", "each solver's order after the same neighbour vote"),
+                      ("accuracy_beat", "each solver's level-1 (beat) order of the cascade")):
+        if "accuracy_beat" == key and key not in report["measured_results"][0]:
+            continue
         lines += _accuracy_table(f"Fringe-order accuracy (fraction of valid pixels with the reference order), {what}:",
                                  [*report["measured_results"], *twins], key, names)
     rows3d = [r for r in report["measured_results"] if "3d" in r]

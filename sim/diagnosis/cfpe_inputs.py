@@ -44,11 +44,12 @@ from dptpu.fpp.phase_harmonics import (
 )
 from dptpu.fpp.phase_response_calibration import calibrate_phase_response
 
+from .beat_cascade import CascadePair, beat_frequencies, cascade_pair
 from .measured_pair import MeasuredPair, mf_coarse_order, reference_order
 
 __all__ = ["PERIODS_PX", "PROJECTOR_WIDTH_PX", "FREQUENCIES", "INPUT_STEPS", "LOW_PHASES", "load_cfpe_frames",
-           "beat_frequencies", "low_phase", "build_pair", "cfpe_pair", "cfpe_phase_error", "cfpe_phase_response",
-           "input_rms", "write_cfpe_capture"]
+           "beat_frequencies", "low_phase", "build_pair", "cfpe_pair", "cfpe_cascade", "cfpe_phase_error",
+           "cfpe_phase_response", "input_rms", "write_cfpe_capture"]
 
 #: Projector periods of the three sequences, in file order (highest frequency first).
 PERIODS_PX = (42, 45, 48)
@@ -107,17 +108,6 @@ def _phases(frames: np.ndarray) -> tuple[list[np.ndarray], np.ndarray]:
 
 
 LOW_PHASES = ("het12", "beat123")
-
-
-def beat_frequencies(frequencies) -> tuple[float, float]:
-    """``(f_12, f_123)`` of three frequencies ``f_0 > f_1 > f_2``: the beats of the heterodyne tree (Eq. (6))."""
-    f0, f1, f2 = (float(f) for f in frequencies)
-    f_12 = f0 - f1
-    f_123 = f_12 - (f1 - f2)
-    if not (f0 > f1 > f2 > 0 and f_12 > 1.0 and 0.0 < f_123 <= 1.0):
-        raise ValueError(f"frequencies must be three decreasing values whose beat of beats lies in (0, 1]; got "
-                         f"{[f0, f1, f2]} (f_12 = {f_12:g}, f_123 = {f_123:g})")
-    return f_12, f_123
 
 
 def low_phase(psi, frequencies, kind: str = "het12") -> np.ndarray:
@@ -210,20 +200,11 @@ def cfpe_pair(cfpe_dir, scene: str, *, low: str = "het12",
     MeasuredPair
         ``f_h = 1920/42``, ``f_l = 1``, method ``mf``; see the module docstring.
     """
-    frames = load_cfpe_frames(cfpe_dir, scene)  # (3, 12, H, W)
-    psi3, mask3 = _phases(frames[:, list(INPUT_STEPS)])
-    if isinstance(phase_error, ProjectorPhaseResponse):
-        psi3 = [phase_error.correct(psi, len(INPUT_STEPS)) for psi in psi3]
-    elif phase_error is not None:
-        psi3 = [remove_harmonic_phase_error(psi, phase_error) for psi in psi3]
-    psi12, mask12 = _phases(frames)
-    frequencies = FREQUENCIES
-    reference = tpu.unwrap_heterodyne(psi12, frequencies, valid=mask12)
-    phi_ref = np.where(reference.valid, reference.absolute_phase, np.nan)
+    psi3, mask, phi_ref = _inputs_and_reference(cfpe_dir, scene, phase_error)
     low_text = ("the three-period beat psi(42) - 2 psi(45) + psi(48) (f = 1920/5040 = 0.381)" if low == "beat123"
                 else "the beat psi(42) - psi(45) (f = 1920/630 = 3.05) unwrapped by the three-period beat "
                      "(f = 0.381): the second level of the heterodyne tree")
-    return build_pair(f"cfpe{scene}", psi3, mask3 & mask12, phi_ref, frequencies, extent_px=PROJECTOR_WIDTH_PX,
+    return build_pair(f"cfpe{scene}", psi3, mask, phi_ref, FREQUENCIES, extent_px=PROJECTOR_WIDTH_PX,
                       low=low, provenance={
                           "data": f"CFPE scene {scene} (real frames, ../shared/data/cfpe)",
                           "wrapped_high": "real: 3-step phase (steps 0, 4, 8 of 12) of period 42 px, f_h = 1920/42",
@@ -233,6 +214,38 @@ def cfpe_pair(cfpe_dir, scene: str, *, low: str = "het12",
                               if low == "het12" else ""),
                           "reference": "real: 12-step phases of the three periods, heterodyne unwrapping",
                       })
+
+
+def _inputs_and_reference(cfpe_dir, scene: str, phase_error) -> tuple[list[np.ndarray], np.ndarray, np.ndarray]:
+    """``(psi3, mask, phi_ref)``: the 3-step phases of the three periods (response removed when ``phase_error`` is
+    given, :func:`cfpe_pair`), the joint quality mask of the 3-step and 12-step sequences and the 12-step
+    heterodyne's absolute phase of period 42 px (NaN where it failed)."""
+    frames = load_cfpe_frames(cfpe_dir, scene)  # (3, 12, H, W)
+    psi3, mask3 = _phases(frames[:, list(INPUT_STEPS)])
+    if isinstance(phase_error, ProjectorPhaseResponse):
+        psi3 = [phase_error.correct(psi, len(INPUT_STEPS)) for psi in psi3]
+    elif phase_error is not None:
+        psi3 = [remove_harmonic_phase_error(psi, phase_error) for psi in psi3]
+    psi12, mask12 = _phases(frames)
+    reference = tpu.unwrap_heterodyne(psi12, FREQUENCIES, valid=mask12)
+    return psi3, mask3 & mask12, np.where(reference.valid, reference.absolute_phase, np.nan)
+
+
+def cfpe_cascade(cfpe_dir, scene: str, *,
+                 phase_error: HarmonicPhaseError | ProjectorPhaseResponse | None = None) -> CascadePair:
+    """The heterodyne of a CFPE scene's real 3-step frames as the cascade's two MF pairs
+    (:mod:`.beat_cascade`): level 1 the beat 42/45 (``f = 3.05``) against the three-period beat (``f = 0.381``),
+    level 2 the 42 px phase against level 1's absolute beat; the same pixels and reference as :func:`cfpe_pair`
+    (whose ``het12`` pair is the level-2 pair with the classical level-1 order). ``phase_error`` as there."""
+    psi3, mask, phi_ref = _inputs_and_reference(cfpe_dir, scene, phase_error)
+    return cascade_pair(f"cfpe{scene}", psi3, mask, phi_ref, FREQUENCIES, extent_px=PROJECTOR_WIDTH_PX, provenance={
+        "data": f"CFPE scene {scene} (real frames, ../shared/data/cfpe)",
+        "level 1": "real: the beat psi(42) - psi(45) (f = 3.05) against the three-period beat psi(42) - 2 psi(45) "
+                   "+ psi(48) (f = 0.381), from the 3-step phases (steps 0, 4, 8 of 12): MF with f_h / f_l = 8",
+        "level 2": "real: the 3-step phase of period 42 px (f_h = 45.71) against level 1's absolute beat rescaled "
+                   "to f_l = 1: MF with f_h / f_l = 45.7",
+        "reference": "real: 12-step phases of the three periods, heterodyne unwrapping",
+    })
 
 
 def input_rms(cfpe_dir, scene: str, *, low: str = "het12") -> dict:

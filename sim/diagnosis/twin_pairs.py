@@ -16,7 +16,7 @@ for ``N = 3``: a 3-step sequence of Eq. (1)), as the CFPE inputs are taken from 
 from __future__ import annotations
 
 import os
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -32,11 +32,13 @@ from dptpu.sim.raycast import trace
 from dptpu.sim.rig import resize_camera
 from dptpu.sim.scenes import random_scene
 
+from .beat_cascade import CascadePair, cascade_pair
 from .cfpe_inputs import FREQUENCIES as CFPE_FREQUENCIES
 from .cfpe_inputs import build_pair
 from .measured_pair import mf_coarse_order, reference_order
 
-__all__ = ["PairDesign", "CFPE_DESIGN", "SPHERE_DESIGN", "twin_pair_sample", "write_twin_set", "RENDER_STEPS"]
+__all__ = ["PairDesign", "CFPE_DESIGN", "CFPE_CASCADE_DESIGN", "CASCADE", "SPHERE_DESIGN", "twin_pair_sample",
+           "twin_cascade", "twin_cascade_samples", "twin_cascades", "write_twin_set", "RENDER_STEPS"]
 
 #: Frames rendered per sequence; inputs of N steps are every (12/N)-th frame.
 RENDER_STEPS = 12
@@ -44,6 +46,8 @@ LABEL_TOLERANCE_RAD = np.pi / 2
 _TWO_PI = 2.0 * np.pi
 _BIT_DEPTH = 8
 _MIN_MODULATION_FRACTION = 0.02
+#: ``PairDesign.low`` of the three-frequency heterodyne read as a cascade of two MF pairs (:mod:`.beat_cascade`).
+CASCADE = "cascade"
 
 
 @dataclass(frozen=True)
@@ -63,7 +67,8 @@ class PairDesign:
     offset, amplitude : float
         Projected level ``offset + amplitude cos(.)``, fractions of full scale.
     low : str
-        ``het12`` / ``beat123`` (three frequencies, :func:`.cfpe_inputs.low_phase`) or ``mf`` (the second
+        ``het12`` / ``beat123`` (three frequencies, :func:`.cfpe_inputs.low_phase`), ``cascade`` (three
+        frequencies, both levels of :mod:`.beat_cascade`: a sample of each level per render) or ``mf`` (the second
         frequency is ``f_l = 1``).
     max_correction : int or None
         Training pixels are kept only where the classical order is within this many orders of the label (None: all).
@@ -89,6 +94,8 @@ class PairDesign:
 CFPE_DESIGN = PairDesign("cfpe", tuple(CFPE_FREQUENCIES), (3, 3, 3), shift_sign=1, offset=128 / 255,
                          amplitude=96 / 255, low="het12", max_correction=4)
 SPHERE_DESIGN = PairDesign("sphere", (96.0, 1.0), (12, 3), low="mf")
+#: CFPE's heterodyne as the cascade of :mod:`.beat_cascade`: one pair per level, a sample of each per render.
+CFPE_CASCADE_DESIGN = replace(CFPE_DESIGN, low=CASCADE)
 
 
 def _effects(effects, sigma: float):
@@ -122,23 +129,12 @@ def _reference(design: PairDesign, psi12) -> tpu.Unwrapped:
     return tpu.unwrap_heterodyne(psi12, list(design.frequencies))
 
 
-def twin_pair_sample(rig: Rig, scene, design: PairDesign, *, noise_sigma: float, seed: int, scene_seed: int = 0,
-                     effects=None) -> dict:
-    """One training sample (the ``dptpu-dataset/1`` keys) of ``scene`` built like the measured pair.
-
-    Parameters
-    ----------
-    rig : Rig
-        The twin's rig at the sample's camera size; its ``effects`` act unless ``effects`` is given.
-    scene : Scene or list of SceneMesh
-    design : PairDesign
-    noise_sigma : float
-        Camera noise of the inputs, DN (the rig's ``sensor_noise`` is replaced).
-    seed : int
-        Seed of the noise.
-    """
-    effects = rig.effects if effects is None else effects
+def _render_inputs(rig: Rig, scene, design: PairDesign, *, noise_sigma: float, seed: int) -> dict:
+    """The rendered inputs of one scene: ``psi`` (wrapped input phases, highest first), ``usable`` (their quality
+    mask), ``reference`` (the noise-free 12-step absolute phase of ``f_h`` where it agrees with the ray cast, NaN
+    elsewhere), ``extent`` (projector width, px) and ``label_rejected`` (lit usable pixels without a label)."""
     meshes = scene.meshes if hasattr(scene, "meshes") else list(scene)
+    effects = rig.effects
     traced_rig = render_rig(rig, _effects(effects, 0.0))
     samples = trace(traced_rig, meshes)
     extent = float(rig.projector.size[0])
@@ -155,16 +151,13 @@ def twin_pair_sample(rig: Rig, scene, design: PairDesign, *, noise_sigma: float,
     noisy = render_frames_float(traced_rig, samples, specs, effects=_effects(effects, noise_sigma), seed=seed + 1,
                                 offset=design.offset, amplitude=design.amplitude)
     psi, usable = _phases([quantize(f, _BIT_DEPTH) for f in noisy], design.input_steps, design.shift_sign)
-    reference = np.where(agrees, phi12, np.nan)
-    if design.low == "mf":
-        valid = usable & agrees
-        psi_h, psi_l = np.where(valid, psi[0], 0.0), np.where(valid, psi[1], 0.0)
-        coarse = mf_coarse_order(psi_h, psi_l, f_h, valid)
-        label = reference_order(np.where(valid, reference, np.nan), psi_h)
-    else:
-        pair = build_pair("twin", psi, usable, reference, design.frequencies, extent_px=int(extent), low=design.low)
-        valid, psi_h, psi_l, coarse, label = (pair.valid, pair.wrapped_high, pair.wrapped_low, pair.coarse_order,
-                                              pair.reference_order)
+    return {"psi": psi, "usable": usable, "reference": np.where(agrees, phi12, np.nan), "extent": extent,
+            "label_rejected": int(np.count_nonzero(samples.lit & usable & ~agrees))}
+
+
+def _sample(design: PairDesign, psi_h, psi_l, coarse, label, valid, f_h: float, *, noise_sigma: float,
+            scene_seed: int, label_rejected: int) -> dict:
+    """The ``dptpu-dataset/1`` keys of one pair; labels kept within ``design.max_correction`` of ``coarse``."""
     if design.max_correction is not None:
         valid = valid & (np.abs(coarse.astype(np.int64) - label) <= int(design.max_correction))
     psi_h32 = psi_h.astype(np.float32)
@@ -175,7 +168,81 @@ def twin_pair_sample(rig: Rig, scene, design: PairDesign, *, noise_sigma: float,
             "label_order": np.where(valid, label, 0).astype(np.int16), "valid": valid,
             "frequency_high": np.float64(f_h), "frequency_low": np.float64(1.0), "method": np.str_("mf"),
             "noise_sigma": np.float64(noise_sigma), "scene_seed": np.int64(scene_seed),
-            "label_rejected": np.int64(np.count_nonzero(samples.lit & usable & ~agrees))}
+            "label_rejected": np.int64(label_rejected)}
+
+
+def twin_pair_sample(rig: Rig, scene, design: PairDesign, *, noise_sigma: float, seed: int, scene_seed: int = 0,
+                     effects=None) -> dict:
+    """One training sample (the ``dptpu-dataset/1`` keys) of ``scene`` built like the measured pair.
+
+    Parameters
+    ----------
+    rig : Rig
+        The twin's rig at the sample's camera size; its ``effects`` act unless ``effects`` is given.
+    scene : Scene or list of SceneMesh
+    design : PairDesign
+        Not ``cascade`` (:func:`twin_cascade_samples`).
+    noise_sigma : float
+        Camera noise of the inputs, DN (the rig's ``sensor_noise`` is replaced).
+    seed : int
+        Seed of the noise.
+    """
+    if design.low == CASCADE:
+        raise ValueError("a cascade design gives one sample per level: twin_cascade_samples")
+    rig = rig if effects is None else replace(rig, effects=tuple(effects))
+    inputs = _render_inputs(rig, scene, design, noise_sigma=noise_sigma, seed=seed)
+    psi, usable, reference, extent = inputs["psi"], inputs["usable"], inputs["reference"], inputs["extent"]
+    f_h = float(design.frequencies[0])
+    if design.low == "mf":
+        valid = usable & np.isfinite(reference)
+        psi_h, psi_l = np.where(valid, psi[0], 0.0), np.where(valid, psi[1], 0.0)
+        coarse = mf_coarse_order(psi_h, psi_l, f_h, valid)
+        label = reference_order(np.where(valid, reference, np.nan), psi_h)
+    else:
+        pair = build_pair("twin", psi, usable, reference, design.frequencies, extent_px=int(extent), low=design.low)
+        valid, psi_h, psi_l, coarse, label = (pair.valid, pair.wrapped_high, pair.wrapped_low, pair.coarse_order,
+                                              pair.reference_order)
+    return _sample(design, psi_h, psi_l, coarse, label, valid, f_h, noise_sigma=noise_sigma, scene_seed=scene_seed,
+                   label_rejected=inputs["label_rejected"])
+
+
+def twin_cascade(rig: Rig, scene, design: PairDesign, *, noise_sigma: float, seed: int) -> CascadePair:
+    """The cascade's two pairs (:mod:`.beat_cascade`) of a twin scene, built like the measured ones
+    (:func:`.cfpe_inputs.cfpe_cascade`: the same :func:`.beat_cascade.cascade_pair`); the reference is the
+    noise-free 12-step phase that agrees with the ray cast."""
+    inputs = _render_inputs(rig, scene, design, noise_sigma=noise_sigma, seed=seed)
+    return cascade_pair("twin", inputs["psi"], inputs["usable"], inputs["reference"], design.frequencies,
+                        extent_px=int(inputs["extent"]))
+
+
+def twin_cascade_samples(rig: Rig, scene, design: PairDesign, *, noise_sigma: float, seed: int,
+                         scene_seed: int = 0) -> list[dict]:
+    """Two training samples of a twin scene, one per level of the cascade: level 1 (the beat pair, its classical
+    order as the prior) and level 2 (the top pair with the low phase of the RIGHT level-1 order: what level 2 sees
+    when level 1 is solved). Labels within ``design.max_correction`` of each level's classical order."""
+    cascade = twin_cascade(rig, scene, design, noise_sigma=noise_sigma, seed=seed)
+    top = cascade.top_pair(cascade.beat.reference_order)
+    return [_sample(design, p.wrapped_high, p.wrapped_low, p.coarse_order, p.reference_order, p.valid,
+                    p.frequency_high, noise_sigma=noise_sigma, scene_seed=scene_seed, label_rejected=0)
+            for p in (cascade.beat, top)]
+
+
+def twin_cascades(rig: Rig, design: PairDesign, *, scenes: int, size=(320, 240), noise=(1.5693, 3.1386),
+                  seed: int = 0, name: str = "twin") -> list[CascadePair]:
+    """The cascades of ``scenes`` random scenes x ``noise`` levels (held-out scenes: the seeds of
+    :func:`write_twin_set`), named ``NAME/SCENE_SEED-NOISE``."""
+    size = tuple(int(v) for v in size)
+    rig = resize_camera(rig, size) if tuple(rig.camera.size) != size else rig
+    cascades = []
+    for i in range(int(scenes)):
+        seed_i = dataset_scene_seed(seed, i)
+        scene = random_scene(rig, seed_i)
+        for j, sigma in enumerate(noise):
+            cascade = twin_cascade(rig, scene, design, noise_sigma=float(sigma), seed=seed_i + j)
+            label = f"{name}/{seed_i}-{float(sigma):g}"
+            cascades.append(replace(cascade, top=replace(cascade.top, name=label, provenance={
+                "data": f"twin, noise {float(sigma):g} DN"}), beat=replace(cascade.beat, name=f"{label}/beat")))
+    return cascades
 
 
 def write_twin_set(rig: Rig, design: PairDesign, out_dir, *, scenes: int, size=(320, 240),
@@ -196,20 +263,27 @@ def write_twin_set(rig: Rig, design: PairDesign, out_dir, *, scenes: int, size=(
     (out / "samples").mkdir(parents=True, exist_ok=True)
     save_rig(rig, out / "rig.yaml")
     index = 0
+    frequencies = {float(design.frequencies[0])}
     for i in range(int(scenes)):
         seed_i = dataset_scene_seed(seed, i)
         scene = random_scene(rig, seed_i)
         for j, sigma in enumerate(noise):
-            sample = twin_pair_sample(rig, scene, design, noise_sigma=sigma, seed=seed_i + j, scene_seed=seed_i)
-            path = out / "samples" / f"0-{index:06d}.npz"
-            tmp = path.with_name(f".{path.stem}.{os.getpid()}.tmp.npz")
-            with open(tmp, "wb") as handle:
-                np.savez_compressed(handle, **sample)
-            os.replace(tmp, path)
-            index += 1
+            if design.low == CASCADE:
+                samples = twin_cascade_samples(rig, scene, design, noise_sigma=sigma, seed=seed_i + j,
+                                               scene_seed=seed_i)
+            else:
+                samples = [twin_pair_sample(rig, scene, design, noise_sigma=sigma, seed=seed_i + j, scene_seed=seed_i)]
+            for sample in samples:
+                path = out / "samples" / f"0-{index:06d}.npz"
+                tmp = path.with_name(f".{path.stem}.{os.getpid()}.tmp.npz")
+                with open(tmp, "wb") as handle:
+                    np.savez_compressed(handle, **sample)
+                os.replace(tmp, path)
+                frequencies.add(float(sample["frequency_high"]))
+                index += 1
     document = {"format": "dptpu-dataset/1", "rig": "rig.yaml", "design": design.as_dict(), "scenes": int(scenes),
                 "noise": list(noise), "size": list(size), "seed": int(seed), "count": index,
-                "methods": ["mf"], "frequencies": [float(design.frequencies[0])],
+                "methods": ["mf"], "frequencies": sorted(frequencies),
                 "made_by": "dptpu.sim.diagnosis.twin_pairs.write_twin_set"}
     (out / "dataset.yaml").write_text(yaml.safe_dump(document, sort_keys=False, default_flow_style=None))
     return out
