@@ -292,10 +292,11 @@ def floor_ms_per_scan(*, steps: int, size: str, repeats: int = 30, source: str =
     :func:`dptpu.fpp.tpu.unwrap_mf_float32`), the triangulation with both lens distortions into float32 metres
     (``triangulate``, :meth:`~dptpu.fpp.triangulate.Triangulator.camera_points` of the sim rig's rig at ``size``),
     the cloud node's default filters (``filters``: :func:`dptpu.fpp.depth_edges.edge_points` with the partly
-    shadowed points' predicted error of :func:`~dptpu.fpp.depth_edges.depth_per_pixel`, and
-    :func:`dptpu.fpp.order_islands.order_islands`),
-    the (H, W, 9) cloud as the cloud node builds it (x, y, z, texture, modulation, confidence and the normals of
-    :func:`dptpu.fpp.organized_normals.organized_normals`) with its depth and confidence images (``assemble``), all
+    shadowed points' predicted error of :func:`~dptpu.fpp.depth_edges.depth_per_pixel`, a second triangulation of
+    those pixels, and :func:`dptpu.fpp.order_islands.order_islands`),
+    the (H, W, 9) cloud as the cloud node builds it (x, y, z planes, texture, modulation, confidence and the normals'
+    planes of :func:`dptpu.fpp.organized_normals.organized_normals`, one ``cv2.merge``) with its depth and confidence
+    images (``assemble``), all
     three sent to one subscriber (``transport_out``, both sides). No Python between processes, no messages but the
     frames and the outputs: a lower bound of the graph's CPU per scan (``total``). ``total_shared_memory`` moves the
     bytes as the shared-memory path does at the least, one copy each way (``copy_in``, ``copy_out``: ``np.copyto``
@@ -311,7 +312,13 @@ def floor_ms_per_scan(*, steps: int, size: str, repeats: int = 30, source: str =
     from dptpu.fpp import phase as fpp_phase
     from dptpu.fpp import tpu
     from dptpu.fpp.depth_edges import DEFAULT_MAX_EDGE_ERROR_MM, depth_per_pixel, edge_points
-    from dptpu.fpp.fringe_noise import fit_residual, noise_outliers, phase_noise
+    from dptpu.fpp.fringe_noise import (
+        DEFAULT_MAX_NOISE_RATIO,
+        fit_residual,
+        noise_outliers,
+        phase_noise,
+        quantization_phase_noise,
+    )
     from dptpu.fpp.order_islands import order_islands
     from dptpu.fpp.organized_normals import organized_normals
     from dptpu.fpp.triangulate import Triangulator, projector_coordinate
@@ -374,17 +381,19 @@ def floor_ms_per_scan(*, steps: int, size: str, repeats: int = 30, source: str =
         valid &= np.maximum.reduce([stack.max(axis=0) for stack in stacks]) < 255
         noise = [phase_noise(fit_residual(stack, m.background, m.modulation), m.modulation, steps)
                  for stack, m in zip(stacks, maps)]  # None below 5 steps
-        valid &= ~noise_outliers(noise, valid)
+        floors = [quantization_phase_noise(m.modulation, steps, stack.dtype) for stack, m in zip(stacks, maps)]
+        valid &= ~noise_outliers(noise, valid, DEFAULT_MAX_NOISE_RATIO, floors)
         state["maps"], state["valid"] = maps, valid
 
     def unwrap_step():
         maps = state["maps"]
         state["unwrapped"] = tpu.unwrap_mf_float32(maps[0].phase, maps[1].phase, 64.0, 1.0, valid=state["valid"])
 
-    def triangulate_step():
+    def triangulate_step():  # as the cloud node does: into x, y, z planes (3, H, W)
         result = state["unwrapped"]
         coord = state["coord"] = projector_coordinate(result.absolute_phase, 64.0, extent)
-        state["xyz"] = [triangulator.camera_points(coord, scale=rig.scale_to_m, dtype=np.float32)]
+        planes = state["planes"] = np.empty((3, *coord.shape), dtype=np.float32)
+        triangulator.camera_points(coord, scale=rig.scale_to_m, dtype=np.float32, out=planes.transpose(1, 2, 0))
 
     def depth_at(projector_x, pixels):
         return triangulator.camera_points(projector_x, scale=rig.scale_to_m, dtype=np.float32, pixels=pixels)[:, 2]
@@ -392,8 +401,8 @@ def floor_ms_per_scan(*, steps: int, size: str, repeats: int = 30, source: str =
     def filter_step():  # as the cloud node does by default: the points at depth edges (with the partly shadowed
         # ones judged by their predicted depth error: one more triangulation of those pixels), the islands of wrong
         # orders
-        xyz, result, modulation = state["xyz"][0], state["unwrapped"], state["maps"][0].modulation
-        depth = np.ascontiguousarray(xyz[..., 2])
+        planes, result, modulation = state["planes"], state["unwrapped"], state["maps"][0].modulation
+        depth = planes[2]
 
         def per_px(where):
             return depth_per_pixel(state["coord"], depth_at, "x", depth=depth, where=where)
@@ -401,16 +410,18 @@ def floor_ms_per_scan(*, steps: int, size: str, repeats: int = 30, source: str =
         dropped = edge_points(depth, focal_px, modulation, lit=result.valid, depth_per_px=per_px,
                               max_edge_error=DEFAULT_MAX_EDGE_ERROR_MM * 1e-3, axis="x").dropped
         dropped |= order_islands(result.absolute_phase, modulation, result.valid).islands
-        xyz[dropped] = np.nan
+        planes[:, dropped] = np.nan
 
-    def assemble_step():  # as the cloud node does: texture, modulation, confidence and normals beside x, y, z
-        xyz = state["xyz"][0]
-        channels = [np.ascontiguousarray(xyz[..., k]) for k in range(3)]
-        confidence = np.where(np.isfinite(channels[2]), state["unwrapped"].reliability, np.float32(0.0))
-        normals = organized_normals(xyz)  # (H, W, 3)
-        state["cloud"] = cv2.merge([*channels, state["maps"][0].background, state["maps"][0].modulation,
-                                    confidence.astype(np.float32, copy=False), *cv2.split(normals)])  # (H, W, 9)
-        state["depth"], state["confidence"] = channels[2], confidence
+    def assemble_step():  # as the cloud node does: texture, modulation, confidence and the normals' planes beside
+        # the x, y, z planes, interleaved by one cv2.merge
+        planes = state["planes"]
+        confidence = np.where(np.isfinite(planes[2]), state["unwrapped"].reliability,
+                              np.float32(0.0)).astype(np.float32, copy=False)
+        normals = np.empty_like(planes)  # (3, H, W)
+        organized_normals(planes.transpose(1, 2, 0), out=normals.transpose(1, 2, 0))
+        state["cloud"] = cv2.merge([*planes, state["maps"][0].background, state["maps"][0].modulation, confidence,
+                                    *normals])  # (H, W, 9)
+        state["depth"], state["confidence"] = planes[2], confidence
 
     parts = {"transport_in": lambda: transfer(frames), "phase": phase_step, "unwrap": unwrap_step,
              "triangulate": triangulate_step, "filters": filter_step, "assemble": assemble_step,
