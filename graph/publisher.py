@@ -231,8 +231,9 @@ class Publisher:
         with self._lock:
             if self._abandoned:
                 self._take_back_abandoned_locked()
-            lend = self._pool is not None and self._socket is not None and sum(sizes) >= self._shm_min_bytes
-            taken = self._pool.loan(sizes) if lend else None
+            pool = self._pool
+            lend = pool is not None and self._socket is not None and sum(sizes) >= self._shm_min_bytes
+            taken = pool.loan(sizes) if pool is not None and lend else None
             if taken is None:
                 return [np.empty(shape, dtype) for shape, dtype in specs]
             segment, entries = taken
