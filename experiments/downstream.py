@@ -5,7 +5,8 @@
 
 1. **Measured pairs** (:mod:`dptpu.sim.diagnosis.cfpe_inputs`, :mod:`dptpu.sim.diagnosis.sphere_inputs`): the
    network's inputs built from the measured data, a reference order from a 12-step measurement, and what is real
-   and what is synthesized.
+   and what is synthesized. CFPE by default as a cascade (:mod:`dptpu.sim.diagnosis.beat_cascade`): its
+   three-frequency heterodyne as two MF pairs, every solver applied level by level (:func:`cascade_orders`).
 2. **Two twin sets of the same scenes** (:mod:`dptpu.sim.diagnosis.twin_pairs`): the baseline rig (the extended rig
    without its effects) and the extended rig, rendered with the measured data's sequences and pair construction; the
    sets differ only by the effects.

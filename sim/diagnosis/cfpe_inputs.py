@@ -19,6 +19,9 @@ What is real, what is derived (nothing is synthesized here):
   ``beat123``: the beat of beats itself. Neither has the noise of a 3-step f = 1 pattern (the training data's):
   the beats add the phases' errors (``sqrt(2)``, ``sqrt(6)`` times one phase's) and the rescaling multiplies them
   by ``1 / f_12`` or ``1 / f_123``; that is out of the training distribution, and measured (:func:`input_rms`).
+- **the cascade** (:func:`cfpe_cascade`, :mod:`.beat_cascade`): the same heterodyne as two MF pairs, one per level
+  (the beat 42/45 against the beat of beats; the 42 px phase against the absolute beat), for a solver at each
+  level; its level 2 with the classical level-1 order is the ``het12`` pair.
 - **reference**: the 12-step phases of the three periods unwrapped by the heterodyne beat tree
   (``unwrap_heterodyne``): ``Phi_ref``; reference order ``Round((Phi_ref - psi_h) / 2 pi)``.
 - **valid**: every 3-step and 12-step sequence has modulation >= 2 % of full scale and no saturated frame, and the
