@@ -289,49 +289,61 @@ def test_cli_refuses_a_max_correction_that_is_no_number(tmp_path, capsys):
     assert "--max-correction must be a whole number of orders >= 0 or 'none'; got 'four'" in capsys.readouterr().err
 
 
-def _plane_phases(bad):
-    """Wrapped phases of CFPE's three periods on a tilted plane (4.8 projector px a camera column, from 600 px
-    into the projector to 1248: a beat period, 630 px, further is still on the projector), the 48 px phase moved by
-    pi / 4 on the pixels of ``bad``, and the true phases."""
-    from dptpu.sim.diagnosis.cfpe_inputs import FREQUENCIES
-
+def _plane_phases(bad, periods=(42, 45, 48), width=1920, start=600.0, step=4.8):
+    """Wrapped phases of three projector periods on a tilted plane (``step`` projector px a camera column from
+    ``start``; chosen so that a beat period further is still on the projector), the lowest frequency's phase moved
+    by ``2 pi f_123 / f_12`` on the pixels of ``bad`` (one level-1 order), and the frequencies and true phases."""
     rows, columns = np.mgrid[0:96, 0:128]
-    x_p = 600 + 4.8 * columns + 0.4 * rows
-    phi = [2 * np.pi * f * x_p / 1920 for f in FREQUENCIES]
+    x_p = start + step * columns + 0.4 * rows
+    frequencies = [width / p for p in periods]
+    f_12 = frequencies[0] - frequencies[1]
+    f_123 = f_12 - (frequencies[1] - frequencies[2])
+    assert x_p.max() + width / f_12 < width
+    phi = [2 * np.pi * f * x_p / width for f in frequencies]
     psi = [np.mod(p, 2 * np.pi) for p in phi]
-    psi[2] = np.mod(psi[2] + np.where(bad, np.pi / 4, 0.0), 2 * np.pi)
-    return psi, phi
+    psi[2] = np.mod(psi[2] + np.where(bad, 2 * np.pi * f_123 / f_12, 0.0), 2 * np.pi)
+    return psi, phi, frequencies
 
 
-def test_cascade_corrects_a_beat_level_jump_the_heterodyne_makes():
-    """A synthetic beat-level failure: the 48 px phase moved by pi / 4 on 5 % of the pixels (random) and on a
-    strip 2 px wide moves the beat of beats by pi / 4, i.e. ``f_12 / f_123 = 8`` times that = one whole level-1
-    order: the heterodyne (= the classical cascade) is exactly 15 orders (``f_0 / f_12``) off there and right
-    elsewhere; the beat pair sees a one-order error of its prior, which the shipped network takes out, and the
-    cascade of the network gives back every order (measured: all of them)."""
+@pytest.mark.parametrize("periods, width, start, step", [
+    ((42, 45, 48), 1920, 600.0, 4.8),  # CFPE: level-1 ratio 8, the top 15 orders a beat order
+    ((20, 21, 22), 1000, 150.0, 2.5),  # ratio 11, 21 orders
+    ((30, 32, 34), 1280, 200.0, 4.0),  # ratio 8.5, 16 orders
+])
+def test_cascade_corrects_a_beat_level_jump_the_heterodyne_makes(periods, width, start, step):
+    """A synthetic beat-level failure: the lowest frequency's phase moved on 5 % of the pixels (random) and on a
+    strip 2 px wide by one level-1 order's worth (``2 pi f_123 / f_12``: the beat of beats moves by it, ``f_12 /
+    f_123`` times that is one order): the heterodyne (= the classical cascade) is exactly ``f_0 / f_12`` orders
+    off there and right elsewhere; the beat pair sees a one-order error of its prior, which the shipped network
+    mostly takes out. Measured: CFPE's periods every order back; 20/21/22 of 1000 px 98.9 % of the jumped pixels,
+    30/32/34 of 1280 px 87.3 % (the strip is what is left), 0.00-0.22 % of the others broken."""
     from dptpu.experiments.downstream import _score, cascade_orders
     from dptpu.models.inference import shipped_model_path
     from dptpu.sim.diagnosis.beat_cascade import cascade_pair
-    from dptpu.sim.diagnosis.cfpe_inputs import FREQUENCIES
 
     rows, columns = np.mgrid[0:96, 0:128]
     bad = (np.random.default_rng(0).random(rows.shape) < 0.05) | ((columns >= 60) & (columns < 62))
-    psi, phi = _plane_phases(bad)
-    cascade = cascade_pair("plane", psi, np.ones(bad.shape, bool), phi[0], FREQUENCIES, extent_px=1920)
-    heterodyne = tpu.unwrap_heterodyne(psi, list(FREQUENCIES))
+    psi, phi, frequencies = _plane_phases(bad, periods, width, start, step)
+    cascade = cascade_pair("plane", psi, np.ones(bad.shape, bool), phi[0], frequencies, extent_px=width)
+    heterodyne = tpu.unwrap_heterodyne(psi, frequencies)
     assert np.array_equal(cascade.top.coarse_order, heterodyne.fringe_order)
+    jump = round(frequencies[0] / (frequencies[0] - frequencies[1]))
     error = cascade.top.coarse_order - cascade.top.reference_order
-    assert np.all(error[bad] == 15) and np.all(error[~bad] == 0)
+    assert np.all(error[bad] == jump) and np.all(error[~bad] == 0)
     assert np.all((cascade.beat.coarse_order - cascade.beat.reference_order)[bad] == 1)
     models = {"shipped": str(shipped_model_path())}
     beat, top = cascade_orders(models, cascade)
-    assert np.array_equal(beat["shipped"], cascade.beat.reference_order)
-    assert np.array_equal(top["shipped"], cascade.top.reference_order)
+    right = top["shipped"] == cascade.top.reference_order
+    assert right[bad].mean() > 0.85 and right[~bad].mean() > 0.995
+    if periods == (42, 45, 48):
+        assert np.array_equal(beat["shipped"], cascade.beat.reference_order) and right.all()
     # the report's row: the top level's accuracy, after the vote, and the beat level's
     row = _score(models, cascade, 1)
-    assert row["accuracy"] == {"classical": pytest.approx(1 - bad.mean(), abs=1e-12), "shipped": 1.0}
-    assert row["accuracy_beat"] == row["accuracy"]
-    assert row["accuracy_vote"]["shipped"] == 1.0
+    assert row["accuracy"] == {"classical": pytest.approx(1 - bad.mean(), abs=1e-12),
+                               "shipped": pytest.approx(right.mean(), abs=1e-12)}
+    assert row["accuracy_beat"]["shipped"] == pytest.approx(np.mean(beat["shipped"] == cascade.beat.reference_order))
+    if periods == (42, 45, 48):
+        assert row["accuracy_vote"]["shipped"] == 1.0
 
 
 def test_twin_cascade_samples_are_built_like_the_measured_cascade(tmp_path):
