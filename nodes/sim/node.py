@@ -67,6 +67,7 @@ from collections import OrderedDict, deque
 
 import numpy as np
 
+from dptpu.fpp.calibration import Rig
 from dptpu.fpp.frequencies import same_frequency
 from dptpu.graph.known_publishers import SOLE_PUBLISHER
 from dptpu.graph.node import Node
@@ -158,13 +159,13 @@ class SimNode(Node):
         self.min_subscribers = rules.settable("min_subscribers", 1, check=at_least(0))
         self.publish_truth = rules.settable("ground_truth", True,
                                             apply=lambda value: setattr(self, "publish_truth", value))
-        self.frame_id = rules.settable("frame_id", DEFAULT_FRAME_ID, check=frame_id)
+        self.frame_id = rules.settable("frame_id", DEFAULT_FRAME_ID, check=frame_id, apply=self._set_frame_id)
         if bit_depth not in (8, 16):
             raise ValueError(f"parameter bit_depth must be 8 or 16; got {bit_depth}")
         # the camera is announced as soon as it is known, before the raycast renders the scenes: the cloud node
         # builds its triangulation tables meanwhile, not while the first scans arrive (docs/scanner.md)
         self.info_pub = self.create_publisher(CameraInfo, "/camera/camera_info", LATCHED_QOS)
-        self._info_published = False
+        self._info_rig: Rig | None = None  # the rig of the CameraInfo published last (None: none yet)
         self.source: SimSource = load_source(source, rig=rig, size=size, scenes=scenes, sequence=sequence,
                                              fringe_axis=fringe_axis, shift_sign=shift_sign, seed=seed,
                                              bit_depth=bit_depth, log=self.get_logger().info,
@@ -190,7 +191,7 @@ class SimNode(Node):
                                                      self.on_pattern_sequence, LATCHED_QOS,
                                                      publishers=SOLE_PUBLISHER)  # the projector's only
         self.trigger_sub: Subscription | None = None  # created by on_wait_timer once the frames have subscribers
-        if not self._info_published:  # captures and shipped renders: their rig comes with the frames
+        if self._info_rig is None:  # captures and shipped renders: their rig comes with the frames
             self._publish_camera_info(self.source.rig)
         self.wait_timer = self.create_timer(0.05, self.on_wait_timer)
         self._set_frame_rate(self.frame_rate_hz)
@@ -236,6 +237,13 @@ class SimNode(Node):
             self._serve(self._queue.popleft()[0])
 
     # -- helpers ---------------------------------------------------------------------------------------------
+
+    def _set_frame_id(self, value: str) -> None:
+        """``param set /sim frame_id``: the next frames carry it, and the latched CameraInfo is published again with
+        it (a late subscriber would otherwise get the old frame)."""
+        self.frame_id = value
+        if self._info_rig is not None:
+            self._publish_camera_info(self._info_rig)
 
     def _set_drop_frames(self, text: str) -> None:
         self.drop_frames = parse_drop_frames(text)
@@ -340,9 +348,9 @@ class SimNode(Node):
                                       "given that rig triangulates them wrongly: give it the captures' "
                                       "calibration.yaml")
 
-    def _publish_camera_info(self, rig) -> None:
+    def _publish_camera_info(self, rig: Rig) -> None:
         self.info_pub.publish(self.camera_info(rig))
-        self._info_published = True
+        self._info_rig = rig
 
     def camera_info(self, rig=None) -> CameraInfo:
         """The CameraInfo of ``rig``'s camera (default: the source's)."""

@@ -5,6 +5,7 @@ import numpy as np
 import pytest
 
 from dptpu.fpp.phase import wrapped_phase
+from dptpu.graph import Parameter
 from dptpu.messages import AbsolutePhase, CameraInfo, FringeFrame, Header, Image, ScanStatus, Time, Trigger
 from dptpu.nodes.harness import NodeHarness
 from dptpu.nodes.plumbing import LATCHED_QOS
