@@ -173,12 +173,21 @@ def flying_points(depth: np.ndarray, focal_px: float, *, max_slope: float = DEFA
     height, width = z.shape
     footprint = np.abs(z) * np.float32(1.0 / focal_px)  # (H, W) lateral extent of one pixel at its depth
     flying = np.zeros(z.shape, dtype=bool)
+    # buffers reused over the lines; cv2.absdiff is |a - b| in one float32 pass (numpy's abs of the difference, bit
+    # for bit)
+    limit, step_before, step_after = np.empty_like(z), np.empty_like(z), np.empty_like(z)
+    apart_before, apart_after = np.empty(z.shape, dtype=bool), np.empty(z.shape, dtype=bool)
     with np.errstate(invalid="ignore"):  # NaN comparisons are False: no point, no mark
         for dr, dc, factor in _LINES:
             before = padded[1 - dr:1 - dr + height, 1 - dc:1 - dc + width]
             after = padded[1 + dr:1 + dr + height, 1 + dc:1 + dc + width]
-            limit = np.float32(max_slope * factor) * footprint
-            flying |= (np.abs(z - before) > limit) & (np.abs(after - z) > limit)
+            np.multiply(np.float32(max_slope * factor), footprint, out=limit)
+            cv2.absdiff(z, before, dst=step_before)
+            cv2.absdiff(after, z, dst=step_after)
+            np.greater(step_before, limit, out=apart_before)
+            np.greater(step_after, limit, out=apart_after)
+            apart_before &= apart_after
+            flying |= apart_before
     return flying
 
 

@@ -9,7 +9,7 @@ from functools import cache
 import numpy as np
 import pytest
 
-from dptpu.fpp.depth_edges import continues_a_side, depth_per_pixel, edge_points
+from dptpu.fpp.depth_edges import continues_a_side, depth_per_pixel, edge_points, flying_points
 from dptpu.fpp.order_islands import order_islands
 from dptpu.fpp.triangulate import Triangulator, camera_depth, projector_coordinate
 from dptpu.sim.outside_rigs import SIGMA_2, issue16_rig, random_outside_rig, render_phases, spheres_and_plane
@@ -120,3 +120,22 @@ def test_order_islands_of_a_float32_phase_are_those_of_its_float64_copy(name):
     assert single.island_regions >= 4  # the patches were found
     assert np.array_equal(single.islands, double.islands) and np.array_equal(single.step, double.step)
     assert (single.regions, single.island_regions) == (double.regions, double.island_regions)
+
+
+@pytest.mark.parametrize("name", RIGS)
+def test_flying_points_are_the_plain_definitions_marks(name):
+    # the kernel takes |a - b| from cv2.absdiff into reused buffers; the definition, written plainly in numpy
+    rig, x_p, _, _ = rendered(name)
+    depth = Triangulator(rig, axis="x").camera_points(x_p, dtype=np.float32)[..., 2]
+    focal_px = 0.5 * float(rig.camera.K[0, 0] + rig.camera.K[1, 1])
+    padded = np.pad(depth, 1, constant_values=np.nan)
+    height, width = depth.shape
+    footprint = np.abs(depth) * np.float32(1.0 / focal_px)
+    plain = np.zeros(depth.shape, dtype=bool)
+    with np.errstate(invalid="ignore"):
+        for dr, dc, factor in ((0, 1, 1.0), (1, 0, 1.0), (1, 1, np.sqrt(2.0)), (1, -1, np.sqrt(2.0))):
+            before = padded[1 - dr:1 - dr + height, 1 - dc:1 - dc + width]
+            after = padded[1 + dr:1 + dr + height, 1 + dc:1 + dc + width]
+            limit = np.float32(4.0 * factor) * footprint
+            plain |= (np.abs(depth - before) > limit) & (np.abs(after - depth) > limit)
+    assert plain.sum() > 20 and np.array_equal(flying_points(depth, focal_px, max_slope=4.0), plain)
