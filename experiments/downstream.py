@@ -246,20 +246,35 @@ def _model_order(model: FringeOrderModel, pair: MeasuredPair) -> np.ndarray:
                                        pair.frequency_high, pair.frequency_low, pair.valid, consensus=False)[0]
 
 
-def cascade_orders(models: dict, cascade: CascadePair, threads: int = 1) -> tuple[dict, dict]:
+def cascade_orders(models: dict, cascade: CascadePair, threads: int = 1, *,
+                   vote_beat: bool = False) -> tuple[dict, dict]:
     """``(beat_orders, orders)``: each solver's level-1 order (level 1's convention) and its top-level order.
 
     ``classical``: Eq. (5) at both levels (the heterodyne). Each model of ``models`` (name -> ONNX path): the
     network on level 1's pair with its classical order as the prior, then on the level-2 pair built from its own
-    level-1 order (:meth:`CascadePair.top_pair`) with that pair's classical order as the prior.
+    level-1 order (:meth:`CascadePair.top_pair`) with that pair's classical order as the prior. ``vote_beat``:
+    each level-1 order goes through the neighbour vote first (:func:`_vote`, the classical level-1 order beside it)
+    and level 2 is built from the voted order (``beat_orders`` are then the voted ones).
     """
-    beat_orders = {"classical": np.asarray(cascade.beat.coarse_order, dtype=np.int32)}
-    orders = {"classical": np.asarray(cascade.top.coarse_order, dtype=np.int32)}
-    for name, path in models.items():
-        model = FringeOrderModel.load(path, threads=threads)
-        beat_orders[name] = _model_order(model, cascade.beat)
-        orders[name] = _model_order(model, cascade.top_pair(beat_orders[name]))
-    return beat_orders, orders
+    loaded = {name: FringeOrderModel.load(path, threads=threads) for name, path in models.items()}
+    beat_orders = _beat_orders(loaded, cascade)
+    if vote_beat:
+        beat_orders = _vote(beat_orders, cascade.beat)
+    return beat_orders, _top_orders(loaded, cascade, beat_orders)
+
+
+def _beat_orders(models: dict, cascade: CascadePair) -> dict:
+    """Level 1: the classical order and each loaded model's (name -> FringeOrderModel)."""
+    orders = {"classical": np.asarray(cascade.beat.coarse_order, dtype=np.int32)}
+    orders.update({name: _model_order(model, cascade.beat) for name, model in models.items()})
+    return orders
+
+
+def _top_orders(models: dict, cascade: CascadePair, beat_orders: dict) -> dict:
+    """Level 2 of each solver from its level-1 order: Eq. (5) for ``classical``, each loaded model otherwise."""
+    orders = {"classical": np.asarray(cascade.top_pair(beat_orders["classical"]).coarse_order, dtype=np.int32)}
+    orders.update({name: _model_order(model, cascade.top_pair(beat_orders[name])) for name, model in models.items()})
+    return orders
 
 
 def evaluate_orders(pair: MeasuredPair, orders: dict, rig=None, *, voted: dict | None = None) -> dict[str, Any]:
@@ -277,14 +292,20 @@ def evaluate_orders(pair: MeasuredPair, orders: dict, rig=None, *, voted: dict |
 
 
 def _score(models: dict, pair: MeasuredPair | CascadePair, threads: int, rig=None) -> dict[str, Any]:
-    """One row of the results: :func:`evaluate_orders` of :func:`solver_orders`; for a cascade also each solver's
-    level-1 order (``accuracy_beat``: the fraction of pixels with the reference beat order)."""
+    """One row of the results: :func:`evaluate_orders` of :func:`solver_orders`. For a cascade also each solver's
+    level-1 order (``accuracy_beat``: the fraction of pixels with the reference beat order) and its top-level order
+    with the same vote at each level (``accuracy_vote_levels``: level 1's order voted before level 2 is built from
+    it, then the top-level vote), every solver alike."""
     if not isinstance(pair, CascadePair):
         orders, voted = solver_orders(models, pair, threads)
         return evaluate_orders(pair, orders, rig, voted=voted)
-    beat_orders, orders = cascade_orders(models, pair, threads)
+    loaded = {name: FringeOrderModel.load(path, threads=threads) for name, path in models.items()}
+    beat_orders = _beat_orders(loaded, pair)
+    orders = _top_orders(loaded, pair, beat_orders)
     row = evaluate_orders(pair.top, orders, rig, voted=_vote(orders, pair.top))
     row["accuracy_beat"] = {name: order_accuracy(order, pair.beat) for name, order in beat_orders.items()}
+    voted_levels = _vote(_top_orders(loaded, pair, _vote(beat_orders, pair.beat)), pair.top)
+    row["accuracy_vote_levels"] = {name: order_accuracy(order, pair.top) for name, order in voted_levels.items()}
     return row
 
 
@@ -398,10 +419,15 @@ def compare_finetunes(pairs: list, design, baseline_rig, extended_rig, out_dir, 
         "base_model": str(model), "start": start[3], "models": models,
         "options": json.loads(json.dumps(asdict(options), default=str)), "finetune_runs": runs,
         "measured_results": rows,
-        "twin_results": {name: [{k: r[k] for k in ("pair", "pixels", "accuracy", "accuracy_vote", "accuracy_beat")
-                                 if k in r} for r in rs] for name, rs in twin_rows.items()},
+        "twin_results": {name: [{k: r[k] for k in ("pair", "pixels", *_ACCURACIES) if k in r} for r in rs]
+                         for name, rs in twin_rows.items()},
         "summary": _summary(rows, twin_rows), "seconds": round(time.perf_counter() - started, 1),
     }
+
+
+#: The readings of a row (:func:`_score`): own order, after the vote; for a cascade also level 1's order and the
+#: vote at each level.
+_ACCURACIES = ("accuracy", "accuracy_vote", "accuracy_beat", "accuracy_vote_levels")
 
 
 def _mean(values) -> float:
@@ -421,17 +447,16 @@ def _summary(rows: list, twin_rows: dict) -> dict[str, Any]:
         grouped = [r for r in rows if _group(r) == group]
         if not grouped:
             continue
-        for key, label in (("accuracy", "accuracy"), ("accuracy_vote", "accuracy_vote"),
-                           ("accuracy_beat", "accuracy_beat")):
+        for key in _ACCURACIES:
             if key not in grouped[0]:
                 continue
             means = {n: _mean([r[key][n] for r in grouped]) for n in names}
-            summary[f"{group}_{label}_mean"] = means
-            summary[f"{group}_{label}_above_classical_every_pair"] = {
+            summary[f"{group}_{key}_mean"] = means
+            summary[f"{group}_{key}_above_classical_every_pair"] = {
                 n: all(r[key][n] > r[key]["classical"] for r in grouped) for n in MODEL_NAMES}
-            summary[f"{group}_{label}_gain_of_extension"] = means["finetuned_extended"] - means["finetuned_baseline"]
+            summary[f"{group}_{key}_gain_of_extension"] = means["finetuned_extended"] - means["finetuned_baseline"]
     for twin, rs in twin_rows.items():
-        for key in ("accuracy", "accuracy_vote", "accuracy_beat"):
+        for key in _ACCURACIES:
             if rs and key in rs[0]:
                 summary[f"twin_{twin}_{key}_mean"] = {n: _mean([r[key][n] for r in rs]) for n in names}
     if rows and "3d" in rows[0]:
@@ -465,8 +490,9 @@ def _markdown(report: dict) -> str:
     twins = [r for rows in report["twin_results"].values() for r in rows]
     for key, what in (("accuracy", "each solver's own order (the networks without the vote)"),
                       ("accuracy_vote", "each solver's order after the same neighbour vote"),
-                      ("accuracy_beat", "each solver's level-1 (beat) order of the cascade")):
-        if "accuracy_beat" == key and key not in report["measured_results"][0]:
+                      ("accuracy_beat", "each solver's level-1 (beat) order of the cascade"),
+                      ("accuracy_vote_levels", "each solver's cascade with the same vote at each level")):
+        if key not in report["measured_results"][0]:
             continue
         lines += _accuracy_table(f"Fringe-order accuracy (fraction of valid pixels with the reference order), {what}:",
                                  [*report["measured_results"], *twins], key, names)

@@ -317,7 +317,7 @@ def test_cascade_corrects_a_beat_level_jump_the_heterodyne_makes(periods, width,
     off there and right elsewhere; the beat pair sees a one-order error of its prior, which the shipped network
     mostly takes out. Measured: CFPE's periods every order back; 20/21/22 of 1000 px 98.9 % of the jumped pixels,
     30/32/34 of 1280 px 87.3 % (the strip is what is left), 0.00-0.22 % of the others broken."""
-    from dptpu.experiments.downstream import _score, cascade_orders
+    from dptpu.experiments.downstream import _score, _vote, cascade_orders
     from dptpu.models.inference import shipped_model_path
     from dptpu.sim.diagnosis.beat_cascade import cascade_pair
 
@@ -342,8 +342,14 @@ def test_cascade_corrects_a_beat_level_jump_the_heterodyne_makes(periods, width,
     assert row["accuracy"] == {"classical": pytest.approx(1 - bad.mean(), abs=1e-12),
                                "shipped": pytest.approx(right.mean(), abs=1e-12)}
     assert row["accuracy_beat"]["shipped"] == pytest.approx(np.mean(beat["shipped"] == cascade.beat.reference_order))
+    # the vote at each level: level 1's orders voted, level 2 built from them, the top voted
+    _, levels = cascade_orders(models, cascade, vote_beat=True)
+    voted = _vote(levels, cascade.top)
+    for name in ("classical", "shipped"):
+        expected = np.mean(voted[name] == cascade.top.reference_order)
+        assert row["accuracy_vote_levels"][name] == pytest.approx(expected, abs=1e-12), name
     if periods == (42, 45, 48):
-        assert row["accuracy_vote"]["shipped"] == 1.0
+        assert row["accuracy_vote"]["shipped"] == row["accuracy_vote_levels"]["shipped"] == 1.0
 
 
 def test_twin_cascade_samples_are_built_like_the_measured_cascade(tmp_path):
