@@ -42,7 +42,7 @@ from .image_formation import DEFAULT_AMPLITUDE, DEFAULT_OFFSET, _as_sequences, q
 from .raycast import SurfaceSamples, trace
 from .rig import resize_camera
 
-__all__ = ["ENGINES", "ground_truth", "render_capture", "fringe_order_key"]
+__all__ = ["ENGINES", "ground_truth", "raycast_frames", "render_capture", "fringe_order_key"]
 
 ENGINES = ("raycast", "blender")
 
@@ -131,6 +131,49 @@ def _raycast_supersampled(rig: Rig, meshes, sequences, effects, base: SurfaceSam
     return out
 
 
+def _raycast_float_frames(traced_rig: Rig, meshes, sequences, effects, samples: SurfaceSamples, *, supersample: int,
+                          seed, bit_depth, exposure) -> list[np.ndarray]:
+    """Float raycast frames of the traced rig: ``supersample`` rays per pixel and axis when above 1."""
+    if supersample > 1:
+        return _raycast_supersampled(traced_rig, meshes, sequences, effects, samples, supersample=supersample,
+                                     seed=seed, bit_depth=bit_depth, exposure=exposure)
+    return render_frames_float(traced_rig, samples, sequences, effects=effects, seed=seed, bit_depth=bit_depth,
+                               exposure=exposure)
+
+
+def raycast_frames(rig: Rig, meshes, sequences, *, seed: int = 0, bit_depth: int = 8,
+                   exposure: float = 1.0) -> tuple[list[np.ndarray], SurfaceSamples]:
+    """Quantized raycast frames of ``sequences`` with every effect of ``rig.effects``, as :func:`render_capture`
+    renders them: the geometry stage included (``calibration_error`` and ``lens_distortion`` change the traced
+    rig, ``pixel_footprint`` sets the rays per pixel), which :func:`dptpu.sim.image_formation.render_frames` alone
+    does not apply.
+
+    Parameters
+    ----------
+    rig : Rig
+        The twin's rig; its ``effects`` are rendered.
+    meshes : Scene or list of SceneMesh
+    sequences : list of SequenceSpec
+    seed, bit_depth, exposure
+        As :func:`render_capture`'s; the same seed gives the same frames.
+
+    Returns
+    -------
+    frames : list of ndarray (N, H, W)
+        One quantized stack per sequence.
+    samples : SurfaceSamples
+        The pixel-centre trace of the rig the frames were traced with (their ground truth).
+    """
+    effects = parse_effects(rig.effects)
+    meshes = meshes.meshes if hasattr(meshes, "meshes") else list(meshes)
+    traced_rig = render_rig(rig, effects)
+    samples = trace(traced_rig, meshes)
+    frames = _raycast_float_frames(traced_rig, meshes, list(sequences), effects, samples,
+                                   supersample=footprint_samples(effects), seed=seed, bit_depth=bit_depth,
+                                   exposure=exposure)
+    return [quantize(f, bit_depth) for f in frames], samples
+
+
 def render_capture(rig: Rig, scene, sequences, out_dir, *, engine: str = "raycast", effects=None, seed: int = 0,
                    bit_depth: int = 8, exposure: float = 1.0, blender_samples: int = 16,
                    supersample: int = 1) -> Path:
@@ -191,12 +234,9 @@ def render_capture(rig: Rig, scene, sequences, out_dir, *, engine: str = "raycas
         raise ValueError(f"supersample must be an integer in [1, 8]; got {supersample!r}")
     if supersample > 1 and engine != "raycast":
         raise ValueError("supersample applies to engine='raycast' (Blender samples with blender_samples)")
-    if engine == "raycast" and supersample > 1:
-        frames = _raycast_supersampled(traced_rig, meshes, sequences, effects, samples, supersample=supersample,
+    if engine == "raycast":
+        frames = _raycast_float_frames(traced_rig, meshes, sequences, effects, samples, supersample=supersample,
                                        seed=seed, bit_depth=bit_depth, exposure=exposure)
-    elif engine == "raycast":
-        frames = render_frames_float(traced_rig, samples, sequences, effects=effects, seed=seed,
-                                     bit_depth=bit_depth, exposure=exposure)
     else:
         frames = _blender_frames(traced_rig, meshes, sequences, effects, seed=seed, bit_depth=bit_depth,
                                  exposure=exposure, samples_per_pixel=blender_samples,

@@ -37,8 +37,8 @@ from dptpu.fpp.capture import (
     read_capture,
 )
 from dptpu.fpp.frequencies import same_frequency
-from dptpu.sim.image_formation import SequenceSpec, render_frames
-from dptpu.sim.raycast import trace
+from dptpu.sim.image_formation import SequenceSpec
+from dptpu.sim.render import raycast_frames
 from dptpu.sim.rig import load_twin_rig, parse_size
 from dptpu.sim.scenes import load_scene, random_scene
 
@@ -191,7 +191,8 @@ def _readonly(array: np.ndarray) -> np.ndarray:
 
 def raycast_scenes(rig: Rig, scene_names, sequences, *, fringe_axis: str = "x", shift_sign: int = -1,
                    seed: int = 0, bit_depth: int = 8, log=None, references=()) -> list[SimScene]:
-    """Render each scene's frames of every sequence with the raycast twin (effects: ``rig.effects``).
+    """Render each scene's frames of every sequence with the raycast twin: every stage of ``rig.effects``, the
+    geometry stage included, as ``dptpu sim render`` (:func:`dptpu.sim.render.raycast_frames`).
 
     Parameters
     ----------
@@ -214,8 +215,7 @@ def raycast_scenes(rig: Rig, scene_names, sequences, *, fringe_axis: str = "x", 
     scenes = []
     for index, name in enumerate(scene_names):
         scene = random_scene(rig, int(name[7:])) if name.startswith("random:") else load_scene(name, rig)
-        samples = trace(rig, scene)
-        stacks = render_frames(rig, samples, specs, seed=seed + index, bit_depth=bit_depth)
+        stacks, samples = raycast_frames(rig, scene, specs, seed=seed + index, bit_depth=bit_depth)
         frames = {(float(f), int(n)): _readonly(stack) for (f, n), stack in zip(sequences, stacks)}
         rendered_references = {kind: _readonly(stack[0]) for kind, stack in zip(references, stacks[len(sequences):])}
         coord = np.where(samples.lit, samples.projector_xy[..., axis], np.nan).astype(np.float32)
