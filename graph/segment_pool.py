@@ -15,6 +15,7 @@ from __future__ import annotations
 import fcntl
 import mmap
 import os
+import struct
 import time
 
 import numpy as np
@@ -24,6 +25,7 @@ from .shared_memory import (
     GENERATION_OFFSET,
     HEADER_BYTES,
     PICKUPS_OFFSET,
+    RELEASES_OFFSET,
     SEGMENT_MAGIC,
     SharedMemoryConfig,
     pack_descriptor,
@@ -33,6 +35,8 @@ __all__ = ["SegmentPool", "IDLE_S"]
 
 #: Seconds after its last write when a free segment is closed.
 IDLE_S = 10.0
+#: The header's pickup and let-go counters, read in one go.
+_COUNTERS = struct.Struct(f"<Q{RELEASES_OFFSET - PICKUPS_OFFSET - 8}xQ")
 _PAGE = mmap.PAGESIZE
 
 
@@ -68,11 +72,20 @@ class _Segment:
     def pickups(self) -> int:
         return int.from_bytes(self.view[PICKUPS_OFFSET:PICKUPS_OFFSET + 8], "little")
 
+    def releases(self) -> int:
+        return int.from_bytes(self.view[RELEASES_OFFSET:RELEASES_OFFSET + 8], "little")
+
     def free(self, now: float, lease_s: float) -> bool:
         """No descriptor of it is pending (picked up by all, or the lease passed) and no reader holds it: then
-        this holds its exclusive lock (let go by :meth:`unlock`)."""
-        if self.loaned or (self.readers > self.pickups() and now - self.written_at < lease_s):
+        this holds its exclusive lock (let go by :meth:`unlock`). Within the lease, a segment whose readers have
+        let go of fewer messages than they picked up is busy without asking the lock (the let-go count is a hint;
+        the lock decides)."""
+        if self.loaned:
             return False
+        if now - self.written_at < lease_s:
+            pickups, releases = _COUNTERS.unpack_from(self.view, PICKUPS_OFFSET)
+            if self.readers > pickups or releases < pickups:
+                return False
         try:
             fcntl.flock(self.fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except BlockingIOError:
@@ -150,6 +163,7 @@ class SegmentPool:
             segment.generation += 1
             segment.view[GENERATION_OFFSET:GENERATION_OFFSET + 8] = segment.generation.to_bytes(8, "little")
             segment.view[PICKUPS_OFFSET:PICKUPS_OFFSET + 8] = bytes(8)
+            segment.view[RELEASES_OFFSET:RELEASES_OFFSET + 8] = bytes(8)
             segment.readers = readers
             segment.written_at = now
         finally:
@@ -179,6 +193,7 @@ class SegmentPool:
         segment.generation += 1
         segment.view[GENERATION_OFFSET:GENERATION_OFFSET + 8] = segment.generation.to_bytes(8, "little")
         segment.view[PICKUPS_OFFSET:PICKUPS_OFFSET + 8] = bytes(8)
+        segment.view[RELEASES_OFFSET:RELEASES_OFFSET + 8] = bytes(8)
         segment.readers = readers
         segment.written_at = time.monotonic()
         segment.loaned = False

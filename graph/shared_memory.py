@@ -28,7 +28,11 @@ Safety, per segment (a header of 64 bytes, then the arrays at 64-byte aligned of
 - **Pickups and leases**: a subscriber counts itself in the segment's header when it takes the shared lock;
   the publisher reuses a segment once every subscriber it sent the descriptor to has picked it up and let go,
   or, for a descriptor that never arrives (dropped at a full pipe, a subscriber gone), once the lease
-  (``DPTPU_SHM_LEASE_S``) since its publication has passed.
+  (``DPTPU_SHM_LEASE_S``) since its publication has passed. A subscriber also counts each message it lets go
+  (before it lets go of the lock): while a segment's pickups outnumber its let-gos, and its lease has not passed,
+  the publisher does not even try its lock (a reader holding a scan's frames costs the writer no system call a
+  frame); the lock alone decides whether a segment is free (a killed reader never counts its let-go: after the
+  lease its segment is judged by the lock, which the kernel dropped).
 - **Fallback**: a publisher with a subscriber that cannot map its segments (on another host, over tcp, another
   user, ``DPTPU_SHM=off``), a small message, a TRANSIENT_LOCAL publisher (its history is replayed) or a full
   pool (``DPTPU_SHM_POOL_MB``) sends the whole message through ZeroMQ, as without shared memory.
@@ -68,10 +72,11 @@ from .processes import process_alive
 __all__ = [
     "SharedMemoryConfig", "SharedMemoryError", "StaleSegmentError", "host_key", "shm_topic",
     "HEADER_BYTES", "SEGMENT_MAGIC", "pack_descriptor", "unpack_descriptor", "Descriptor", "read_message",
-    "sweep_mappings", "mapped_segment_count", "ALIGNMENT",
+    "sweep_mappings", "mapped_segment_count", "ALIGNMENT", "RELEASES_OFFSET",
 ]
 
-#: Bytes of a segment's header: magic (8), token (16), generation (u64), pickups (u64), size (u64), padding.
+#: Bytes of a segment's header: magic (8), token (16), generation (u64), pickups (u64), size (u64), let-gos (u64),
+#: padding.
 HEADER_BYTES = 64
 #: Alignment of every array in a segment, bytes (a cache line; numpy's SIMD loops like it).
 ALIGNMENT = 64
@@ -79,6 +84,9 @@ SEGMENT_MAGIC = b"DPTPUSHM"
 _HEADER = struct.Struct("<8s16sQQQ")
 GENERATION_OFFSET = 24
 PICKUPS_OFFSET = 32
+#: Offset of the let-go counter (u64): each reader adds one when it lets a message of the segment go, before its
+#: lock; the publisher skips, without a system call, a segment whose pickups outnumber its let-gos (a hint only).
+RELEASES_OFFSET = 48
 _COUNTER = struct.Struct("<Q")
 
 _DESCRIPTOR = struct.Struct("<4sBBHIIQ16sQQ")
@@ -325,18 +333,23 @@ def _acquire(descriptor: Descriptor) -> _Mapping:
     return mapping
 
 
-def _count_pickup(fd: int) -> None:
-    """Add one to the segment's pickup counter (a read-modify-write under a POSIX lock of those 8 bytes)."""
-    fcntl.lockf(fd, fcntl.LOCK_EX, _COUNTER.size, PICKUPS_OFFSET)
+def _count_pickup(fd: int, offset: int = PICKUPS_OFFSET) -> None:
+    """Add one to the segment's pickup counter, or the let-go counter at ``RELEASES_OFFSET`` (a read-modify-write
+    under a POSIX lock of those 8 bytes)."""
+    fcntl.lockf(fd, fcntl.LOCK_EX, _COUNTER.size, offset)
     try:
-        count = _COUNTER.unpack(os.pread(fd, _COUNTER.size, PICKUPS_OFFSET))[0]
-        os.pwrite(fd, _COUNTER.pack(count + 1), PICKUPS_OFFSET)
+        count = _COUNTER.unpack(os.pread(fd, _COUNTER.size, offset))[0]
+        os.pwrite(fd, _COUNTER.pack(count + 1), offset)
     finally:
-        fcntl.lockf(fd, fcntl.LOCK_UN, _COUNTER.size, PICKUPS_OFFSET)
+        fcntl.lockf(fd, fcntl.LOCK_UN, _COUNTER.size, offset)
 
 
 def _release(mapping: _Mapping) -> None:
     with _lock:
+        try:  # counted while this process still holds its lock: the publisher cannot be rewriting the header
+            _count_pickup(mapping.fd, RELEASES_OFFSET)
+        except (OSError, ValueError):
+            pass  # a hint only: the publisher asks the lock after the lease
         mapping.holders -= 1
         mapping.last_used = time.monotonic()
         if mapping.holders == 0:

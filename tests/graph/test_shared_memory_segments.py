@@ -7,6 +7,7 @@ real processes.
 
 from __future__ import annotations
 
+import fcntl
 import gc
 import os
 import signal
@@ -110,6 +111,42 @@ def test_segments_a_reader_holds_are_asked_about_once_a_round_not_at_every_write
         assert len(kept) == 24
     finally:
         held = kept = []
+        gc.collect()
+        pool.close()
+
+
+class _CountingFcntl:
+    """The ``fcntl`` module as the segment pool sees it, counting the locks it asks for."""
+
+    def __init__(self):
+        self.tries = 0
+
+    def __getattr__(self, name):
+        return getattr(fcntl, name)
+
+    def flock(self, fd, operation):
+        self.tries += operation != fcntl.LOCK_UN
+        return fcntl.flock(fd, operation)
+
+
+def test_a_writer_does_not_ask_the_lock_of_segments_whose_readers_hold_messages(monkeypatch):
+    monkeypatch.setattr(segment_pool, "IDLE_S", float("inf"))
+    pool = _pool(lease_s=60.0)
+    counting = _CountingFcntl()
+    try:
+        held = [_read(pool.write(_payload(seed), readers=1)) for seed in range(24)]  # a scan's frames, held
+        monkeypatch.setattr(segment_pool, "fcntl", counting)
+        pool.write(_payload(24), readers=0)
+        assert pool.segment_count == 25 and counting.tries == 1  # the new segment's own lock: no held one asked
+        del held[:12]  # the reader lets go of half: it counts each let-go in the header
+        gc.collect()
+        counting.tries = 0
+        for seed in range(25, 37):
+            pool.write(_payload(seed), readers=0)
+        assert pool.segment_count == 25  # the let-go ones (and the unread one) served again
+        assert counting.tries <= 13  # each write one lock that is granted, plus at most one refused
+    finally:
+        held.clear()
         gc.collect()
         pool.close()
 
