@@ -30,17 +30,26 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+#: Exit code after Ctrl-C that a command did not handle itself (the shell's 128 + SIGINT).
+INTERRUPTED_EXIT_CODE = 130
+
+
 def main(argv: list[str] | None = None) -> int:
-    parser = build_parser()
-    args = parser.parse_args(argv)
-    if not getattr(args, "func", None):
-        parser.print_help(sys.stderr)
-        return 2
+    """Run ``dptpu ARGS``; the exit code: 2 for bad input (one line on stderr), 130 after an unhandled Ctrl-C
+    (nothing printed: while the commands' modules import, or in a command that does not stop on its own)."""
     try:
-        return int(args.func(args) or 0)
-    except (ValueError, OSError) as exc:  # OSError: FileNotFoundError, PermissionError, IsADirectoryError, ...
-        print(f"dptpu {args.command}: error: {error_line(exc)}", file=sys.stderr)
-        return 2
+        parser = build_parser()
+        args = parser.parse_args(argv)
+        if not getattr(args, "func", None):
+            parser.print_help(sys.stderr)
+            return 2
+        try:
+            return int(args.func(args) or 0)
+        except (ValueError, OSError) as exc:  # OSError: FileNotFoundError, PermissionError, IsADirectoryError, ...
+            print(f"dptpu {args.command}: error: {error_line(exc)}", file=sys.stderr)
+            return 2
+    except KeyboardInterrupt:
+        return INTERRUPTED_EXIT_CODE
 
 
 def error_line(exc: BaseException) -> str:

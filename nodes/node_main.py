@@ -181,17 +181,20 @@ def run_node(name: str, make_node: Callable[[], NodeT], argv=None, *, spin: Call
         keep_freed_memory()
     else:
         return_freed_memory()
-    rclpy.init(args=sys.argv if argv is None else argv)
+    node = None
     try:
+        rclpy.init(args=sys.argv if argv is None else argv)
         node = make_node()
+        freeze_startup_objects()
     except SETUP_ERRORS as exc:
         print(f"{name}: error: {exc}", file=sys.stderr)
         rclpy.try_shutdown()
         return 2
     except KeyboardInterrupt:  # Ctrl-C (or the launcher stopping the graph) while the node was still starting
+        if node is not None:
+            node.destroy_node()
         rclpy.try_shutdown()
         return 0
-    freeze_startup_objects()
     try:
         spin_profiled(name, lambda: (spin or rclpy.spin)(node))
     except (KeyboardInterrupt, ExternalShutdownException):
