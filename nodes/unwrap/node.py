@@ -45,8 +45,8 @@ name                default   meaning
 =================== ========= ===================================================================================
 
 Every parameter applies from the next scan (``dptpu param set /unwrap method nt``), checked as at start-up
-(``method``, ``model`` and ``consensus`` together; a new model is loaded before it is accepted): a bad value is
-refused with the reason and the old one stays.
+(``method``, ``model`` and ``consensus`` together; a new model is loaded before it is accepted; once scans arrive,
+a ``method`` must unwrap their frequencies): a bad value is refused with the reason and the old one stays.
 
 Valid pixels: valid in the PhaseMaps, accepted by the method, at least ``min_confidence`` and on the
 projector (``0 <= Psi < 2*pi*f``, as :func:`dptpu.fpp.reconstruct.unwrap_capture` requires). Run:
@@ -89,6 +89,9 @@ class UnwrapNode(Node):
     def __init__(self, node_name: str = "unwrap", **node_options):
         super().__init__(node_name, **node_options)
         rules = self._rules = ParameterRules(self)
+        # the last scan's frequencies (the projector's sequence is fixed while it runs): a method set at run time
+        # must unwrap them
+        self._scan_frequencies: tuple[float, ...] = ()
         self.method = rules.settable("method", "mf", check=self._check_method, apply=self._apply_model_setup)
         self.high_frequency = rules.settable("high_frequency", 0.0, check=at_least(0.0))
         self.low_frequency = rules.settable("low_frequency", 0.0, check=at_least(0.0))
@@ -126,6 +129,7 @@ class UnwrapNode(Node):
     def on_phase_maps(self, msg: PhaseMaps) -> None:
         """Unwrap one scan; a scan the method cannot unwrap is reported, and the node goes on."""
         started_s = time.monotonic()
+        self._scan_frequencies = tuple(float(f) for f in msg.frequencies)
         try:
             result, high, nan_pixels, model_note = self._unwrap(msg)
         except ValueError as exc:
@@ -175,6 +179,13 @@ class UnwrapNode(Node):
     def _check_method(self, method: str) -> str | None:
         if method not in PHASE_SEQUENCE_METHODS:  # alone, so that a bad start-up method is named as such
             raise ValueError(f"parameter method must be one of {', '.join(PHASE_SEQUENCE_METHODS)}; got {method!r}")
+        if self._scan_frequencies:  # at run time, with scans arriving: refused when it cannot unwrap them
+            try:
+                select_frequencies(method, self._scan_frequencies, high=self._rules.value("high_frequency") or None,
+                                   low=self._rules.value("low_frequency") or None,
+                                   options=("high_frequency", "low_frequency"))
+            except ValueError as exc:
+                raise ValueError(f"method {method} cannot unwrap the scans arriving now: {exc}") from None
         if not self.has_parameter("model"):
             return None
         return self._prepare(method, self._rules.value("model"), self._rules.value("consensus"))
