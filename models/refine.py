@@ -8,8 +8,9 @@ pixel that passes the capture's quality mask (so NT pixels whose lookup key was 
 absolute phase and validity are recomputed as ``unwrap_capture`` does: ``psi + 2*pi*k`` (Eq. (3)), valid
 where the quality mask holds and the phase lies on the projector, ``0 <= phi < 2*pi*f``. ``reliability``
 becomes the network's confidence (:func:`dptpu.fpp.confidence.network_confidence`: its distance to an integer order,
-its agreement with its prior and its neighbours' support), held to the two frequencies' agreement
-(:func:`dptpu.fpp.frequency_consistency.frequency_consistency`).
+its agreement with its prior and its neighbours' support), held to the two frequencies' agreement per pixel
+(:func:`dptpu.fpp.frequency_consistency.frequency_consistency`) and per patch (0 on the patches whose order the low
+frequency rejects, :func:`dptpu.fpp.region_consistency.rejected_regions`).
 
 The default model (:func:`choose_model`, ``dptpu unwrap`` and ``dptpu triangulate`` without ``--model``): the
 shipped one, for the methods it serves and fringes of at most :data:`DEFAULT_MAX_PERIODS_PER_PIXEL` periods per
@@ -27,6 +28,7 @@ from dptpu.fpp.confidence import network_confidence
 from dptpu.fpp.frequency_consistency import frequency_consistency, quantization_residual_noise
 from dptpu.fpp.low_period_disputes import low_period_disputes
 from dptpu.fpp.methods import TWO_FREQUENCY_METHODS
+from dptpu.fpp.region_consistency import rejected_regions
 
 from .consensus import consensus_order
 from .inference import FringeOrderModel, shipped_model_path
@@ -177,6 +179,7 @@ def refine_order_and_confidence(model: FringeOrderModel, method: str, psi_h, psi
     absolute = np.asarray(psi_h, dtype=np.float64) + 2.0 * np.pi * order  # Eq. (3)
     consistency = frequency_consistency(absolute, psi_l, f_h, f_l, mask, floor=consistency_floor)
     confidence = np.minimum(confidence, consistency)
+    confidence = np.where(rejected_regions(absolute, psi_l, f_h, f_l, mask), np.float32(0.0), confidence)
     if method == "nt":  # a band whose prior took the other low order than the per-pixel lookup, solidly: no confidence
         both = valid if classical_valid is None else valid & np.asarray(classical_valid, dtype=bool)
         disputed = low_period_disputes(order, np.asarray(classical_order), f_h / f_l, both)

@@ -192,6 +192,16 @@ def test_missing_model_file_is_refused_at_start_naming_the_file(harness, tmp_pat
 def shifted_model(tmp_path_factory):
     """A real ONNX model with the DP-TPU interface whose output is ``coarse_order + 1``, so the test can see the
     network's order in the result (built with onnx.helper: no torch, a second to make and load)."""
+    return _offset_model(tmp_path_factory.mktemp("model") / "shifted.onnx", 1.0)
+
+
+@pytest.fixture(scope="module")
+def prior_model(tmp_path_factory):
+    """As :func:`shifted_model`, its output the coarse order itself (right on the plane: the prior is)."""
+    return _offset_model(tmp_path_factory.mktemp("model") / "prior.onnx", 0.0)
+
+
+def _offset_model(path, offset: float):
     if not HAS_INFERENCE:
         pytest.skip("dptpu.models.inference is not in this build")
     onnx = pytest.importorskip("onnx")
@@ -206,16 +216,16 @@ def shifted_model(tmp_path_factory):
         [helper.make_node("Add", ["coarse_order", "one"], ["fringe_order"])], "shifted_order",
         [image("wrapped_high"), image("wrapped_low"), image("coarse_order"),
          helper.make_tensor_value_info("frequency_high", TensorProto.FLOAT, ["B"])],
-        [image("fringe_order")], initializer=[helper.make_tensor("one", TensorProto.FLOAT, [], [1.0])])
+        [image("fringe_order")], initializer=[helper.make_tensor("one", TensorProto.FLOAT, [], [offset])])
     model = helper.make_model(graph, opset_imports=[helper.make_opsetid("", 18)])
     helper.set_model_props(model, {"dptpu_format": MODEL_FORMAT, "kind": "dptpu", "config": "{}", "training": "{}"})
-    path = tmp_path_factory.mktemp("model") / "shifted.onnx"
     onnx.save(model, str(path))
     return path
 
 
 def test_model_refines_the_classical_order_with_the_network(harness, scene, shifted_model):
-    node, source, absolute, status = start(harness, method="mf", model=str(shifted_model))
+    # min_confidence 0: the low frequency rejects the shifted order as a whole (dptpu.fpp.region_consistency)
+    node, source, absolute, status = start(harness, method="mf", model=str(shifted_model), min_confidence=0.0)
     maps = phase_maps(scene, (16.0, 1.0), sequence_id=9)
     source.publish(maps)
     (result,) = harness.wait(absolute, 1)
@@ -223,6 +233,7 @@ def test_model_refines_the_classical_order_with_the_network(harness, scene, shif
     classical = unwrap_mf(maps.phases[0], maps.phases[1], 16.0, 1.0).fringe_order  # right at every pixel
     on_projector = classical + 1 < 16  # an order off the projector is invalid
     assert np.array_equal(result.valid, on_projector)
+    assert np.all(result.reliability == 0.0)  # every pixel one order off: no confidence anywhere
     assert np.array_equal(result.fringe_order[on_projector], classical[on_projector] + 1)
     psi_h = maps.phases[0].astype(np.float64)
     assert np.allclose(result.absolute_phase[on_projector], (psi_h + 2 * np.pi * (classical + 1))[on_projector],
@@ -248,7 +259,8 @@ def test_nt_reaches_the_network_through_its_band_prior(harness, scene, shifted_m
     and the node gives the network that prior's order (the shifted model adds 1 to it)."""
     from dptpu.fpp.tpu import unwrap_nt
 
-    _node, source, absolute, _status = start(harness, method="nt", model=str(shifted_model))
+    # min_confidence 0: the low frequency rejects the shifted order (dptpu.fpp.region_consistency)
+    _node, source, absolute, _status = start(harness, method="nt", model=str(shifted_model), min_confidence=0.0)
     rng = np.random.default_rng(3)
     phases = np.stack([np.mod(scene.absolute_phase(f) + rng.normal(0, 0.03, scene.lit.shape), 2 * np.pi)
                        for f in (60.0, 10.9)]).astype(np.float32)
@@ -293,10 +305,10 @@ def test_pixels_below_min_confidence_are_dropped_and_counted(harness, scene):
     assert ok.level == ScanStatus.OK and f"{low} pixels below min_confidence 0.9 dropped" in ok.reason
 
 
-def test_the_networks_confidence_reaches_the_reliability_field(harness, scene, shifted_model):
-    # the shifted model's output is exactly an integer, one order from its prior: its own margin is 1, so the
-    # published confidence is the two frequencies' agreement (dptpu.fpp.frequency_consistency), the smaller one
-    _node, source, absolute, _status = start(harness, method="mf", model=str(shifted_model))
+def test_the_networks_confidence_reaches_the_reliability_field(harness, scene, prior_model):
+    # the model's output is exactly an integer, its prior's order: its own margin is 1, so the published confidence
+    # is the two frequencies' agreement (dptpu.fpp.frequency_consistency), the smaller one
+    _node, source, absolute, _status = start(harness, method="mf", model=str(prior_model))
     maps = phase_maps(scene, (16.0, 1.0), sequence_id=23)
     source.publish(maps)
     (result,) = harness.wait(absolute, 1)
