@@ -135,6 +135,13 @@ def register(subparsers) -> None:
     _timeout_option(p, DEFAULT_SERVICE_TIMEOUT_S, f"seconds to wait (default {DEFAULT_SERVICE_TIMEOUT_S})")
     _graph_options(p)
     p.set_defaults(func=run_param_set)
+    p = param.add_parser("describe", help="type, description and constraints (read only: fixed at start-up) of "
+                                          "parameters")
+    p.add_argument("node", metavar="NODE", help="fully qualified node name, e.g. /unwrap")
+    p.add_argument("names", metavar="NAME", nargs="+", help="parameter names, e.g. method rig")
+    _timeout_option(p, DEFAULT_SERVICE_TIMEOUT_S, f"seconds to wait (default {DEFAULT_SERVICE_TIMEOUT_S})")
+    _graph_options(p)
+    p.set_defaults(func=run_param_describe)
     p = param.add_parser("dump", help="every parameter of a node as ROS 2 parameter YAML")
     p.add_argument("node", metavar="NODE", help="fully qualified node name, e.g. /unwrap")
     _timeout_option(p, DEFAULT_SERVICE_TIMEOUT_S, f"seconds to wait (default {DEFAULT_SERVICE_TIMEOUT_S})")
@@ -420,6 +427,17 @@ def run_param_set(args) -> int:
             return 0
         print(f"Setting parameter failed: {result.reason}" if result.reason else "Setting parameter failed")
         return 1
+
+    return _with_parameters(args, [args.node], work)
+
+
+def run_param_describe(args) -> int:
+    from dptpu.tools.introspection import describe_parameters, format_parameter_description  # deferred: start-up
+
+    def work(client, fqn: str) -> int:
+        descriptors = describe_parameters(client, fqn, args.names, args.timeout)
+        print("\n".join(format_parameter_description(d) for d in descriptors))
+        return 0
 
     return _with_parameters(args, [args.node], work)
 

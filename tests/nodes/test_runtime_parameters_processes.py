@@ -2,7 +2,8 @@
 
 ``dptpu param set /cloud frame_id camera_optical_frame`` changes the frame of the next cloud and depth image;
 ``param set /unwrap method bogus`` is refused with its reason and ``method`` stays ``mf`` (the next scan is still
-unwrapped by MF); a read-only parameter (``/cloud rig``) is refused and keeps its value; ``min_confidence`` set to
+unwrapped by MF); a read-only parameter (``/cloud rig``) is refused and keeps its value, and ``param describe`` says it
+is read-only; ``min_confidence`` set to
 1.0 leaves the next cloud with fewer points than the scan before.
 """
 from __future__ import annotations
@@ -88,6 +89,12 @@ def test_param_set_changes_the_next_cloud_and_a_bad_value_is_refused(spawn_node,
     code, out = _dptpu("param", "set", "/unwrap", "method", "bogus")
     assert (code, out) == (1, "Setting parameter failed: parameter method must be one of mf, mw, nt, heterodyne; "
                               "got 'bogus'\n")
+    # which is which, as ros2 param describe says it (the docstrings of ParameterRules name this command)
+    assert _dptpu("param", "describe", "/cloud", "rig", "frame_id") == (0, (
+        "Parameter name: rig\n  Type: string\n  Description: a dptpu-rig/1 file; restart the node to change it\n"
+        "  Constraints:\n    Read only: true\n"
+        "Parameter name: frame_id\n  Type: string\n"
+        "  Description: header.frame_id of the next clouds and images (and TF's)\n"))
     cloud, unwrap = AsyncParameterClient(probe.node, "/cloud"), AsyncParameterClient(probe.node, "/unwrap")
     assert cloud.wait_for_services(timeout_sec=20) and unwrap.wait_for_services(timeout_sec=20)
     assert _get(unwrap, "method") == "mf"

@@ -14,7 +14,8 @@ exit codes):
 - :mod:`.message_summary`: ``topic echo`` and ``service call`` output, arrays summarized as
   ``{dtype, shape, min, max, mean}``;
 - :mod:`.message_from_yaml`: a service request from YAML text;
-- :mod:`.parameter_calls`: ``param list/get/set/dump``'s calls to a node's parameter services, each bounded in time;
+- :mod:`.parameter_calls`: ``param list/get/set/describe/dump``'s calls to a node's parameter services, each
+  bounded in time;
 - :mod:`.parameter_text`: ``param get/set/dump`` values and YAML;
 - :mod:`.service_call`: ``service call``'s one request;
 - :mod:`.cli_node`: the hidden, short-lived node the CLI uses, and the QoS it subscribes with.
@@ -48,6 +49,8 @@ from .message_summary import (
 from .parameter_calls import (
     PARAMETER_TYPE_NAMES,
     ResponseTimeout,
+    describe_parameters,
+    format_parameter_description,
     get_parameter,
     parameter_names,
     parameter_types,
@@ -71,7 +74,8 @@ __all__ = [
     "ArraySummary", "summarize_array", "message_to_dict", "message_to_yaml", "message_to_json", "message_repr",
     "message_from_yaml", "message_from_data",
     "PARAMETER_TYPE_NAMES", "ResponseTimeout", "serves_parameters", "with_parameter_clients", "parameter_names",
-    "parameter_types", "get_parameter", "set_parameter", "parameter_values",
+    "parameter_types", "get_parameter", "set_parameter", "parameter_values", "describe_parameters",
+    "format_parameter_description",
     "parse_parameter_value", "format_parameter_value", "parameters_yaml",
     "call_service",
     "cli_node", "subscription_qos",

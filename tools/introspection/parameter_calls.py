@@ -19,7 +19,7 @@ from .graph_view import UnknownNameError, find_node
 
 __all__ = ["PARAMETER_TYPE_NAMES", "ResponseTimeout", "wait_result", "parameter_node", "serves_parameters",
            "with_parameter_clients", "parameter_names", "parameter_types", "get_parameter", "set_parameter",
-           "parameter_values"]
+           "parameter_values", "describe_parameters", "format_parameter_description"]
 
 #: ``rcl_interfaces/msg/ParameterType`` codes as ``ros2 param list --param-type`` names them.
 PARAMETER_TYPE_NAMES = ("not set", "boolean", "integer", "double", "string", "byte array", "boolean array",
@@ -95,6 +95,42 @@ def get_parameter(client, fqn: str, name: str, timeout_s: float):
             raise UnknownNameError(f"node {fqn} has no parameter {name!r}; its parameters: "
                                    f"{', '.join(names) or '(none)'}")
     return value.type, parameter_value_to_python(value)
+
+
+def describe_parameters(client, fqn: str, names: Sequence[str], timeout_s: float) -> list:
+    """The ``ParameterDescriptor`` of each of ``names``; :class:`UnknownNameError` naming those ``fqn`` lacks."""
+    known = parameter_names(client, fqn, timeout_s)
+    missing = [name for name in names if name not in known]
+    if missing:
+        raise UnknownNameError(f"node {fqn} has no parameter {', '.join(repr(n) for n in missing)}; its parameters: "
+                               f"{', '.join(known) or '(none)'}")
+    response = wait_result(client.describe_parameters(list(names)), timeout_s, f"describe_parameters of {fqn}")
+    return list(response.descriptors)
+
+
+def format_parameter_description(descriptor) -> str:
+    """``ros2 param describe``'s text of one descriptor: name, type, description and constraints (read-only: what
+    only a restart changes)."""
+    code = int(descriptor.type)
+    lines = [f"Parameter name: {descriptor.name}",
+             f"  Type: {PARAMETER_TYPE_NAMES[code] if 0 <= code < len(PARAMETER_TYPE_NAMES) else code}"]
+    if descriptor.description:
+        lines.append(f"  Description: {descriptor.description}")
+    constraints = []
+    if descriptor.read_only:
+        constraints.append("    Read only: true")
+    if descriptor.dynamic_typing:
+        constraints.append("    Dynamic typing: true")
+    for bounds in (*descriptor.floating_point_range, *descriptor.integer_range):
+        constraints.append(f"    Min value: {bounds.from_value}")
+        constraints.append(f"    Max value: {bounds.to_value}")
+        if bounds.step:
+            constraints.append(f"    Step: {bounds.step}")
+    if descriptor.additional_constraints:
+        constraints.append(f"    Additional constraints: {descriptor.additional_constraints}")
+    if constraints:
+        lines += ["  Constraints:", *constraints]
+    return "\n".join(lines)
 
 
 def set_parameter(client, fqn: str, name: str, value, timeout_s: float):
