@@ -246,6 +246,19 @@ class Publisher:
                 weakref.finalize(array, abandoned.append, loan)
         return arrays
 
+    def can_loan_messages(self, nbytes: int | None = None) -> bool:
+        """Whether arrays borrowed now (``nbytes`` of them together, when given) would be a shared-memory loan
+        that :meth:`publish` sends without a copy (as rclcpp's ``Publisher::can_loan_messages``): shared memory
+        is on, and every subscriber connected now can map this process's segments. Otherwise a writer does better
+        to publish its own arrays (ZeroMQ sends them without a copy) than to fill borrowed plain ones."""
+        with self._lock:
+            if self._pool is None or self._socket is None:
+                return False
+            self._handle_events_locked()  # current counts of subscribers (and of those who can map)
+            readers = self._subscriber_count
+            return (readers > 0 and self._shm_subscriber_count >= readers
+                    and (nbytes is None or nbytes >= self._shm_min_bytes))
+
     def return_loaned_arrays(self, arrays) -> None:
         """Give back arrays of :meth:`borrow_loaned_arrays` that will not be published (nothing for plain ones)."""
         key = tuple((array.ctypes.data, array.nbytes) for array in arrays)

@@ -297,11 +297,13 @@ class SimNode(Node):
             self.get_logger().info(f"dropping pattern {trigger.pattern_index} of scan {sequence_id} (drop_frames)")
             return
         header = Header(stamp=trigger.header.stamp, frame_id=self.frame_id)
-        # the frame is copied once, as a camera's driver copies it out of its buffer: into a loaned shared-memory
-        # segment, which is published without a further copy (a plain array where there is no shared memory)
-        frame = stack[step]
-        (image,) = self.image_pub.borrow_loaned_arrays([(frame.shape, frame.dtype)])
-        np.copyto(image, frame)
+        # through shared memory the frame is copied once, as a camera's driver copies it out of its buffer: into a
+        # loaned segment, published without a further copy; without it ZeroMQ sends the held frame itself
+        image = stack[step]
+        if self.image_pub.can_loan_messages(image.nbytes):
+            (loaned,) = self.image_pub.borrow_loaned_arrays([(image.shape, image.dtype)])
+            np.copyto(loaned, image)
+            image = loaned
         self.image_pub.publish(FringeFrame(image=Image.from_array(image, header=header), trigger=trigger))
         self.frames_published += 1
 

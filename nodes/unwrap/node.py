@@ -141,14 +141,7 @@ class UnwrapNode(Node):
         f_h = float(msg.frequencies[high])
         valid, low_confidence = self._valid_pixels(result, msg.valid, f_h)
         invalid = ~valid
-        # the message's arrays are written once, into a loaned shared-memory segment, and published without a copy
-        # (plain arrays where there is no shared memory)
-        absolute_phase, fringe_order, valid_out, reliability = self.absolute_publisher.borrow_loaned_arrays(
-            [(valid.shape, np.float32), (valid.shape, np.int32), (valid.shape, np.bool_), (valid.shape, np.float32)])
-        _masked_into(absolute_phase, result.absolute_phase, invalid, np.nan)
-        _masked_into(fringe_order, result.fringe_order, invalid, 0)
-        np.copyto(valid_out, valid)
-        _masked_into(reliability, result.reliability, invalid, 0.0)
+        absolute_phase, fringe_order, valid_out, reliability = self._message_arrays(result, valid, invalid)
         absolute = AbsolutePhase(
             header=msg.header, sequence_id=msg.sequence_id, frequency=f_h, fringe_axis=msg.fringe_axis,
             projector_width=msg.projector_width, projector_height=msg.projector_height,
@@ -227,6 +220,24 @@ class UnwrapNode(Node):
         if self.min_confidence <= 0:  # reliability is in [0, 1] (0 where invalid): >= 0 always holds
             return valid, 0
         return confident(result.reliability, valid, self.min_confidence)
+
+    def _message_arrays(self, result: tpu.Unwrapped, valid: np.ndarray, invalid: np.ndarray) -> list[np.ndarray]:
+        """The AbsolutePhase's ``absolute_phase`` (NaN), ``fringe_order`` (0), ``valid`` and ``reliability`` (0), the
+        fill where ``invalid``: written once into a loaned shared-memory segment, published without a copy; without
+        shared memory, the result's own arrays masked in place (ZeroMQ sends them without a copy)."""
+        shape = valid.shape
+        specs = [(shape, np.float32), (shape, np.int32), (shape, np.bool_), (shape, np.float32)]
+        if not self.absolute_publisher.can_loan_messages(sum(np.dtype(dtype).itemsize for _, dtype in specs)
+                                                         * valid.size):
+            return [_masked_in_place(result.absolute_phase, invalid, np.nan, np.float32),
+                    _masked_in_place(result.fringe_order, invalid, 0, np.int32), valid,
+                    _masked_in_place(result.reliability, invalid, 0.0, np.float32)]
+        arrays = self.absolute_publisher.borrow_loaned_arrays(specs)
+        for out, values, fill in zip(arrays[:2], (result.absolute_phase, result.fringe_order), (np.nan, 0)):
+            _masked_into(out, values, invalid, fill)
+        np.copyto(arrays[2], valid)
+        _masked_into(arrays[3], result.reliability, invalid, 0.0)
+        return arrays
 
     def _unwrap(self, msg: PhaseMaps):
         """``(Unwrapped, index of the high frequency, NaN pixels marked valid, why no model)``; ValueError for
@@ -316,6 +327,17 @@ def _model_setup(method: str, model_path: str, consensus: bool) -> _ModelSetup:
                          "model file or shipped) or consensus:=false")
     return _ModelSetup(method, model_path, auto, consensus, model,
                        _load_refine_order() if model is not None else None)
+
+
+def _masked_in_place(values: np.ndarray, invalid: np.ndarray, fill, dtype) -> np.ndarray:
+    """``values`` (H, W) as ``dtype`` with ``fill`` where ``invalid``: in place when it already has that dtype (the
+    arrays of one scan's result, which nothing else holds), else one new array."""
+    if values.dtype == dtype and values.flags.writeable:
+        np.copyto(values, fill, where=invalid)
+        return values
+    out = np.full(values.shape, fill, dtype=dtype)
+    np.copyto(out, values, where=~invalid, casting="unsafe")
+    return out
 
 
 def _masked_into(out: np.ndarray, values: np.ndarray, invalid: np.ndarray, fill) -> None:
