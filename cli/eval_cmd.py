@@ -25,6 +25,7 @@ def register(subparsers) -> None:
     sphere.add_argument("--data", help="dptpu-sphere folder (default: $DPTPU_DATA/dptpu-sphere or "
                                        "../shared/data/dptpu-sphere)")
     sphere.add_argument("--json", action="store_true", help="print the figures as JSON")
+    sphere.add_argument("--quiet", action="store_true", help="no progress bar")
     sphere.set_defaults(func=run_sphere)
     _register_unwrap(targets)
     _register_cloud(targets)
@@ -198,7 +199,7 @@ def run_sphere(args) -> int:
     from dptpu.fpp import real_sphere
 
     data_dir = args.data or shared_data_dir() / "dptpu-sphere"
-    report = real_sphere.evaluate(data_dir)
+    report = real_sphere.evaluate(data_dir, progress=not args.quiet)
     if args.json:
         print(json.dumps(report, indent=2))
         return 0

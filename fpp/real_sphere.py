@@ -16,11 +16,13 @@ See docs/real-sphere.md for the figures and every difference explained.
 """
 from __future__ import annotations
 
+import sys
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
+from tqdm import tqdm
 
 from .calibration import Rig, load_bouguet_pair
 from .fitting import fit_sphere, fit_sphere_algebraic
@@ -128,8 +130,9 @@ def own_reconstruction(rig: Rig, phase: np.ndarray) -> tuple[SphereResult, Spher
             SphereResult(fit_kept.rms * 1e3, fit_kept.radius, len(kept)))
 
 
-def evaluate(data_dir) -> dict[str, dict[str, Any]]:
-    """All figures of ``dptpu eval sphere``: the paper's method and ours for the four combinations."""
+def evaluate(data_dir, *, progress: bool = False) -> dict[str, dict[str, Any]]:
+    """All figures of ``dptpu eval sphere``: the paper's method and ours for the four combinations (``progress``: a
+    tqdm bar over them on stderr)."""
     data_dir = Path(data_dir)
     if not data_dir.is_dir():
         raise FileNotFoundError(f"{data_dir}: sphere data folder not found (expected ../shared/data/dptpu-sphere)")
@@ -137,7 +140,8 @@ def evaluate(data_dir) -> dict[str, dict[str, Any]]:
     refined_rigs = {name: load_rig(data_dir, name, relative_pose="all-views") for name in ("real", "twin")}
     phases = {name: load_phase(data_dir, name) for name in ("real", "twin")}
     report: dict[str, dict[str, Any]] = {"paper": {}, "ours": {}, "paper_figures_um": {}}
-    for calibration, phase in COMBINATIONS:
+    for calibration, phase in tqdm(COMBINATIONS, desc="reconstructing the sphere", unit="combination",
+                                   disable=not progress, file=sys.stderr):
         key = combination_key(calibration, phase)
         report["paper"][key] = round(paper_reconstruction(rigs[calibration], phases[phase]).rms_um, 3)
         report["paper_figures_um"][key] = PAPER_FIGURES_UM[(calibration, phase)]

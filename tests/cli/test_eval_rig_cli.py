@@ -8,7 +8,9 @@ from dptpu.fpp.calibration import load_rig
 
 def test_eval_sphere_json(sphere_dir, capsys):
     assert main(["eval", "sphere", "--data", str(sphere_dir), "--json"]) == 0
-    report = json.loads(capsys.readouterr().out)
+    captured = capsys.readouterr()
+    report = json.loads(captured.out)
+    assert "reconstructing the sphere: 100%" in captured.err and "4/4" in captured.err  # the bar, on stderr
     keys = {"calib_real_phase_real", "calib_twin_phase_real", "calib_real_phase_twin", "calib_twin_phase_twin"}
     assert set(report["paper"]) == keys and set(report["ours"]) == keys
     # The four Fig. 3 figures, as a set (two labels are swapped in the paper; test_real_sphere pins which).
