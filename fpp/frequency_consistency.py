@@ -36,8 +36,10 @@ from __future__ import annotations
 
 import numpy as np
 
+from .fringe_noise import quantization_phase_noise
+
 __all__ = ["DEFAULT_CONSISTENCY_SCALE", "MIN_SIGMA_RAD", "consistency_residual", "frequency_consistency",
-           "quantization_residual_noise"]
+           "integer_frames_floor", "quantization_residual_noise"]
 
 #: ``Z`` of the module docstring: the confidence ``1 - z / Z`` is 0.2 (the default threshold) at ``z`` = 5 robust
 #: standard deviations of the scan's residual. Chosen on the main job's shipped scenes and the outside rigs of
@@ -84,6 +86,16 @@ def quantization_residual_noise(noise_high: np.ndarray | None, noise_low: np.nda
         return None
     ratio = f_l / f_h
     return np.hypot(ratio * np.asarray(noise_high, np.float64), np.asarray(noise_low, np.float64)).astype(np.float32)
+
+
+def integer_frames_floor(modulation_high: np.ndarray, modulation_low: np.ndarray, steps_high: int, steps_low: int,
+                         f_h: float, f_l: float) -> np.ndarray | None:
+    """:func:`quantization_residual_noise` (H, W) float32 of two phase maps computed from integer frames (a camera's
+    ``mono8`` / ``mono16``; the unwrap node's PhaseMaps): each map's
+    :func:`dptpu.fpp.fringe_noise.quantization_phase_noise` from its modulation ``B`` (H, W) and step count ``N``.
+    """
+    return quantization_residual_noise(quantization_phase_noise(modulation_high, steps_high, np.uint16),
+                                       quantization_phase_noise(modulation_low, steps_low, np.uint16), f_h, f_l)
 
 
 def frequency_consistency(absolute_high: np.ndarray, wrapped_low: np.ndarray, f_h: float, f_l: float,

@@ -228,7 +228,7 @@ class FringeFrame(Message):
     trigger: Trigger = nested(Trigger)
 
 
-@message("dptpu_msgs/msg/PhaseMaps", version=1)
+@message("dptpu_msgs/msg/PhaseMaps", version=2)
 class PhaseMaps(Message):
     """Wrapped phase and modulation of every frequency of one scan (Eq. (2) of the paper).
 
@@ -250,6 +250,11 @@ class PhaseMaps(Message):
         Fringe modulation ``B`` in the images' digital numbers (>= 0).
     valid : ndarray (H, W) bool
         Pixels whose phases are usable (enough modulation, not saturated).
+    steps : ndarray (F,) uint32, or empty
+        Phase steps ``N`` of the sequence behind each map, in the order of ``phases``, each >= 3; the frames were
+        integer (``mono8`` / ``mono16``), so ``N`` and ``modulation`` give the phase noise their rounding leaves
+        (:func:`dptpu.fpp.fringe_noise.quantization_phase_noise`). Empty (the default) when the publisher does not
+        know them: the unwrap node then judges the two frequencies' agreement without that floor.
     """
 
     header: Header = nested(Header)
@@ -261,6 +266,7 @@ class PhaseMaps(Message):
     phases: np.ndarray = array("float32", ("F", "H", "W"))
     modulation: np.ndarray = array("float32", ("F", "H", "W"))
     valid: np.ndarray = array("bool", ("H", "W"))
+    steps: np.ndarray = sequence("uint32")
 
     @property
     def extent_px(self) -> int:
@@ -278,6 +284,9 @@ class PhaseMaps(Message):
         if len(self.frequencies) != self.phases.shape[0]:
             raise ValueError(f"PhaseMaps.frequencies must have one entry per phase map (F = {self.phases.shape[0]}); "
                              f"got {len(self.frequencies)}")
+        if len(self.steps) not in (0, self.phases.shape[0]) or np.any(np.asarray(self.steps) < 3):
+            raise ValueError(f"PhaseMaps.steps must be empty or one count >= 3 per phase map (F = "
+                             f"{self.phases.shape[0]}); got {np.asarray(self.steps).tolist()}")
 
 
 @message("dptpu_msgs/msg/AbsolutePhase", version=1)

@@ -155,8 +155,10 @@ class CameraNode(Node):
 
     def _loaned_frame(self, shape: tuple[int, int], dtype: np.dtype) -> np.ndarray:
         """Acquisition thread: the array a frame is copied into out of the producer's buffer, loaned by the frames'
-        publisher (a shared-memory segment, published without a further copy; a frame no Trigger claims goes back
-        to the pool when it is let go)."""
+        publisher where a loan pays (a shared-memory segment, published without a further copy; a frame no Trigger
+        claims goes back to the pool when it is let go), else a new array."""
+        if not self.image_pub.can_loan_messages(int(np.prod(shape)) * np.dtype(dtype).itemsize):
+            return np.empty(shape, dtype)  # ZeroMQ sends it without a copy
         (frame,) = self.image_pub.borrow_loaned_arrays([(shape, dtype)])
         return frame
 

@@ -271,8 +271,8 @@ class PhaseNode(Node):
     def _borrow_maps(self, entries: int, shape: tuple[int, ...]) -> tuple[list[np.ndarray], np.ndarray]:
         """``([phases (F, H, W) float32, modulation (F, H, W) float32, valid (H, W) bool], texture (H, W)
         float32)``: arrays lent by the publishers (:meth:`dptpu.graph.publisher.Publisher.borrow_loaned_arrays`),
-        in the order PhaseMaps encodes them, where a loan pays (:meth:`~dptpu.graph.publisher.Publisher.
-        can_loan_messages`); new arrays, which ZeroMQ sends without a copy, where it does not."""
+        in the order PhaseMaps encodes them, where a loan pays (``Publisher.can_loan_messages``); new arrays,
+        which ZeroMQ sends without a copy, where it does not."""
         specs = [((entries, *shape), np.float32), ((entries, *shape), np.float32), (shape, np.bool_)]
         pixels = int(np.prod(shape))
         if self.phase_publisher.can_loan_messages(pixels * (8 * entries + 1)):

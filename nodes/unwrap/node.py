@@ -49,7 +49,10 @@ Every parameter applies from the next scan (``dptpu param set /unwrap method nt`
 a ``method`` must unwrap their frequencies): a bad value is refused with the reason and the old one stays.
 
 Valid pixels: valid in the PhaseMaps, accepted by the method, at least ``min_confidence`` and on the
-projector (``0 <= Psi < 2*pi*f``, as :func:`dptpu.fpp.reconstruct.unwrap_capture` requires). Run:
+projector (``0 <= Psi < 2*pi*f``, as :func:`dptpu.fpp.reconstruct.unwrap_capture` requires). The network's
+confidence is judged as ``dptpu unwrap`` judges it, with the two frequencies' agreement floored at what the frames'
+rounding explains (:func:`dptpu.fpp.frequency_consistency.integer_frames_floor`) where the PhaseMaps carries its step
+counts (``PhaseMaps.steps``; the phase node sends them). Run:
 ``python -m dptpu.nodes.unwrap --ros-args -p method:=nt``; design: ``docs/nodes.md``.
 """
 from __future__ import annotations
@@ -63,6 +66,7 @@ import numpy as np
 from dptpu.fpp import tpu
 from dptpu.fpp.confidence import DEFAULT_MIN_CONFIDENCE, confident
 from dptpu.fpp.frequencies import select_frequencies
+from dptpu.fpp.frequency_consistency import integer_frames_floor
 from dptpu.fpp.methods import PHASE_SEQUENCE_METHODS
 from dptpu.graph.known_publishers import SOLE_PUBLISHER
 from dptpu.graph.node import Node
@@ -269,9 +273,14 @@ class UnwrapNode(Node):
                 note = (f"no model: fringes of {density:.2f} periods per camera pixel, more than the "
                         f"{DEFAULT_MAX_PERIODS_PER_PIXEL:g} the shipped model serves")
         if self.model is not None and self.refine_order is not None and not note:  # DP-TPU (the paper's Fig. 8b)
+            floor = None  # the agreement's rounding floor, as dptpu unwrap applies it, where the maps carry their steps
+            if len(msg.steps) == len(msg.frequencies):
+                high, low = indices[0], indices[1]
+                floor = integer_frames_floor(msg.modulation[high], msg.modulation[low], int(msg.steps[high]),
+                                             int(msg.steps[low]), frequencies[0], frequencies[1])
             order, confidence = self.refine_order(self.model, self.method, phases[0], phases[1], result.fringe_order,
                                                   frequencies[0], frequencies[1], result.valid,
-                                                  consensus=self.consensus)
+                                                  consensus=self.consensus, consistency_floor=floor)
             result = refined(result, phases[0].astype(np.float64), order, confidence)
         return result, indices[0], nan_pixels, note
 
