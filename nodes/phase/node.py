@@ -261,7 +261,7 @@ class PhaseNode(Node):
             header=header, sequence_id=scan.sequence_id, fringe_axis=layout.fringe_axis,
             projector_width=layout.projector_size[0], projector_height=layout.projector_size[1],
             frequencies=np.asarray(layout.frequencies, dtype=np.float64), phases=phases, modulation=modulation,
-            valid=valid))
+            valid=valid, steps=np.asarray(layout.steps, dtype=np.uint32)))
         self.scans_published += 1
         self._status(scan.sequence_id, ScanStatus.OK, "processing", "", scan.first_arrival_s,
                      frames_expected=scan.frame_count + len(scan.references),
