@@ -293,6 +293,10 @@ class CloudNode(Node):
         except ValueError as exc:
             self.get_logger().warning(f"ignoring CameraInfo: {exc}")
             return
+        current = self.rig.camera
+        if self._camera_info_seen and camera.size == current.size and np.array_equal(camera.K, current.K) \
+                and np.array_equal(camera.dist, current.dist):
+            return  # the same camera announced again (e.g. a new frame_id): the tables stand
         self.rig = Rig(camera=camera, projector=self.rig.projector, units=self.rig.units, effects=self.rig.effects)
         self._triangulators.clear()
         self._triangulator("x")  # the per-rig tables now, not in the first scan

@@ -155,6 +155,15 @@ def test_camera_info_supplies_the_camera_intrinsics(harness, tmp_path, scene):
     source.publish(absolute_phase(scene))
     (cloud,) = harness.wait(points, 1)
     assert np.abs(cloud.to_array(["x", "y", "z"]) - scene.points_mm * 1e-3).max() < MAX_POINT_ERROR_M
+    # the same camera announced again under a new frame (param set /sim frame_id): the tables are kept, not rebuilt
+    # (a 640x480 rig's tables take a second); another camera, in order after it, gets new ones
+    built, build = [], node._triangulator
+    node._triangulator = lambda axis: (built.append(axis), build(axis))[1]
+    info.publish(CameraInfo.from_intrinsics(true_camera.K, true_camera.dist, 160, 120,
+                                            header=Header(frame_id="left_camera_optical_frame")))
+    info.publish(CameraInfo.from_intrinsics(true_camera.K * [[1.001], [1.001], [1]], true_camera.dist, 160, 120))
+    assert harness.spin_until(lambda: node.rig.camera.K[0, 0] == pytest.approx(true_camera.K[0, 0] * 1.001))
+    assert built == ["x"]
 
 
 def test_a_scan_before_the_first_camera_info_waits_for_it_or_fails_with_the_reason(harness, tmp_path, scene):
