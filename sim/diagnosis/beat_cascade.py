@@ -14,11 +14,14 @@ down with the rounding of Eq. (5) twice. Each step is an MF pair (a wrapped high
 - **level 2, the top level** (:func:`top_level_low`): high ``psi_0`` (``f_h = f_0``), low the absolute beat
   ``beat_12 + 2 pi k_12`` rescaled by ``1 / f_12`` to ``f_l = 1`` over the projector's width.
 
-With the classical rounding at both levels this IS the heterodyne (:func:`dptpu.fpp.tpu.unwrap_heterodyne`) and
-level 2 is the ``het12`` pair of :mod:`.cfpe_inputs`. Its failures at level 1 (one ``k_12`` off: the top order
-moves by ``f_0 / f_12`` orders, 15 for CFPE) are beyond what a solver at level 2 can see; a solver at level 1
-sees them as one-order errors of an MF pair of ratio 8. Noise and response errors: ``beat_12`` carries the sum of
-two phases' errors, ``beat_123`` four (``psi_0 - 2 psi_1 + psi_2``), each at its own phase.
+With the classical rounding at both levels this IS the heterodyne (:func:`dptpu.fpp.tpu.unwrap_heterodyne`; it
+differs only where the beat of beats' noise carries it below 0, which the heterodyne reads near ``2 pi``, or an
+order off the projector's far end, which the wrapped low phase of level 2 folds back) and level 2 is the ``het12``
+pair of :mod:`.cfpe_inputs` (the same order on all but the pixels whose beat of beats wraps at the shifted ends).
+Its failures at level 1 (one ``k_12`` off: the top order moves by ``f_0 / f_12`` orders, 15 for CFPE) are beyond
+what a solver at level 2 can see; a solver at level 1 sees them as one-order errors of an MF pair of ratio 8.
+Noise and response errors: ``beat_12`` carries the sum of two phases' errors, ``beat_123`` four (``psi_0 - 2 psi_1
++ psi_2``), each at its own phase.
 
 Used by the measured pairs (:func:`.cfpe_inputs.cfpe_cascade`) and the twin's training samples
 (:mod:`.twin_pairs`) alike, so both are built by the same code.
