@@ -226,7 +226,7 @@ def test_exposure_set_at_run_time_is_loaded_into_the_box_before_the_next_scan(sp
     done = status.wait_for(lambda s: s.sequence_id == 1, timeout=10.0)
     assert (done.state, done.frames_received) == ("done", 7)
     # paced by the new exposure: the box ends a scan of 7 patterns of 60 ms no earlier than 0.42 s after it started
-    # (it schedules each ACK and its DONE from the START; load only delays them; at 2000 us it took 14 ms)
+    # (it schedules each ACK and its DONE from the START; load only delays them; the old 2000 us: 14 ms of patterns)
     assert done.duration_s >= 7 * 0.060
     assert sorted(t.pattern_index for t in triggers.messages if t.sequence_id == 1) == list(range(7))
     future = client.get_parameters(["exposure_us"])
