@@ -90,17 +90,18 @@ def write_point_cloud(path, points: np.ndarray, *, unit: str, file_unit: str = "
             cloud.colors = o3d.utility.Vector3dVector(np.repeat(grey[:, None], 3, axis=1))
         written = o3d.io.write_point_cloud(Path(path), cloud, write_ascii=False)
     else:  # the tensor point cloud: named attributes become properties of their own
+        def tensor(array, dtype):
+            return o3d.core.Tensor.from_numpy(np.ascontiguousarray(array, dtype))
+
         tensors = o3d.t.geometry.PointCloud()
-        tensors.point.positions = o3d.core.Tensor(kept)
+        tensors.point.positions = tensor(kept, np.float64)
         if grey is not None:  # as the legacy writer: 8-bit colours
-            tensors.point.colors = o3d.core.Tensor(np.repeat(np.round(grey * 255).astype(np.uint8)[:, None], 3, 1))
-        if normals is not None:
-            # float64 as the coordinates: open3d's PCD writer sizes both alike
-            tensors.point.normals = o3d.core.Tensor(np.ascontiguousarray(np.asarray(normals)[finite], np.float64))
+            tensors.point.colors = tensor(np.repeat(np.round(grey * 255)[:, None], 3, axis=1), np.uint8)
+        if normals is not None:  # float64 as the coordinates: open3d's PCD writer sizes both alike
+            tensors.point.normals = tensor(np.asarray(normals)[finite], np.float64)
         for name, values in fields.items():
-            tensors.point[name] = o3d.core.Tensor(np.ascontiguousarray(np.asarray(values)[finite][:, None],
-                                                                       np.float32))
-        written = o3d.t.io.write_point_cloud(str(path), tensors, write_ascii=False)
+            tensors.point[name] = tensor(np.asarray(values)[finite][:, None], np.float32)
+        written = o3d.t.io.write_point_cloud(Path(path), tensors, write_ascii=False)
     if not written:
         raise ValueError(f"{path}: open3d could not write the point cloud (is the suffix .ply/.pcd/.xyz, and does "
                          "the folder exist?)")
