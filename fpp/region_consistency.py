@@ -45,8 +45,8 @@ import numpy as np
 
 from .frequency_consistency import MAD_TO_SIGMA, consistency_residual
 
-__all__ = ["DEFAULT_RADIUS", "DEFAULT_SIGNIFICANCE", "MIN_TEST_PIXELS", "VOTE_CLIP_ORDERS", "order_error_estimate",
-           "rejected_regions"]
+__all__ = ["DEFAULT_RADIUS", "DEFAULT_SIGNIFICANCE", "MIN_TEST_PIXELS", "VOTE_CLIP_ORDERS", "median_and_mad",
+           "order_error_estimate", "rejected_regions"]
 
 #: Half-width of the proposal window, pixels (7 x 7: 24-25 proposing pixels, a mean of standard error 0.2 order at
 #: the twin's 2 sigma noise).
@@ -135,7 +135,7 @@ def _rejected_by_half(r: np.ndarray, known: np.ndarray, proposing: np.ndarray, t
         if patches <= 1:
             continue
         judged = testing & (labels > 0)
-        n, median, mad = _median_and_mad(r[judged], labels[judged], patches)
+        n, median, mad = median_and_mad(r[judged], labels[judged], patches)
         sigma = np.maximum(MAD_TO_SIGMA * mad, scan_sigma)
         standard_error = _MEDIAN_SE * sigma / np.sqrt(np.maximum(n, 1))
         off = (n >= MIN_TEST_PIXELS) & (sign * median > significance * standard_error)
@@ -144,7 +144,7 @@ def _rejected_by_half(r: np.ndarray, known: np.ndarray, proposing: np.ndarray, t
     return rejected & known
 
 
-def _median_and_mad(values: np.ndarray, labels: np.ndarray, count: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def median_and_mad(values: np.ndarray, labels: np.ndarray, count: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Per label ``0..count-1``: ``(n, median, median absolute deviation)`` of ``values``, each ``(count,)`` (0 for an
     empty label); sorted once by (label, value)."""
     n = np.bincount(labels, minlength=count)
