@@ -125,7 +125,15 @@ from dptpu.messages import (
     TFMessage,
 )
 from dptpu.nodes.node_main import run_node
-from dptpu.nodes.plumbing import DEFAULT_FRAME_ID, LATCHED_QOS, STATUS_QOS, DecodeErrorCount, scan_status
+from dptpu.nodes.plumbing import (
+    DEFAULT_FRAME_ID,
+    LATCHED_QOS,
+    STATUS_QOS,
+    DecodeErrorCount,
+    ScanFailures,
+    fails_the_scan,
+    scan_status,
+)
 
 from .capture_service import CaptureAndSave
 from .cloud_fields import FIELDS, SideImages, cloud_fields
@@ -243,6 +251,7 @@ class CloudNode(Node):
         self.confidence_publisher = self.create_publisher(Image, "/scanner/confidence/image", 10)
         self.confidence_info_publisher = self.create_publisher(CameraInfo, "/scanner/confidence/camera_info", 10)
         self.status_publisher = self.create_publisher(ScanStatus, "/scanner/status", STATUS_QOS)
+        self.scan_failures = ScanFailures(self, self.status_publisher)  # an exception in a scan fails that scan
         self.tf_static_publisher = self.create_publisher(TFMessage, "/tf_static", LATCHED_QOS)
         self._publish_static_frames()
         self.add_post_set_parameters_callback(self._republish_static_frames)  # runs after the rules' applies
@@ -348,6 +357,7 @@ class CloudNode(Node):
         self.get_logger().warning(reason)
         self._status(msg, ScanStatus.ERROR, "failed", reason)
 
+    @fails_the_scan(lambda msg: msg.sequence_id)
     def _triangulate(self, msg: AbsolutePhase) -> None:
         """Triangulate one scan; publish its cloud, depth and confidence images (each with its camera_info) and
         status.

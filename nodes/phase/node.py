@@ -78,7 +78,15 @@ from dptpu.messages import (
     Time,
 )
 from dptpu.nodes.node_main import run_node
-from dptpu.nodes.plumbing import DEFAULT_FRAME_ID, LATCHED_QOS, STATUS_QOS, DecodeErrorCount, scan_status
+from dptpu.nodes.plumbing import (
+    DEFAULT_FRAME_ID,
+    LATCHED_QOS,
+    STATUS_QOS,
+    DecodeErrorCount,
+    ScanFailures,
+    fails_the_scan,
+    scan_status,
+)
 
 from .sequence_assembler import (
     AssembledScan,
@@ -141,6 +149,7 @@ class PhaseNode(Node):
         self.phase_publisher = self.create_publisher(PhaseMaps, "/scanner/phase", 10)
         self.texture_publisher = self.create_publisher(Image, "/scanner/texture", 10)
         self.status_publisher = self.create_publisher(ScanStatus, "/scanner/status", STATUS_QOS)
+        self.scan_failures = ScanFailures(self, self.status_publisher)  # an exception in a scan fails that scan
 
         frame_qos = QoSProfile(depth=frame_queue_depth, reliability=ReliabilityPolicy.BEST_EFFORT)
         self.frame_subscription = self.create_subscription(FringeFrame, "/camera/image_raw", self.on_frame,
@@ -164,6 +173,7 @@ class PhaseNode(Node):
         self.get_logger().info(f"scan layout: frequencies {list(layout.frequencies)}, steps {list(layout.steps)}, "
                                f"shift_sign {layout.shift_sign}, fringe_axis {layout.fringe_axis}")
 
+    @fails_the_scan(lambda msg: msg.trigger.sequence_id)
     def on_frame(self, msg: FringeFrame) -> None:
         """Add one frame; publish the PhaseMaps of a scan it completes, a ScanStatus for a scan it fails."""
         self.frames_received += 1

@@ -86,7 +86,7 @@ from dptpu.messages import (
 )
 from dptpu.messages.scanner import REFERENCE_KINDS
 from dptpu.nodes.node_main import run_node
-from dptpu.nodes.plumbing import DEFAULT_FRAME_ID, LATCHED_QOS, STATUS_QOS, scan_status
+from dptpu.nodes.plumbing import DEFAULT_FRAME_ID, LATCHED_QOS, STATUS_QOS, ScanFailures, fails_the_scan, scan_status
 from dptpu.sim.rig import load_twin_rig
 
 from .source import DEFAULT_SCENES, SimScene, SimSource, load_source
@@ -187,6 +187,7 @@ class SimNode(Node):
         self.truth_pub = self.create_publisher(AbsolutePhase, "/sim/ground_truth", 10)
         self.truth_depth_pub = self.create_publisher(Image, "/sim/ground_truth_depth", 10)
         self.status_pub = self.create_publisher(ScanStatus, "/scanner/status", STATUS_QOS)
+        self.scan_failures = ScanFailures(self, self.status_pub)  # an exception in a scan fails that scan
         self.sequence_sub = self.create_subscription(PatternSequence, "/projector/pattern_sequence",
                                                      self.on_pattern_sequence, LATCHED_QOS,
                                                      publishers=SOLE_PUBLISHER)  # the projector's only
@@ -264,6 +265,7 @@ class SimNode(Node):
         """Scene shown during scan ``sequence_id`` (scans count from 1)."""
         return (int(sequence_id) - 1) % len(self.source.scenes)
 
+    @fails_the_scan(lambda trigger: trigger.sequence_id)
     def _serve(self, trigger: Trigger) -> None:
         sequence_id = trigger.sequence_id
         index = self.scene_index(sequence_id)

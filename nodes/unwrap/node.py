@@ -73,7 +73,7 @@ from dptpu.graph.node import Node
 from dptpu.graph.parameter_rules import ParameterRules, at_least, within
 from dptpu.messages import AbsolutePhase, CameraInfo, Image, PhaseMaps, ScanStatus
 from dptpu.nodes.node_main import run_node
-from dptpu.nodes.plumbing import LATCHED_QOS, STATUS_QOS, DecodeErrorCount, scan_status
+from dptpu.nodes.plumbing import LATCHED_QOS, STATUS_QOS, DecodeErrorCount, ScanFailures, fails_the_scan, scan_status
 
 __all__ = ["UnwrapNode", "load_model", "main", "refined"]
 
@@ -117,6 +117,7 @@ class UnwrapNode(Node):
         self.absolute_publisher = self.create_publisher(AbsolutePhase, "/scanner/absolute_phase", 10)
         self.intensity_publisher = self.create_publisher(Image, "/scanner/intensity", 10)
         self.status_publisher = self.create_publisher(ScanStatus, "/scanner/status", STATUS_QOS)
+        self.scan_failures = ScanFailures(self, self.status_publisher)  # an exception in a scan fails that scan
 
         self.phase_subscription = self.create_subscription(PhaseMaps, "/scanner/phase", self.on_phase_maps, 10)
         self.info_subscription = self.create_subscription(CameraInfo, "/camera/camera_info", self.on_camera_info,
@@ -130,6 +131,7 @@ class UnwrapNode(Node):
         if msg.height > 0 and msg.width > 0:
             self.camera_shape = (int(msg.height), int(msg.width))
 
+    @fails_the_scan(lambda msg: msg.sequence_id)
     def on_phase_maps(self, msg: PhaseMaps) -> None:
         """Unwrap one scan; a scan the method cannot unwrap is reported, and the node goes on."""
         started_s = time.monotonic()
