@@ -34,7 +34,12 @@ name                     default            meaning
 ``sequence``             ``"96x12,1x12"``   ``frequency x steps`` entries in projection order, then optionally
                                             ``white`` and ``black`` reference frames (the texture)
 ``fringe_axis``          ``"x"``            ``x`` (vertical stripes, extent = width) or ``y``
-``projector_size``       ``[912, 1140]``    width, height in projector pixels (LightCrafter 4500)
+``projector_size``       ``[0, 0]``         width, height in projector pixels; ``[0, 0]``: the projector of
+                                            ``rig``, or without one a LightCrafter 4500's ``[912, 1140]``
+``rig``                  ``""``             a rig file (``dptpu-rig/1`` or OpenCV) whose projector this is: the
+                                            panel size is its projector's ``size``, and a ``projector_size``
+                                            given too must be the same (else the node refuses to start, naming
+                                            both); the sim rig passes the twin's rig, so the patterns follow it
 ``exposure_us``          8333               display time of one pattern, microseconds (100 .. 10,000,000)
 ``shift_sign``           -1                 phase step sign of the patterns (-1: the paper's Eq. (1))
 ``scans``                0                  scans started by the node itself: 0 none (service only),
@@ -64,6 +69,7 @@ import threading
 import time
 from dataclasses import replace
 
+from dptpu.fpp.calibration import load_rig
 from dptpu.graph.interfaces import Trigger as TriggerService
 from dptpu.graph.node import Node
 from dptpu.graph.parameter_rules import ParameterRules, at_least, frame_id
@@ -74,7 +80,10 @@ from dptpu.nodes.plumbing import LATCHED_QOS, scan_status
 from .link import ProjectorLink
 from .protocol import SequenceSpec, parse_sequence_spec, split_references
 
-__all__ = ["ProjectorNode", "main"]
+__all__ = ["DLP4500_SIZE", "ProjectorNode", "main", "panel_size"]
+
+#: ``(width, height)`` of the DLP LightCrafter 4500's panel, the projector size without a rig or a size.
+DLP4500_SIZE = (912, 1140)
 
 
 class ProjectorNode(Node):
@@ -88,7 +97,9 @@ class ProjectorNode(Node):
         baudrate = rules.read_only("baudrate", 115200, description=box)
         sequence_text = rules.read_only("sequence", "96x12,1x12", description=box)
         fringe_axis = rules.read_only("fringe_axis", "x", description=box)
-        projector_size = rules.read_only("projector_size", [912, 1140], description=box)
+        projector_size = rules.read_only("projector_size", [0, 0],
+                                         description=box + "; [0, 0]: rig's projector, else a DLP4500's 912x1140")
+        rig_path = rules.read_only("rig", "", description="its projector's size is the panel's; " + box)
         exposure_us = rules.settable("exposure_us", 8333, check=self._exposure_problem, apply=self._set_exposure_us,
                                      description="loaded into the trigger box before its next scan")
         self.shift_sign = rules.read_only("shift_sign", -1, description="published in the PatternSequence at start-up")
@@ -106,8 +117,8 @@ class ProjectorNode(Node):
         if max_waiting < 1:
             raise ValueError(f"parameter max_waiting_scans must be >= 1; got {max_waiting}")
         fringes, references = split_references(sequence_text)
-        self.spec = SequenceSpec(fringe_axis, tuple(projector_size), exposure_us, parse_sequence_spec(fringes),
-                                 references)
+        self.spec = SequenceSpec(fringe_axis, panel_size(projector_size, rig_path), exposure_us,
+                                 parse_sequence_spec(fringes), references)
 
         self.trigger_pub = self.create_publisher(Trigger, "/projector/trigger", 100)
         self.sequence_pub = self.create_publisher(
@@ -217,3 +228,24 @@ def main(argv=None) -> int:
     """``python -m dptpu.nodes.projector [--ros-args ...]``; returns the exit code (2 for bad parameters)."""
     return run_node("projector", ProjectorNode, argv)
 
+
+def panel_size(projector_size, rig_path: str) -> tuple[int, int]:
+    """The projector's ``(width, height)`` from the parameters ``projector_size`` and ``rig``.
+
+    ``[0, 0]`` (not given): the rig's projector ``size``, or :data:`DLP4500_SIZE` without a rig. Given with a
+    rig, it must be the rig's: ValueError naming both sizes and what to do otherwise (the scans of a projector
+    that is not the rig's would fail one by one in the cloud node, "the scan's projector is 912x1140; the rig's
+    is 1024x768").
+    """
+    given = tuple(int(v) for v in projector_size)
+    if len(given) != 2:
+        raise ValueError(f"parameter projector_size must be [width, height] (or [0, 0] for the rig's); got "
+                         f"{list(projector_size)}")
+    if not rig_path:
+        return DLP4500_SIZE if given == (0, 0) else (given[0], given[1])
+    width, height = (int(v) for v in load_rig(rig_path).projector.size)
+    if given not in ((0, 0), (width, height)):
+        raise ValueError(f"parameter projector_size is {given[0]}x{given[1]} but the projector of rig {rig_path} is "
+                         f"{width}x{height}: leave projector_size out (the rig's is taken) or pass the rig of this "
+                         f"projector")
+    return width, height

@@ -7,9 +7,9 @@ the scene of that scan; nothing here knows about sockets or messages.
 Sources (the sim node's ``source`` parameter):
 
 - ``shipped``: the ``dptpu-capture/1`` folders under ``sim/shipped/`` (Blender renders of the twin, with
-  ``gt.npz``), see :func:`shipped_root`, when they hold the asked camera size and every asked sequence; otherwise
-  (or when there are none) the scenes rendered live (``raycast``) instead, and :func:`load_source` says why in
-  its note;
+  ``gt.npz``), see :func:`shipped_root`, when they were made with the asked rig (its geometry and projector
+  size) and hold the asked camera size and every asked sequence; otherwise (or when there are none) the scenes
+  rendered live (``raycast``) with the asked rig instead, and :func:`load_source` says why in its note;
 - ``raycast``: the scenes named by ``scenes`` rendered with :mod:`dptpu.sim.raycast` and
   :mod:`dptpu.sim.image_formation` at start-up (docs/benchmarks.md: how long per scene);
 - a folder: one capture folder (it holds ``capture.yaml``) or a folder of capture folders (each a scene).
@@ -294,10 +294,20 @@ def capture_scenes(folder) -> tuple[list[SimScene], Rig, str, int]:
     return scenes, rig, first.fringe_axis, first.phase_shift_sign
 
 
-def _shipped_lacks(scenes, rig: Rig, size, sequence) -> str:
-    """What the shipped renders lack of the asked camera size and sequences ("" when they hold both)."""
+def _shipped_lacks(scenes, rig: Rig, size, sequence, asked_rig=None) -> str:
+    """What the shipped renders (made with ``rig``) lack of the asked rig, camera size and sequences ("" when they
+    hold all)."""
     lacking = []
     width, height = parse_size(size)
+    if asked_rig is not None:
+        try:
+            asked = load_twin_rig(asked_rig, size=tuple(rig.camera.size))  # at the renders' size: K comparable
+        except (ValueError, FileNotFoundError):
+            asked = None  # the live renders load it again and say what is wrong with it
+        if asked is not None and not _same_geometry(asked, rig):
+            ours, theirs = asked.projector.size, rig.projector.size
+            lacking.append(f"the rig {asked_rig} (they were made with another rig; projector {theirs[0]}x{theirs[1]}"
+                           f", the asked rig's {ours[0]}x{ours[1]})")
     if tuple(rig.camera.size) != (width, height):
         lacking.append(f"the size {width}x{height} (they are {rig.camera.size[0]}x{rig.camera.size[1]})")
     missing = [f"{f:g}x{n}" for f, n in parse_sequence_list(sequence) if scenes[0].stack(f, n) is None]
@@ -306,6 +316,14 @@ def _shipped_lacks(scenes, rig: Rig, size, sequence) -> str:
         held = ", ".join(f"{f:g}x{n}" for f, n in scenes[0].frames)
         lacking.append(f"the sequence(s) {', '.join(missing)} (they hold {held})")
     return " and ".join(lacking)
+
+
+def _same_geometry(a: Rig, b: Rig) -> bool:
+    """Whether two rigs (cameras of one size) have the same projector size, intrinsics and poses (1e-6)."""
+    pairs = ((a.projector.K, b.projector.K), (a.projector.R, b.projector.R), (a.projector.T, b.projector.T),
+             (a.camera.K, b.camera.K), (a.camera.R, b.camera.R), (a.camera.T, b.camera.T))
+    return tuple(a.projector.size) == tuple(b.projector.size) and all(
+        np.allclose(x, y, rtol=1e-6, atol=1e-6) for x, y in pairs)
 
 
 def load_source(source: str, *, rig, size, scenes: str = DEFAULT_SCENES, sequence: str = "96x12,1x12",
@@ -333,7 +351,7 @@ def load_source(source: str, *, rig, size, scenes: str = DEFAULT_SCENES, sequenc
     if source == "shipped":
         if _capture_folders(shipped_root()):
             found, twin_rig, axis, sign = capture_scenes(shipped_root())
-            lacking = _shipped_lacks(found, twin_rig, size, sequence)
+            lacking = _shipped_lacks(found, twin_rig, size, sequence, rig)
             if not lacking:
                 return SimSource(found, twin_rig, axis, sign, "shipped",
                                  f"replaying the {len(found)} shipped render(s) of {shipped_root()}",
