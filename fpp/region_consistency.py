@@ -64,7 +64,7 @@ _MEDIAN_SE = math.sqrt(math.pi / 2.0)
 
 def order_error_estimate(absolute_high: np.ndarray, wrapped_low: np.ndarray, f_h: float, f_l: float,
                          valid: np.ndarray) -> np.ndarray:
-    """``r = eps / (2 pi delta)`` (module docstring) ``(H, W)`` float64, orders; NaN where not ``valid`` or an input is.
+    """``r = eps / (2 pi delta)`` (module docstring) ``(H, W)`` float32, orders; NaN where not ``valid`` or an input is.
 
     Parameters
     ----------
@@ -80,10 +80,12 @@ def order_error_estimate(absolute_high: np.ndarray, wrapped_low: np.ndarray, f_h
     delta = ratio - round(ratio) if math.isfinite(ratio) else 0.0
     if not abs(delta) > 1e-9:
         raise ValueError(f"f_l / f_h must be positive and not a whole number; got f_h={f_h}, f_l={f_l}")
-    eps = consistency_residual(absolute_high, wrapped_low, f_h, f_l)
+    eps = consistency_residual(absolute_high, wrapped_low, f_h, f_l, dtype=np.float32)  # (H, W)
     if np.shape(valid) != eps.shape:
         raise ValueError(f"valid must have the phases' shape {eps.shape}; got {np.shape(valid)}")
-    return np.where(np.asarray(valid, dtype=bool), eps / (2.0 * np.pi * delta), np.nan)
+    eps *= np.float32(1.0 / (2.0 * np.pi * delta))
+    eps[~np.asarray(valid, dtype=bool)] = np.nan
+    return eps
 
 
 def rejected_regions(absolute_high: np.ndarray, wrapped_low: np.ndarray, f_h: float, f_l: float, valid: np.ndarray,
@@ -112,26 +114,28 @@ def rejected_regions(absolute_high: np.ndarray, wrapped_low: np.ndarray, f_h: fl
     if np.count_nonzero(known) < 2 * MIN_TEST_PIXELS:
         return rejected
     scan_sigma = MAD_TO_SIGMA * float(np.median(np.abs(r[known])))
+    votes = np.clip(np.where(known, r, np.float32(0.0)), -VOTE_CLIP_ORDERS, VOTE_CLIP_ORDERS)  # (H, W) float32
     checkerboard = (np.arange(r.shape[0])[:, None] + np.arange(r.shape[1])[None, :]) % 2 == 0  # (H, W)
     first_half = known & checkerboard
     for proposing, testing in ((first_half, known & ~first_half), (known & ~first_half, first_half)):
-        rejected |= _rejected_by_half(r, known, proposing, testing, scan_sigma, radius, significance)
+        rejected |= _rejected_by_half(r, votes, known, proposing, testing, scan_sigma, radius, significance)
     return rejected
 
 
-def _rejected_by_half(r: np.ndarray, known: np.ndarray, proposing: np.ndarray, testing: np.ndarray,
-                      scan_sigma: float, radius: int, significance: float) -> np.ndarray:
-    """The patches proposed by ``proposing``'s pixels and rejected by ``testing``'s (steps 1-2 of the module
-    docstring)."""
+def _rejected_by_half(r: np.ndarray, votes: np.ndarray, known: np.ndarray, proposing: np.ndarray,
+                      testing: np.ndarray, scan_sigma: float, radius: int, significance: float) -> np.ndarray:
+    """The patches proposed by ``proposing``'s pixels (their clipped ``votes``) and rejected by ``testing``'s (steps
+    1-2 of the module docstring)."""
     size = (2 * radius + 1, 2 * radius + 1)
-    votes = np.where(proposing, np.clip(np.nan_to_num(r), -VOTE_CLIP_ORDERS, VOTE_CLIP_ORDERS), 0.0)
-    total = cv2.boxFilter(votes.astype(np.float32), -1, size, normalize=False, borderType=cv2.BORDER_CONSTANT)
-    count = cv2.boxFilter(proposing.astype(np.float32), -1, size, normalize=False, borderType=cv2.BORDER_CONSTANT)
-    mean = total / np.maximum(count, 1.0)  # (H, W), orders
+    total = cv2.boxFilter(np.where(proposing, votes, np.float32(0.0)), -1, size, normalize=False,
+                          borderType=cv2.BORDER_CONSTANT)
+    count = cv2.boxFilter(proposing.view(np.uint8).astype(np.float32), -1, size, normalize=False,
+                          borderType=cv2.BORDER_CONSTANT)
+    mean = total / np.maximum(count, np.float32(1.0))  # (H, W), orders
     rejected = np.zeros(r.shape, bool)
     for sign in (1.0, -1.0):
-        candidates = (known & (sign * mean > 0.5)).astype(np.uint8)
-        patches, labels = cv2.connectedComponents(candidates, connectivity=8)
+        candidates = known & ((mean > 0.5) if sign > 0 else (mean < -0.5))
+        patches, labels = cv2.connectedComponents(candidates.view(np.uint8), connectivity=8)
         if patches <= 1:
             continue
         judged = testing & (labels > 0)

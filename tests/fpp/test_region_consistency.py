@@ -30,13 +30,13 @@ def test_order_error_estimate_is_the_order_error_in_orders():
     for error in (-3, -1, 0, 1, 2):
         absolute, psi_l = _phases(true, np.floor(true) + error, 0.0, np.random.default_rng(0))
         r = order_error_estimate(absolute, psi_l, F_H, F_L, np.ones(SHAPE, bool))
-        np.testing.assert_allclose(r, error, atol=1e-9)
+        np.testing.assert_allclose(r, error, atol=1e-3)  # float32
     # MF and NT: the same estimate from their own delta (1/64 and 10.9/64)
     for f_l in (1.0, 10.9):
         absolute = 2.0 * np.pi * (true + 1.0)
         psi_l = np.mod(2.0 * np.pi * (f_l / F_H) * true, 2.0 * np.pi)
         np.testing.assert_allclose(order_error_estimate(absolute, psi_l, F_H, f_l, np.ones(SHAPE, bool)), 1.0,
-                                   atol=1e-9)
+                                   atol=1e-3)
 
 
 def test_strip_one_order_off_behind_a_phase_continuous_step_is_rejected():
