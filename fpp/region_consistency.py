@@ -12,10 +12,10 @@ its noise is the phase noise of the two frequencies times ``1 / (2 pi |delta|)``
 ``f_h = 64``, so on a noisy capture a single pixel cannot tell an order one off from the right one (the twin's
 12-step captures at the paper's 2 sigma: a robust standard deviation of 0.5 order, 1.2 on dim surfaces). Over a patch
 of ``n`` pixels one order off, the median of ``r`` is about ``+-1`` and its standard error ``sqrt(pi / 2) sigma /
-sqrt(n)``: a 35-pixel patch is told from the right order at many standard errors. Such patches exist: the network
-and its neighbour consensus make the absolute phase continuous across a real depth step about one fringe period
-deep, so a strip beyond the step is one order off while its phase joins the surface before it without a step
-(no island border, no flying point; ``docs/nodes.md``, "Confidence").
+sqrt(n)``: the 17 pixels of a 35-pixel patch's testing half (below) put it 6 standard errors from the right order.
+Such patches exist: the network and its neighbour consensus make the absolute phase continuous across a real depth
+step about one fringe period deep, so a strip beyond the step is one order off while its phase joins the surface
+before it without a step (no island border, no flying point; ``docs/nodes.md``, "Confidence").
 
 :func:`rejected_regions` finds them without letting the pixels that propose a patch also judge it (a patch chosen
 because its ``r`` is large would otherwise pass any test on the same ``r``): camera noise is independent from pixel
