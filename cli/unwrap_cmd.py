@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -25,6 +26,7 @@ from dptpu.fpp.calibration import load_rig
 from dptpu.fpp.capture import read_capture
 from dptpu.fpp.confidence import DEFAULT_MIN_CONFIDENCE, confident
 from dptpu.fpp.methods import CAPTURE_METHODS
+from dptpu.fpp.nt_twins import scan_twin_warning
 from dptpu.fpp.phase_direction import check_capture_phase_direction
 from dptpu.fpp.reconstruct import (
     DEFAULT_MIN_MODULATION_FRACTION,
@@ -97,6 +99,11 @@ def unwrap_from_args(args: argparse.Namespace) -> Unwrapping:
         model, note = choose_model(model, args.model, args.method, result.wrapped_phases[0], result.quality)
     if model is not None:
         result = refine_capture_result(result, model)
+    if result.method == "nt":  # a pair whose near-twin the scan's noise can reach: said once, one line
+        twin = scan_twin_warning(result.absolute_phase, result.wrapped_phases[1], result.frequencies[0],
+                                 result.frequencies[1], result.valid)
+        if twin is not None:
+            print(f"warning: {twin}", file=sys.stderr)
     check_capture_phase_direction(capture, result.absolute_phase, result.valid)  # a wrong phase_shift_sign
     valid, dropped = confident(result.reliability, result.valid, min_confidence)
     if dropped:

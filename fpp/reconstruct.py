@@ -33,6 +33,7 @@ projector coordinate is ``x_p = absolute_phase * W_p / (2*pi*f)`` (``W_p`` = pro
 """
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
@@ -57,6 +58,7 @@ from .fringe_noise import (
     quantization_phase_noise,
 )
 from .methods import CAPTURE_METHODS
+from .nt_twins import twin_ambiguous
 from .phase_harmonics import ProjectorPhaseResponse
 
 __all__ = ["DEFAULT_MIN_MODULATION_FRACTION", "CaptureResult", "unwrap_capture"]
@@ -231,6 +233,10 @@ def unwrap_capture(
         unwrapped = tpu.unwrap_mw(psi[0], psi[1], f_h, frequencies[1], valid=quality)
     elif method == "nt":
         unwrapped = tpu.unwrap_nt(psi[0], psi[1], f_h, frequencies[1], capture.fringe_extent_px, valid=quality)
+        # an order that neither its pixel nor its region tells from a near-twin within the noise's reach: no confidence
+        twins = twin_ambiguous(unwrapped.absolute_phase, psi[1], f_h, frequencies[1], unwrapped.valid,
+                               modulation=maps[0].modulation)
+        unwrapped = dataclasses.replace(unwrapped, reliability=np.where(twins, 0.0, unwrapped.reliability))
     elif method == "heterodyne":
         unwrapped = tpu.unwrap_heterodyne(psi, frequencies, valid=quality)
     else:  # "graycode"

@@ -28,6 +28,7 @@ from dptpu.fpp.confidence import network_confidence
 from dptpu.fpp.frequency_consistency import frequency_consistency, quantization_residual_noise
 from dptpu.fpp.low_period_disputes import low_period_disputes
 from dptpu.fpp.methods import TWO_FREQUENCY_METHODS
+from dptpu.fpp.nt_twins import twin_ambiguous
 from dptpu.fpp.region_consistency import rejected_regions
 
 from .consensus import consensus_order
@@ -101,7 +102,7 @@ def refine_capture_result(result, model: FringeOrderModel, *, consensus: bool = 
              if len(result.quantization_noise) >= 2 else None)
     order, confidence = refine_order_and_confidence(model, result.method, psi_h, psi_l, result.fringe_order, f_h, f_l,
                                                     quality, classical_valid=result.valid, consensus=consensus,
-                                                    consistency_floor=floor)
+                                                    consistency_floor=floor, modulation=result.modulation)
     absolute = psi_h + 2.0 * np.pi * order  # Eq. (3), (H, W)
     with np.errstate(invalid="ignore"):
         valid = quality & (absolute >= 0.0) & (absolute < 2.0 * np.pi * result.frequency)
@@ -147,7 +148,8 @@ def refine_order(model: FringeOrderModel, method: str, psi_h, psi_l, classical_o
 
 def refine_order_and_confidence(model: FringeOrderModel, method: str, psi_h, psi_l, classical_order, f_h: float,
                                 f_l: float, valid, *, classical_valid=None, consensus: bool = True,
-                                consistency_floor: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+                                consistency_floor: np.ndarray | None = None,
+                                modulation: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """:func:`refine_order`'s order and its confidence, ``(order (H, W) int32, confidence (H, W) float32)``.
 
     The confidence is the smaller of :func:`dptpu.fpp.confidence.network_confidence` (the network's continuous
@@ -155,7 +157,9 @@ def refine_order_and_confidence(model: FringeOrderModel, method: str, psi_h, psi
     :func:`dptpu.fpp.frequency_consistency.frequency_consistency` (the low frequency's phase against the published
     absolute phase), 0 where not ``valid``. NT: 0 also on the solid patches where the order and ``classical_order``
     (the per-pixel lookup) differ by one low period (:func:`dptpu.fpp.low_period_disputes.low_period_disputes`: a
-    band the prior gave the other low order). Parameters as :func:`refine_order`'s; ``consistency_floor`` (H, W),
+    band the prior gave the other low order), and where neither the pixel nor its region tells the order from a
+    near-twin that the scan's noise can reach (:func:`dptpu.fpp.nt_twins.twin_ambiguous`; ``modulation`` (H, W),
+    optional, scales each pixel's noise there). Parameters as :func:`refine_order`'s; ``consistency_floor`` (H, W),
     optional: the agreement's per-pixel noise floor from the images' rounding
     (:func:`dptpu.fpp.frequency_consistency.quantization_residual_noise`; :func:`refine_capture_result` passes it).
     """
@@ -183,6 +187,8 @@ def refine_order_and_confidence(model: FringeOrderModel, method: str, psi_h, psi
     if method == "nt":  # a band whose prior took the other low order than the per-pixel lookup, solidly: no confidence
         both = valid if classical_valid is None else valid & np.asarray(classical_valid, dtype=bool)
         disputed = low_period_disputes(order, np.asarray(classical_order), f_h / f_l, both)
+        # nor an order that neither its pixel nor its region tells from a near-twin noise can reach (fpp.nt_twins)
+        disputed |= twin_ambiguous(absolute, psi_l, f_h, f_l, mask, modulation=modulation)
         confidence = np.where(disputed, np.float32(0.0), confidence)
     return order, confidence
 

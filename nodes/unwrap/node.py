@@ -57,6 +57,7 @@ counts (``PhaseMaps.steps``; the phase node sends them). Run:
 """
 from __future__ import annotations
 
+import dataclasses
 import time
 from collections.abc import Callable
 from typing import Any, NamedTuple
@@ -68,6 +69,7 @@ from dptpu.fpp.confidence import DEFAULT_MIN_CONFIDENCE, confident
 from dptpu.fpp.frequencies import select_frequencies
 from dptpu.fpp.frequency_consistency import integer_frames_floor
 from dptpu.fpp.methods import PHASE_SEQUENCE_METHODS
+from dptpu.fpp.nt_twins import scan_twin_warning, twin_ambiguous
 from dptpu.graph.known_publishers import SOLE_PUBLISHER
 from dptpu.graph.node import Node
 from dptpu.graph.parameter_rules import ParameterRules, at_least, within
@@ -96,6 +98,7 @@ class UnwrapNode(Node):
         # the last scan's frequencies (the projector's sequence is fixed while it runs): a method set at run time
         # must unwrap them
         self._scan_frequencies: tuple[float, ...] = ()
+        self._twin_warned = False  # the NT pair's near-twin warning is logged once
         self.method = rules.settable("method", "mf", check=self._check_method, apply=self._apply_model_setup)
         self.high_frequency = rules.settable("high_frequency", 0.0, check=at_least(0.0))
         self.low_frequency = rules.settable("low_frequency", 0.0, check=at_least(0.0))
@@ -282,8 +285,19 @@ class UnwrapNode(Node):
                                              int(msg.steps[low]), frequencies[0], frequencies[1])
             order, confidence = self.refine_order(self.model, self.method, phases[0], phases[1], result.fringe_order,
                                                   frequencies[0], frequencies[1], result.valid,
-                                                  consensus=self.consensus, consistency_floor=floor)
+                                                  consensus=self.consensus, consistency_floor=floor,
+                                                  modulation=msg.modulation[indices[0]])
             result = refined(result, phases[0].astype(np.float64), order, confidence)
+        elif self.method == "nt":  # no confidence where neither pixel nor region tells the order from a near-twin
+            twins = twin_ambiguous(result.absolute_phase, phases[1], frequencies[0], frequencies[1], result.valid,
+                                   modulation=msg.modulation[indices[0]])
+            result = dataclasses.replace(result, reliability=np.where(twins, 0.0, result.reliability))
+        if self.method == "nt" and not self._twin_warned:  # the pair's near-twin within the noise's reach: once
+            warning = scan_twin_warning(result.absolute_phase, phases[1], frequencies[0], frequencies[1],
+                                        result.valid)
+            if warning is not None:
+                self._twin_warned = True
+                self.get_logger().warning(warning)
         return result, indices[0], nan_pixels, note
 
     def _check_shape(self, shape: tuple[int, ...]) -> None:
