@@ -427,14 +427,17 @@ def diagnose(measured, rig: Rig | None, *, reference=None, self_reference: bool 
             for _ in range(max(int(rounds), 1) - 1):  # greedy: what else, on top of the effects found so far
                 if not base:
                     break
-                step(f"round {len(base) + 1}: effects on top of {', '.join(next(iter(b)) for b in base)}")
+                on_top = ", ".join(next(iter(b)) for b in base)
+                step(f"round {len(base) + 1}: effects on top of {on_top}")
                 chosen = {next(iter(b)) for b in base}
                 if chosen & set(RESPONSE_ALTERNATIVES):  # one projector response model at a time
                     chosen |= set(RESPONSE_ALTERNATIVES)
                 residual, _, _ = intensity_residual(pixels, base, refine=refine)
                 rss = float(sum(np.sum(r * r) for r in residual))
-                more = [fit_photometric(pixels, c, base=base, refine=refine, rss_before=rss)
-                        for c in candidates if c.name not in chosen]
+                more: list[dict] = []
+                for candidate in [c for c in candidates if c.name not in chosen]:  # a step each: seconds per fit
+                    step(f"round {len(base) + 1}: {candidate.name} on top of {on_top}")
+                    more.append(fit_photometric(pixels, candidate, base=base, refine=refine, rss_before=rss))
                 more = [dict(e, evidence=dict(e["evidence"], round=len(base) + 1)) for e in more if significant(e)]
                 if not more:
                     break

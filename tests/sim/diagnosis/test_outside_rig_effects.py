@@ -104,9 +104,16 @@ def test_two_hidden_effects_are_both_named_in_order_of_size(tmp_path, seed, larg
              "projector_defocus": {"sigma_px": 1.5}, "flicker": {"rate_per_frame": 0.0, "sigma": 0.006}}
     effects = [{_effect_name(name): sizes[name]} for name in (larger, smaller)]
     folder, rig, reference, _ = _capture(tmp_path, seed, effects)
-    result = diagnose(folder, rig, reference=reference, max_pixels=TEST_PIXELS, rounds=2)
+    steps: list[str] = []
+    result = diagnose(folder, rig, reference=reference, max_pixels=TEST_PIXELS, rounds=2, progress=steps.append)
     assert result.cause == _effect_name(larger), [(e["name"], round(e["gain"], 3)) for e in result.effects[:3]]
     assert [e["name"] for e in result.additional] == [_effect_name(smaller)]
+    # the second round's progress (dptpu twin diagnose's bar): one step per candidate fitted on top of the cause
+    on_top = f" on top of {_effect_name(larger)}"
+    fitted = [s.removeprefix("round 2: ").removesuffix(on_top) for s in steps
+              if s.startswith("round 2: ") and s.endswith(on_top)]
+    assert fitted[0] == "effects" and _effect_name(smaller) in fitted and _effect_name(larger) not in fitted
+    assert len(fitted) == len(set(fitted)) >= 5
     first, second = result.effects[0], result.additional[0]
     assert first["gain"] > second["gain"] > 0.05
     assert _error(larger, sizes[larger], first["parameters"]) <= 0.2
