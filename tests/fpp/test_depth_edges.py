@@ -4,7 +4,14 @@ import numpy as np
 import pytest
 
 from dptpu.fpp import phase, tpu
-from dptpu.fpp.depth_edges import DEFAULT_MAX_SLOPE, beside_steps, depth_per_pixel, edge_points, flying_points
+from dptpu.fpp.depth_edges import (
+    DEFAULT_MAX_SLOPE,
+    beside_steps,
+    depth_per_pixel,
+    edge_points,
+    flying_points,
+    on_a_ramp,
+)
 from dptpu.fpp.triangulate import Triangulator
 from tests.mixed_pixel_rigs import PROJECTOR_SIZE, OutsideRig, default_scene, render
 
@@ -16,7 +23,38 @@ def test_a_tilted_plane_has_no_flying_point_up_to_the_slope_limit():
     # depth changes by slope footprints per column: z(c+1) - z(c) = slope * z / f (a surface atan(slope) steep)
     for slope, expected in ((0.9 * DEFAULT_MAX_SLOPE, 0), (1.1 * DEFAULT_MAX_SLOPE, 40 * 48)):
         depth = z0 * (1 + slope / focal_px) ** cols
-        assert np.count_nonzero(flying_points(depth, focal_px)) == expected  # the two border columns have 1 side
+        # without the ramp test every pixel with two sides is apart from both (the border columns have one side)
+        assert np.count_nonzero(flying_points(depth, focal_px, max_ramp_bend=0.0)) == expected
+        # a straight ramp, however steep: a plane, kept (but two pixels from the image's border: no line of five)
+        assert not flying_points(depth, focal_px)[:, 2:-2].any()
+
+
+def test_a_steep_plane_is_kept_where_its_line_runs_straight_a_mixed_pixel_never():
+    focal_px, z0, steps = 500.0, 600.0, np.arange(30, dtype=float)
+    rng = np.random.default_rng(3)
+    # a plane 81 degrees from facing the camera (6 footprints a column), depth noise 0.1 footprint: the second
+    # differences' noise (sqrt(6) * 0.1 = 0.25 footprint) stays below a quarter of the mean step (1.5 footprints)
+    ramp = z0 * (1 + 6.0 / focal_px) ** steps + rng.normal(0.0, 0.1 * z0 / focal_px, (8, 30))
+    flying = flying_points(ramp, focal_px)
+    assert not flying[2:-2, 2:-2].any()
+    # a pixel next to the border's pixel has no line of five along the row (nor along a diagonal, apart too at 6
+    # footprints a column: above sqrt(2) * 4): not judged a ramp, still flying
+    assert flying[:, [1, -2]].all() and flying[[1, -2], 2:-2].all()
+    assert on_a_ramp(ramp, np.array([4]), np.array([10]), 0, 1).tolist() == [True]
+    # a step of 100 footprints between two flat sides: the mixed column, for any share w of the far side, bends its
+    # line by at least the mean step (ratio >= 1), so it stays flying and the sides stay clean
+    for w in (0.1, 0.3, 0.5, 0.7, 0.9):
+        depth = np.full((5, 12), 500.0)
+        depth[:, 7:] = 600.0
+        depth[:, 6] = 500.0 + w * 100.0
+        flying = flying_points(depth, 500.0)
+        assert flying[:, 6].all() and not flying[:, :6].any() and not flying[:, 7:].any(), w
+    # a step blurred over two pixels (1/3, 2/3): both bend (1/3 of the step against a limit of 1/12): flying
+    depth = np.full((5, 12), 500.0)
+    depth[:, 6], depth[:, 7], depth[:, 8:] = 500.0 + 100.0 / 3, 500.0 + 200.0 / 3, 600.0
+    assert np.argwhere(flying_points(depth, 500.0).any(axis=0)).ravel().tolist() == [6, 7]
+    with pytest.raises(ValueError, match="max_ramp_bend"):
+        flying_points(depth, 500.0, max_ramp_bend=-1.0)
 
 
 def test_a_pixel_between_two_surfaces_is_flying_and_the_edge_pixels_are_not():
