@@ -4,6 +4,8 @@
 - Lists are one comma-separated value (``--noise 1.5693,3.1386``): :func:`parse_list`.
 - A rig file is ``--rig`` (dptpu-rig/1 or OpenCV file, ``CAM.mat,PRJ.mat`` or a preset).
 - Point-cloud files are in metres; ``--units mm`` asks for millimetres: :data:`CLOUD_UNITS`.
+- A command that runs more than a couple of seconds shows a tqdm bar on stderr and takes ``--quiet`` (none):
+  :func:`add_quiet_option`; one made of a few stages shows them on one line: :func:`stage_bar`.
 
 An old spelling is refused with one line that names the new one, and exit code 2 (never a silent change of
 meaning: ``--crop 64x128`` meant height 64, so it is not reused for width first): :func:`add_renamed_option`.
@@ -11,11 +13,13 @@ meaning: ``--crop 64x128`` meant height 64, so it is not reused for width first)
 from __future__ import annotations
 
 import argparse
+import contextlib
 import sys
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from typing import Any, NoReturn, TypeVar
 
-__all__ = ["CLOUD_UNITS", "add_cloud_units_option", "add_renamed_option", "parse_list", "parse_size"]
+__all__ = ["CLOUD_UNITS", "add_cloud_units_option", "add_quiet_option", "add_renamed_option", "parse_list",
+           "parse_size", "stage_bar"]
 
 T = TypeVar("T")
 
@@ -87,3 +91,41 @@ def add_cloud_units_option(parser: argparse.ArgumentParser) -> None:
     """``--units m|mm``: the unit of the point-cloud file written (default metres)."""
     parser.add_argument("--units", choices=CLOUD_UNITS, default="m",
                         help="unit of the point-cloud file: m (default, as every cloud file of dptpu) or mm")
+
+
+def add_quiet_option(parser: argparse.ArgumentParser, what: str = "no progress bar on stderr") -> None:
+    """``--quiet``: the long-running command's progress (its tqdm bar, or its progress lines) is not shown; its
+    summary on stdout and its errors are. ``what`` is the help text."""
+    parser.add_argument("--quiet", action="store_true", help=what)
+
+
+@contextlib.contextmanager
+def stage_bar(command: str, *, quiet: bool) -> Iterator[Callable[[str], None]]:
+    """A one-line tqdm bar on stderr for a command made of a few stages: ``step(label)`` starts the next stage.
+
+    Shown only where stderr is a terminal (tqdm's ``disable=None``): a pipe or a log file gets the command's summary
+    and its one-line errors, nothing else.
+
+    Parameters
+    ----------
+    command : str
+        The line's prefix, e.g. ``"sim render"``.
+    quiet : bool
+        ``--quiet``: no bar at all.
+
+    Examples
+    --------
+    >>> with stage_bar("sim render", quiet=args.quiet) as step:
+    ...     step("reading the rig")
+    ...     step("rendering 24 frames")
+    """
+    from tqdm import tqdm  # only while such a command runs: keeps `dptpu --help` fast
+
+    with tqdm(unit="step", file=sys.stderr, disable=True if quiet else None,
+              bar_format=command + ": step {n_fmt} [{elapsed}] {desc}") as bar:
+        def step(label: str) -> None:
+            bar.set_description_str(label, refresh=False)
+            bar.update(1)
+            bar.refresh()  # every stage shown as it starts, however soon after the last (tqdm would skip it)
+
+        yield step

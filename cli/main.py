@@ -3,7 +3,9 @@
 Each sub-command lives in its own module of this package and exposes ``register(subparsers)``, which
 adds its parser and sets ``func`` (a callable taking the parsed ``argparse.Namespace`` and returning an
 exit code). Bad input raises ``ValueError`` (or an ``OSError`` such as ``FileNotFoundError``) inside the packages;
-here it becomes one line on stderr (:func:`error_line`) and exit code 2, never a traceback.
+here it becomes one line on stderr (:func:`error_line`) and exit code 2, never a traceback. A command line argparse
+refuses is answered with the usage of the (sub-)command it was meant for (:func:`parse_command_line`), as for a
+missing or invalid option: ``dptpu sim render --bogus`` prints ``usage: dptpu sim render ...``, not ``dptpu``'s.
 """
 from __future__ import annotations
 
@@ -39,7 +41,7 @@ def main(argv: list[str] | None = None) -> int:
     (nothing printed: while the commands' modules import, or in a command that does not stop on its own)."""
     try:
         parser = build_parser()
-        args = parser.parse_args(argv)
+        args = parse_command_line(parser, sys.argv[1:] if argv is None else list(argv))
         if not getattr(args, "func", None):
             parser.print_help(sys.stderr)
             return 2
@@ -50,6 +52,29 @@ def main(argv: list[str] | None = None) -> int:
             return 2
     except KeyboardInterrupt:
         return INTERRUPTED_EXIT_CODE
+
+
+def parse_command_line(parser: argparse.ArgumentParser, argv: list[str]) -> argparse.Namespace:
+    """``parser.parse_args(argv)``, except that arguments no parser takes are refused by the sub-command they were
+    given to: its usage and ``dptpu SUB: error: unrecognized arguments: ...`` (exit code 2). argparse leaves them
+    to the top-level parser, whose usage (``dptpu [-h] COMMAND ...``) says nothing about the command's options."""
+    args, extras = parser.parse_known_args(argv)
+    if extras:
+        command_parser(parser, argv).error(f"unrecognized arguments: {' '.join(extras)}")
+    return args
+
+
+def command_parser(parser: argparse.ArgumentParser, argv: list[str]) -> argparse.ArgumentParser:
+    """The parser of the deepest sub-command that ``argv`` names (``parser`` itself when it names none): each word
+    that is a sub-command of the parser reached so far leads into it."""
+    for word in argv:
+        subcommands = next((action for action in parser._actions
+                            if isinstance(action, argparse._SubParsersAction)), None)
+        if subcommands is None:
+            break
+        if word in subcommands.choices:
+            parser = subcommands.choices[word]
+    return parser
 
 
 def error_line(exc: BaseException) -> str:

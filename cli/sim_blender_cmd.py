@@ -39,6 +39,8 @@ def register(sim_subparsers) -> None:
                     "$DPTPU_BLENDER_ENV, else .blender-venv/ in the source checkout.")
     setup.add_argument("--env", default=None, help="folder of the environment")
     setup.add_argument("--python", default=None, help="Python 3.11 interpreter creating the venv")
+    setup.add_argument("--quiet", action="store_true",
+                       help="no progress lines (creating, installing); only the environment's path at the end")
     setup.set_defaults(func=run_setup)
 
 
@@ -64,9 +66,11 @@ def run_setup(args) -> int:
     from dptpu.sim.blender.environment import BlenderNotInstalledError, setup_blender
 
     try:
-        setup_blender(args.env, python=args.python)
+        python = setup_blender(args.env, python=args.python, log=(lambda text: None) if args.quiet else print)
     except BlenderNotInstalledError as exc:
         raise ValueError(str(exc)) from None
+    if args.quiet:
+        print(f"Blender environment ready: {python}")
     return 0
 
 

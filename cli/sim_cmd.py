@@ -1,8 +1,9 @@
 """``dptpu sim ...``: the digital twin's commands.
 
 ``dptpu sim render --rig RIG --scene SCENE --sequence 96x12,1x12 [--effects E.yaml] [--engine raycast|blender]
-[--size WIDTHxHEIGHT] [--seed S] [--bit-depth 8|16] --out CAPTURE`` renders a ``dptpu-capture/1`` folder with
-``calibration.yaml`` and ``gt.npz`` (:func:`dptpu.sim.render.render_capture`).
+[--size WIDTHxHEIGHT] [--seed S] [--bit-depth 8|16] [--quiet] --out CAPTURE`` renders a ``dptpu-capture/1`` folder
+with ``calibration.yaml`` and ``gt.npz`` (:func:`dptpu.sim.render.render_capture`); its stages on one tqdm line on
+stderr (``--quiet``: none).
 
 Other modules add sub-commands to the ``sim`` group when they are present: ``dptpu.cli.sim_blender_cmd``
 (``sim twin``, ``sim setup-blender``) and ``dptpu.cli.sim_dataset_cmd`` (``sim dataset``); each exposes
@@ -12,6 +13,8 @@ from __future__ import annotations
 
 import importlib
 import sys
+
+from .conventions import add_quiet_option, stage_bar
 
 #: Modules of ``dptpu.cli`` that add sub-commands to ``dptpu sim`` (absent ones are skipped).
 SIM_COMMAND_MODULES = ("sim_blender_cmd", "sim_dataset_cmd")
@@ -44,6 +47,7 @@ def register(subparsers) -> None:
     render.add_argument("--supersample", type=int, default=1,
                         help="raycast rays per pixel along each axis, averaged (default 1: the pixel centre)")
     render.add_argument("--out", required=True, help="capture folder to write")
+    add_quiet_option(render)
     render.set_defaults(func=run_render)
     for name in SIM_COMMAND_MODULES:
         try:
@@ -64,24 +68,30 @@ def run_render(args) -> int:
     from dptpu.sim.scenes import load_scene, random_scene
 
     parse_sequences(args.sequence)  # the syntax and the step counts, before the rig is read
-    rig = load_twin_rig(args.rig, size=args.size)
-    sequences = parse_sequences(args.sequence, projector_size=rig.projector.size)  # and every frequency: up front
-    if args.scene.startswith("random:"):
+    with stage_bar("sim render", quiet=args.quiet) as step:
+        step("reading the rig")
+        rig = load_twin_rig(args.rig, size=args.size)
+        sequences = parse_sequences(args.sequence, projector_size=rig.projector.size)  # every frequency: up front
+        step(f"building the scene {args.scene}")
+        if args.scene.startswith("random:"):
+            try:
+                scene_seed = int(args.scene.split(":", 1)[1])
+            except ValueError:
+                raise ValueError(f"--scene random:SEED needs an integer seed; got {args.scene!r}") from None
+            scene = random_scene(rig, scene_seed, meshes_dir=args.meshes)
+        else:
+            scene = load_scene(args.scene, rig)
+        effects = load_effects(args.effects) if args.effects else None
+        frames = sum(1 if spec.kind != "phase" else spec.steps for spec in sequences)
+        step(f"rendering {frames} frames ({args.engine}) and writing {args.out}")
         try:
-            scene_seed = int(args.scene.split(":", 1)[1])
-        except ValueError:
-            raise ValueError(f"--scene random:SEED needs an integer seed; got {args.scene!r}") from None
-        scene = random_scene(rig, scene_seed, meshes_dir=args.meshes)
-    else:
-        scene = load_scene(args.scene, rig)
-    effects = load_effects(args.effects) if args.effects else None
-    try:
-        out = render_capture(rig, scene, sequences, args.out, engine=args.engine, effects=effects, seed=args.seed,
-                             bit_depth=args.bit_depth, supersample=args.supersample)
-    except RuntimeError as exc:  # the Blender worker: not installed (dptpu sim setup-blender), failed, timed out
-        if args.engine != "blender":
-            raise
-        print(f"dptpu sim render: error: {exc}", file=sys.stderr)
-        return 2
+            out = render_capture(rig, scene, sequences, args.out, engine=args.engine, effects=effects,
+                                 seed=args.seed, bit_depth=args.bit_depth, supersample=args.supersample)
+        except RuntimeError as exc:  # the Blender worker: not installed (dptpu sim setup-blender), failed, timed out
+            if args.engine != "blender":
+                raise
+            print(f"dptpu sim render: error: {exc}", file=sys.stderr)
+            return 2
+        step("done")
     print(f"wrote {out}")
     return 0

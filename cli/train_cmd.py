@@ -101,6 +101,7 @@ def register(subparsers) -> None:
     add_renamed_option(toy, "--shape", "write --size WIDTHxHEIGHT (width first; --shape was HEIGHTxWIDTH)")
     toy.add_argument("--steps", type=int, default=3, help="phase steps of the inputs (default 3)")
     toy.add_argument("--seed", type=int, default=0, help="seed of the scenes and the noise (default 0)")
+    toy.add_argument("--quiet", action="store_true", help="no progress bar")
     toy.set_defaults(func=run_toy_data)
 
     from dptpu.experiments.study import add_study_arguments, run_study_command  # no torch at import
@@ -178,6 +179,7 @@ def run_toy_data(args: argparse.Namespace) -> int:
         if m not in ("mf", "mw", "nt"):
             raise ValueError(f"--methods takes mf, mw, nt; got {m!r}")
     out = write_toy_dataset(args.out, frequencies=tuple(args.frequencies), methods=methods, scenes=args.scenes,
-                            shape=args.shape, noise_sigmas=tuple(args.noise), steps=args.steps, seed=args.seed)
+                            shape=args.shape, noise_sigmas=tuple(args.noise), steps=args.steps, seed=args.seed,
+                            progress=not args.quiet)
     print(f"toy dataset -> {out}")
     return 0

@@ -21,7 +21,7 @@ from pathlib import Path
 
 import numpy as np
 
-from dptpu.cli.conventions import add_cloud_units_option
+from dptpu.cli.conventions import add_cloud_units_option, stage_bar
 from dptpu.cli.unwrap_cmd import add_unwrap_arguments, summary, unwrap_from_args
 from dptpu.fpp.calibration import load_rig
 from dptpu.fpp.capture import CAPTURE_FILE, read_capture
@@ -76,8 +76,18 @@ def run(args: argparse.Namespace) -> int:
     if not args.max_edge_slope > 0:
         raise ValueError(f"--max-edge-slope must be > 0; got {args.max_edge_slope:g}")
 
-    unwrapping = unwrap_from_args(args)
+    with stage_bar("triangulate", quiet=args.quiet) as step:
+        line = _triangulate(args, capture, rig, step)
+        step("done")
+    print(line)
+    return 0
+
+
+def _triangulate(args: argparse.Namespace, capture, rig, step) -> str:
+    """Unwrap, triangulate, filter and write the cloud; the summary line."""
+    unwrapping = unwrap_from_args(args, step)
     result = unwrapping.result
+    step("triangulating")
     x_p = projector_coordinate(np.where(result.valid, result.absolute_phase, np.nan), result.frequency,
                                capture.fringe_extent_px)  # (H, W), NaN where invalid
     triangulator = Triangulator(rig, axis=capture.fringe_axis, distortion=not args.no_distortion)
@@ -102,6 +112,7 @@ def run(args: argparse.Namespace) -> int:
         edges_note = (f"{counts['total']} points at depth edges dropped ({counts['flying']} flying, "
                       f"{counts['beside_step']} beside a step, {counts['modulation_dip']} modulation dips, "
                       f"{counts['shadow_border']} partly shadowed, {counts['isolated']} isolated)")
+    step("filtering depth edges and islands of a wrong order")
     islands_note = "islands of a wrong order kept"
     if not args.keep_islands:
         islands = order_islands(result.absolute_phase, result.modulation, result.valid).islands & keep
@@ -110,7 +121,7 @@ def run(args: argparse.Namespace) -> int:
     cloud_points = points[keep]  # (M, 3)
     if cloud_points.shape[0] == 0:
         raise ValueError(f"no valid pixel to triangulate in {capture.root} ({args.method}); nothing written")
+    step(f"writing {args.out}")
     write_point_cloud(args.out, cloud_points, unit=rig.units, file_unit=args.units)
-    print(f"{args.method}: {cloud_points.shape[0]} points ({args.units}); {summary(unwrapping)}; {edges_note}; "
-          f"{islands_note} -> {args.out}")
-    return 0
+    return (f"{args.method}: {cloud_points.shape[0]} points ({args.units}); {summary(unwrapping)}; {edges_note}; "
+            f"{islands_note} -> {args.out}")

@@ -84,6 +84,7 @@ def register(subparsers) -> None:
     finetune.add_argument("--seed", type=int, default=0, help="seed of scenes and training (default 0)")
     finetune.add_argument("--threads", type=int, default=1, help="torch and onnxruntime threads (default 1)")
     finetune.add_argument("--out", required=True, help="output folder")
+    finetune.add_argument("--quiet", action="store_true", help="no progress lines on stderr (the summary stays)")
     finetune.set_defaults(func=run_finetune)
 
 
@@ -168,6 +169,7 @@ def run_finetune(args) -> int:
                                 finetune=FinetuneOptions(epochs=args.epochs, batch=args.batch, lr=args.lr,
                                                          seed=args.seed, huber=args.huber))
     report = run_downstream(args.measured, args.extended, args.out, model=args.model, base_rig=args.rig,
-                            options=options, threads=args.threads, log=lambda text: print(text, file=sys.stderr))
+                            options=options, threads=args.threads,
+                            log=(lambda text: None) if args.quiet else (lambda text: print(text, file=sys.stderr)))
     print(json.dumps(report["summary"], indent=2))
     return 0

@@ -18,10 +18,12 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import sys
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
 
+from dptpu.cli.conventions import add_quiet_option, stage_bar
 from dptpu.fpp.calibration import load_rig
 from dptpu.fpp.capture import read_capture
 from dptpu.fpp.confidence import DEFAULT_MIN_CONFIDENCE, confident
@@ -65,6 +67,7 @@ def add_unwrap_arguments(parser: argparse.ArgumentParser) -> None:
                              f"network's confidence, docs/nodes.md 'Confidence'); default {DEFAULT_MIN_CONFIDENCE:g} "
                              "(graycode: 0, its margin is the distance to a code edge, not to a rounding margin), "
                              "0 keeps all")
+    add_quiet_option(parser, "no progress line on stderr (its stages: reading, unwrapping, the network, writing)")
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
@@ -78,9 +81,10 @@ class Unwrapping:
     response_note: str = ""  # what of the rig's projector.phase_response was applied ("" without one)
 
 
-def unwrap_from_args(args: argparse.Namespace) -> Unwrapping:
+def unwrap_from_args(args: argparse.Namespace, step: Callable[[str], None] = lambda label: None) -> Unwrapping:
     """Read the capture named by ``args``, unwrap it, refine with the model (:func:`dptpu.models.refine.choose_model`)
-    and drop what falls below ``--min-confidence``: the one code path of ``dptpu unwrap`` and ``dptpu triangulate``."""
+    and drop what falls below ``--min-confidence``: the one code path of ``dptpu unwrap`` and ``dptpu triangulate``.
+    ``step(label)`` is told each stage (:func:`dptpu.cli.conventions.stage_bar`)."""
     # imported when the command runs, not at start-up: keeps `dptpu --help` fast
     from dptpu.models.refine import choose_model, refine_capture_result, resolve_model
 
@@ -90,14 +94,17 @@ def unwrap_from_args(args: argparse.Namespace) -> Unwrapping:
     if not (0.0 <= min_confidence <= 1.0):
         raise ValueError(f"--min-confidence must be in [0, 1]; got {min_confidence:g}")
     model = resolve_model(args.model, args.method)  # before the work: a bad model file fails fast
+    step(f"reading {args.capture}")
     capture = read_capture(args.capture)
     response = load_rig(capture.calibration).phase_response if capture.calibration is not None else None
+    step(f"wrapped phase and {args.method} unwrapping")
     result = unwrap_capture(capture, method=args.method, high=args.high, low=args.low,
                             min_modulation=args.min_modulation, phase_response=response)
     note = ""
     if model is not None or args.model is None:
         model, note = choose_model(model, args.model, args.method, result.wrapped_phases[0], result.quality)
     if model is not None:
+        step(f"refining the fringe order with {model.path.name}")
         result = refine_capture_result(result, model)
     if result.method == "nt":  # a pair whose near-twin the scan's noise can reach: said once, one line
         twin = scan_twin_warning(result.absolute_phase, result.wrapped_phases[1], result.frequencies[0],
@@ -155,7 +162,21 @@ def run(args: argparse.Namespace) -> int:
     out = args.out if args.out.suffix == ".npz" else args.out.with_name(args.out.name + ".npz")
     if not out.parent.is_dir():
         raise FileNotFoundError(f"{out.parent}: output folder does not exist")
-    unwrapping = unwrap_from_args(args)
+    with stage_bar("unwrap", quiet=args.quiet) as step:
+        unwrapping = unwrap_from_args(args, step)
+        result = unwrapping.result
+        step(f"writing {out}")
+        _save(out, unwrapping)
+        step("done")
+    total = result.valid.size
+    print(f"{result.method}: {result.valid_count} of {total} pixels valid "
+          f"({100.0 * result.valid_count / total:.1f}%), frequency {result.frequency:g}; {summary(unwrapping)} "
+          f"-> {out}")
+    return 0
+
+
+def _save(out: Path, unwrapping: Unwrapping) -> None:
+    """The ``.npz`` of ``dptpu unwrap``."""
     result = unwrapping.result
     np.savez_compressed(
         out,
@@ -170,8 +191,3 @@ def run(args: argparse.Namespace) -> int:
         method=np.str_(result.method),
         model=np.str_(unwrapping.model_path),
     )
-    total = result.valid.size
-    print(f"{result.method}: {result.valid_count} of {total} pixels valid "
-          f"({100.0 * result.valid_count / total:.1f}%), frequency {result.frequency:g}; {summary(unwrapping)} "
-          f"-> {out}")
-    return 0

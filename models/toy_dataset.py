@@ -17,10 +17,12 @@ This is NOT the twin: no optics, no projector defocus or gamma, no interreflecti
 """
 from __future__ import annotations
 
+import sys
 from pathlib import Path
 
 import numpy as np
 import yaml
+from tqdm import tqdm
 
 from dptpu.fpp import phase, tpu
 from dptpu.fpp.dataset import DATASET_FORMAT
@@ -98,15 +100,18 @@ def toy_sample(method: str, frequency_high: float, *, shape=(96, 128), extent_px
 
 
 def write_toy_dataset(out_dir, *, frequencies=(32, 48, 64, 80), methods=("mf", "mw", "nt"), scenes: int = 2,
-                      shape=(96, 128), noise_sigmas=(1.5693,), steps: int = 3, seed: int = 0) -> Path:
+                      shape=(96, 128), noise_sigmas=(1.5693,), steps: int = 3, seed: int = 0,
+                      progress: bool = False) -> Path:
     """Write ``scenes`` samples per (method, frequency, noise) into ``out_dir`` (dataset.yaml + samples/*.npz).
 
     Scene seeds are ``seed * 100000 + i`` for the running sample index ``i``, so two folders with different
-    ``seed`` share no scene.
+    ``seed`` share no scene. ``progress``: a tqdm bar over the samples on stderr.
     """
     out = Path(out_dir)
     (out / "samples").mkdir(parents=True, exist_ok=True)
     index = 0
+    bar = tqdm(total=len(noise_sigmas) * len(methods) * len(frequencies) * scenes, desc="toy samples", unit="sample",
+               disable=not progress, file=sys.stderr)
     for noise_sigma in noise_sigmas:
         for method in methods:
             for f_h in frequencies:
@@ -116,6 +121,8 @@ def write_toy_dataset(out_dir, *, frequencies=(32, 48, 64, 80), methods=("mf", "
                     np.savez_compressed(out / "samples" / f"{index:05d}_{method}_f{f_h:g}_n{noise_sigma:g}.npz",
                                         **sample)
                     index += 1
+                    bar.update(1)
+    bar.close()
     document = {"format": DATASET_FORMAT, "generator": "dptpu.models.toy_dataset (analytic step scenes, not the twin)",
                 "samples": index, "frequencies": [float(f) for f in frequencies], "methods": list(methods),
                 "noise_sigmas": [float(n) for n in noise_sigmas], "steps": steps, "shape": list(shape), "seed": seed}

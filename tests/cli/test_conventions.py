@@ -3,7 +3,14 @@ file is --rig; old spellings are refused with one line naming the new one (exit 
 from __future__ import annotations
 
 import argparse
+import fcntl
+import os
+import pty
 import re
+import struct
+import subprocess
+import sys
+import termios
 
 import pytest
 
@@ -109,3 +116,82 @@ def test_parse_size_and_parse_list():
         parse_list("1,,2", "--noise", float)
     with pytest.raises(ValueError, match="at least one value"):
         parse_list(" ", "--noise", float)
+
+
+#: Commands without ``--quiet``, each with why it shows no progress: it answers at once, or runs until stopped and
+#: its stream is its output. Every other command runs long (renders, trains, evaluates, calibrates, unwraps) and
+#: takes ``--quiet`` (issue 18; the outside tester's ``dptpu sim render --quiet`` was refused).
+NO_PROGRESS = {
+    "dptpu rig convert": "reads two files, writes one",
+    "dptpu sim twin": "prints the twin's parameters",
+    "dptpu model export": "one torch.onnx export",
+    "dptpu bench": "ARGS go unchanged to the benchmark, whose measurements are its output",
+    "dptpu launch": "runs the graph until stopped; the nodes' lines are its output",
+    "dptpu record": "runs until stopped",
+    "dptpu play": "its progress is the played messages",
+}
+_INTROSPECTION = ("dptpu node ", "dptpu topic ", "dptpu param ", "dptpu service ")  # ros2's verbs: answer or stream
+
+
+def _leaves():
+    return [(" ".join(path), parser) for path, parser in COMMANDS
+            if not any(isinstance(action, argparse._SubParsersAction) for action in parser._actions)]
+
+
+def test_every_long_running_command_takes_quiet():
+    leaves = dict(_leaves())
+    assert set(NO_PROGRESS) <= set(leaves)  # the list names real commands
+    missing = [name for name, parser in leaves.items()
+               if name not in NO_PROGRESS and not name.startswith(_INTROSPECTION)
+               and "--quiet" not in {option for action in parser._actions for option in action.option_strings}]
+    assert not missing, f"commands without --quiet: {', '.join(missing)}"
+    for name in ("dptpu sim render", "dptpu unwrap", "dptpu triangulate", "dptpu twin finetune",
+                 "dptpu sim setup-blender", "dptpu model toy-data"):
+        assert name in leaves and name not in NO_PROGRESS
+
+
+def test_an_unrecognized_argument_is_refused_with_the_sub_commands_usage(tmp_path, capsys):
+    with pytest.raises(SystemExit) as exit_info:
+        main(["sim", "render", "--rig", "nominal", "--scene", "sphere", "--out", str(tmp_path / "c"), "--bogus"])
+    assert exit_info.value.code == 2
+    err = capsys.readouterr().err
+    assert err.startswith("usage: dptpu sim render [-h] --rig RIG"), err  # not "usage: dptpu [-h] COMMAND ..."
+    assert err.splitlines()[-1] == "dptpu sim render: error: unrecognized arguments: --bogus"
+    with pytest.raises(SystemExit):
+        main(["param", "get", "/cloud", "frame_id", "--bogus"])
+    assert capsys.readouterr().err.startswith("usage: dptpu param get ")
+    with pytest.raises(SystemExit):
+        main(["--bogus"])
+    assert capsys.readouterr().err.startswith("usage: dptpu [-h] COMMAND")
+
+
+def _stderr_on_a_terminal(argv, cwd) -> tuple[int, str]:
+    """``dptpu ARGV`` with its stderr on a real pseudo-terminal (where tqdm draws its bars); its exit code and what
+    the terminal received."""
+    master, slave = pty.openpty()
+    fcntl.ioctl(slave, termios.TIOCSWINSZ, struct.pack("HHHH", 24, 160, 0, 0))  # 160 columns, as a terminal has
+    try:
+        proc = subprocess.Popen([sys.executable, "-c", "import sys; from dptpu.cli.main import main; sys.exit(main())",
+                                 *argv], cwd=cwd, stdout=subprocess.DEVNULL, stderr=slave)
+        os.close(slave)
+        received = b""
+        while True:
+            try:
+                chunk = os.read(master, 4096)
+            except OSError:  # EIO: the child closed the terminal
+                break
+            if not chunk:
+                break
+            received += chunk
+        return proc.wait(timeout=120), received.decode(errors="replace")
+    finally:
+        os.close(master)
+
+
+def test_sim_render_shows_its_stages_on_a_terminal_and_quiet_shows_none(tmp_path):
+    render = ["sim", "render", "--rig", "nominal", "--scene", "sphere", "--size", "64x48", "--sequence", "16x3,1x3"]
+    code, shown = _stderr_on_a_terminal([*render, "--out", str(tmp_path / "a")], tmp_path)
+    assert code == 0 and "sim render: step" in shown and "rendering 6 frames (raycast)" in shown, shown
+    code, shown = _stderr_on_a_terminal([*render, "--out", str(tmp_path / "b"), "--quiet"], tmp_path)
+    assert (code, shown) == (0, "")
+    assert (tmp_path / "b" / "capture.yaml").is_file()
