@@ -3,7 +3,7 @@
     dptpu train --data DIR --out models/dptpu.onnx [--epochs E --batch B --crop-size WIDTHxHEIGHT --seed S
                 --model dptpu|unet --resume CKPT --lambda-fourier 0.1 --threads N --time-limit-min M]
     torchrun --nproc_per_node 2 -m dptpu.cli.main train ...      (data parallel, gloo on CPU)
-    dptpu model export --checkpoint CKPT --out MODEL.onnx
+    dptpu model export --checkpoint CKPT --out MODEL.onnx [--quiet]
     dptpu model eval --data DIR [--model MODEL.onnx ...] --out DIR
     dptpu model toy-data --out DIR [--scenes N --frequencies 32,48,64,80 --methods mf,mw,nt --size WIDTHxHEIGHT ...]
     dptpu model study --out DIR [--sets S1,...,S5 --methods mf,mw --scenes N --steps T ...]
@@ -18,7 +18,7 @@ import json
 import sys
 from pathlib import Path
 
-from dptpu.cli.conventions import add_renamed_option, parse_list, parse_size
+from dptpu.cli.conventions import add_quiet_option, add_renamed_option, parse_list, parse_size, stage_bar
 
 
 def _size(option: str):
@@ -77,6 +77,7 @@ def register(subparsers) -> None:
     export.add_argument("--checkpoint", required=True, type=Path, metavar="CKPT",
                         help="training checkpoint (.ckpt) written by dptpu train")
     export.add_argument("--out", required=True, type=Path, metavar="MODEL.onnx", help="ONNX file to write")
+    add_quiet_option(export, "no progress line on stderr (its stages: reading the checkpoint, exporting)")
     export.set_defaults(func=run_export)
 
     evaluate = actions.add_parser("eval", help="fringe-order accuracy: classical, median, models -> table.csv")
@@ -141,12 +142,17 @@ def run_train(args: argparse.Namespace) -> int:
 
 
 def run_export(args: argparse.Namespace) -> int:
-    # imported when the command runs, not at start-up: keeps `dptpu --help` fast
-    from dptpu.models.export import export_onnx, load_checkpoint_model
+    with stage_bar("model export", quiet=args.quiet) as step:  # seconds: torch's import, the export and its check
+        step(f"reading {args.checkpoint}")
+        # imported when the command runs, not at start-up: keeps `dptpu --help` fast
+        from dptpu.models.export import export_onnx, load_checkpoint_model
 
-    model, checkpoint = load_checkpoint_model(args.checkpoint)
-    out = export_onnx(model, args.out, training={**checkpoint.get("options", {}), **checkpoint.get("dataset", {}),
-                                                 "epochs_done": checkpoint["epoch"]})
+        model, checkpoint = load_checkpoint_model(args.checkpoint)
+        step(f"exporting to {args.out}")
+        training = {**checkpoint.get("options", {}), **checkpoint.get("dataset", {}),
+                    "epochs_done": checkpoint["epoch"]}
+        out = export_onnx(model, args.out, training=training)
+        step("done")
     print(f"{checkpoint['kind']} (epoch {checkpoint['epoch']}) -> {out}")
     return 0
 

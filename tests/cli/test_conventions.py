@@ -3,19 +3,14 @@ file is --rig; old spellings are refused with one line naming the new one (exit 
 from __future__ import annotations
 
 import argparse
-import fcntl
-import os
-import pty
 import re
-import struct
-import subprocess
-import sys
-import termios
 
 import pytest
 
 from dptpu.cli.conventions import parse_list, parse_size
 from dptpu.cli.main import build_parser, main
+
+from .terminal import run_on_a_terminal
 
 
 def _commands(parser: argparse.ArgumentParser, path: tuple[str, ...] = ("dptpu",)):
@@ -124,7 +119,6 @@ def test_parse_size_and_parse_list():
 NO_PROGRESS = {
     "dptpu rig convert": "reads two files, writes one",
     "dptpu sim twin": "prints the twin's parameters",
-    "dptpu model export": "one torch.onnx export",
     "dptpu bench": "ARGS go unchanged to the benchmark, whose measurements are its output",
     "dptpu launch": "runs the graph until stopped; the nodes' lines are its output",
     "dptpu record": "runs until stopped",
@@ -146,7 +140,7 @@ def test_every_long_running_command_takes_quiet():
                and "--quiet" not in {option for action in parser._actions for option in action.option_strings}]
     assert not missing, f"commands without --quiet: {', '.join(missing)}"
     for name in ("dptpu sim render", "dptpu unwrap", "dptpu triangulate", "dptpu twin finetune",
-                 "dptpu sim setup-blender", "dptpu model toy-data"):
+                 "dptpu sim setup-blender", "dptpu model toy-data", "dptpu model export"):
         assert name in leaves and name not in NO_PROGRESS
 
 
@@ -165,33 +159,11 @@ def test_an_unrecognized_argument_is_refused_with_the_sub_commands_usage(tmp_pat
     assert capsys.readouterr().err.startswith("usage: dptpu [-h] COMMAND")
 
 
-def _stderr_on_a_terminal(argv, cwd) -> tuple[int, str]:
-    """``dptpu ARGV`` with its stderr on a real pseudo-terminal (where tqdm draws its bars); its exit code and what
-    the terminal received."""
-    master, slave = pty.openpty()
-    fcntl.ioctl(slave, termios.TIOCSWINSZ, struct.pack("HHHH", 24, 160, 0, 0))  # 160 columns, as a terminal has
-    try:
-        proc = subprocess.Popen([sys.executable, "-c", "import sys; from dptpu.cli.main import main; sys.exit(main())",
-                                 *argv], cwd=cwd, stdout=subprocess.DEVNULL, stderr=slave)
-        os.close(slave)
-        received = b""
-        while True:
-            try:
-                chunk = os.read(master, 4096)
-            except OSError:  # EIO: the child closed the terminal
-                break
-            if not chunk:
-                break
-            received += chunk
-        return proc.wait(timeout=120), received.decode(errors="replace")
-    finally:
-        os.close(master)
-
-
 def test_sim_render_shows_its_stages_on_a_terminal_and_quiet_shows_none(tmp_path):
     render = ["sim", "render", "--rig", "nominal", "--scene", "sphere", "--size", "64x48", "--sequence", "16x3,1x3"]
-    code, shown = _stderr_on_a_terminal([*render, "--out", str(tmp_path / "a")], tmp_path)
+    code, out, shown = run_on_a_terminal([*render, "--out", str(tmp_path / "a")], tmp_path)
     assert code == 0 and "sim render: step" in shown and "rendering 6 frames (raycast)" in shown, shown
-    code, shown = _stderr_on_a_terminal([*render, "--out", str(tmp_path / "b"), "--quiet"], tmp_path)
+    assert out == f"wrote {tmp_path / 'a'}\n"  # the bar is on stderr only
+    code, _, shown = run_on_a_terminal([*render, "--out", str(tmp_path / "b"), "--quiet"], tmp_path)
     assert (code, shown) == (0, "")
     assert (tmp_path / "b" / "capture.yaml").is_file()

@@ -1,12 +1,14 @@
 """``dptpu train``, ``dptpu model export|eval|toy-data`` and ``dptpu unwrap --model`` in-process."""
 import csv
 import json
+import re
 
 import numpy as np
 import pytest
 
 from dptpu.cli.main import main
 from dptpu.fpp.dataset import list_samples, read_sample
+from tests.cli.terminal import run_on_a_terminal
 
 from .conftest import TINY_DPTPU
 
@@ -31,6 +33,12 @@ def test_train_then_export_then_eval(tiny_dataset, tmp_path, capsys):
     code, stdout, _ = _run(capsys, ["model", "export", "--checkpoint", tmp_path / "m.ckpt",
                                     "--out", tmp_path / "e.onnx"])
     assert code == 0 and stdout.strip() == f"dptpu (epoch 1) -> {tmp_path / 'e.onnx'}"
+    # on a terminal: its stages on stderr (seconds of torch's import and the export), the summary alone on stdout
+    code, stdout, shown = run_on_a_terminal(["model", "export", "--checkpoint", tmp_path / "m.ckpt",
+                                             "--out", tmp_path / "t.onnx"], tmp_path)
+    assert code == 0 and stdout == f"dptpu (epoch 1) -> {tmp_path / 't.onnx'}\n", shown
+    for stage in (f"reading {tmp_path / 'm.ckpt'}", f"exporting to {tmp_path / 't.onnx'}", "done"):
+        assert re.search(rf"model export: step \d \[[\d:]+\] {re.escape(stage)}", shown), shown
     from dptpu.models.inference import FringeOrderModel
 
     for path in (out, tmp_path / "e.onnx"):  # the model's domain travels in its metadata

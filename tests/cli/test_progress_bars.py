@@ -1,0 +1,57 @@
+"""The stage bars of ``dptpu unwrap``, ``dptpu triangulate`` and ``dptpu model export`` on a real terminal: each stage
+shown as it starts, the summary alone on stdout, nothing with ``--quiet`` (issue 18: each ran for seconds with no
+output). ``dptpu sim render``'s is in test_conventions.py, ``dptpu twin diagnose``'s steps in
+tests/sim/diagnosis."""
+from __future__ import annotations
+
+import re
+
+import pytest
+
+from dptpu.cli.main import main
+
+from .terminal import run_on_a_terminal
+
+
+@pytest.fixture(scope="module")
+def capture(tmp_path_factory):
+    """A small calibrated twin capture (64x48 sphere, MF 16/1, four steps each)."""
+    folder = tmp_path_factory.mktemp("bars") / "capture"
+    assert main(["sim", "render", "--rig", "nominal", "--scene", "sphere", "--sequence", "16x4,1x4", "--size",
+                 "64x48", "--quiet", "--out", str(folder)]) == 0
+    return folder
+
+
+def _stages(shown: str, command: str) -> list[str]:
+    """The stage labels the terminal showed, in order, each once (tqdm redraws a line with '\\r')."""
+    labels = []
+    for line in re.split(r"[\r\n]+", shown):
+        match = re.match(rf"{command}: step \d+ \[[\d:]+\] (.*?)\s*$", line.replace("\x1b[A", ""))
+        if match and match.group(1) and (not labels or labels[-1] != match.group(1)):
+            labels.append(match.group(1))
+    return labels
+
+
+def test_unwrap_shows_its_stages_on_a_terminal_and_prints_only_its_summary(capture, tmp_path):
+    out = tmp_path / "phase.npz"
+    code, stdout, shown = run_on_a_terminal(["unwrap", "--capture", capture, "--method", "mf", "--model", "none",
+                                             "--out", out], tmp_path)
+    assert code == 0, shown
+    assert _stages(shown, "unwrap") == [f"reading {capture}", "wrapped phase and mf unwrapping", f"writing {out}",
+                                        "done"], shown
+    assert re.fullmatch(rf"mf: \d+ of 3072 pixels valid .* -> {re.escape(str(out))}\n", stdout), stdout
+    code, stdout, shown = run_on_a_terminal(["unwrap", "--capture", capture, "--method", "mf", "--model", "none",
+                                             "--out", out, "--quiet"], tmp_path)
+    assert (code, shown) == (0, "") and stdout.startswith("mf: ")
+
+
+def test_triangulate_shows_its_stages_on_a_terminal_and_prints_only_its_summary(capture, tmp_path):
+    out = tmp_path / "cloud.ply"
+    code, stdout, shown = run_on_a_terminal(["triangulate", "--capture", capture, "--method", "mf", "--model", "none",
+                                             "--out", out], tmp_path)
+    assert code == 0, shown
+    assert _stages(shown, "triangulate") == [
+        f"reading {capture}", "wrapped phase and mf unwrapping", "triangulating",
+        "filtering depth edges and islands of a wrong order", f"writing {out}", "done"], shown
+    assert re.fullmatch(rf"mf: \d+ points \(m\); .* -> {re.escape(str(out))}\n", stdout), stdout
+    assert out.stat().st_size > 0
