@@ -29,7 +29,7 @@ import zmq
 from zmq import zmq_poll
 
 from .context import get_default_context
-from .lease import BUSY
+from .lease import BUSY, IO
 from .logging import get_logger
 from .task import Task
 
@@ -375,8 +375,15 @@ class Executor:
                 return None
             generation = self._wake._generation
             lease = self._current_lease()
-            if lease is not None and lease.state == BUSY and time.monotonic() - self._last_poll > _PUMP_INTERVAL_S:
-                self._poll(lease, self._wake._generation, 0.0)  # busy with callbacks: take in what arrived
+            if lease is not None:
+                state = lease.state
+                if state == BUSY and time.monotonic() - self._last_poll > _PUMP_INTERVAL_S:
+                    self._poll(lease, self._wake._generation, 0.0)  # busy with callbacks: take in what arrived
+                elif state == IO and not lease.wanted:
+                    # taken back during a long callback: ask for the sockets again now, not only once the queue is
+                    # empty, so what arrives next is received here in batches instead of one I/O-thread wake-up a
+                    # message (docs/graph.md, "Socket leases")
+                    lease.request()
             found = self._take_ready()
             if found is not None:
                 return found

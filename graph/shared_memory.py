@@ -20,8 +20,8 @@ Safety, per segment (a header of 64 bytes, then the arrays at 64-byte aligned of
 
 - **Locks**: the publisher writes a segment only holding an exclusive ``flock``; a subscriber holds a shared
   ``flock`` from the moment it takes the message off its socket until the last array of the message is garbage
-  (a finalizer on the arrays' common base). So a segment that a subscriber still reads is never rewritten; the
-  kernel drops the locks of a killed process.
+  (a weak reference's callback on the arrays' common base). So a segment that a subscriber still reads is never
+  rewritten; the kernel drops the locks of a killed process.
 - **Generation**: each write increments the segment's generation, written in its header and in the descriptor.
   A subscriber that comes to a descriptor after its segment was written again (its generation moved on) refuses
   it: the message is counted as lost, never read from the newer contents.
@@ -296,10 +296,26 @@ def read_message(topic: bytes, header, descriptor_frame) -> list:
     except OSError as exc:  # a lock or a read of the segment's header failed: the message cannot be trusted
         raise SharedMemoryError(f"segment {descriptor.inode} of process {descriptor.pid}: {exc}") from None
     base = np.frombuffer(mapping.view, dtype=np.uint8)  # read-only (the map is PROT_READ)
-    weakref.finalize(base, _release, mapping)
+    _hold_until_garbage(base, mapping)
     frames = [memoryview(topic), getattr(header, "buffer", header)]
     frames.extend(base[offset:offset + nbytes].data for offset, nbytes in descriptor.entries)
     return frames
+
+
+#: The weak references that let go of a message's mapping when its arrays' base is garbage, by their id (a weak
+#: reference to an unhashable array cannot be a set member); each takes itself out when it fires.
+_holds: dict[int, weakref.ref] = {}
+
+
+def _hold_until_garbage(base: np.ndarray, mapping: _Mapping) -> None:
+    """:func:`_release` ``mapping`` once ``base`` is garbage (a weak reference's callback: lighter than a
+    ``weakref.finalize`` a message; at interpreter exit the kernel drops the process's locks anyway)."""
+    def let_go(ref, mapping=mapping):
+        _holds.pop(id(ref), None)
+        _release(mapping)
+
+    ref = weakref.ref(base, let_go)
+    _holds[id(ref)] = ref
 
 
 def _acquire(descriptor: Descriptor) -> _Mapping:

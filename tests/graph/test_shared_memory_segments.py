@@ -101,8 +101,8 @@ def test_segments_a_reader_holds_are_asked_about_once_a_round_not_at_every_write
         gc.collect()
         assert pool.segment_count == 48  # least recently written first: the held ones
         asked = []
-        free = segment_pool._Segment.free
-        monkeypatch.setattr(segment_pool._Segment, "free", lambda self, *a: asked.append(self) or free(self, *a))
+        lock = segment_pool._Segment.lock  # lease 0: every segment looked at is asked for its lock
+        monkeypatch.setattr(segment_pool._Segment, "lock", lambda self: asked.append(self) or lock(self))
         kept = [_read(pool.write(_payload(seed), readers=1)) for seed in range(48, 72)]  # the next scan, held too
         # the first write asked the 24 held ones, then took a free one; they went to the end with it, so the other
         # writes found free ones first (before: every write asked all 24 held ones again, 24 x 25 = 600 in all)
