@@ -84,7 +84,8 @@ def register(subparsers) -> None:
     finetune.add_argument("--seed", type=int, default=0, help="seed of scenes and training (default 0)")
     finetune.add_argument("--threads", type=int, default=1, help="torch and onnxruntime threads (default 1)")
     finetune.add_argument("--out", required=True, help="output folder")
-    finetune.add_argument("--quiet", action="store_true", help="no progress lines on stderr (the summary stays)")
+    finetune.add_argument("--quiet", action="store_true",
+                          help="no progress bars or lines on stderr (the summary stays)")
     finetune.set_defaults(func=run_finetune)
 
 
@@ -141,6 +142,8 @@ def run_finetune(args) -> int:
     import torch  # training only
 
     # imported when the command runs, not at start-up: keeps `dptpu --help` fast
+    from tqdm import tqdm
+
     from dptpu.experiments.downstream import DownstreamOptions, run_downstream
     from dptpu.experiments.finetune import FinetuneOptions
 
@@ -168,8 +171,9 @@ def run_finetune(args) -> int:
                                 cfpe_low=args.cfpe_low, max_correction=max_correction,
                                 finetune=FinetuneOptions(epochs=args.epochs, batch=args.batch, lr=args.lr,
                                                          seed=args.seed, huber=args.huber))
+    # each stage's line through tqdm.write: printed above the bars (the twin sets' scenes, the epochs, the scoring)
     report = run_downstream(args.measured, args.extended, args.out, model=args.model, base_rig=args.rig,
-                            options=options, threads=args.threads,
-                            log=(lambda text: None) if args.quiet else (lambda text: print(text, file=sys.stderr)))
+                            options=options, threads=args.threads, progress=not args.quiet,
+                            log=(lambda text: None) if args.quiet else (lambda text: tqdm.write(text, file=sys.stderr)))
     print(json.dumps(report["summary"], indent=2))
     return 0

@@ -31,6 +31,7 @@ from __future__ import annotations
 
 import copy
 import json
+import sys
 import time
 from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
@@ -38,6 +39,7 @@ from typing import Any
 
 import numpy as np
 import yaml
+from tqdm import tqdm
 
 from dptpu.fpp import real_sphere
 from dptpu.fpp.dataset import list_samples, read_sample
@@ -335,7 +337,8 @@ def twin_set_pairs(data_dir) -> list[MeasuredPair]:
 
 
 def run_downstream(measured, extended, out_dir, *, model, base_rig=None,
-                   options: DownstreamOptions = DownstreamOptions(), threads: int = 1, log=None) -> dict:
+                   options: DownstreamOptions = DownstreamOptions(), threads: int = 1, log=None,
+                   progress: bool = False) -> dict:
     """The whole downstream comparison (module docstring); writes into ``out_dir`` and returns the report dict.
 
     Parameters
@@ -353,6 +356,8 @@ def run_downstream(measured, extended, out_dir, *, model, base_rig=None,
         onnxruntime threads of the evaluation (torch's are the caller's).
     log : callable, optional
         Called with a line of progress.
+    progress : bool
+        tqdm bars on stderr: the twin sets' scenes, each fine-tune's epochs, the scoring.
     """
     log = log or (lambda text: None)
     started = time.perf_counter()
@@ -360,7 +365,7 @@ def run_downstream(measured, extended, out_dir, *, model, base_rig=None,
     log(f"{len(pairs)} measured pairs ({design.name}), {time.perf_counter() - started:.0f} s")
     baseline_rig, extended_rig = split_rigs(extended, base_rig, measured=measured)
     report = compare_finetunes(pairs, design, baseline_rig, extended_rig, out_dir, model=model, options=options,
-                               sphere_rig=rig, threads=threads, log=log)
+                               sphere_rig=rig, threads=threads, log=log, progress=progress)
     if design.name == "cfpe":
         report["response_check"] = response_check(measured, baseline_rig, extended_rig, options.size, options.seed)
     report.update({"measured": str(measured), "extended": str(extended),
@@ -371,8 +376,9 @@ def run_downstream(measured, extended, out_dir, *, model, base_rig=None,
 
 def compare_finetunes(pairs: list, design, baseline_rig, extended_rig, out_dir, *, model,
                       options: DownstreamOptions = DownstreamOptions(), sphere_rig=None, threads: int = 1,
-                      log=None) -> dict:
+                      log=None, progress: bool = False) -> dict:
     """Steps 2-4 of the module docstring on given measured ``pairs``; returns the report dict (not written).
+    ``progress``: tqdm bars on stderr (the twin sets' scenes, each fine-tune's epochs, the scoring).
 
     ``design`` (:class:`~.twin_pairs.PairDesign`) is how the pairs were built; ``baseline_rig`` and
     ``extended_rig`` differ only by their effects; ``sphere_rig`` (the real rig) adds the sphere's 3D errors.
@@ -387,14 +393,16 @@ def compare_finetunes(pairs: list, design, baseline_rig, extended_rig, out_dir, 
     heldout: dict[str, Any] = {}  # name -> a held-out set's folder, or its cascades
     for name, twin in (("baseline", baseline_rig), ("extended", extended_rig)):
         sets[name] = write_twin_set(twin, design, out / f"twin_{name}", scenes=options.scenes, size=options.size,
-                                    noise=options.noise, seed=options.seed)
+                                    noise=options.noise, seed=options.seed, progress=progress)
         if options.heldout_scenes > 0 and design.low == CASCADE:
             heldout[name] = twin_cascades(twin, design, scenes=options.heldout_scenes, size=options.size,
-                                          noise=options.noise, seed=options.seed + 1000, name=f"heldout_{name}")
+                                          noise=options.noise, seed=options.seed + 1000, name=f"heldout_{name}",
+                                          progress=progress)
         elif options.heldout_scenes > 0:
             heldout[name] = write_twin_set(twin, replace(design, max_correction=None), out / f"heldout_{name}",
                                            scenes=options.heldout_scenes,
-                                           size=options.size, noise=options.noise, seed=options.seed + 1000)
+                                           size=options.size, noise=options.noise, seed=options.seed + 1000,
+                                           progress=progress)
         log(f"twin set {name}: {options.scenes} scenes, {time.perf_counter() - started:.0f} s")
     start = load_start_model(model)
     base_onnx = Path(model)
@@ -406,10 +414,11 @@ def compare_finetunes(pairs: list, design, baseline_rig, extended_rig, out_dir, 
     runs = {}
     for name in ("baseline", "extended"):
         fresh = (copy.deepcopy(start[0]), *start[1:])  # the same start weights for both
-        runs[name] = finetune(fresh, sets[name], out / f"finetuned_{name}.onnx", options.finetune)
+        runs[name] = finetune(fresh, sets[name], out / f"finetuned_{name}.onnx", options.finetune, progress=progress)
         models[f"finetuned_{name}"] = runs[name]["onnx"]
         log(f"fine-tune on the {name} twin: {runs[name]['epochs']} epochs, {runs[name]['seconds']:.0f} s")
-    rows = [_score(models, pair, threads, sphere_rig) for pair in pairs]
+    rows = [_score(models, pair, threads, sphere_rig)
+            for pair in tqdm(pairs, desc="scoring", unit="pair", disable=not progress, file=sys.stderr)]
     twin_rows = {name: [_score(models, p, threads) for p in (held if design.low == CASCADE else twin_set_pairs(held))]
                  for name, held in heldout.items()}
     return {

@@ -60,9 +60,11 @@ def load_start_model(path):
                                                             "epoch": int(checkpoint.get("epoch", 0))}
 
 
-def finetune(start, data_dir, out_onnx, options: FinetuneOptions = FinetuneOptions()) -> dict:
+def finetune(start, data_dir, out_onnx, options: FinetuneOptions = FinetuneOptions(), *,
+             progress: bool = False) -> dict:
     """Fine-tune ``start`` (a path, or a ``(model, kind, config, source)`` tuple) on ``data_dir``; export to
-    ``out_onnx``. Returns the run's record: steps, seconds, first and last epoch loss."""
+    ``out_onnx``. Returns the run's record: steps, seconds, first and last epoch loss. ``progress``: the training's
+    bar and epoch lines on stderr (:func:`dptpu.models.training.train`)."""
     import torch  # training only
 
     from dptpu.models.loss import LossWeights  # torch
@@ -79,7 +81,7 @@ def finetune(start, data_dir, out_onnx, options: FinetuneOptions = FinetuneOptio
                                 batch=int(options.batch), crop=tuple(options.crop) if options.crop else None,
                                 seed=int(options.seed), model=kind, lr=float(options.lr),
                                 loss=LossWeights(huber=None if options.huber is None else float(options.huber)),
-                                resume=start_checkpoint, checkpoint=out_onnx.with_suffix(".ckpt"), progress=False))
+                                resume=start_checkpoint, checkpoint=out_onnx.with_suffix(".ckpt"), progress=progress))
     samples = len(list((Path(data_dir) / "samples").glob("*.npz")))
     return {"onnx": str(result.onnx), "epochs": result.epochs_done,
             "steps": result.epochs_done * (samples // int(options.batch)), "seconds": round(result.seconds, 1),

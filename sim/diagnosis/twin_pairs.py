@@ -16,11 +16,13 @@ for ``N = 3``: a 3-step sequence of Eq. (1)), as the CFPE inputs are taken from 
 from __future__ import annotations
 
 import os
+import sys
 from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 
 import numpy as np
 import yaml
+from tqdm import tqdm
 
 from dptpu.fpp import phase, tpu
 from dptpu.fpp.calibration import Rig, save_rig
@@ -228,13 +230,13 @@ def twin_cascade_samples(rig: Rig, scene, design: PairDesign, *, noise_sigma: fl
 
 
 def twin_cascades(rig: Rig, design: PairDesign, *, scenes: int, size=(320, 240), noise=(1.5693, 3.1386),
-                  seed: int = 0, name: str = "twin") -> list[CascadePair]:
+                  seed: int = 0, name: str = "twin", progress: bool = False) -> list[CascadePair]:
     """The cascades of ``scenes`` random scenes x ``noise`` levels (held-out scenes: the seeds of
-    :func:`write_twin_set`), named ``NAME/SCENE_SEED-NOISE``."""
+    :func:`write_twin_set`), named ``NAME/SCENE_SEED-NOISE`` (``progress``: a tqdm bar over the scenes on stderr)."""
     size = tuple(int(v) for v in size)
     rig = resize_camera(rig, size) if tuple(rig.camera.size) != size else rig
     cascades = []
-    for i in range(int(scenes)):
+    for i in tqdm(range(int(scenes)), desc=name, unit="scene", disable=not progress, file=sys.stderr):
         seed_i = dataset_scene_seed(seed, i)
         scene = random_scene(rig, seed_i)
         for j, sigma in enumerate(noise):
@@ -246,8 +248,9 @@ def twin_cascades(rig: Rig, design: PairDesign, *, scenes: int, size=(320, 240),
 
 
 def write_twin_set(rig: Rig, design: PairDesign, out_dir, *, scenes: int, size=(320, 240),
-                   noise=(1.5693, 3.1386), seed: int = 0) -> Path:
-    """Render ``scenes`` random scenes x ``noise`` levels as a ``dptpu-dataset/1`` folder; returns it.
+                   noise=(1.5693, 3.1386), seed: int = 0, progress: bool = False) -> Path:
+    """Render ``scenes`` random scenes x ``noise`` levels as a ``dptpu-dataset/1`` folder; returns it
+    (``progress``: a tqdm bar over the scenes on stderr).
 
     Scene ``i`` has the seed of ``dptpu sim dataset`` (:func:`dptpu.sim.dataset.scene_seed`): two rigs that
     differ only in their effects render the same scenes, so two sets differ only by the effects.
@@ -264,7 +267,7 @@ def write_twin_set(rig: Rig, design: PairDesign, out_dir, *, scenes: int, size=(
     save_rig(rig, out / "rig.yaml")
     index = 0
     frequencies = {float(design.frequencies[0])}
-    for i in range(int(scenes)):
+    for i in tqdm(range(int(scenes)), desc=out.name, unit="scene", disable=not progress, file=sys.stderr):
         seed_i = dataset_scene_seed(seed, i)
         scene = random_scene(rig, seed_i)
         for j, sigma in enumerate(noise):

@@ -74,7 +74,7 @@ def test_onnx_weights_refuses_a_foreign_file(tmp_path):
         load_onnx_model(path)
 
 
-def test_finetune_pipeline_numbers_are_consistent(base_onnx, tmp_path):
+def test_finetune_pipeline_numbers_are_consistent(base_onnx, tmp_path, capsys):
     from dptpu.experiments.downstream import DownstreamOptions, compare_finetunes, twin_set_pairs
     from dptpu.experiments.finetune import FinetuneOptions
     from dptpu.models.consensus import consensus_order
@@ -91,7 +91,12 @@ def test_finetune_pipeline_numbers_are_consistent(base_onnx, tmp_path):
     pairs = twin_set_pairs(measured_set)
     options = DownstreamOptions(scenes=2, size=(160, 120), noise=(3.1386,), heldout_scenes=0,
                                 finetune=FinetuneOptions(epochs=2, batch=1, crop=(64, 64)))
-    report = compare_finetunes(pairs, design, rig, hidden, tmp_path / "out", model=base_onnx[0], options=options)
+    report = compare_finetunes(pairs, design, rig, hidden, tmp_path / "out", model=base_onnx[0], options=options,
+                               progress=True)
+    err = capsys.readouterr().err  # the bars of dptpu twin finetune: the twin sets, each fine-tune's epochs, scoring
+    for bar in ("twin_baseline: 100%", "twin_extended: 100%", "epoch 2/2", "scoring: 100%"):
+        assert bar in err, err
+    assert "2/2 [" in err and "1/1 [" in err  # 2 scenes a set, 1 measured pair
 
     runs = report["finetune_runs"]
     assert runs["baseline"]["steps"] == runs["extended"]["steps"] == 4  # the same budget: 2 epochs x 2 samples
