@@ -4,7 +4,8 @@ Like ``ros2 launch``: every node becomes its own process with the ROS 2 command 
 file, output lines are prefixed with ``[name]``, crashed ``respawn`` nodes come back with backoff,
 Ctrl-C / SIGTERM stop everything within 5 s, and the exit code is 1 when a required node failed
 (0 on a clean shutdown, 2 when the file is invalid). ``--print`` shows the resolved command lines
-without starting anything; ``--show-args`` lists the file's arguments. See ``docs/launch.md``.
+without starting anything; ``--show-args`` lists the file's arguments; ``--domain-id N`` runs the graph in domain
+``N`` (``DPTPU_DOMAIN_ID`` for every node), so two graphs on one machine never mix. See ``docs/launch.md``.
 """
 from __future__ import annotations
 
@@ -27,6 +28,10 @@ def _add_options(parser, default=None) -> None:
     parser.add_argument("--log-dir", default=pick(None),
                         help="folder for nodes with output: log/both (default: $DPTPU_LOG_DIR or "
                              "~/.dptpu/log, one launch-DATE-TIME-PID folder per run)")
+    parser.add_argument("--domain-id", type=int, default=pick(None), metavar="ID",
+                        help="the graph's domain, 0-232, for every node (sets DPTPU_DOMAIN_ID): a second graph on "
+                             "this machine runs in another domain, or the two mix (default: $DPTPU_DOMAIN_ID, "
+                             "$ROS_DOMAIN_ID, 0)")
     parser.add_argument("--sigint-timeout", type=float, default=pick(2.0), metavar="SECONDS",
                         help="on shutdown, seconds between SIGINT and SIGTERM (default 2.0)")
     parser.add_argument("--sigterm-timeout", type=float, default=pick(1.5), metavar="SECONDS",
@@ -105,6 +110,18 @@ def _print_plan(plan) -> int:
     return 0
 
 
+def _use_domain(domain_id: int) -> None:
+    """``--domain-id``: checked (0..232, ValueError naming the option), then ``DPTPU_DOMAIN_ID`` of the launcher,
+    which every node inherits (``$(env DPTPU_DOMAIN_ID)`` in the file reads it too)."""
+    from dptpu.graph.discovery import resolve_domain_id  # deferred: CLI start-up
+
+    try:
+        resolve_domain_id(domain_id)
+    except ValueError as exc:
+        raise ValueError(f"--domain-id {exc.args[0].removeprefix('domain_id ')}") from None
+    os.environ["DPTPU_DOMAIN_ID"] = str(domain_id)
+
+
 def run_launch(args) -> int:
     """Validate and run (or print) a launch file; an invalid one prints every problem, one per line, and gives 2."""
     from dptpu.tools.launch import LaunchFileError  # deferred: CLI start-up
@@ -127,6 +144,8 @@ def _run_launch(args) -> int:
         value = getattr(args, option)
         if not 0 <= value <= 60:
             raise ValueError(f"--{option.replace('_', '-')} must be between 0 and 60 seconds; got {value}")
+    if args.domain_id is not None:
+        _use_domain(args.domain_id)
     plan = load_launch_file(path, parse_launch_arguments(args.launch_arguments))
     if args.dry_run:
         return _print_plan(plan)

@@ -28,7 +28,12 @@ from __future__ import annotations
 from collections.abc import Collection
 from dataclasses import dataclass
 
-__all__ = ["KnownPublishers", "SOLE_PUBLISHER", "select_publishers"]
+__all__ = ["SECOND_GRAPH_ADVICE", "KnownPublishers", "SOLE_PUBLISHER", "select_publishers"]
+
+#: What a refusal of a second node of one name says to do: two nodes of one name are most often two graphs
+#: started in one domain, whose messages would mix (one graph's monitor counting the other's scans).
+SECOND_GRAPH_ADVICE = ("Two graphs in one domain? Run each in its own domain (DPTPU_DOMAIN_ID=N in its environment, "
+                       "or dptpu launch --domain-id N); or give one of the nodes another name or namespace")
 
 
 @dataclass(frozen=True)
@@ -92,7 +97,7 @@ def select_publishers(candidates: list, policy: KnownPublishers | None,
             refused.append((entry, pub, f"node {name} is not among the publishers it takes ({taken})"))
         elif oldest_of_name[name] is not entry:
             refused.append((entry, pub, f"a second node named {name} (pid {entry.get('pid')}); the one of pid "
-                                        f"{oldest_of_name[name].get('pid')} is older"))
+                                        f"{oldest_of_name[name].get('pid')} is older. {SECOND_GRAPH_ADVICE}"))
         else:
             accepted.append((entry, pub))
     if policy.sole and accepted:
