@@ -28,6 +28,8 @@ import sys
 import tempfile
 from pathlib import Path
 
+from .conventions import stage_bar
+
 
 def register(subparsers) -> None:
     parser = subparsers.add_parser(
@@ -216,7 +218,9 @@ def _run_response(args) -> int:
         raise ValueError(f"{captures[0].root}: the capture names no 'calibration' rig file; give --rig RIG (the rig "
                          f"file to add the projector's response to)")
     rig = load_rig(rig_path)
-    calibration = calibrate_phase_response(captures, steps=steps)
+    with stage_bar("calibrate response", quiet=args.quiet) as step:  # seconds a capture (many pairs of phases)
+        calibration = calibrate_phase_response(captures, steps=steps, progress=step)
+        step("done")
     for n, fit in calibration.fits.items():
         by_frequency = ", ".join(f"{f:g}: {a:.4f}" for f, a in fit.amplitude_by_frequency_rad.items())
         print(f"{n} steps: cos_rad {fit.error.cos_rad:+.5f}, sin_rad {fit.error.sin_rad:+.5f} (amplitude "

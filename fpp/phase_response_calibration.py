@@ -20,7 +20,7 @@ amplitude_by_frequency_rad`) so that a user sees whether one response serves the
 """
 from __future__ import annotations
 
-from collections.abc import Iterable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -90,7 +90,8 @@ class _Pair:
 
 def calibrate_phase_response(captures: Iterable[Capture], *, steps: Sequence[int] | None = None,
                              min_modulation: float | None = None,
-                             multiples: int = DEFAULT_MULTIPLES) -> PhaseResponseCalibration:
+                             multiples: int = DEFAULT_MULTIPLES,
+                             progress: Callable[[str], None] | None = None) -> PhaseResponseCalibration:
     """Fit the projector's harmonic phase error per step count from captures (module docstring).
 
     Parameters
@@ -103,6 +104,9 @@ def calibrate_phase_response(captures: Iterable[Capture], *, steps: Sequence[int
         Smallest modulation ``B`` of a pixel fitted, camera digital numbers; default 2 % of full scale.
     multiples : int
         Terms of each step count's error, at ``N, 2N, ...`` times the phase.
+    progress : callable, optional
+        Called with the name of each step as it starts (a capture's phases, a step count's fit; ``dptpu calibrate
+        response`` shows them on its progress line).
 
     Raises
     ------
@@ -117,10 +121,15 @@ def calibrate_phase_response(captures: Iterable[Capture], *, steps: Sequence[int
     if missing:
         raise ValueError(f"no capture provides {', '.join(map(str, missing))}-step phases beside a reference of "
                          f"{REFERENCE_MIN_STEPS}+ steps (available: {', '.join(map(str, available)) or 'none'})")
+    step = progress if progress is not None else (lambda label: None)
     pairs: list[_Pair] = []
     for capture in captures:
+        step(f"phases of {capture.root}")
         pairs += _pairs_of(capture, min_modulation, wanted)
-    fits = {n: _fit_steps([pair for pair in pairs if pair.steps == n], multiples) for n in wanted}
+    fits: dict[int, StepFit] = {}
+    for n in wanted:
+        step(f"fitting the {n}-step response")
+        fits[n] = _fit_steps([pair for pair in pairs if pair.steps == n], multiples)
     return PhaseResponseCalibration(response=ProjectorPhaseResponse({n: fit.error for n, fit in fits.items()}),
                                     fits=fits)
 

@@ -1,7 +1,7 @@
-"""The stage bars of ``dptpu unwrap``, ``dptpu triangulate`` and ``dptpu model export`` on a real terminal: each stage
-shown as it starts, the summary alone on stdout, nothing with ``--quiet`` (issue 18: each ran for seconds with no
-output). ``dptpu sim render``'s is in test_conventions.py, ``dptpu twin diagnose``'s steps in
-tests/sim/diagnosis."""
+"""The stage bars of ``dptpu unwrap``, ``triangulate`` and ``calibrate response`` on a real terminal: each stage shown
+as it starts, the summary alone on stdout, nothing with ``--quiet`` (issue 18: each ran for seconds with no output).
+``dptpu sim render``'s is in test_conventions.py, ``model export``'s in tests/models/test_cli.py, ``twin
+diagnose``'s steps in tests/sim/diagnosis."""
 from __future__ import annotations
 
 import re
@@ -55,3 +55,21 @@ def test_triangulate_shows_its_stages_on_a_terminal_and_prints_only_its_summary(
         "filtering depth edges and islands of a wrong order", f"writing {out}", "done"], shown
     assert re.fullmatch(rf"mf: \d+ points \(m\); .* -> {re.escape(str(out))}\n", stdout), stdout
     assert out.stat().st_size > 0
+
+
+def test_calibrate_response_shows_each_capture_and_fit_on_a_terminal(tmp_path):
+    folders = []
+    for name, scene in (("plane", "plane"), ("sphere", "sphere")):  # 12-step references beside 3-step sequences
+        folders.append(tmp_path / name)
+        assert main(["sim", "render", "--rig", "nominal", "--scene", scene, "--sequence", "16x12,16x3", "--size",
+                     "64x48", "--quiet", "--out", str(folders[-1])]) == 0
+    out = tmp_path / "rig.yaml"
+    code, stdout, shown = run_on_a_terminal(["calibrate", "response", *folders, "--out", out], tmp_path)
+    assert code == 0, shown
+    assert _stages(shown, "calibrate response") == [
+        f"phases of {folders[0]}", f"phases of {folders[1]}", "fitting the 3-step response",
+        "fitting the 4-step response", "fitting the 6-step response", "done"], shown
+    assert stdout.splitlines()[-1] == (f"projector phase response of 3, 4, 6 steps from 2 capture(s) -> {out} "
+                                       f"(rig {folders[0] / 'calibration.yaml'})")
+    code, _, shown = run_on_a_terminal(["calibrate", "response", *folders, "--out", out, "--quiet"], tmp_path)
+    assert (code, shown) == (0, "")
