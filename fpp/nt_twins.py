@@ -7,7 +7,7 @@ predicts by ``2 pi f_l m / f_h``; with the low order moved by ``n = Round(f_l m 
     s_m = 2 pi (f_l m / f_h - n)                            (radians of the low phase)
 
 only. Where ``|s_m|`` is small the pair ``(k_h + m, k_l + n)`` is a *near-twin* of ``(k_h, k_l)``: for ``64 / 10.9``,
-``m = 47`` gives ``10.9 * 47 / 64 = 8.0047`` low periods, ``s = 0.030`` rad. Both pairs occur on the projector where
+``m = 47`` gives ``10.9 * 47 / 64 = 8.0047`` low periods, ``s = 0.0295`` rad. Both pairs occur on the projector where
 both projector columns ``x`` and ``x + m W / f_h`` do: the first and the last ``1 - m / f_h`` of it (26.6 % each
 for ``m = 47``).
 :func:`near_twins` lists a pair's twins (every ``m`` in ``1 .. ceil(f_h) - 1``; ``-m`` is the same twin seen
@@ -23,18 +23,27 @@ and its margin in the pixel's own noise ``sigma`` (the standard deviation of ``e
 A twin that noise can reach (``|s_m| / 2 < Z sigma``; :func:`reachable_twins`) leaves many pixels with a small
 ``z_pixel``: one pixel cannot tell the twins apart. A *region* decided as a whole can (DP-TPU's band prior,
 :mod:`dptpu.models.nt_prior`, decides the low order of a band at once): over the ``n`` pixels of a connected region of
-one low order ``k_l`` where the twin lies on the projector, the median of ``u`` has the standard error
-``sqrt(pi / 2) sigma_R / sqrt(n)`` (``sigma_R`` the larger of the region's robust spread and the scan's), so
+one low order of the published phase, ``floor((f_l / f_h) Phi_h / 2 pi)``, where the twin lies on the projector, the
+median of ``u`` has the standard error ``sqrt(pi / 2) sigma_R / sqrt(n)`` (``sigma_R`` the larger of the region's
+robust spread and the scan's), so
 
     z_region = (median(u) + |s_m| / 2) / (sqrt(pi / 2) sigma_R / sqrt(n)),
 
 the region's margin against the twin in standard errors (the median and spread per region as
-:func:`dptpu.fpp.region_consistency.rejected_regions` takes them). A region whose pixels sit between the twins (a band
-that joined two surfaces, half of them at each order) has a wide spread and a median near the boundary: its margin
-is small whatever its size. :func:`twin_ambiguous` marks the pixels where, for some reachable twin, neither the pixel
-nor its region reaches ``Z`` (default :data:`DEFAULT_SIGNIFICANCE` = 4 standard errors, the significance of
-:mod:`dptpu.fpp.region_consistency`: a pixel decision wrong with probability 3e-5): their callers set the confidence
-to 0. No length, focal length or noise level is set: the frequencies, the scan's own residuals and the significance.
+:func:`dptpu.fpp.region_consistency.rejected_regions` takes them). A region whose pixels lie at two different wrong
+orders (a band that joined two surfaces, each taken to a twin: the band prior's failure on an outside capture, where
+one published low order held pixels 47 and 41 high orders off) has a median between the two that can clear the
+boundary; such a region is seen locally, where each surface is alone. So a region that clears the boundary by less
+than twice ``Z`` is also judged in a window around each pixel (same low order; the mean of ``u``, clipped, in the
+region's standard errors; a window big enough that a right order's mean lies ``2 Z`` standard errors from the
+boundary): ``z_local``. Where that window would exceed 31 x 31 pixels (:data:`MAX_WINDOW_RADIUS`; 64 / 10.9 at a
+residual noise above 0.057 rad, e.g. 3 steps at the paper's 2 sigma on a dim scene) no window resolves the twin and
+the region decides alone: a mixed region can then keep its confidence (a known limit).
+:func:`twin_ambiguous` marks the pixels where, for some reachable twin, neither the pixel
+(``z_pixel``) nor its region (``z_region``, and ``z_local`` where asked) reaches ``Z`` (default
+:data:`DEFAULT_SIGNIFICANCE` = 4 standard errors, the significance of :mod:`dptpu.fpp.region_consistency`: a pixel
+decision wrong with probability 3e-5): their callers set the confidence to 0. No length, focal length or noise level
+is set: the frequencies, the scan's own residuals and the significance.
 
 ``sigma``: the scan's ``1.4826 median |eps|`` (never below
 :data:`dptpu.fpp.frequency_consistency.MIN_SIGMA_RAD`); with the modulation ``B`` of each pixel, scaled as the
@@ -59,6 +68,8 @@ __all__ = ["DEFAULT_SIGNIFICANCE", "MAX_WINDOW_RADIUS", "NearTwin", "near_twin_w
 
 #: sqrt(pi / 2): the standard error of the median of n normal samples is this times sigma / sqrt(n).
 _MEDIAN_SE = math.sqrt(math.pi / 2.0)
+#: A region whose margin is below this many times the significance is also tested locally (:func:`_local_margin`).
+_LOCAL_BELOW = 2.0
 #: The twins within reach are judged against this percentile of the pixels' noise (the noisiest pixels beyond it
 #: are the per-pixel agreement's, :func:`dptpu.fpp.frequency_consistency.frequency_consistency`).
 _REACH_PERCENTILE = 90.0
@@ -142,9 +153,10 @@ def twin_ambiguous(absolute_high: np.ndarray, wrapped_low: np.ndarray, f_h: floa
     """Pixels ``(H, W)`` bool whose published order neither they nor their region tell from a reachable twin.
 
     For every twin within reach of the scan's noise (:func:`reachable_twins`, both signs of ``m``), at the valid pixels
-    whose twin lies on the projector (``0 <= x + m / f_h < 1``, ``x = Phi_h / (2 pi f_h)``): ambiguous where both
-    ``z_pixel`` and ``z_region`` (module docstring) are below ``significance``. Regions: 8-connected pixels of one
-    low order ``k_l = Round(((f_l / f_h) Phi_h - psi_l) / 2 pi)``; one of fewer than
+    whose twin lies on the projector (``0 <= x + m / f_h < 1``, ``x = Phi_h / (2 pi f_h)``): ambiguous where ``z_pixel``
+    is below ``significance`` and so is ``z_region`` (or, for a region below twice it, ``z_local``; module docstring).
+    Regions: 8-connected pixels of one
+    low order of the published phase, ``floor((f_l / f_h) Phi_h / 2 pi)``; one of fewer than
     :data:`dptpu.fpp.region_consistency.MIN_TEST_PIXELS` pixels (where the twin is on the projector) gives no
     region evidence.
 
@@ -175,8 +187,9 @@ def twin_ambiguous(absolute_high: np.ndarray, wrapped_low: np.ndarray, f_h: floa
     twins = reachable_twins(f_h, f_l, float(np.percentile(sigma[valid], _REACH_PERCENTILE)), significance)
     if not twins:
         return ambiguous
-    low_order = np.rint(((f_l / f_h) * np.where(valid, absolute_high, 0.0) - np.where(valid, wrapped_low, 0.0)
-                         - np.where(valid, eps, 0.0)) / (2.0 * np.pi)).astype(np.int64)
+    # the low order of the published absolute phase, floor(Phi_l / 2 pi) with Phi_l = (f_l / f_h) Phi_h: smooth where
+    # Phi_h is, so its regions end on clean lines (the measured psi_l would flip pixels across its wrap)
+    low_order = np.floor((f_l / f_h) * np.where(valid, absolute_high, 0.0) / (2.0 * np.pi)).astype(np.int64)
     labels, count = _low_order_regions(low_order, valid)
     x = np.where(valid, absolute_high / (2.0 * np.pi * f_h), np.nan)  # projector column over W, (H, W)
     for twin in twins:
@@ -189,26 +202,38 @@ def twin_ambiguous(absolute_high: np.ndarray, wrapped_low: np.ndarray, f_h: floa
             half = 0.5 * abs(s)
             z_pixel = (u + half) / sigma
             n, median, mad = median_and_mad(u[on_projector], labels[on_projector], count)
-            sigma_region = np.maximum(MAD_TO_SIGMA * mad, sigma_scan)
+            sigma_region = np.maximum(MAD_TO_SIGMA * mad, sigma_scan)  # (count,) robust standard deviation of u
             with np.errstate(divide="ignore", invalid="ignore"):
                 z_region = (median + half) / (_MEDIAN_SE * sigma_region / np.sqrt(n))
             z_region = np.where(n >= MIN_TEST_PIXELS, z_region, -np.inf)
             z_region[0] = -np.inf  # off the regions
-            z_local = _local_margin(u, half, on_projector, low_order, sigma_scan, significance)
-            told = (z_pixel >= significance) | ((z_region[labels] >= significance) & (z_local >= significance))
+            told = (z_pixel >= significance) | (z_region[labels] >= significance)
+            # a region that clears the boundary by less than twice the significance: also locally (a mixture)
+            check = on_projector & told & (z_pixel < significance) & (z_region[labels] < _LOCAL_BELOW * significance)
+            radius = _local_radius(half, sigma_scan, significance)
+            if radius is not None and check.any():
+                z_local = _local_margin(u, half, on_projector, low_order, radius, sigma_region[labels], sigma_scan)
+                told &= ~check | (z_local >= significance)
             ambiguous |= on_projector & ~told
     return ambiguous
 
 
-def _local_margin(u: np.ndarray, half: float, on_projector: np.ndarray, low_order: np.ndarray, sigma_scan: float,
-                  significance: float) -> np.ndarray:
-    """``z_local`` ``(H, W)`` float64 (module docstring): the margin ``mean(u) + |s| / 2`` of the window around each
-    pixel over the window's pixels of the same low order (twin on the projector), in standard errors
-    ``sigma / sqrt(n)``; ``u`` clipped to ``+-(|s| + 3 sigma)`` (one wrong order of another kind moves the mean by a
-    bounded step). The window's radius is the one whose mean of a right order lies ``2 Z`` standard errors from the
-    boundary, ``n = (2 Z sigma / (|s| / 2))^2`` pixels, between 2 and :data:`MAX_WINDOW_RADIUS`."""
+def _local_radius(half: float, sigma_scan: float, significance: float) -> int | None:
+    """Half-width of the window of :func:`_local_margin`: the one whose mean of a right order lies ``2 Z`` standard
+    errors (of the scan's ``sigma_scan``) from the boundary ``|s| / 2``, ``n = (2 Z sigma_scan / (|s| / 2))^2``
+    pixels (at least 2); None where that exceeds :data:`MAX_WINDOW_RADIUS` (no window that small resolves the
+    twin: the region decides alone)."""
     needed = (2.0 * significance * sigma_scan / half) ** 2
-    radius = int(min(MAX_WINDOW_RADIUS, max(2, math.ceil((math.sqrt(needed) - 1.0) / 2.0))))
+    radius = max(2, math.ceil((math.sqrt(needed) - 1.0) / 2.0))
+    return radius if radius <= MAX_WINDOW_RADIUS else None
+
+
+def _local_margin(u: np.ndarray, half: float, on_projector: np.ndarray, low_order: np.ndarray, radius: int,
+                  sigma: np.ndarray, sigma_scan: float) -> np.ndarray:
+    """``z_local`` ``(H, W)`` float64 (module docstring): the margin ``mean(u) + |s| / 2`` of the window of half-width
+    ``radius`` around each pixel over its pixels of the same low order (twin on the projector), in standard errors
+    ``sigma / sqrt(n)`` (``sigma`` (H, W): the spread of the pixel's region); ``u`` clipped to
+    ``+-(|s| + 3 sigma_scan)`` (one wrong order of another kind moves the mean by a bounded step)."""
     size = (2 * radius + 1, 2 * radius + 1)
     bound = 2.0 * half + 3.0 * sigma_scan
     clipped = np.clip(np.nan_to_num(u), -bound, bound).astype(np.float32)
@@ -219,7 +244,7 @@ def _local_margin(u: np.ndarray, half: float, on_projector: np.ndarray, low_orde
                               borderType=cv2.BORDER_CONSTANT)
         count = cv2.boxFilter(mask.astype(np.float32), -1, size, normalize=False, borderType=cv2.BORDER_CONSTANT)
         mean = total[mask] / np.maximum(count[mask], 1.0)
-        z_local[mask] = (mean + half) * np.sqrt(count[mask]) / sigma_scan
+        z_local[mask] = (mean + half) * np.sqrt(count[mask]) / sigma[mask]
     return z_local
 
 
