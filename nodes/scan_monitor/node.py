@@ -8,7 +8,10 @@ reported it failed (``FAILED``, with the node and the reason), or when nothing m
 (``LOST``). With ground truth a scan whose cloud arrived is ``ok`` only within the bounds ``max_wrong_share`` (the
 share of its published points with a wrong fringe order or off the true surface) and ``min_completeness`` (the
 share of the truly valid pixels published); otherwise it is ``UNTRUSTED``, with the figure out of bounds
-(:func:`dptpu.nodes.scan_monitor.scan_metrics.trust_verdict`).
+(:func:`dptpu.nodes.scan_monitor.scan_metrics.trust_verdict`). While two live nodes share the name of one of its
+``status_nodes`` (or its own), two graphs run in one domain and their scans mix: every scan whose cloud arrived is
+``UNTRUSTED`` with that reason, and the monitor says once what to do (a domain of its own for each graph:
+``dptpu launch --domain-id N``; docs/launch.md).
 A cloud carries its scan's stamp, not its ``sequence_id``: with ground truth the scan's AbsolutePhase
 (same stamp) names it, without it the cloud node's ``done`` ScanStatus does (its ``header.stamp`` minus its
 ``duration_s`` is the scan's stamp, to the nanosecond; docs/nodes.md), so a monitor without ground truth takes
@@ -100,9 +103,10 @@ import dptpu.graph as rclpy
 from dptpu.fpp.cloud_accuracy import OFF_SURFACE_MM
 from dptpu.fpp.point_cloud_file import write_point_cloud
 from dptpu.graph.interfaces import Trigger as TriggerService
-from dptpu.graph.known_publishers import SOLE_PUBLISHER, KnownPublishers
+from dptpu.graph.known_publishers import SECOND_GRAPH_ADVICE, SOLE_PUBLISHER, KnownPublishers
 from dptpu.graph.node import Node
 from dptpu.graph.parameter_rules import ParameterRules, at_least, greater_than, within
+from dptpu.graph.processes import process_alive
 from dptpu.graph.qos import QoSProfile
 from dptpu.graph.subscription import Subscription
 from dptpu.graph.task import Future
@@ -211,6 +215,9 @@ class ScanMonitorNode(Node):
         self._triggers_heard = False
         self._heard_checked_s = -math.inf
         self._progress_s = time.monotonic()
+        self.other_graph = ""  # "2 nodes named /cloud (pids 10, 20)" while two graphs share this domain, else ""
+        self._other_graph_seen = ""  # what the last check found: it counts once two checks in a row agree
+        self._other_graph_checked_s = -math.inf
         self.timer = self.create_timer(0.1, self.on_timer)
 
     # -- callbacks ------------------------------------------------------------------------------------------
@@ -284,6 +291,7 @@ class ScanMonitorNode(Node):
     def on_timer(self) -> None:
         """Report the scans that waited too long; take Triggers once the pipeline's outputs are there."""
         self._check_starter()
+        self._check_other_graph()
         if not self._outputs_ready and self.cloud_sub.get_publisher_count() \
                 and self.status_sub.get_publisher_count() \
                 and all(sub is None or sub.get_publisher_count() for sub in (self.phase_sub, self.truth_sub)):
@@ -361,6 +369,37 @@ class ScanMonitorNode(Node):
             self.scans_started = self.reported
         if starter:
             self._starter = starter
+
+    def _check_other_graph(self) -> None:
+        """Once a second: do two live processes hold a node of the name of one of ``status_nodes`` (or this
+        monitor's)? Then a second graph runs in this domain, and the statuses taken may be the other's (the
+        older node of a name is the one taken): :attr:`other_graph` says so, and scans are UNTRUSTED meanwhile.
+
+        A respawned node is no second graph: the process of this host that it replaced is left out once it has
+        exited (not yet reaped is exited too), and a finding counts only when two checks a second apart agree (a
+        killed node's announcement may outlive it by one liveness sweep of discovery)."""
+        now_s = time.monotonic()
+        if now_s < self._other_graph_checked_s + _HEARD_RECHECK_S:
+            return
+        self._other_graph_checked_s = now_s
+        policy = self.status_sub.known_publishers  # its node names resolved in this monitor's namespace
+        watched = {*(policy.nodes if policy is not None else ()), self.get_fully_qualified_name()}
+        processes: dict[str, set] = {}
+        host = self._runtime.host
+        for node in self._graph().nodes:  # the runtime's entries: no file is read
+            if node.fully_qualified_name in watched and (node.host != host or process_alive(node.pid)):
+                processes.setdefault(node.fully_qualified_name, set()).add((node.host, node.pid))
+        found = "; ".join(f"{len(held)} nodes named {name} (pids {', '.join(str(pid) for _, pid in sorted(held))})"
+                          for name, held in sorted(processes.items()) if len(held) > 1)
+        seen_before, self._other_graph_seen = self._other_graph_seen, found
+        if found != seen_before:
+            return  # not twice in a row yet
+        if found and found != self.other_graph:
+            self.get_logger().error(f"two graphs in one domain: {found}; their scans mix, so every scan is UNTRUSTED "
+                                    f"while they do. {SECOND_GRAPH_ADVICE}")
+        elif self.other_graph and not found:
+            self.get_logger().info("one graph in this domain again: scans are graded as before")
+        self.other_graph = found
 
     def _on_started(self, future: Future) -> None:
         if future is not self._start_call:
@@ -444,6 +483,8 @@ class ScanMonitorNode(Node):
                                        max_wrong_share=self.max_wrong_share, min_completeness=self.min_completeness)
                 if reason:
                     record.update(outcome="untrusted", reason=reason)
+            if self.other_graph:  # the scan may be the other graph's, whatever its figures
+                record.update(outcome="untrusted", reason=f"two graphs in one domain: {self.other_graph}")
             record["node_durations_s"] = dict(scan.durations_s)  # each node's own ScanStatus.duration_s
         elif scan.failure:
             record.update(outcome="failed", reason=scan.failure)
