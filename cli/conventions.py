@@ -15,11 +15,13 @@ from __future__ import annotations
 import argparse
 import contextlib
 import sys
+import threading
+import time
 from collections.abc import Callable, Iterator
 from typing import Any, NoReturn, TypeVar
 
-__all__ = ["CLOUD_UNITS", "add_cloud_units_option", "add_quiet_option", "add_renamed_option", "parse_list",
-           "parse_size", "stage_bar"]
+__all__ = ["CLOUD_UNITS", "LOG_BAR_DELAY_S", "add_cloud_units_option", "add_quiet_option", "add_renamed_option",
+           "parse_list", "parse_size", "stage_bar"]
 
 T = TypeVar("T")
 
@@ -99,12 +101,18 @@ def add_quiet_option(parser: argparse.ArgumentParser, what: str = "no progress b
     parser.add_argument("--quiet", action="store_true", help=what)
 
 
+#: Seconds before a stage bar appears where stderr is not a terminal (a pipe, a log file, a test's capture).
+LOG_BAR_DELAY_S = 2.0
+
+
 @contextlib.contextmanager
 def stage_bar(command: str, *, quiet: bool) -> Iterator[Callable[[str], None]]:
     """A one-line tqdm bar on stderr for a command made of a few stages: ``step(label)`` starts the next stage.
 
-    Shown only where stderr is a terminal (tqdm's ``disable=None``): a pipe or a log file gets the command's summary
-    and its one-line errors, nothing else.
+    On a terminal every stage is shown as it starts. Elsewhere (a pipe, a log file), as the other tqdm bars of dptpu,
+    the bar is shown too, but only once the command has run for :data:`LOG_BAR_DELAY_S` (a timer draws it then, in
+    the middle of a stage too): a command that ends sooner, or stops at once on bad input, writes only its summary
+    or its one-line error.
 
     Parameters
     ----------
@@ -121,11 +129,26 @@ def stage_bar(command: str, *, quiet: bool) -> Iterator[Callable[[str], None]]:
     """
     from tqdm import tqdm  # only while such a command runs: keeps `dptpu --help` fast
 
-    with tqdm(unit="step", file=sys.stderr, disable=True if quiet else None,
+    terminal = bool(getattr(sys.stderr, "isatty", lambda: False)())
+    delay_s = 0.0 if terminal else LOG_BAR_DELAY_S
+    with tqdm(unit="step", file=sys.stderr, disable=quiet, delay=delay_s,
               bar_format=command + ": step {n_fmt} [{elapsed}] {desc}") as bar:
+        shown_from = time.time() + delay_s  # (tqdm.start_t: not set on a disabled bar)
+        timer = None
+        if not quiet and delay_s > 0:  # tqdm draws a delayed bar only on an update: one when the delay is over
+            timer = threading.Timer(delay_s, bar.update, args=(0,))
+            timer.daemon = True
+            timer.start()
+
         def step(label: str) -> None:
             bar.set_description_str(label, refresh=False)
             bar.update(1)
-            bar.refresh()  # every stage shown as it starts, however soon after the last (tqdm would skip it)
+            # every stage shown as it starts, however soon after the last (update skips a draw within 0.1 s)
+            if not quiet and bar.last_print_n != bar.n and time.time() >= shown_from:
+                bar.refresh()
 
-        yield step
+        try:
+            yield step
+        finally:
+            if timer is not None:
+                timer.cancel()

@@ -5,9 +5,11 @@ diagnose``'s steps in tests/sim/diagnosis."""
 from __future__ import annotations
 
 import re
+import time
 
 import pytest
 
+from dptpu.cli.conventions import LOG_BAR_DELAY_S, stage_bar
 from dptpu.cli.main import main
 
 from .terminal import run_on_a_terminal
@@ -73,3 +75,23 @@ def test_calibrate_response_shows_each_capture_and_fit_on_a_terminal(tmp_path):
                                        f"(rig {folders[0] / 'calibration.yaml'})")
     code, _, shown = run_on_a_terminal(["calibrate", "response", *folders, "--out", out, "--quiet"], tmp_path)
     assert (code, shown) == (0, "")
+
+
+def test_a_stage_bar_outside_a_terminal_shows_after_the_delay_only(capsys):
+    """Where stderr is not a terminal (a log, a pipe, this capture) the bar is written as the other tqdm bars are, but
+    only once the command has run for LOG_BAR_DELAY_S: a fast command or a fast failure writes nothing more."""
+    with stage_bar("fast", quiet=False) as step:
+        step("reading")
+        step("writing")
+    assert capsys.readouterr().err == ""
+    with stage_bar("slow", quiet=False) as step:
+        step("reading")
+        time.sleep(LOG_BAR_DELAY_S + 0.5)  # a long stage: the timer draws the bar in its middle
+        step("writing")
+    err = capsys.readouterr().err
+    assert re.search(r"slow: step 1 \[00:0\d\] reading", err) and re.search(r"slow: step 2 \[00:0\d\] writing", err)
+    assert err.endswith("\n"), err  # closed: the next line starts on its own
+    with stage_bar("quiet", quiet=True) as step:
+        step("reading")
+        time.sleep(LOG_BAR_DELAY_S + 0.5)
+    assert capsys.readouterr().err == ""
