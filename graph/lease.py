@@ -55,7 +55,7 @@ TAKEOVER_S = 0.025
 WATCH_AFTER_TRAFFIC_S = 1.0
 #: Messages received from one socket in one go before the other sockets get their turn.
 DRAIN_BATCH = 1000
-# pyzmq's flags as plain ints: ``int & zmq.POLLIN`` goes through the enum module's ``__rand__`` (~2 us a message)
+# pyzmq's flags as plain ints: ``int & zmq.POLLIN`` goes through the enum module's ``__rand__`` (benchmarks, Run 14)
 _EVENTS = int(zmq.EVENTS)
 _POLLIN = int(zmq.POLLIN)
 _NOBLOCK = int(zmq.NOBLOCK)

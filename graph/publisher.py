@@ -48,7 +48,7 @@ __all__ = ["Publisher", "PUBLISHER_LINGER_MS"]
 PUBLISHER_LINGER_MS = 200
 
 
-# pyzmq's flags as plain ints: ``int & zmq.POLLIN`` goes through the enum module's ``__rand__`` (~2 us a call)
+# pyzmq's flags as plain ints: ``int & zmq.POLLIN`` goes through the enum module's ``__rand__`` (benchmarks, Run 14)
 _MORE = int(zmq.SNDMORE | zmq.NOBLOCK)
 _NOBLOCK = int(zmq.NOBLOCK)
 _EVENTS = int(zmq.EVENTS)

@@ -229,7 +229,7 @@ class SegmentPool:
         lease_s = self._config.lease_s
         segments = self._segments
         largest = 2 * need + _PAGE
-        for index, segment in enumerate(segments):  # Segment.free, its cheap tests inline (~18 segments a write)
+        for index, segment in enumerate(segments):  # Segment.free with its cheap tests inline: many are busy
             if segment.loaned or not need <= segment.size <= largest:
                 continue
             if now - segment.written_at < lease_s:

@@ -430,52 +430,53 @@ class SequenceAssembler:
                         shape=image.shape, dtype=image.dtype), None
 
     def _check(self, scan: _Pending, frame: FrameInfo, image: np.ndarray) -> str | None:
-        """Why ``frame`` does not fit ``scan`` (None when it fits)."""
-        what = frame.describe()
+        """Why ``frame`` does not fit ``scan`` (None when it fits). The frame's description is built only for a
+        refusal, not for every frame that fits."""
+        what = frame.describe  # called only in a refusal
         if image.shape != scan.shape or image.dtype != scan.dtype:
-            return (f"frame {what} is {image.shape[1]}x{image.shape[0]} {image.dtype}; the scan's first frame was "
+            return (f"frame {what()} is {image.shape[1]}x{image.shape[0]} {image.dtype}; the scan's first frame was "
                     f"{scan.shape[1]}x{scan.shape[0]} {scan.dtype}")
         if frame.pattern_count and frame.pattern_count != scan.pattern_count:
-            return f"frame {what} says pattern_count {frame.pattern_count}; the scan has {scan.pattern_count}"
+            return f"frame {what()} says pattern_count {frame.pattern_count}; the scan has {scan.pattern_count}"
         if not 0 <= frame.pattern_index < scan.pattern_count:
-            return f"frame {what} has pattern_index outside [0, {scan.pattern_count})"
+            return f"frame {what()} has pattern_index outside [0, {scan.pattern_count})"
         if frame.pattern_index in scan.frames:
             return f"duplicate frame for pattern_index {frame.pattern_index}"
         if scan.layout is not None:
             reference = scan.layout.reference_at(int(frame.pattern_index))
             if reference is not None or frame.kind in REFERENCE_KINDS:
                 if frame.kind != (reference or "phase"):
-                    return (f"frame {what} is a {frame.kind} frame; the PatternSequence has "
+                    return (f"frame {what()} is a {frame.kind} frame; the PatternSequence has "
                             f"{reference or 'a fringe pattern'} at pattern {frame.pattern_index}")
                 return None
             entry, step = scan.layout.locate(int(frame.pattern_index))
             expected_f = scan.layout.frequencies[entry]
             if frame.frequency and not same_frequency(frame.frequency, expected_f):
                 known = ", ".join(f"{f:g}" for f in scan.layout.frequencies)
-                return (f"frame {what}: unknown frequency {frame.frequency:g} for pattern {frame.pattern_index}; "
+                return (f"frame {what()}: unknown frequency {frame.frequency:g} for pattern {frame.pattern_index}; "
                         f"the PatternSequence has {expected_f:g} there (frequencies {known})")
             if (frame.steps and frame.steps != scan.layout.steps[entry]) or frame.step != step:
-                return (f"frame {what} is out of order: pattern {frame.pattern_index} is step {step} of "
+                return (f"frame {what()} is out of order: pattern {frame.pattern_index} is step {step} of "
                         f"{scan.layout.steps[entry]} at f={expected_f:g} in the PatternSequence")
             return None
         if frame.kind in REFERENCE_KINDS:
             if any(other.kind == frame.kind for other in scan.frames.values()):
-                return f"frame {what} repeats the scan's {frame.kind} frame"
+                return f"frame {what()} repeats the scan's {frame.kind} frame"
             return None
         if not (math.isfinite(frame.frequency) and frame.frequency > 0) or frame.steps < 3:
-            return (f"frame {what} lacks its entry's frequency or steps (>= 3) and no PatternSequence is known; "
+            return (f"frame {what()} lacks its entry's frequency or steps (>= 3) and no PatternSequence is known; "
                     "cannot place it")
         if frame.step >= frame.steps:
-            return f"frame {what} has step >= steps"
+            return f"frame {what()} has step >= steps"
         for other in scan.frames.values():
             if other.kind == "phase" and same_frequency(other.frequency, frame.frequency):
                 if other.steps != frame.steps:
-                    return (f"frame {what} says steps {frame.steps} at f={frame.frequency:g}; an earlier frame said "
+                    return (f"frame {what()} says steps {frame.steps} at f={frame.frequency:g}; an earlier frame said "
                             f"{other.steps}")
                 if other.step == frame.step:
-                    return f"frame {what} repeats step {frame.step} at f={frame.frequency:g}"
+                    return f"frame {what()} repeats step {frame.step} at f={frame.frequency:g}"
                 if other.pattern_index - other.step != frame.pattern_index - frame.step:
-                    return (f"frame {what} is out of order: step {frame.step} at pattern {frame.pattern_index}, but "
+                    return (f"frame {what()} is out of order: step {frame.step} at pattern {frame.pattern_index}, but "
                             f"step {other.step} of f={frame.frequency:g} was pattern {other.pattern_index}")
         return None
 
