@@ -84,14 +84,18 @@ def run_render(args) -> int:
         effects = load_effects(args.effects) if args.effects else None
         frames = sum(1 if spec.kind != "phase" else spec.steps for spec in sequences)
         step(f"rendering {frames} frames ({args.engine}) and writing {args.out}")
+        failure: RuntimeError | None = None
         try:
             out = render_capture(rig, scene, sequences, args.out, engine=args.engine, effects=effects,
                                  seed=args.seed, bit_depth=args.bit_depth, supersample=args.supersample)
         except RuntimeError as exc:  # the Blender worker: not installed (dptpu sim setup-blender), failed, timed out
             if args.engine != "blender":
                 raise
-            print(f"dptpu sim render: error: {exc}", file=sys.stderr)
-            return 2
-        step("done")
+            failure = exc
+        else:
+            step("done")
+    if failure is not None:  # after the bar's line is closed, on a line of its own
+        print(f"dptpu sim render: error: {failure}", file=sys.stderr)
+        return 2
     print(f"wrote {out}")
     return 0

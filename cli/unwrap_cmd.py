@@ -110,7 +110,9 @@ def unwrap_from_args(args: argparse.Namespace, step: Callable[[str], None] = lam
         twin = scan_twin_warning(result.absolute_phase, result.wrapped_phases[1], result.frequencies[0],
                                  result.frequencies[1], result.valid)
         if twin is not None:
-            print(f"warning: {twin}", file=sys.stderr)
+            from tqdm import tqdm  # only when warned: keeps `dptpu --help` fast
+
+            tqdm.write(f"warning: {twin}", file=sys.stderr)  # on a line of its own above the stage bar
     check_capture_phase_direction(capture, result.absolute_phase, result.valid)  # a wrong phase_shift_sign
     valid, dropped = confident(result.reliability, result.valid, min_confidence)
     if dropped:
