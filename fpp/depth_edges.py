@@ -30,12 +30,15 @@ Four more signs of a pixel that straddles an edge, all used by :func:`edge_point
 
 - a neighbour more than ``max_step`` footprints nearer or farther (:func:`beside_steps`): the last pixel on each
   side of a depth step (a step, not a slope: 10 footprints between neighbours is a surface 84 degrees from facing
-  the camera) still integrates a sliver of the other side, whose phase is far from its own. Both sides, and even
-  where the point's own surface continues to it: on the main job's random-1 the network without its neighbour
-  consensus puts a band of 2-3 pixels beside a step one order off, which continues itself (keeping the near side
-  took random-1 from 0.054 to 0.093 % wrong, keeping what continued to 0.186 %), though on ``dptpu eval cloud``'s
-  twin (consensus on) the near side held 95 wrong points for 1,589 right ones. The flying points are taken out
-  first: a lone wrong point is flying, and its right neighbours are not beside a step;
+  the camera) may integrate a sliver of the other side, whose phase is far from its own. The flying points are
+  taken out first: a lone wrong point is flying, and its right neighbours are not beside a step. Such a point is
+  kept where its modulation does not dip (below) and a pure side continues to it within ``max_edge_error / 2``
+  (:func:`continues_a_side`): a sliver of the other side adds a phasor of another phase, which lowers the
+  modulation, and moves the phase, which takes the point off its side's line; a pixel that shows neither lies on
+  its side's surface within the tolerance (a band one order off beside a step, which continued itself on the main
+  job's random-1 when the side's continuation alone kept a point, 0.054 -> 0.186 % wrong on an older tree, is
+  caught by the islands and the confidence now: the main job's configuration offline, MW 64/63, the network
+  without its consensus, random-1 0.036 -> 0.041 % wrong at 91.78 -> 92.59 % complete);
 - its fringe modulation ``B`` dips below ``min_modulation_ratio`` times the largest of its 8 neighbours' AND it lies
   at a depth edge (within one pixel of a pixel with a neighbour more than ``max_slope`` footprints away) or beside an
   unlit pixel: the phasors of two surfaces (or of a lit surface and a projector shadow) add to less than either. A
@@ -69,7 +72,7 @@ Parameters and why (``docs/nodes.md``, "Flying points", has the measurements beh
   ``max_slope`` = 4 footprints where ``sigma_z`` is 0.4 footprints (0.7 mm at the outside tester's 1.77 mm
   footprint; its 12-step 1 sigma scan has ~0.3 mm); noisier planes stay dropped.
 - ``max_step`` (default :data:`DEFAULT_MAX_STEP` = 10): on the twin's outside-rig scenes the last pixel beside a
-  step held half of what stayed off the surface; dropping it costs one pixel per side of each depth edge.
+  step held half of what stayed off the surface; those its side continues to without a dip are kept (above).
 - ``min_modulation_ratio`` (default :data:`DEFAULT_MIN_MODULATION_RATIO` = 0.6): a pixel at 60 % of its brightest
   neighbour's modulation; noise and smooth shading change ``B`` by a few percent between neighbours, texture by more
   (0.7 halves what stays off the surface again but costs about 0.7 % of completeness on textured scenes; at 0.8 the
@@ -431,9 +434,12 @@ def edge_points(depth: np.ndarray, focal_px: float, modulation: np.ndarray | Non
     # a pure side (no flying point, no dip, not beside a step: a line of mixed pixels along an edge continues
     # itself) that continues to a dipped point vouches for it. Not for a point beside a step (module docstring), nor
     # for a partly shadowed point (the shadow test judges it); asked at the dips it could keep only
+    # the same side vouches for a point beside a step whose modulation does not dip (its footprint holds no sliver
+    # of the other side that moves its phase; module docstring)
     if max_edge_error is not None:
         pure = has_point & ~flying & ~dipped & ~step
         dip &= ~continues_a_side(z, pure, 0.5 * max_edge_error, where=dip & ~beside_unlit)
+        step &= ~continues_a_side(z, pure, 0.5 * max_edge_error, where=step & ~dipped)
     isolated = np.zeros(z.shape, dtype=bool)
     if min_neighbours > 0:
         kept = has_point & ~flying & ~step & ~dip & ~shadow

@@ -75,11 +75,37 @@ def test_the_last_pixel_on_each_side_of_a_step_is_beside_it():
     assert np.argwhere(beside_steps(depth, 500.0, max_step=10.0, side="far").any(axis=0)).ravel().tolist() == [5]
     assert np.argwhere(beside_steps(depth, 500.0, max_step=10.0, side="near").any(axis=0)).ravel().tolist() == [4]
     assert not beside_steps(depth, 500.0, max_step=150.0).any()
-    # both are dropped, even where their own surface continues to them (a band beside a step may be one order off
-    # as a whole: fpp.depth_edges)
-    edges = edge_points(depth, 500.0, max_edge_error=1.0)
+    # without a tolerance to judge them by, both are dropped
+    edges = edge_points(depth, 500.0)
     assert np.argwhere(edges.beside_step.any(axis=0)).ravel().tolist() == [4, 5]
     assert not edge_points(depth, 500.0, max_step=np.inf).dropped.any()
+
+
+def test_a_clean_pixel_beside_a_step_is_kept_a_mixed_one_is_not():
+    # two planes 100 footprints apart (1 mm footprint: f = 500 px at 500 mm), uniform modulation 100
+    focal_px, modulation = 500.0, np.full((5, 12), 100.0)
+    depth = np.full((5, 12), 500.0)
+    depth[:, 6:] = 600.0
+    edges = edge_points(depth, focal_px, modulation, max_edge_error=1.0)
+    assert not edges.dropped.any()  # the last pixel of each side: on its side's line, no dip: kept
+    # a sliver w of the far side in the near side's last pixel adds a phasor of another phase: its modulation is
+    # |(1 - w) + w exp(i delta)| and its depth leaves the line. w = 0.2 at delta = pi: B = 60 % (no dip below 0.6
+    # of 100), depth moved by 3 mm (3 footprints: not flying) -> off its side's line by more than 0.5 mm: dropped
+    mixed = depth.copy()
+    mixed[:, 5] = 503.0
+    b = modulation.copy()
+    b[:, 5] = 100.0 * abs(0.8 + 0.2 * np.exp(1j * np.pi))
+    edges = edge_points(mixed, focal_px, b, max_edge_error=1.0)
+    assert np.argwhere(edges.beside_step.any(axis=0)).ravel().tolist() == [5]
+    assert np.argwhere(edges.dropped.any(axis=0)).ravel().tolist() == [5]
+    # on its side's line but with its modulation dipped (w = 0.3 at delta = pi: 40 %): dropped beside the step, the
+    # far side's clean pixel kept
+    b[:, 5] = 100.0 * abs(0.7 + 0.3 * np.exp(1j * np.pi))
+    edges = edge_points(depth, focal_px, b, max_edge_error=1.0)
+    assert np.argwhere(edges.beside_step.any(axis=0)).ravel().tolist() == [5]
+    # within half the tolerance of its side (0.4 mm off): kept
+    mixed[:, 5] = 500.4
+    assert not edge_points(mixed, focal_px, modulation, max_edge_error=1.0).dropped.any()
     with pytest.raises(ValueError, match="side"):
         beside_steps(depth, 500.0, max_step=10.0, side="left")
 
