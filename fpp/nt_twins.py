@@ -25,25 +25,25 @@ A twin that noise can reach (``|s_m| / 2 < Z sigma``; :func:`reachable_twins`) l
 :mod:`dptpu.models.nt_prior`, decides the low order of a band at once): over the ``n`` pixels of a connected region of
 one low order of the published phase, ``floor((f_l / f_h) Phi_h / 2 pi)``, where the twin lies on the projector, the
 median of ``u`` has the standard error ``sqrt(pi / 2) sigma_R / sqrt(n)`` (``sigma_R`` the larger of the region's
-robust spread and the scan's), so
+robust spread, its interquartile range over 1.349, and the scan's), so
 
     z_region = (median(u) + |s_m| / 2) / (sqrt(pi / 2) sigma_R / sqrt(n)),
 
-the region's margin against the twin in standard errors (the median and spread per region as
-:func:`dptpu.fpp.region_consistency.rejected_regions` takes them). A region whose pixels lie at two different wrong
-orders (a band that joined two surfaces, each taken to a twin: the band prior's failure on an outside capture, where
-one published low order held pixels 47 and 41 high orders off) has a median between the two that can clear the
-boundary; such a region is seen locally, where each surface is alone. So a region that clears the boundary by less
-than twice ``Z`` is also judged in a window around each pixel (same low order; the mean of ``u``, clipped, in the
-region's standard errors; a window big enough that a right order's mean lies ``2 Z`` standard errors from the
+the region's margin against the twin in standard errors (the region test of
+:func:`dptpu.fpp.region_consistency.rejected_regions`, against a twin instead of one order off). A region whose pixels
+lie at two different wrong orders (a band that joined two surfaces, each taken to a twin: the band prior's failure on an
+outside capture, where one published low order held pixels 47 and 41 high orders off) has a median between the two that
+can clear the boundary; such a region is seen locally, where each surface is alone. So a region that clears the boundary
+by less than twice ``Z`` is also judged in a window around each pixel (same low order; the mean of ``u``, clipped, in
+the region's standard errors; a window big enough that a right order's mean lies ``2 Z`` standard errors from the
 boundary): ``z_local``. Where that window would exceed 31 x 31 pixels (:data:`MAX_WINDOW_RADIUS`; 64 / 10.9 at a
-residual noise above 0.057 rad, e.g. 3 steps at the paper's 2 sigma on a dim scene) no window resolves the twin and
-the region decides alone: a mixed region can then keep its confidence (a known limit).
-:func:`twin_ambiguous` marks the pixels where, for some reachable twin, neither the pixel
-(``z_pixel``) nor its region (``z_region``, and ``z_local`` where asked) reaches ``Z`` (default
-:data:`DEFAULT_SIGNIFICANCE` = 4 standard errors, the significance of :mod:`dptpu.fpp.region_consistency`: a pixel
-decision wrong with probability 3e-5): their callers set the confidence to 0. No length, focal length or noise level
-is set: the frequencies, the scan's own residuals and the significance.
+residual noise above 0.057 rad, e.g. 3 steps at the paper's 2 sigma on a dim scene) no window resolves the twin and the
+region decides alone: a mixed region can then keep its confidence (a known limit). :func:`twin_ambiguous` marks the
+pixels where, for some reachable twin, neither the pixel (``z_pixel``) nor its region (``z_region``, and ``z_local``
+where asked) reaches ``Z`` (default :data:`DEFAULT_SIGNIFICANCE` = 4 standard errors, the significance of
+:mod:`dptpu.fpp.region_consistency`: a pixel decision wrong with probability 3e-5): their callers give them no
+confidence. No length, focal length or noise level is set: the frequencies, the scan's own residuals and the
+significance.
 
 ``sigma``: the scan's ``1.4826 median |eps|`` (never below
 :data:`dptpu.fpp.frequency_consistency.MIN_SIGMA_RAD`); with the modulation ``B`` of each pixel, scaled as the
@@ -61,13 +61,15 @@ import cv2
 import numpy as np
 
 from .frequency_consistency import MAD_TO_SIGMA, MIN_SIGMA_RAD, consistency_residual
-from .region_consistency import DEFAULT_SIGNIFICANCE, MIN_TEST_PIXELS, median_and_mad
+from .region_consistency import DEFAULT_SIGNIFICANCE, MIN_TEST_PIXELS
 
 __all__ = ["DEFAULT_SIGNIFICANCE", "MAX_WINDOW_RADIUS", "NearTwin", "near_twin_warning", "near_twins",
            "reachable_twins", "residual_noise", "scan_twin_warning", "twin_ambiguous"]
 
 #: sqrt(pi / 2): the standard error of the median of n normal samples is this times sigma / sqrt(n).
 _MEDIAN_SE = math.sqrt(math.pi / 2.0)
+#: The interquartile range of a normal distribution over its standard deviation.
+_IQR_TO_SIGMA = 1.349
 #: A region whose margin is below this many times the significance is also tested locally (:func:`_local_margin`).
 _LOCAL_BELOW = 2.0
 #: The twins within reach are judged against this percentile of the pixels' noise (the noisiest pixels beyond it
@@ -192,6 +194,9 @@ def twin_ambiguous(absolute_high: np.ndarray, wrapped_low: np.ndarray, f_h: floa
     low_order = np.floor((f_l / f_h) * np.where(valid, absolute_high, 0.0) / (2.0 * np.pi)).astype(np.int64)
     labels, count = _low_order_regions(low_order, valid)
     x = np.where(valid, absolute_high / (2.0 * np.pi * f_h), np.nan)  # projector column over W, (H, W)
+    order = np.flatnonzero(valid)
+    order = order[np.lexsort((eps.ravel()[order], labels.ravel()[order]))]  # sorted once by (region, eps)
+    sorted_eps, sorted_labels = eps.ravel()[order], labels.ravel()[order]
     for twin in twins:
         for m, s in ((twin.high_offset, twin.separation_rad), (-twin.high_offset, -twin.separation_rad)):
             with np.errstate(invalid="ignore"):
@@ -201,8 +206,10 @@ def twin_ambiguous(absolute_high: np.ndarray, wrapped_low: np.ndarray, f_h: floa
             u = math.copysign(1.0, s) * eps  # toward the twin: negative
             half = 0.5 * abs(s)
             z_pixel = (u + half) / sigma
-            n, median, mad = median_and_mad(u[on_projector], labels[on_projector], count)
-            sigma_region = np.maximum(MAD_TO_SIGMA * mad, sigma_scan)  # (count,) robust standard deviation of u
+            chosen = on_projector.ravel()[order]  # still sorted by (region, eps)
+            n, median, spread = _sorted_median_and_spread(sorted_eps[chosen], sorted_labels[chosen], count)
+            median = math.copysign(1.0, s) * median  # of u
+            sigma_region = np.maximum(spread, sigma_scan)  # (count,) robust standard deviation of u
             with np.errstate(divide="ignore", invalid="ignore"):
                 z_region = (median + half) / (_MEDIAN_SE * sigma_region / np.sqrt(n))
             z_region = np.where(n >= MIN_TEST_PIXELS, z_region, -np.inf)
@@ -246,6 +253,26 @@ def _local_margin(u: np.ndarray, half: float, on_projector: np.ndarray, low_orde
         mean = total[mask] / np.maximum(count[mask], 1.0)
         z_local[mask] = (mean + half) * np.sqrt(count[mask]) / sigma[mask]
     return z_local
+
+
+def _sorted_median_and_spread(values: np.ndarray, labels: np.ndarray,
+                              count: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Per label ``0..count-1`` of ``values`` sorted by (label, value): ``(n, median, robust standard deviation)``,
+    each ``(count,)`` (0 for an empty label); the spread is the interquartile range over 1.349 (a normal's)."""
+    n = np.bincount(labels, minlength=count)
+    if values.size == 0:
+        return n, np.zeros(count), np.zeros(count)
+    start = np.concatenate(([0], np.cumsum(n)[:-1]))
+    present = n > 0
+
+    def quantile(q: float) -> np.ndarray:
+        position = start + q * np.maximum(n - 1, 0)
+        low = np.where(present, np.floor(position), 0).astype(np.int64)
+        high = np.where(present, np.ceil(position), 0).astype(np.int64)
+        weight = position - np.floor(position)
+        return np.where(present, values[low] * (1.0 - weight) + values[high] * weight, 0.0)
+
+    return n, quantile(0.5), (quantile(0.75) - quantile(0.25)) / _IQR_TO_SIGMA
 
 
 def _pixel_noise(sigma_scan: float, modulation: np.ndarray | None, valid: np.ndarray) -> np.ndarray:
