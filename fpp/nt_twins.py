@@ -169,7 +169,7 @@ def twin_ambiguous(absolute_high: np.ndarray, wrapped_low: np.ndarray, f_h: floa
     wrapped_low : ndarray (H, W)
         The wrapped phase of ``f_l``, radians.
     f_h, f_l : float
-        The NT pair, ``f_h > f_l > 0``.
+        The NT pair (none ambiguous unless ``f_h > f_l``: the order is the higher frequency's).
     valid : ndarray (H, W) bool
     modulation : ndarray (H, W), optional
         ``B`` of each pixel: scales the pixel's noise (module docstring); default the scan's noise everywhere.
@@ -182,7 +182,7 @@ def twin_ambiguous(absolute_high: np.ndarray, wrapped_low: np.ndarray, f_h: floa
     eps = consistency_residual(absolute_high, wrapped_low, f_h, f_l)  # (H, W) radians
     valid = np.asarray(valid, dtype=bool) & np.isfinite(eps)
     ambiguous = np.zeros(eps.shape, bool)
-    if not valid.any():
+    if not valid.any() or not f_h > f_l:  # twins are listed for the higher frequency's order
         return ambiguous
     sigma_scan = residual_noise(eps, valid)
     sigma = _pixel_noise(sigma_scan, modulation, valid)
@@ -323,7 +323,7 @@ def scan_twin_warning(absolute_high: np.ndarray, wrapped_low: np.ndarray, f_h: f
     """:func:`near_twin_warning` with the noise of a scan: the robust standard deviation of its published order's
     low-phase residual (:func:`residual_noise`); None where no pixel is valid or no twin is within reach."""
     valid = np.asarray(valid, dtype=bool)
-    if not valid.any():
+    if not valid.any() or not f_h > f_l:
         return None
     eps = consistency_residual(np.where(valid, absolute_high, 0.0), np.where(valid, wrapped_low, 0.0), f_h, f_l)
     return near_twin_warning(f_h, f_l, residual_noise(eps, valid))

@@ -94,6 +94,7 @@ def test_a_region_decided_as_the_twin_is_ambiguous_as_a_whole():
     absolute = psi_h + 2 * np.pi * published
     ambiguous = twin_ambiguous(absolute, psi_l, F_H, F_L, np.ones(x.shape, bool))
     assert ambiguous[patch].all()
+    assert not twin_ambiguous(absolute, psi_l, F_L, F_H, np.ones(x.shape, bool)).any()  # not an NT pair f_h > f_l
     band = ((x > 47 / 64) | (x < 17 / 64)) & ~patch
     assert ambiguous[band].mean() < 0.01 and not ambiguous[(x > 17 / 64 + 0.01) & (x < 47 / 64 - 0.01)].any()
 
