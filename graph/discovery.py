@@ -195,12 +195,29 @@ def read_announcement(path: Path) -> dict | None:
     return entry
 
 
+def _without_counters(entry) -> dict:
+    """An announcement less what changes while nothing but traffic does: its ``updated`` time and the
+    ``stats`` of its publishers and subscriptions (what matching never reads)."""
+    view = {key: value for key, value in entry.items() if key != "updated"}
+    for key in ("publishers", "subscriptions"):
+        items = view.get(key)
+        if isinstance(items, list):
+            view[key] = [{k: v for k, v in item.items() if k != "stats"} if isinstance(item, dict) else item
+                         for item in items]
+    return view
+
+
 class DirectoryScanner:
     """Incremental reader of one discovery folder (used by the runtime's I/O thread).
 
     ``scan()`` re-reads changed files and drops vanished ones; ``entries`` is the current list of live
     announcements (a new list object after every change, so readers in other threads may keep it).
     Files named in ``own_files`` (this process's) are skipped: the runtime knows its own nodes.
+
+    ``topology_changed`` (after a ``scan()`` that returned True) says whether more than counters changed: a node
+    rewrites its announcement about once a second while its counters move (``stats``, ``updated``), and the
+    runtime then refreshes its graph snapshot without matching its sockets again. A file rewritten by the process
+    already found alive is not asked about again: the liveness pass (every :data:`LIVENESS_INTERVAL_S`) is.
     """
 
     def __init__(self, directory: Path, *, host: str, boot_id: str, clean_stale: bool = True):
@@ -211,12 +228,14 @@ class DirectoryScanner:
         self._cache: dict[str, tuple[tuple, dict | None]] = {}
         self._dead: set[str] = set()
         self.entries: list[dict] = []
+        self.topology_changed = False
         self._next_liveness = 0.0
 
     def scan(self, now: float | None = None) -> bool:
-        """Re-read the folder; True when the set of live announcements changed."""
+        """Re-read the folder; True when the set of live announcements or their contents changed
+        (``topology_changed``: more than their counters)."""
         now = time.monotonic() if now is None else now
-        changed = False
+        changed = topology = False
         seen = set()
         try:
             listing = list(os.scandir(self.directory))
@@ -236,23 +255,30 @@ class DirectoryScanner:
             if cached is not None and cached[0] == key:
                 continue
             entry = read_announcement(Path(item.path))
-            if entry is not None and not entry_is_alive(entry, self.host, self.boot_id):
+            before = cached[1] if cached is not None else None
+            same_process = (entry is not None and before is not None and entry.get("pid") == before.get("pid")
+                            and entry.get("pid_start") == before.get("pid_start") and "expires" not in entry)
+            if entry is not None and not same_process and not entry_is_alive(entry, self.host, self.boot_id):
                 self._dead.add(name)
                 entry = None
             else:
                 self._dead.discard(name)
             self._cache[name] = (key, entry)
             changed = True
+            if not (same_process and _without_counters(entry) == _without_counters(before)):
+                topology = True
         for name in list(self._cache):
             if name not in seen:
                 del self._cache[name]
                 self._dead.discard(name)
-                changed = True
+                changed = topology = True
         if now >= self._next_liveness:
             self._next_liveness = now + LIVENESS_INTERVAL_S
-            changed |= self._check_liveness()
+            if self._check_liveness():
+                changed = topology = True
         if changed:
             self.entries = [entry for _, entry in self._cache.values() if entry is not None]
+        self.topology_changed = topology
         return changed
 
     def _check_liveness(self) -> bool:

@@ -508,7 +508,10 @@ class GraphRuntime:
 
     def _scan(self, now: float) -> None:
         if self._scanner.scan(now):
-            self._rematch = True
+            if self._scanner.topology_changed:
+                self._rematch = True
+            elif not self._rematch:
+                self.entries = self._graph_entries()  # only counters changed: a fresh snapshot, no matching
         if self._peers is not None and self._peers.changed():
             self._rematch = True
 
@@ -548,13 +551,17 @@ class GraphRuntime:
                     self._dirty.add(gid)
         self._write_announcements()
 
-    def _match(self) -> None:
+    def _graph_entries(self) -> list[dict]:
+        """The whole graph: the other processes' announcements (and peers'), then this process's own."""
         with self._lock:
             own = [self._own_entry(node) for node in self._nodes.values()]
         foreign = list(self._scanner.entries)
         if self._peers is not None:
             foreign.extend(self._peers.entries())
-        entries = foreign + own
+        return foreign + own
+
+    def _match(self) -> None:
+        entries = self._graph_entries()
         self.entries = entries
         publishers, servers = index_endpoints(entries)
         for sub in list(self._subscriptions):

@@ -90,3 +90,33 @@ def test_discovery_folder_is_made_private_and_one_others_may_write_is_refused(tm
     os.chmod(shared, 0o777)
     with pytest.raises(PermissionError, match="writable by others"):
         ensure_private_directory(shared)
+
+
+def test_a_rewrite_that_changes_only_counters_is_no_topology_change(domain_dir):
+    ensure_private_directory(domain_dir)
+    me, my_start = os.getpid(), process_start_ticks(os.getpid())
+    publisher = {"topic": "/t", "type": "std_msgs/msg/String", "gid": "01", "endpoints": ["ipc:///x"], "qos": {},
+                 "stats": {"published_count": 1}}
+    entry = _entry("talker", me, my_start, publishers=[publisher], updated=1.0)
+    name = f"n-{me}-talker.json"
+    write_announcement(domain_dir, name, entry)
+    host, boot_id = host_identity()
+    scanner = DirectoryScanner(domain_dir, host=host, boot_id=boot_id)
+    assert scanner.scan(now=0.0) and scanner.topology_changed  # a new node
+
+    def rewrite(**changes) -> bool:
+        nonlocal entry
+        entry = {**entry, **changes}
+        write_announcement(domain_dir, name, entry)
+        os.utime(domain_dir / name, ns=(time.time_ns() + 10**9, time.time_ns() + 10**9))  # a new mtime for sure
+        assert scanner.scan(now=0.1)
+        return scanner.topology_changed
+
+    # counters and the time written move: the snapshot is refreshed, the topology is the same
+    assert not rewrite(publishers=[{**publisher, "stats": {"published_count": 50}}], updated=2.0)
+    assert scanner.entries[0]["publishers"][0]["stats"] == {"published_count": 50}
+    # an endpoint, a subscription or a process start time more is a change of topology
+    assert rewrite(publishers=[{**publisher, "endpoints": ["ipc:///y"]}])
+    assert rewrite(subscriptions=[{"topic": "/u", "type": "std_msgs/msg/String", "gid": "02", "qos": {}}])
+    assert rewrite(pid_start=my_start - 1)  # not this process any more: asked again whether it is alive
+    assert scanner.entries == []
