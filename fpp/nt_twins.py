@@ -33,14 +33,24 @@ the region's margin against the twin in standard errors (the region test of
 :func:`dptpu.fpp.region_consistency.rejected_regions`, against a twin instead of one order off). A region whose pixels
 lie at two different wrong orders (a band that joined two surfaces, each taken to a twin: the band prior's failure on an
 outside capture, where one published low order held pixels 47 and 41 high orders off) has a median between the two that
-can clear the boundary; such a region is seen locally, where each surface is alone. So a region that clears the boundary
-by less than twice ``Z`` is also judged in a window around each pixel (same low order; the mean of ``u``, clipped, in
-the region's standard errors; a window big enough that a right order's mean lies ``2 Z`` standard errors from the
-boundary): ``z_local``. Where that window would exceed 31 x 31 pixels (:data:`MAX_WINDOW_RADIUS`; 64 / 10.9 at a
-residual noise above 0.057 rad, e.g. 3 steps at the paper's 2 sigma on a dim scene) no window resolves the twin and the
-region decides alone: a mixed region can then keep its confidence (a known limit). :func:`twin_ambiguous` marks the
-pixels where, for some reachable twin, neither the pixel (``z_pixel``) nor its region (``z_region``, and ``z_local``
-where asked) reaches ``Z`` (default :data:`DEFAULT_SIGNIFICANCE` = 4 standard errors, the significance of
+can clear the boundary; such a region is seen locally, where each surface is alone. Its two offsets also widen the
+region's spread of ``u`` beyond what its pixels' noise gives one surface, dim or bright: the region's mixture margin
+
+    z_mixture = (IQR(u) / 1.349 / median(sigma_p) - 1) sqrt(n) / 1.166
+
+(1.166 sigma / sqrt(n): the standard error of the interquartile range over 1.349; the median of ``sigma_p`` stands for
+the spread of a region of pixels of several noises). So a region that clears the boundary by less than twice ``Z`` and
+whose ``z_mixture`` reaches ``Z`` is also judged in a window around each pixel (same low order; the mean of ``u``,
+clipped, in the region's standard errors; a window big enough that a right order's mean lies ``2 Z`` standard errors
+from the boundary, sized by the region's noise, the quadratic mean of its pixels' ``sigma_p``, at most 31 x 31 pixels,
+:data:`MAX_WINDOW_RADIUS`): ``z_local``. A region of one surface whose spread its noise explains is decided as a whole
+(windows sized by the scan's noise in a dim region, whose noise is twice the scan's, would hold a right order's mean at
+``Z`` standard errors: half its pixels dropped; on the unseen scene seed 1300 at 12 steps, 2 sigma, such windows took
+2000 right pixels of one scan). Where even the scan's noise needs a window above 31 x 31 pixels (64 / 10.9 at a residual
+noise above 0.057 rad, e.g. 3 steps at the paper's 2 sigma on a dim scene) no window resolves the twin and the region
+decides alone: a mixed region can then keep its confidence (a known limit). :func:`twin_ambiguous` marks the pixels
+where, for some reachable twin, neither the pixel (``z_pixel``) nor its region (``z_region``, and ``z_local`` where
+asked) reaches ``Z`` (default :data:`DEFAULT_SIGNIFICANCE` = 4 standard errors, the significance of
 :mod:`dptpu.fpp.region_consistency`: a pixel decision wrong with probability 3e-5): their callers give them no
 confidence. No length, focal length or noise level is set: the frequencies, the scan's own residuals and the
 significance.
@@ -70,6 +80,8 @@ __all__ = ["DEFAULT_SIGNIFICANCE", "MAX_WINDOW_RADIUS", "NearTwin", "near_twin_w
 _MEDIAN_SE = math.sqrt(math.pi / 2.0)
 #: The interquartile range of a normal distribution over its standard deviation.
 _IQR_TO_SIGMA = 1.349
+#: The standard error of the interquartile range over 1.349 of n normal samples is this times sigma / sqrt(n).
+_IQR_SE = 1.166
 #: A region whose margin is below this many times the significance is also tested locally (:func:`_local_margin`).
 _LOCAL_BELOW = 2.0
 #: The twins within reach are judged against this percentile of the pixels' noise (the noisiest pixels beyond it
@@ -156,11 +168,10 @@ def twin_ambiguous(absolute_high: np.ndarray, wrapped_low: np.ndarray, f_h: floa
 
     For every twin within reach of the scan's noise (:func:`reachable_twins`, both signs of ``m``), at the valid pixels
     whose twin lies on the projector (``0 <= x + m / f_h < 1``, ``x = Phi_h / (2 pi f_h)``): ambiguous where ``z_pixel``
-    is below ``significance`` and so is ``z_region`` (or, for a region below twice it, ``z_local``; module docstring).
-    Regions: 8-connected pixels of one
-    low order of the published phase, ``floor((f_l / f_h) Phi_h / 2 pi)``; one of fewer than
-    :data:`dptpu.fpp.region_consistency.MIN_TEST_PIXELS` pixels (where the twin is on the projector) gives no
-    region evidence.
+    is below ``significance`` and so is ``z_region`` (or, for a region below twice it whose ``z_mixture`` reaches it,
+    ``z_local``; module docstring). Regions: 8-connected pixels of one low order of the published phase,
+    ``floor((f_l / f_h) Phi_h / 2 pi)``; one of fewer than :data:`dptpu.fpp.region_consistency.MIN_TEST_PIXELS`
+    pixels (where the twin is on the projector) gives no region evidence.
 
     Parameters
     ----------
@@ -194,6 +205,16 @@ def twin_ambiguous(absolute_high: np.ndarray, wrapped_low: np.ndarray, f_h: floa
     low_order = np.floor((f_l / f_h) * np.where(valid, absolute_high, 0.0) / (2.0 * np.pi)).astype(np.int64)
     labels, count = _low_order_regions(low_order, valid)
     x = np.where(valid, absolute_high / (2.0 * np.pi * f_h), np.nan)  # projector column over W, (H, W)
+    # each region's noise from its pixels' modulation (the quadratic mean of sigma_p, the noise of a mean of its
+    # pixels), never below the scan's: it sizes the local window; unlike the spread of u, a mixture does not widen it
+    region_n = np.bincount(labels[valid], minlength=count)
+    region_noise = np.sqrt(np.bincount(labels[valid], np.minimum(sigma[valid], np.pi) ** 2, minlength=count)
+                           / np.maximum(region_n, 1))
+    region_noise = np.maximum(region_noise, sigma_scan)
+    # and the median of sigma_p: the spread of u a region of one surface shows (a mixture shows more)
+    by_noise = np.flatnonzero(valid)
+    by_noise = by_noise[np.lexsort((sigma.ravel()[by_noise], labels.ravel()[by_noise]))]
+    typical_noise = _sorted_median_and_spread(sigma.ravel()[by_noise], labels.ravel()[by_noise], count)[1]
     order = np.flatnonzero(valid)
     order = order[np.lexsort((eps.ravel()[order], labels.ravel()[order]))]  # sorted once by (region, eps)
     sorted_eps, sorted_labels = eps.ravel()[order], labels.ravel()[order]
@@ -215,37 +236,52 @@ def twin_ambiguous(absolute_high: np.ndarray, wrapped_low: np.ndarray, f_h: floa
             z_region = np.where(n >= MIN_TEST_PIXELS, z_region, -np.inf)
             z_region[0] = -np.inf  # off the regions
             told = (z_pixel >= significance) | (z_region[labels] >= significance)
-            # a region that clears the boundary by less than twice the significance: also locally (a mixture)
-            check = on_projector & told & (z_pixel < significance) & (z_region[labels] < _LOCAL_BELOW * significance)
-            radius = _local_radius(half, sigma_scan, significance)
-            if radius is not None and check.any():
-                z_local = _local_margin(u, half, on_projector, low_order, radius, sigma_region[labels], sigma_scan)
+            # a region that clears the boundary by less than twice the significance and whose spread its pixels'
+            # noise does not explain: also locally (a mixture)
+            with np.errstate(divide="ignore", invalid="ignore"):
+                z_mixture = (spread / typical_noise - 1.0) * np.sqrt(n) / _IQR_SE
+            mixed = ~(z_mixture < significance)  # NaN (no noise known) counts as mixed
+            check = (on_projector & told & (z_pixel < significance) & (z_region[labels] < _LOCAL_BELOW * significance)
+                     & mixed[labels])
+            if check.any() and _local_radii(half, np.array([sigma_scan]), significance)[0] > 0:
+                # each region's window sized by its own noise, at most MAX_WINDOW_RADIUS
+                radius = np.minimum(_local_radii(half, region_noise, significance, limit=False),
+                                    MAX_WINDOW_RADIUS)[labels]
+                z_local = np.full(eps.shape, np.inf)
+                for r in np.unique(radius[check & (radius > 0)]):
+                    at = check & (radius == r)
+                    z_local[at] = _local_margin(u, half, on_projector, low_order, int(r), sigma_region[labels],
+                                                sigma_scan, at)[at]
                 told &= ~check | (z_local >= significance)
             ambiguous |= on_projector & ~told
     return ambiguous
 
 
-def _local_radius(half: float, sigma_scan: float, significance: float) -> int | None:
-    """Half-width of the window of :func:`_local_margin`: the one whose mean of a right order lies ``2 Z`` standard
-    errors (of the scan's ``sigma_scan``) from the boundary ``|s| / 2``, ``n = (2 Z sigma_scan / (|s| / 2))^2``
-    pixels (at least 2); None where that exceeds :data:`MAX_WINDOW_RADIUS` (no window that small resolves the
-    twin: the region decides alone)."""
-    needed = (2.0 * significance * sigma_scan / half) ** 2
-    radius = max(2, math.ceil((math.sqrt(needed) - 1.0) / 2.0))
-    return radius if radius <= MAX_WINDOW_RADIUS else None
+def _local_radii(half: float, sigma: np.ndarray, significance: float, *, limit: bool = True) -> np.ndarray:
+    """Half-width ``(count,)`` int of the window of :func:`_local_margin` for regions of noise ``sigma`` ``(count,)``
+    (standard deviations of ``u``): the one whose mean of a right order lies ``2 Z`` of the region's standard errors
+    from the boundary ``|s| / 2``, ``n = (2 Z sigma / (|s| / 2))^2`` pixels (at least 2). Where that exceeds
+    :data:`MAX_WINDOW_RADIUS`: 0 (no window that small resolves the twin: the region decides alone), or the radius
+    needed with ``limit=False``."""
+    with np.errstate(divide="ignore", invalid="ignore"):
+        side = 2.0 * significance * np.asarray(sigma, np.float64) / half  # sqrt(n): the window's side, pixels
+        radius = np.maximum(2, np.ceil((side - 1.0) / 2.0))
+    return np.where(np.isfinite(radius) & (radius <= (MAX_WINDOW_RADIUS if limit else np.inf)), radius,
+                    0).astype(np.int64)
 
 
 def _local_margin(u: np.ndarray, half: float, on_projector: np.ndarray, low_order: np.ndarray, radius: int,
-                  sigma: np.ndarray, sigma_scan: float) -> np.ndarray:
-    """``z_local`` ``(H, W)`` float64 (module docstring): the margin ``mean(u) + |s| / 2`` of the window of half-width
-    ``radius`` around each pixel over its pixels of the same low order (twin on the projector), in standard errors
-    ``sigma / sqrt(n)`` (``sigma`` (H, W): the spread of the pixel's region); ``u`` clipped to
-    ``+-(|s| + 3 sigma_scan)`` (one wrong order of another kind moves the mean by a bounded step)."""
+                  sigma: np.ndarray, sigma_scan: float, where: np.ndarray) -> np.ndarray:
+    """``z_local`` ``(H, W)`` float64 (module docstring) at ``where`` (at least; -inf off its low orders): the margin
+    ``mean(u) + |s| / 2`` of the window of half-width ``radius`` around each pixel over its pixels of the same low
+    order (twin on the projector), in standard errors ``sigma / sqrt(n)`` (``sigma`` (H, W): the spread of the
+    pixel's region); ``u`` clipped to ``+-(|s| + 3 sigma_scan)`` (one wrong order of another kind moves the mean by a
+    bounded step)."""
     size = (2 * radius + 1, 2 * radius + 1)
     bound = 2.0 * half + 3.0 * sigma_scan
     clipped = np.clip(np.nan_to_num(u), -bound, bound).astype(np.float32)
     z_local = np.full(u.shape, -np.inf)
-    for value in np.unique(low_order[on_projector]):
+    for value in np.unique(low_order[where & on_projector]):
         mask = on_projector & (low_order == value)
         total = cv2.boxFilter(np.where(mask, clipped, np.float32(0.0)), -1, size, normalize=False,
                               borderType=cv2.BORDER_CONSTANT)
