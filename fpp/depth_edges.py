@@ -121,6 +121,12 @@ _SIDES = np.array([[0, 1, 0], [1, 0, 1], [0, 1, 0]], dtype=np.uint8)
 _DIAGONALS = np.array([[1, 0, 1], [0, 0, 0], [1, 0, 1]], dtype=np.uint8)
 # (row step, column step, footprint factor) of the four lines through a pixel
 _LINES = ((0, 1, 1.0), (1, 0, 1.0), (1, 1, np.sqrt(2.0)), (1, -1, np.sqrt(2.0)))
+#: Share of the image at or below which :func:`flying_points` judges a line's apart pixels' ramp at those pixels
+#: (gathered) rather than on the whole image (the two cost the same near 3 %: docs/benchmarks.md, Run 15).
+_RAMP_GATHER_SHARE = 0.03
+#: Share of the image at or below which :func:`continues_a_side` with ``where`` gathers those pixels rather than
+#: judging the whole image (the two cost the same near 15 %: docs/benchmarks.md, Run 15).
+_CONTINUE_GATHER_SHARE = 0.1
 # (row step, column step) of the 8 directions from a pixel
 _DIRECTIONS = ((0, 1), (0, -1), (1, 0), (-1, 0), (1, 1), (-1, -1), (1, -1), (-1, 1))
 
@@ -205,6 +211,7 @@ def flying_points(depth: np.ndarray, focal_px: float, *, max_slope: float = DEFA
     # for bit)
     limit, step_before, step_after = np.empty_like(z), np.empty_like(z), np.empty_like(z)
     apart_before, apart_after = np.empty(z.shape, dtype=bool), np.empty(z.shape, dtype=bool)
+    ramp = _RampTest(padded, max_ramp_bend) if max_ramp_bend > 0 else None
     with np.errstate(invalid="ignore"):  # NaN comparisons are False: no point, no mark
         for dr, dc, factor in _LINES:
             before = padded[2 - dr:2 - dr + height, 2 - dc:2 - dc + width]
@@ -215,12 +222,55 @@ def flying_points(depth: np.ndarray, focal_px: float, *, max_slope: float = DEFA
             np.greater(step_before, limit, out=apart_before)
             np.greater(step_after, limit, out=apart_after)
             apart_before &= apart_after
-            if max_ramp_bend > 0 and apart_before.any():  # judged at the few pixels apart on this line only
-                rows, cols = np.nonzero(apart_before)
-                ramp = on_a_ramp(padded, rows + 2, cols + 2, dr, dc, max_ramp_bend)  # padded: 2 pixels of NaN
-                apart_before[rows[ramp], cols[ramp]] = False
+            if ramp is not None:
+                ramp.clear(apart_before, dr, dc)
             flying |= apart_before
     return flying
+
+
+class _RampTest:
+    """:func:`on_a_ramp` of the pixels apart on a line, with the same marks bit for bit: gathered at those pixels
+    when they are few (:data:`_RAMP_GATHER_SHARE` of the image or less; a scene's edges), else on the whole image at
+    once (a steep plane, where most pixels are apart): the line's absolute second differences ``|z_{k-1} - 2 z_k +
+    z_{k+1}|`` of every pixel and its ring in one float64 pass each (numpy's order of operations, as
+    :func:`on_a_ramp`), their largest over the three centred on ``k = -1, 0, 1`` (a NaN among them stays NaN: no
+    ramp) against ``max_bend * |z_1 - z_-1| / 2``. Buffers are reused over the four lines."""
+
+    def __init__(self, padded: np.ndarray, max_bend: float) -> None:
+        self.padded, self.max_bend = padded, max_bend  # float32 depth with two pixels of NaN around it
+        self.height, self.width = padded.shape[0] - 4, padded.shape[1] - 4
+        self.padded64: np.ndarray | None = None  # allocated at the first whole-image line
+
+    def clear(self, apart: np.ndarray, dr: int, dc: int) -> None:
+        """Set ``apart`` (H, W) bool False at its pixels that lie on a straight ramp along the line ``(dr, dc)``."""
+        count = np.count_nonzero(apart)
+        if count == 0:
+            return
+        if count <= _RAMP_GATHER_SHARE * apart.size:
+            rows, cols = np.nonzero(apart)
+            on_ramp = on_a_ramp(self.padded, rows + 2, cols + 2, dr, dc, self.max_bend)  # padded: 2 pixels of NaN
+            apart[rows[on_ramp], cols[on_ramp]] = False
+            return
+        height, width = self.height, self.width
+        if self.padded64 is None:
+            self.padded64 = self.padded.astype(np.float64)
+            self.bend = np.empty((height + 2, width + 2))  # second differences of the image and its 1-pixel ring
+            self.worst, self.bound = np.empty((height, width)), np.empty((height, width))
+            self.straight = np.empty((height, width), dtype=bool)
+        z, bend, worst, bound = self.padded64, self.bend, self.worst, self.bound
+        np.multiply(z[1:height + 3, 1:width + 3], 2.0, out=bend)  # on_a_ramp's z_{k-1} - 2 z_k + z_{k+1}, in order
+        np.subtract(z[1 - dr:height + 3 - dr, 1 - dc:width + 3 - dc], bend, out=bend)
+        np.add(bend, z[1 + dr:height + 3 + dr, 1 + dc:width + 3 + dc], out=bend)
+        np.abs(bend, out=bend)
+        np.maximum(bend[1 - dr:height + 1 - dr, 1 - dc:width + 1 - dc], bend[1:height + 1, 1:width + 1], out=worst)
+        np.maximum(worst, bend[1 + dr:height + 1 + dr, 1 + dc:width + 1 + dc], out=worst)
+        np.subtract(z[2 + dr:height + 2 + dr, 2 + dc:width + 2 + dc], z[2 - dr:height + 2 - dr, 2 - dc:width + 2 - dc],
+                    out=bound)
+        np.abs(bound, out=bound)
+        np.multiply(bound, self.max_bend * 0.5, out=bound)  # on_a_ramp's max_bend * 0.5 * |z_1 - z_-1|
+        with np.errstate(invalid="ignore"):
+            np.less_equal(worst, bound, out=self.straight)
+        apart &= ~self.straight
 
 
 def on_a_ramp(depth: np.ndarray, rows: np.ndarray, cols: np.ndarray, dr: int, dc: int,
@@ -467,11 +517,15 @@ def continues_a_side(depth: np.ndarray, pure: np.ndarray, tolerance: float,
     """Pixels whose depth the straight continuation of two ``pure`` pixels in a row predicts within ``tolerance``,
     in any of the 8 directions: ``|z - (2 z_1 - z_2)| <= tolerance``, ``z_1``, ``z_2`` the next two pixels that way
     (the surface on that side, linearly extrapolated), (H, W) bool. ``where`` (H, W) bool: judged at those pixels
-    only (False elsewhere), the same arithmetic on the pixels gathered.
+    only (False elsewhere): the same arithmetic on the pixels gathered where they are few
+    (:data:`_CONTINUE_GATHER_SHARE` of the image or less), the whole image's answer there otherwise (a steep plane
+    beside a step everywhere).
     """
     if where is not None:
-        return _continues_at(np.asarray(depth), np.asarray(pure, dtype=bool), tolerance,
-                             np.asarray(where, dtype=bool))
+        where = np.asarray(where, dtype=bool)
+        if np.count_nonzero(where) <= _CONTINUE_GATHER_SHARE * where.size:
+            return _continues_at(np.asarray(depth), np.asarray(pure, dtype=bool), tolerance, where)
+        return continues_a_side(depth, pure, tolerance) & where
     z = np.asarray(depth, dtype=np.float64)
     height, width = z.shape
     padded = cv2.copyMakeBorder(np.where(pure, z, np.nan), 2, 2, 2, 2, cv2.BORDER_CONSTANT, value=np.nan)

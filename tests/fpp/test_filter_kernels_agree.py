@@ -9,10 +9,15 @@ from functools import cache
 import numpy as np
 import pytest
 
+from dptpu.fpp import depth_edges, phase, tpu
 from dptpu.fpp.depth_edges import continues_a_side, depth_per_pixel, edge_points, flying_points
 from dptpu.fpp.order_islands import order_islands
 from dptpu.fpp.triangulate import Triangulator, camera_depth, projector_coordinate
+from dptpu.sim.image_formation import SequenceSpec
 from dptpu.sim.outside_rigs import SIGMA_2, issue16_rig, random_outside_rig, render_phases, spheres_and_plane
+from dptpu.sim.render import raycast_frames
+from dptpu.sim.rig import load_twin_rig
+from dptpu.sim.scenes.random_scene import random_scene
 
 FREQUENCY = 16.0
 
@@ -92,7 +97,7 @@ def test_points_of_chosen_pixels_are_the_whole_image_points_bit_for_bit(name):
         triangulator.camera_points(x_p.ravel()[:1], pixels=np.array([0]), out=whole32)
 
 
-def test_a_side_continued_at_chosen_pixels_is_the_whole_image_answer():
+def test_a_side_continued_at_chosen_pixels_is_the_whole_image_answer(monkeypatch):
     rng = np.random.default_rng(5)
     rows, cols = np.mgrid[0:40, 0:50]
     depth = (600.0 + 0.3 * cols + 0.1 * rows + rng.normal(0, 0.2, rows.shape)).astype(np.float32)
@@ -102,7 +107,9 @@ def test_a_side_continued_at_chosen_pixels_is_the_whole_image_answer():
     where[0, :] = where[:, -1] = True  # the image's border: neighbours outside it count as not pure
     whole = continues_a_side(depth, pure, 0.25)
     assert 0 < np.count_nonzero(whole & where) < np.count_nonzero(where)
-    assert np.array_equal(continues_a_side(depth, pure, 0.25, where=where), whole & where)
+    for share in (1.0, 0.0):  # gathered at the pixels asked; the whole image's answer there
+        monkeypatch.setattr(depth_edges, "_CONTINUE_GATHER_SHARE", share)
+        assert np.array_equal(continues_a_side(depth, pure, 0.25, where=where), whole & where)
 
 
 @pytest.mark.parametrize("name", RIGS)
@@ -139,3 +146,88 @@ def test_flying_points_are_the_plain_definitions_marks(name):
             limit = np.float32(4.0 * factor) * footprint
             plain |= (np.abs(depth - before) > limit) & (np.abs(after - depth) > limit)
     assert plain.sum() > 20 and np.array_equal(flying_points(depth, focal_px, max_slope=4.0), plain)
+
+
+ROOT = __import__("pathlib").Path(__file__).resolve().parents[2]
+
+
+@cache
+def sim_capture():
+    """``(depth (H, W) float32 m, focal px, modulation, lit)`` of random-1 as the sim node renders it (the raycast
+    twin, the shipped rig at 160x120, 2 x 12 steps), through the phase, Eq. (5) and the triangulation."""
+    rig = load_twin_rig(ROOT / "launch" / "params" / "shipped_rig.yaml", size=(160, 120))
+    specs = [SequenceSpec(64.0, 12, axis="x", shift_sign=-1), SequenceSpec(1.0, 12, axis="x", shift_sign=-1)]
+    stacks, _ = raycast_frames(rig, random_scene(rig, 1), specs, seed=0)
+    maps = [phase.maps_from_sums(phase.sequence_sums(stack)) for stack in stacks]
+    valid = (maps[0].modulation >= 10.0) & (maps[1].modulation >= 10.0)
+    unwrapped = tpu.unwrap_mf_float32(maps[0].phase, maps[1].phase, 64.0, 1.0, valid=valid)
+    x_p = projector_coordinate(unwrapped.absolute_phase, 64.0, rig.projector.size[0])
+    depth = Triangulator(rig, axis="x").camera_points(x_p, scale=rig.scale_to_m, dtype=np.float32)[..., 2]
+    return np.ascontiguousarray(depth), 0.5 * float(rig.camera.K[0, 0] + rig.camera.K[1, 1]), maps[0].modulation, \
+        unwrapped.valid
+
+
+def steep_planes(rig, seed):
+    """Depth (H, W) float32 of two surfaces whose depth changes by 6 and by 12 pixel footprints ``z / f`` a column
+    (80.5 and 85.2 degrees from facing the camera; left and right half, a depth step between), with depth noise of
+    0.05 footprints, and a modulation with a few dips: the ramp test and the continuation asked at most pixels."""
+    width, height = rig.camera.size
+    focal_px = 0.5 * float(rig.camera.K[0, 0] + rig.camera.K[1, 1])
+    cols = np.broadcast_to(np.arange(width, dtype=np.float64), (height, width))
+    slope = np.where(cols < width // 2, 6.0, 12.0)
+    depth = np.where(cols < width // 2, 600.0, 700.0) * np.exp(slope * (cols - width // 2) / focal_px)  # dz = s z / f
+    rng = np.random.default_rng(seed)
+    depth *= 1.0 + 0.05 / focal_px * rng.normal(size=depth.shape)
+    modulation = 60.0 + rng.normal(0.0, 1.0, depth.shape)
+    modulation[rng.random(depth.shape) < 0.02] *= 0.4
+    return depth.astype(np.float32), modulation.astype(np.float32)
+
+
+def _scenes():
+    for name in RIGS:
+        rig, x_p, modulation, lit = rendered(name)
+        depth = np.ascontiguousarray(Triangulator(rig, axis="x").camera_points(x_p, dtype=np.float32)[..., 2])
+        focal_px = 0.5 * float(rig.camera.K[0, 0] + rig.camera.K[1, 1])
+        yield name, depth, focal_px, modulation, lit, 1.0
+        planes, plane_modulation = steep_planes(rig, len(name))
+        yield f"{name} steep planes", planes, focal_px, plane_modulation, np.isfinite(planes), 1.0
+    depth, focal_px, modulation, lit = sim_capture()
+    yield "sim random-1", depth, focal_px, modulation, lit, 1e-3
+    # the pipeline bench's analytic ramp across the projector (``--floor --source ramp``), a steep plane
+    rig = load_twin_rig(ROOT / "launch" / "params" / "shipped_rig.yaml", size=(160, 120))
+    rows, cols = np.mgrid[0:120, 0:160]
+    x_p = 40.0 + (rig.projector.size[0] - 80.0) * cols / 160 + 0.05 * rows
+    depth = Triangulator(rig, axis="x").camera_points(x_p, scale=rig.scale_to_m, dtype=np.float32)[..., 2]
+    yield "steep analytic ramp", np.ascontiguousarray(depth), 0.5 * float(rig.camera.K[0, 0] + rig.camera.K[1, 1]), \
+        np.full(depth.shape, 100.0, dtype=np.float32), np.isfinite(depth), 1e-3
+
+
+def test_the_whole_image_ramp_and_continuation_mark_what_the_gathered_ones_mark(monkeypatch):
+    """The straight-ramp test of :func:`flying_points` and the continuation of :func:`edge_points` on the whole
+    image (a steep plane, where most pixels ask) or gathered (the kernels of 12dcb77 and b74d1e2): the same marks bit
+    for bit, on the three outside rigs' spheres and on steep planes seen by them, on the sim's random-1 and on the
+    pipeline bench's analytic ramp."""
+    ramps = 0
+    for name, depth, focal_px, modulation, lit, max_edge_error in _scenes():
+        marks = {}
+        for share in (1.0, 0.0, None):  # all gathered, all on the whole image, the default switch
+            if share is not None:
+                monkeypatch.setattr(depth_edges, "_RAMP_GATHER_SHARE", share)
+                monkeypatch.setattr(depth_edges, "_CONTINUE_GATHER_SHARE", share)
+            else:
+                monkeypatch.undo()
+            marks[share] = (flying_points(depth, focal_px), flying_points(depth, focal_px, max_ramp_bend=0.5),
+                            edge_points(depth, focal_px, modulation, lit=lit, max_edge_error=max_edge_error))
+        for share in (0.0, None):
+            for got, want in zip(marks[share][:2], marks[1.0][:2]):
+                assert np.array_equal(got, want), (name, share)
+            for reason in ("flying", "beside_step", "modulation_dip", "isolated", "shadow_border"):
+                assert np.array_equal(getattr(marks[share][2], reason), getattr(marks[1.0][2], reason)), \
+                    (name, share, reason)
+        kept_on_ramps = np.count_nonzero(flying_points(depth, focal_px, max_ramp_bend=0.0) & ~marks[None][0])
+        ramps += kept_on_ramps
+        if name.startswith("steep") or name.endswith("steep planes"):
+            assert kept_on_ramps > 0.1 * depth.size, name  # the 6-footprint half: the ramp test on the whole image
+            # the 12-footprint half: steps everywhere, the continuation asked on the whole image
+            assert np.count_nonzero(marks[None][2].beside_step) > 0.1 * depth.size, name
+    assert ramps > 0
