@@ -41,12 +41,12 @@ model is available (``dptpu.models.inference.shipped_model_path()`` or ``--model
 
     dptpu bench pipeline [--json] [--size 640x480] [--scans 60] [--warmup 10] [--in-flight 4]
                          [--latency-load 0.5] [--steps 12,3] [--model FILE.onnx] [--classical-only | --dptpu-only]
-    dptpu bench pipeline --floor [--json] [--size 640x480] [--steps 12,3]
+    dptpu bench pipeline --floor [--json] [--size 640x480] [--steps 12,3] [--source raycast|FOLDER|ramp]
     python benchmarks/pipeline_bench.py [same options]
 
 ``--floor`` launches nothing: it times, in one process, the work of a scan that no graph can take away (frames in
 and the cloud out through ZeroMQ, the phase, the unwrapping, the triangulation; :func:`floor_ms_per_scan`), the
-lower bound of ``cpu_ms_per_scan["total"]``.
+lower bound of ``cpu_ms_per_scan["total"]``, on the first scene the graph scans with the same ``--source``.
 
 Results and the machine they were taken on: docs/benchmarks.md, "bench pipeline".
 """
@@ -69,6 +69,10 @@ import numpy as np
 
 REPO_ROOT = Path(__file__).resolve().parents[1]
 SIM_RIG = REPO_ROOT / "launch" / "sim_rig.yaml"
+#: The twin's rig ``launch/sim_rig.yaml`` renders with by default.
+SHIPPED_RIG = REPO_ROOT / "launch" / "params" / "shipped_rig.yaml"
+#: ``--floor --source`` of the floor's analytic ramp across the projector (a steep plane; no graph replays it).
+ANALYTIC_RAMP = "ramp"
 #: The paper's camera, Basler acA640-750um: frames per second at 640x480.
 CAMERA_FRAMES_PER_S = 750.0
 SEQUENCES = {12: "64x12,1x12", 3: "64x3,1x3"}
@@ -301,10 +305,13 @@ def floor_ms_per_scan(*, steps: int, size: str, repeats: int = 30, source: str =
     frames and the outputs: a lower bound of the graph's CPU per scan (``total``). ``total_shared_memory`` moves the
     bytes as the shared-memory path does at the least, one copy each way (``copy_in``, ``copy_out``: ``np.copyto``
     into a preallocated array) instead of through ZeroMQ: the floor of a graph whose large messages go through
-    shared memory. The frames are an analytic ramp across the projector (64 and 1 periods), so the triangulation
-    converges as on a real scene; with ``source`` a folder of ``dptpu-capture/1`` captures (``--source``), the
-    first capture's own frames and rig instead, so the floor works on the scene the graph scans. Median of
-    ``repeats`` timings of each part (``time.process_time``, every thread).
+    shared memory. The frames are those of the first scene the graph scans with the same ``source``
+    (``--source``): ``raycast``, random-1 rendered by the raycast twin as the sim node renders it (the launch
+    file's rig, ``2 x steps`` frames, noise seed 0); a folder of ``dptpu-capture/1`` captures, its first capture's
+    frames and rig. ``"ramp"`` (:data:`ANALYTIC_RAMP`, the floor only): an analytic ramp across the projector (64
+    and 1 periods), a plane steeper than the flying-point test's slope (the default until 2026-11-27: the floor
+    then measured kernels on a scene the graph never scans; docs/benchmarks.md, Run 15). Median of ``repeats``
+    timings of each part (``time.process_time``, every thread).
     """
     import cv2
     import zmq
@@ -325,8 +332,8 @@ def floor_ms_per_scan(*, steps: int, size: str, repeats: int = 30, source: str =
     from dptpu.sim.rig import load_twin_rig
 
     width, height = (int(v) for v in size.lower().split("x"))
-    if source == "raycast":
-        rig = load_twin_rig(REPO_ROOT / "launch" / "params" / "shipped_rig.yaml", size=(width, height))
+    if source == ANALYTIC_RAMP:
+        rig = load_twin_rig(SHIPPED_RIG, size=(width, height))
         extent = rig.projector.size[0]
         rows, cols = np.mgrid[0:height, 0:width]
         x_p = 40.0 + (extent - 80.0) * cols / width + 0.05 * rows  # (H, W) projector columns
@@ -336,13 +343,16 @@ def floor_ms_per_scan(*, steps: int, size: str, repeats: int = 30, source: str =
             phase = 2 * np.pi * frequency * x_p / extent
             stacks.append(np.round(128 + 100 * np.cos(phase - 2 * np.pi * n / steps)).astype(np.uint8))  # (N, H, W)
     else:
-        from dptpu.nodes.sim.source import capture_scenes
+        from dptpu.nodes.sim.source import load_source
 
-        scenes, rig, _, _ = capture_scenes(source)
-        stacks = [scenes[0].stack(frequency, steps) for frequency in (64.0, 1.0)]  # 3-step: frames 0, 4, 8 of 12
+        # the graph's first scene as its sim node makes it: rendered live by the raycast twin (the launch file's
+        # rig, the bench's scenes and sequence, noise seed 0) or replayed from the capture folder
+        loaded = load_source(source, rig=str(SHIPPED_RIG), size=size, scenes=SCENES.split(",")[0],
+                             sequence=SEQUENCES[steps])
+        scenes, rig = loaded.scenes, loaded.rig
+        stacks = [scenes[0].stack(frequency, steps) for frequency in (64.0, 1.0)]  # 3-step captures: frames 0, 4, 8
         if any(stack is None for stack in stacks) or stacks[0].shape[1:] != (height, width):
-            raise RuntimeError(f"the first capture of {source} holds no 64x{steps} and 1x{steps} sequences at "
-                               f"{size}")
+            raise RuntimeError(f"the first scene of {source} holds no 64x{steps} and 1x{steps} sequences at {size}")
         stacks = [np.ascontiguousarray(stack) for stack in stacks]  # as the phase node stacks its frames
         extent = rig.projector.size[0]
     triangulator = Triangulator(rig, axis="x")
@@ -504,6 +514,10 @@ def run(args) -> int:
               f"{most_frames} a scan), --latency-load in [0, 1); got {args.scans}, {args.warmup}, {args.in_flight}, "
               f"{args.latency_load}", file=sys.stderr)
         return 2
+    if args.source == ANALYTIC_RAMP and not args.floor:
+        print(f"dptpu bench pipeline: error: --source {ANALYTIC_RAMP} (the analytic ramp) is for --floor only; the "
+              "graph's sources are raycast or a capture folder", file=sys.stderr)
+        return 2
     if args.floor:
         report = {"benchmark": "pipeline-floor", "machine": {"cpus": os.cpu_count(), "platform": platform.platform(),
                                                             "python": platform.python_version(),
@@ -565,7 +579,8 @@ def add_arguments(parser) -> None:
     parser.add_argument("--source", default="raycast",
                         help="the sim node's source: raycast (default: renders random:1 and random:2 live, needs "
                              "open3d) or a folder of dptpu-capture/1 captures of the size and sequences asked (a "
-                             "machine without open3d: `dptpu sim render` them elsewhere)")
+                             "machine without open3d: `dptpu sim render` them elsewhere); the floor works on the "
+                             "first of the same scenes (--floor also takes 'ramp': an analytic steep plane)")
     parser.add_argument("--classical-only", action="store_true", help="skip DP-TPU even when a model exists")
     parser.add_argument("--dptpu-only", action="store_true",
                         help="DP-TPU only (no classical run): with a timeout per invocation, a slow configuration "

@@ -40,8 +40,9 @@ def test_bench_pipeline_reports_one_object_per_configuration(capsys):
                                                              rel=1e-2)
         # the floor, measured in the same run: the work's parts, with ZeroMQ transfers or shared memory's copies
         floor = result["floor_ms_per_scan"]
-        # (the floor's analytic ramp is no physical surface: the cloud node's filters drop part of it, at any size)
-        assert floor["steps"] == 3 and floor["size"] == "96x72" and 0 < floor["valid_pixels"] <= 96 * 72
+        # the floor works on the graph's first scene, random-1 rendered as the sim node renders it
+        assert floor["steps"] == 3 and floor["size"] == "96x72" and floor["source"] == "raycast"
+        assert 0.3 * 96 * 72 < floor["valid_pixels"] <= 96 * 72
         work = sum(floor[k] for k in ("phase", "unwrap", "triangulate", "filters", "assemble"))
         assert floor["total"] == pytest.approx(work + floor["transport_in"] + floor["transport_out"], abs=0.02)
         assert floor["total_shared_memory"] == pytest.approx(work + floor["copy_in"] + floor["copy_out"], abs=0.02)
@@ -75,3 +76,12 @@ def test_bench_pipeline_floor_on_the_captures_the_graph_replays(tmp_path, capsys
                  str(capture.parent)]) == 2
     assert capsys.readouterr().err.strip().endswith(
         "holds no 64x3 and 1x3 sequences at 64x48")
+
+
+def test_bench_pipeline_takes_the_analytic_ramp_for_the_floor_only(capsys):
+    """``--source ramp``: the floor on an analytic steep plane (no graph replays it: refused without ``--floor``)."""
+    assert main(["bench", "pipeline", "--steps", "3", "--source", "ramp"]) == 2
+    assert "--source ramp (the analytic ramp) is for --floor only" in capsys.readouterr().err
+    assert main(["bench", "pipeline", "--floor", "--json", "--size", "64x48", "--steps", "3", "--source", "ramp"]) == 0
+    (floor,) = json.loads(capsys.readouterr().out)["floors"]
+    assert floor["source"] == "ramp" and floor["frames"] == 6 and 0 < floor["valid_pixels"] <= 64 * 48
