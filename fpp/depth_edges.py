@@ -125,7 +125,7 @@ _LINES = ((0, 1, 1.0), (1, 0, 1.0), (1, 1, np.sqrt(2.0)), (1, -1, np.sqrt(2.0)))
 #: (gathered) rather than on the whole image (the two cost the same near 3 %: docs/benchmarks.md, Run 15).
 _RAMP_GATHER_SHARE = 0.03
 #: Share of the image at or below which :func:`continues_a_side` with ``where`` gathers those pixels rather than
-#: judging the whole image (the two cost the same near 15 %: docs/benchmarks.md, Run 15).
+#: judging the whole image (the two cost the same between 10 and 50 %: docs/benchmarks.md, Run 15).
 _CONTINUE_GATHER_SHARE = 0.1
 # (row step, column step) of the 8 directions from a pixel
 _DIRECTIONS = ((0, 1), (0, -1), (1, 0), (-1, 0), (1, 1), (-1, -1), (1, -1), (-1, 1))
