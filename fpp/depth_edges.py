@@ -60,7 +60,9 @@ right (completeness, never precision, pays for it).
 The tests that concern a few pixels are computed at those pixels only, each with the arithmetic it has on the whole
 image (the same marks bit for bit): the lit fraction and the predicted error of the pixels beside an unlit one
 (``depth_per_px`` as a callable: the second triangulation of :func:`depth_per_pixel` at those pixels), the
-continuation of a side at the dips it could keep.
+continuation of a side at the dips it could keep. The straight-ramp test and the continuation beside a step are
+gathered at their pixels where those are few and run on the whole image where many ask (a steep plane), with the
+same marks either way.
 
 Parameters and why (``docs/nodes.md``, "Flying points", has the measurements behind the defaults):
 
