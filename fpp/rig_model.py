@@ -49,9 +49,6 @@ class DeviceModel:
         K = checked_array(self.K, (3, 3), "K")
         if K[2, 0] != 0 or K[2, 1] != 0 or K[2, 2] != 1 or K[1, 0] != 0:
             raise ValueError(f"K must be upper triangular with K[2] = [0, 0, 1]; got {K.tolist()}")
-        if not (K[0, 0] > 0 and K[1, 1] > 0):
-            raise ValueError(f"K's focal lengths fx, fy must be positive (a K of zeros is an uncalibrated camera); "
-                             f"got fx={K[0, 0]}, fy={K[1, 1]}")
         dist = np.zeros(5)
         given = np.asarray(self.dist, dtype=np.float64).ravel()
         if given.size not in (4, 5) or not np.all(np.isfinite(given)):

@@ -295,7 +295,12 @@ class CloudNode(Node):
     # -- callbacks ------------------------------------------------------------------------------------------
 
     def on_camera_info(self, msg: CameraInfo) -> None:
-        """Use the camera's intrinsics from now on (R, T from the rig)."""
+        """Use the camera's intrinsics from now on (R, T from the rig); a K without positive focal lengths (ROS: a K of
+        zeros is an uncalibrated camera) is ignored with a warning, so the scans wait for a calibrated one."""
+        if not (msg.k[0] > 0 and msg.k[4] > 0):
+            self.get_logger().warning(f"ignoring CameraInfo: its focal lengths fx={msg.k[0]:g}, fy={msg.k[4]:g} are "
+                                      f"not positive (an uncalibrated camera); the scans wait for a calibrated one")
+            return
         try:
             camera = DeviceModel(K=np.reshape(msg.k, (3, 3)), dist=np.asarray(msg.d)[:5], R=self.rig.camera.R,
                                  T=self.rig.camera.T, size=(msg.width, msg.height))
