@@ -296,7 +296,7 @@ def floor_ms_per_scan(*, steps: int, size: str, repeats: int = 30, source: str =
     :func:`dptpu.fpp.tpu.unwrap_mf_float32`), the triangulation with both lens distortions into float32 metres
     (``triangulate``, :meth:`~dptpu.fpp.triangulate.Triangulator.camera_points` of the sim rig's rig at ``size``),
     the cloud node's default filters (``filters``: :func:`dptpu.fpp.depth_edges.edge_points` with the partly
-    shadowed points' predicted error of :func:`~dptpu.fpp.depth_edges.depth_per_pixel`, a second triangulation of
+    shadowed points' predicted error of :func:`~dptpu.fpp.shadow_border.depth_per_pixel`, a second triangulation of
     those pixels, and :func:`dptpu.fpp.order_islands.order_islands`),
     the (H, W, 9) cloud as the cloud node builds it (x, y, z planes, texture, modulation, confidence and the normals'
     planes of :func:`dptpu.fpp.organized_normals.organized_normals`, one ``cv2.merge``) with its depth and confidence
@@ -318,7 +318,7 @@ def floor_ms_per_scan(*, steps: int, size: str, repeats: int = 30, source: str =
 
     from dptpu.fpp import phase as fpp_phase
     from dptpu.fpp import tpu
-    from dptpu.fpp.depth_edges import DEFAULT_MAX_EDGE_ERROR_MM, depth_per_pixel, edge_points
+    from dptpu.fpp.depth_edges import DEFAULT_MAX_EDGE_ERROR_MM, edge_points
     from dptpu.fpp.fringe_noise import (
         DEFAULT_MAX_NOISE_RATIO,
         fit_residual,
@@ -328,6 +328,7 @@ def floor_ms_per_scan(*, steps: int, size: str, repeats: int = 30, source: str =
     )
     from dptpu.fpp.order_islands import order_islands
     from dptpu.fpp.organized_normals import organized_normals
+    from dptpu.fpp.shadow_border import depth_per_pixel
     from dptpu.fpp.triangulate import Triangulator, projector_coordinate
     from dptpu.sim.rig import load_twin_rig
 

@@ -25,9 +25,11 @@ from dptpu.cli.conventions import add_cloud_units_option, stage_bar
 from dptpu.cli.unwrap_cmd import add_unwrap_arguments, summary, unwrap_from_args
 from dptpu.fpp.calibration import load_rig
 from dptpu.fpp.capture import CAPTURE_FILE, read_capture
-from dptpu.fpp.depth_edges import DEFAULT_MAX_EDGE_ERROR_MM, DEFAULT_MAX_SLOPE, depth_per_pixel, edge_points
+from dptpu.fpp.depth_edges import DEFAULT_MAX_EDGE_ERROR_MM, edge_points
+from dptpu.fpp.flying_points import DEFAULT_MAX_SLOPE
 from dptpu.fpp.order_islands import order_islands
 from dptpu.fpp.point_cloud_file import write_point_cloud
+from dptpu.fpp.shadow_border import depth_per_pixel
 from dptpu.fpp.triangulate import Triangulator, camera_depth, projector_coordinate
 
 

@@ -48,9 +48,10 @@ from dptpu.fpp.calibration import load_rig
 from dptpu.fpp.capture import read_capture
 from dptpu.fpp.cloud_accuracy import OFF_SURFACE_MM, cloud_accuracy, order_shift
 from dptpu.fpp.confidence import DEFAULT_MIN_CONFIDENCE, confident
-from dptpu.fpp.depth_edges import DEFAULT_MAX_EDGE_ERROR_MM, depth_per_pixel, edge_points
+from dptpu.fpp.depth_edges import DEFAULT_MAX_EDGE_ERROR_MM, edge_points
 from dptpu.fpp.order_islands import order_islands
 from dptpu.fpp.reconstruct import CaptureResult, unwrap_capture
+from dptpu.fpp.shadow_border import depth_per_pixel
 from dptpu.fpp.triangulate import Triangulator, camera_depth, projector_coordinate
 from dptpu.models.inference import FringeOrderModel
 from dptpu.models.refine import refine_capture_result, refine_order_and_confidence

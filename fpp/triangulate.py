@@ -203,7 +203,7 @@ class Triangulator:
             result (M, 3) (``out`` not allowed). Each pixel goes through the same operations as in a whole image:
             the same points bit for bit whenever the projector distortion's Newton passes stop after as many
             passes (:meth:`dptpu.fpp._ray_distortion.RayDistortion.ideal_u`), and always without it. For a
-            caller that needs a few pixels of a second triangulation (``fpp.depth_edges.depth_per_pixel``).
+            caller that needs a few pixels of a second triangulation (``fpp.shadow_border.depth_per_pixel``).
 
         Returns
         -------

@@ -106,11 +106,13 @@ import numpy as np
 
 from dptpu.fpp.calibration import DeviceModel, Rig, load_rig
 from dptpu.fpp.confidence import DEFAULT_MIN_CONFIDENCE
-from dptpu.fpp.depth_edges import DEFAULT_MAX_EDGE_ERROR_MM, DEFAULT_MAX_SLOPE, depth_per_pixel, edge_points
+from dptpu.fpp.depth_edges import DEFAULT_MAX_EDGE_ERROR_MM, edge_points
+from dptpu.fpp.flying_points import DEFAULT_MAX_SLOPE
 from dptpu.fpp.order_islands import order_islands
 from dptpu.fpp.organized_normals import DEFAULT_NORMAL_WINDOW_PX, organized_normals
 from dptpu.fpp.point_cloud_file import write_point_cloud
 from dptpu.fpp.scanner_frames import IDENTITY_MOUNT, mount_pose, scanner_frames
+from dptpu.fpp.shadow_border import depth_per_pixel
 from dptpu.fpp.triangulate import Triangulator, projector_coordinate
 from dptpu.graph.known_publishers import SOLE_PUBLISHER
 from dptpu.graph.node import Node
@@ -462,7 +464,7 @@ class CloudNode(Node):
 
         ``coord``: the scan's projector coordinate (NaN where no point); ``lit``: the pixels with a phase (the
         message's ``valid``): with the modulation image, the partly shadowed points are judged by their predicted
-        depth error (:func:`dptpu.fpp.depth_edges.depth_per_pixel`, one more triangulation of those pixels only).
+        depth error (:func:`dptpu.fpp.shadow_border.depth_per_pixel`, one more triangulation of those pixels only).
         """
         if not self.drop_edges:
             return {"flying": 0, "beside_step": 0, "modulation_dip": 0, "shadow_border": 0, "isolated": 0,

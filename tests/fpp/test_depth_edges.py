@@ -4,14 +4,10 @@ import numpy as np
 import pytest
 
 from dptpu.fpp import phase, tpu
-from dptpu.fpp.depth_edges import (
-    DEFAULT_MAX_SLOPE,
-    beside_steps,
-    depth_per_pixel,
-    edge_points,
-    flying_points,
-    on_a_ramp,
-)
+from dptpu.fpp.depth_edges import edge_points
+from dptpu.fpp.depth_steps import beside_steps
+from dptpu.fpp.flying_points import DEFAULT_MAX_SLOPE, flying_points, on_a_ramp
+from dptpu.fpp.shadow_border import depth_per_pixel
 from dptpu.fpp.triangulate import Triangulator
 from tests.mixed_pixel_rigs import PROJECTOR_SIZE, OutsideRig, default_scene, render
 

@@ -9,9 +9,13 @@ from functools import cache
 import numpy as np
 import pytest
 
-from dptpu.fpp import depth_edges, phase, tpu
-from dptpu.fpp.depth_edges import continues_a_side, depth_per_pixel, edge_points, flying_points
+from dptpu.fpp import depth_steps, phase, tpu
+from dptpu.fpp import flying_points as flying_points_module
+from dptpu.fpp.depth_edges import edge_points
+from dptpu.fpp.depth_steps import continues_a_side
+from dptpu.fpp.flying_points import flying_points
 from dptpu.fpp.order_islands import order_islands
+from dptpu.fpp.shadow_border import depth_per_pixel
 from dptpu.fpp.triangulate import Triangulator, camera_depth, projector_coordinate
 from dptpu.sim.image_formation import SequenceSpec
 from dptpu.sim.outside_rigs import SIGMA_2, issue16_rig, random_outside_rig, render_phases, spheres_and_plane
@@ -108,7 +112,7 @@ def test_a_side_continued_at_chosen_pixels_is_the_whole_image_answer(monkeypatch
     whole = continues_a_side(depth, pure, 0.25)
     assert 0 < np.count_nonzero(whole & where) < np.count_nonzero(where)
     for share in (1.0, 0.0):  # gathered at the pixels asked; the whole image's answer there
-        monkeypatch.setattr(depth_edges, "_CONTINUE_GATHER_SHARE", share)
+        monkeypatch.setattr(depth_steps, "_CONTINUE_GATHER_SHARE", share)
         assert np.array_equal(continues_a_side(depth, pure, 0.25, where=where), whole & where)
 
 
@@ -212,8 +216,8 @@ def test_the_whole_image_ramp_and_continuation_mark_what_the_gathered_ones_mark(
         marks = {}
         for share in (1.0, 0.0, None):  # all gathered, all on the whole image, the default switch
             if share is not None:
-                monkeypatch.setattr(depth_edges, "_RAMP_GATHER_SHARE", share)
-                monkeypatch.setattr(depth_edges, "_CONTINUE_GATHER_SHARE", share)
+                monkeypatch.setattr(flying_points_module, "_RAMP_GATHER_SHARE", share)
+                monkeypatch.setattr(depth_steps, "_CONTINUE_GATHER_SHARE", share)
             else:
                 monkeypatch.undo()
             marks[share] = (flying_points(depth, focal_px), flying_points(depth, focal_px, max_ramp_bend=0.5),
