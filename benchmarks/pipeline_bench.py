@@ -319,13 +319,7 @@ def floor_ms_per_scan(*, steps: int, size: str, repeats: int = 30, source: str =
     from dptpu.fpp import phase as fpp_phase
     from dptpu.fpp import tpu
     from dptpu.fpp.depth_edges import DEFAULT_MAX_EDGE_ERROR_MM, edge_points
-    from dptpu.fpp.fringe_noise import (
-        DEFAULT_MAX_NOISE_RATIO,
-        fit_residual,
-        noise_outliers,
-        phase_noise,
-        quantization_phase_noise,
-    )
+    from dptpu.fpp.fringe_noise import DEFAULT_MAX_NOISE_RATIO, noise_outliers, sequence_phase_noise
     from dptpu.fpp.order_islands import order_islands
     from dptpu.fpp.organized_normals import organized_normals
     from dptpu.fpp.shadow_border import depth_per_pixel
@@ -390,9 +384,8 @@ def floor_ms_per_scan(*, steps: int, size: str, repeats: int = 30, source: str =
         for m in maps:
             valid &= m.modulation >= 10.0
         valid &= np.maximum.reduce([stack.max(axis=0) for stack in stacks]) < 255
-        noise = [phase_noise(fit_residual(stack, m.background, m.modulation), m.modulation, steps)
-                 for stack, m in zip(stacks, maps)]  # None below 5 steps
-        floors = [quantization_phase_noise(m.modulation, steps, stack.dtype) for stack, m in zip(stacks, maps)]
+        noise, floors = zip(*(sequence_phase_noise(stack, m.background, m.modulation)  # noise None below 5 steps
+                              for stack, m in zip(stacks, maps)))
         valid &= ~noise_outliers(noise, valid, DEFAULT_MAX_NOISE_RATIO, floors)
         state["maps"], state["valid"] = maps, valid
 

@@ -47,7 +47,7 @@ import numpy as np
 from .bracketed_median import bracketed_median
 
 __all__ = ["DEFAULT_MAX_NOISE_RATIO", "MIN_NOISE_STEPS", "fit_residual", "noise_outliers", "phase_noise",
-           "quantization_phase_noise"]
+           "quantization_phase_noise", "sequence_phase_noise"]
 
 #: A pixel whose phase noise is this many times the scan's median (in any sequence of 5 or more steps) is dropped.
 #: Chosen on the main job's shipped scenes (docs/nodes.md, "Phase noise"): at 5 the path-traced scene random-1 lost
@@ -129,6 +129,35 @@ def quantization_phase_noise(modulation: np.ndarray, steps: int, images_dtype) -
         return None
     with np.errstate(divide="ignore"):  # one float32 division: on the phase node's path
         return np.float32(np.sqrt(2.0 / steps) / np.sqrt(12.0)) / np.asarray(modulation, np.float32)
+
+
+def sequence_phase_noise(images: np.ndarray, background: np.ndarray, modulation: np.ndarray, *,
+                         measure: bool = True) -> tuple[np.ndarray | None, np.ndarray | None]:
+    """One sequence's phase noise and its quantization floor, ``(sigma_psi, sigma_q)`` (module docstring): what
+    :func:`noise_outliers` judges a sequence by.
+
+    Parameters
+    ----------
+    images : ndarray (N, H, W)
+        The sequence's images.
+    background, modulation : ndarray (H, W)
+        ``A`` and ``B`` of the fit (:func:`dptpu.fpp.phase.wrapped_phase`).
+    measure : bool
+        False: the floor only (no residual computed; the noise test off).
+
+    Returns
+    -------
+    sigma_psi : ndarray (H, W) float32 or None
+        :func:`phase_noise` of the fit's :func:`fit_residual`; None below :data:`MIN_NOISE_STEPS` steps or without
+        ``measure``.
+    sigma_q : ndarray (H, W) float32 or None
+        :func:`quantization_phase_noise`; None for float images.
+    """
+    steps = np.shape(images)[0]
+    floor = quantization_phase_noise(modulation, steps, np.asarray(images).dtype)
+    if not measure or steps < MIN_NOISE_STEPS:
+        return None, floor
+    return phase_noise(fit_residual(images, background, modulation), modulation, steps), floor
 
 
 def noise_outliers(noise: Sequence[np.ndarray | None], valid: np.ndarray,

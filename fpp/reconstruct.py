@@ -49,14 +49,7 @@ from .capture import (
     load_sequence_images,
 )
 from .frequencies import find_frequency, same_frequency, select_frequencies
-from .fringe_noise import (
-    DEFAULT_MAX_NOISE_RATIO,
-    MIN_NOISE_STEPS,
-    fit_residual,
-    noise_outliers,
-    phase_noise,
-    quantization_phase_noise,
-)
+from .fringe_noise import DEFAULT_MAX_NOISE_RATIO, noise_outliers, sequence_phase_noise
 from .methods import CAPTURE_METHODS
 from .nt_twins import twin_ambiguous
 from .phase_harmonics import ProjectorPhaseResponse
@@ -215,12 +208,10 @@ def unwrap_capture(
             images, sequence_maps.modulation, min_modulation=min_modulation, saturation_level=saturation_level
         )
         maps.append(sequence_maps)
-        floors.append(quantization_phase_noise(sequence_maps.modulation, images.shape[0], images.dtype))
-        if max_noise_ratio > 0 and images.shape[0] >= MIN_NOISE_STEPS:
-            residual = fit_residual(images, sequence_maps.background, sequence_maps.modulation)
-            noise.append(phase_noise(residual, sequence_maps.modulation, images.shape[0]))
-        else:
-            noise.append(None)
+        sequence_noise, floor = sequence_phase_noise(images, sequence_maps.background, sequence_maps.modulation,
+                                                     measure=max_noise_ratio > 0)
+        noise.append(sequence_noise)
+        floors.append(floor)
     quality &= ~noise_outliers(noise, quality, max_noise_ratio, floors)
 
     psi = [m.phase for m in maps]

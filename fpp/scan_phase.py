@@ -24,14 +24,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .fringe_noise import (
-    DEFAULT_MAX_NOISE_RATIO,
-    MIN_NOISE_STEPS,
-    fit_residual,
-    noise_outliers,
-    phase_noise,
-    quantization_phase_noise,
-)
+from .fringe_noise import DEFAULT_MAX_NOISE_RATIO, MIN_NOISE_STEPS, noise_outliers, sequence_phase_noise
 from .phase import maps_from_sums, quality_mask, sequence_sums, wrapped_phase
 
 __all__ = ["ImageSlot", "IncrementalScanPhase", "scan_phase_maps"]
@@ -50,16 +43,6 @@ class ImageSlot:
     step: int
     phase_offset: float
     shift_sign: int
-
-
-def _entry_noise(stack: np.ndarray, background: np.ndarray,
-                 modulation: np.ndarray) -> tuple[np.ndarray | None, np.ndarray | None]:
-    """:func:`dptpu.fpp.fringe_noise.phase_noise` of one entry and its quantization floor
-    (:func:`dptpu.fpp.fringe_noise.quantization_phase_noise`); ``(None, None)`` below ``MIN_NOISE_STEPS`` steps."""
-    if stack.shape[0] < MIN_NOISE_STEPS:
-        return None, None
-    return (phase_noise(fit_residual(stack, background, modulation), modulation, stack.shape[0]),
-            quantization_phase_noise(modulation, stack.shape[0], stack.dtype))
 
 
 def scan_phase_maps(stacks: Sequence[np.ndarray], phase_offsets: Sequence[float], *, shift_sign: int,
@@ -100,8 +83,8 @@ def scan_phase_maps(stacks: Sequence[np.ndarray], phase_offsets: Sequence[float]
         phase32 = maps.phase.astype(np.float32, copy=False)
         phases.append(np.where(phase32 >= _TWO_PI, np.float32(0.0), phase32))
         modulations.append(maps.modulation.astype(np.float32, copy=False))
-        if max_noise_ratio > 0:
-            entry_noise, floor = _entry_noise(stack, maps.background, maps.modulation)
+        if max_noise_ratio > 0 and stack.shape[0] >= MIN_NOISE_STEPS:  # fewer steps leave no residual
+            entry_noise, floor = sequence_phase_noise(stack, maps.background, maps.modulation)
             noise.append(entry_noise)
             floors.append(floor)
     valid &= ~noise_outliers(noise, valid, max_noise_ratio, floors)
@@ -145,7 +128,8 @@ class IncrementalScanPhase:
             stack = self._stacks.pop(start)
             sums = self.sums[start] = sequence_sums(stack, shift_sign=slot.shift_sign, phase_offset=slot.phase_offset)
             if slot.steps >= MIN_NOISE_STEPS:  # the fit's residual: the entry's phase noise (fpp.fringe_noise)
-                self.noise[start], self.noise_floor[start] = _entry_noise(stack, sums[2], np.hypot(sums[0], sums[1]))
+                self.noise[start], self.noise_floor[start] = sequence_phase_noise(
+                    stack, sums[2], np.hypot(sums[0], sums[1]))
 
     def maps(self, layout: Sequence[ImageSlot], *, min_modulation: float, saturation_level: float | None,
              max_noise_ratio: float = DEFAULT_MAX_NOISE_RATIO, out=None):

@@ -8,6 +8,7 @@ from dptpu.fpp.fringe_noise import (
     noise_outliers,
     phase_noise,
     quantization_phase_noise,
+    sequence_phase_noise,
 )
 from dptpu.fpp.phase import wrapped_phase
 
@@ -70,6 +71,11 @@ def test_sequences_too_short_to_judge_and_bad_arguments():
         images = _frames(psi, steps, sigma=1.0)
         maps = wrapped_phase(images)
         assert phase_noise(fit_residual(images, maps.background, maps.modulation), maps.modulation, steps) is None
+        # float images: no rounding floor either; 8-bit ones keep theirs (the unwrapping's quantization_noise)
+        assert sequence_phase_noise(images, maps.background, maps.modulation) == (None, None)
+        rounded = np.clip(np.rint(images), 0, 255).astype(np.uint8)
+        noise, floor = sequence_phase_noise(rounded, maps.background, maps.modulation)
+        assert noise is None and floor is not None and floor.shape == psi.shape
     assert not noise_outliers([None], np.ones((4, 4), bool)).any()
     with pytest.raises(ValueError, match="max_noise_ratio"):
         noise_outliers([], np.ones((4, 4), bool), 0.5)
@@ -90,8 +96,11 @@ def test_rounding_alone_leaves_the_quantization_floor(steps):
     psi = np.random.default_rng(6).uniform(0, TWO_PI, (200, 200))
     images = _quantized(psi, steps, b, a=np.random.default_rng(7).uniform(90, 110, psi.shape))
     maps = wrapped_phase(images)
-    noise = phase_noise(fit_residual(images, maps.background, maps.modulation), maps.modulation, steps)
-    floor = quantization_phase_noise(maps.modulation, steps, images.dtype)
+    noise, floor = sequence_phase_noise(images, maps.background, maps.modulation)  # as the unwrapping and phase node
+    assert np.array_equal(noise, phase_noise(fit_residual(images, maps.background, maps.modulation), maps.modulation,
+                                             steps))
+    assert np.array_equal(floor, quantization_phase_noise(maps.modulation, steps, images.dtype))
+    assert sequence_phase_noise(images, maps.background, maps.modulation, measure=False)[0] is None  # the test off
     expected = np.sqrt(2.0 / steps) / (np.sqrt(12.0) * b)
     assert np.sqrt(np.mean(floor ** 2)) == pytest.approx(expected, rel=0.01)
     assert np.sqrt(np.mean(noise ** 2)) == pytest.approx(expected, rel=0.05)
