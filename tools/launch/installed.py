@@ -26,6 +26,22 @@ def installed_launch_files() -> list[str]:
     return sorted(path.name for path in installed_launch_dir().glob("*.yaml"))
 
 
+def _as_the_user_sees_it(installed: Path) -> Path:
+    """An installed file under the path its errors should name.
+
+    An editable install links each file from a build folder (``build/__editable__.../dptpu/launch/``); an error at
+    ``sim_rig.yaml:37`` should name the file one edits, ``launch/sim_rig.yaml``: the link's target, relative to the
+    working directory where it lies below it. A wheel's files are no links and keep their installed path.
+    """
+    if not installed.is_symlink():
+        return installed
+    target = installed.resolve()
+    try:
+        return target.relative_to(Path.cwd())
+    except ValueError:
+        return target
+
+
 def resolve_launch_file(name: str) -> Path:
     """The launch file ``name`` means: an existing path, else an installed file of that name (``.yaml`` optional).
 
@@ -43,6 +59,6 @@ def resolve_launch_file(name: str) -> Path:
         for candidate in (name, f"{name}.yaml"):
             installed = installed_launch_dir() / candidate
             if installed.is_file():
-                return installed
+                return _as_the_user_sees_it(installed)
     choices = ", ".join(installed_launch_files()) or "none"
     raise FileNotFoundError(f"{name}: no such launch file; installed launch files: {choices}")

@@ -1,6 +1,8 @@
 """Launch files found by name among the installed ones (``dptpu launch sim_rig.yaml`` without a checkout)."""
 from __future__ import annotations
 
+from pathlib import Path
+
 import pytest
 
 from dptpu.cli.main import main
@@ -16,7 +18,25 @@ def test_installed_launch_files_are_the_repository_launch_folder():
 @pytest.mark.parametrize("name", ["sim_rig.yaml", "sim_rig"])
 def test_a_bare_name_resolves_to_the_installed_file(name, tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
-    assert resolve_launch_file(name) == installed_launch_dir() / "sim_rig.yaml"
+    assert resolve_launch_file(name).resolve() == (installed_launch_dir() / "sim_rig.yaml").resolve()
+
+
+def test_an_installed_file_is_named_by_the_file_one_edits(monkeypatch):
+    """Not ``build/__editable__.../launch/sim_rig.yaml`` (the editable install's link) in an error's file:line."""
+    monkeypatch.chdir(REPO_ROOT)
+    path = resolve_launch_file("sim_rig.yaml")
+    assert not any("__editable__" in part for part in path.parts)
+    assert path.is_file() and path.samefile(installed_launch_dir() / "sim_rig.yaml")
+    if (installed_launch_dir() / "sim_rig.yaml").is_symlink():  # a source checkout's editable install
+        assert path == Path("launch/sim_rig.yaml")
+
+
+def test_an_argument_error_names_the_file_one_edits(monkeypatch, capsys):
+    monkeypatch.chdir(REPO_ROOT)
+    assert main(["launch", "sim_rig.yaml", "--print", "frame_rate:=2"]) == 2
+    err = capsys.readouterr().err
+    assert "__editable__" not in err
+    assert "sim_rig.yaml:" in err and "arg 'frame_rate' is a float" in err
 
 
 def test_an_existing_path_wins_over_an_installed_name(tmp_path, monkeypatch):
@@ -37,7 +57,7 @@ def test_cli_takes_the_ros2_form_package_then_file(tmp_path, monkeypatch, capsys
     monkeypatch.chdir(tmp_path)
     assert main(["launch", "dptpu", "sim_rig.yaml", "--print", "scans:=3"]) == 0
     out = capsys.readouterr().out
-    assert out.startswith(f"# {installed_launch_dir() / 'sim_rig.yaml'}: ")
+    assert out.startswith(f"# {(installed_launch_dir() / 'sim_rig.yaml').resolve()}: ")
     assert "#   scans:=3" in out
 
 
