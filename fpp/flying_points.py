@@ -129,9 +129,10 @@ class _RampTest:
         if count == 0:
             return
         if count <= _RAMP_GATHER_SHARE * apart.size:
-            rows, cols = np.nonzero(apart)
+            pixels = np.flatnonzero(apart)  # (numpy's 2-D nonzero scans the image ~20 times slower)
+            rows, cols = np.divmod(pixels, self.width)
             on_ramp = on_a_ramp(self.padded, rows + 2, cols + 2, dr, dc, self.max_bend)  # padded: 2 pixels of NaN
-            apart[rows[on_ramp], cols[on_ramp]] = False
+            np.put(apart, pixels[on_ramp], False)
             return
         height, width = self.height, self.width
         if self.padded64 is None:
@@ -176,11 +177,12 @@ def on_a_ramp(depth: np.ndarray, rows: np.ndarray, cols: np.ndarray, dr: int, dc
     """
     z = np.asarray(depth)
     height, width = z.shape
+    flat = z.ravel()
 
-    def at(k: int) -> np.ndarray:  # z_k, NaN outside the image
+    def at(k: int) -> np.ndarray:  # z_k, NaN outside the image (flat indices: numpy's clip costs more per call)
         r, c = rows + k * dr, cols + k * dc
         inside = (r >= 0) & (r < height) & (c >= 0) & (c < width)
-        return np.where(inside, z[np.clip(r, 0, height - 1), np.clip(c, 0, width - 1)].astype(np.float64), np.nan)
+        return np.where(inside, flat[np.where(inside, r * width + c, 0)].astype(np.float64), np.nan)
 
     line = [at(k) for k in (-2, -1, 0, 1, 2)]
     limit = max_bend * 0.5 * np.abs(line[3] - line[1])

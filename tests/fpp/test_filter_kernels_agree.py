@@ -14,7 +14,7 @@ from dptpu.fpp import flying_points as flying_points_module
 from dptpu.fpp.depth_edges import edge_points
 from dptpu.fpp.depth_steps import continues_a_side
 from dptpu.fpp.flying_points import flying_points
-from dptpu.fpp.order_islands import order_islands
+from dptpu.fpp.order_islands import _order_regions, order_islands
 from dptpu.fpp.shadow_border import depth_per_pixel
 from dptpu.fpp.triangulate import Triangulator, camera_depth, projector_coordinate
 from dptpu.sim.image_formation import SequenceSpec
@@ -131,6 +131,28 @@ def test_order_islands_of_a_float32_phase_are_those_of_its_float64_copy(name):
     assert single.island_regions >= 4  # the patches were found
     assert np.array_equal(single.islands, double.islands) and np.array_equal(single.step, double.step)
     assert (single.regions, single.island_regions) == (double.regions, double.island_regions)
+
+
+@pytest.mark.parametrize("name", RIGS)
+def test_the_broken_pairs_of_order_regions_are_the_plain_definitions(name):
+    # the kernel lists the broken neighbour pairs from flat indices; the definition, with numpy's 2-D nonzero
+    rig, x_p, _, lit = rendered(name)
+    phase = x_p * (2 * np.pi * FREQUENCY / rig.projector.size[0])
+    phase[40:50, 60:75] += 2 * np.pi  # an island: broken pairs inside the lit area too
+    phase32 = phase.astype(np.float32)
+    valid = lit & np.isfinite(phase32)
+    _, a, b, difference = _order_regions(phase32, valid)
+    right = np.subtract(phase32[:, 1:], phase32[:, :-1], dtype=np.float64)
+    down = np.subtract(phase32[1:, :], phase32[:-1, :], dtype=np.float64)
+    with np.errstate(invalid="ignore"):
+        rows_r, cols_r = np.nonzero(valid[:, 1:] & valid[:, :-1] & ~(np.abs(right) < np.pi))
+        rows_d, cols_d = np.nonzero(valid[1:, :] & valid[:-1, :] & ~(np.abs(down) < np.pi))
+    width = phase.shape[1]
+    assert rows_r.size > 20 and rows_d.size > 20
+    assert np.array_equal(a, np.concatenate([rows_r * width + cols_r, rows_d * width + cols_d]))
+    assert np.array_equal(b, np.concatenate([rows_r * width + cols_r + 1, (rows_d + 1) * width + cols_d]))
+    assert np.array_equal(difference, np.concatenate([right[rows_r, cols_r], down[rows_d, cols_d]]))
+    assert a.dtype == b.dtype == np.int64
 
 
 @pytest.mark.parametrize("name", RIGS)
