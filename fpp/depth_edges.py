@@ -74,7 +74,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ._neighbours import neighbour_count, neighbour_max
-from .depth_steps import DEFAULT_MAX_STEP, continues_a_side, neighbour_extremes, steps_beside
+from .depth_steps import DEFAULT_MAX_STEP, continues_a_side, neighbour_steps, steps_beside
 from .flying_points import DEFAULT_MAX_RAMP_BEND, DEFAULT_MAX_SLOPE, flying_points
 from .shadow_border import shadow_border
 
@@ -193,11 +193,11 @@ def edge_points(depth: np.ndarray, focal_px: float, modulation: np.ndarray | Non
         # the shadow tests judge the pixels beside an unlit one: computed there only, each as on the whole image
         shadow = shadow_border(b, brightest, beside_unlit, unlit, depth_per_px=depth_per_px,
                                max_edge_error=max_edge_error, axis=axis)
-    extremes = neighbour_extremes(solid)  # the nearest and farthest neighbours, for both thresholds below
+    steps = neighbour_steps(solid)  # how far the farthest and the nearest neighbours lie, for both thresholds below
     step = np.zeros(z.shape, dtype=bool)
     if np.isfinite(max_step):
-        step = steps_beside(solid, extremes, focal_px, max_step, "both") & ~flying  # both sides: the module docstring
-    edge = steps_beside(solid, extremes, focal_px, max_slope, "both")
+        step = steps_beside(solid, steps, focal_px, max_step, "both") & ~flying  # both sides: the module docstring
+    edge = steps_beside(solid, steps, focal_px, max_slope, "both")
     dip = dipped & (edge | (neighbour_count(edge) > 0))  # within one pixel of a depth edge
     # a pure side (no flying point, no dip, not beside a step: a line of mixed pixels along an edge continues
     # itself) that continues to a dipped point vouches for it. Not for a point beside a step (module docstring), nor

@@ -3,7 +3,7 @@
 
 :func:`beside_steps` marks the last pixel on each side of a depth step: a neighbour (of 8) more than ``max_step``
 pixel footprints ``z / f`` nearer or farther (per diagonal step ``sqrt(2) z / f``), from OpenCV's grey-level
-morphologies of the depth (:func:`neighbour_extremes`, shared by several thresholds through :func:`steps_beside`).
+morphologies of the depth (:func:`neighbour_steps`, shared by several thresholds through :func:`steps_beside`).
 Such a pixel may integrate a sliver of the other side, whose phase is far from its own.
 
 :func:`continues_a_side` says whether the straight continuation of two pixels of a pure side in a row, in any of
@@ -17,7 +17,7 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
-__all__ = ["DEFAULT_MAX_STEP", "beside_steps", "continues_a_side", "neighbour_extremes", "steps_beside"]
+__all__ = ["DEFAULT_MAX_STEP", "beside_steps", "continues_a_side", "neighbour_steps", "steps_beside"]
 
 #: A point with a neighbour more than this many pixel footprints nearer or farther lies beside a depth step.
 DEFAULT_MAX_STEP = 10.0
@@ -44,32 +44,41 @@ def beside_steps(depth: np.ndarray, focal_px: float, *, max_step: float, side: s
     if side not in ("both", "far", "near"):
         raise ValueError(f"side must be 'both', 'far' or 'near'; got {side!r}")
     z = np.asarray(depth, dtype=np.float32)
-    return steps_beside(z, neighbour_extremes(z), focal_px, max_step, side)
+    return steps_beside(z, neighbour_steps(z), focal_px, max_step, side)
 
 
-def neighbour_extremes(z: np.ndarray) -> list[tuple[np.float32, np.ndarray, np.ndarray]]:
-    """``(footprint factor, farthest, nearest)`` of the 4 side and of the 4 diagonal neighbours of every pixel of
-    the float32 depth ``z`` (OpenCV's grey-level dilate and erode; NaN neighbours and the outside never count)."""
+def neighbour_steps(z: np.ndarray) -> list[tuple[np.float32, np.ndarray, np.ndarray]]:
+    """``(footprint factor, farthest - z, z - nearest)`` of the 4 side and of the 4 diagonal neighbours of every
+    pixel of the float32 depth ``z``: how much farther its farthest and nearer its nearest neighbour lie (OpenCV's
+    grey-level dilate and erode; NaN neighbours and the outside never count: -inf), taken once for every
+    threshold of :func:`steps_beside`."""
     finite = np.isfinite(z)
     nearest_fill = np.where(finite, z, np.float32(np.inf))
     farthest_fill = np.where(finite, z, np.float32(-np.inf))
-    return [(factor, cv2.dilate(farthest_fill, kernel, borderType=cv2.BORDER_CONSTANT, borderValue=-np.inf),
-             cv2.erode(nearest_fill, kernel, borderType=cv2.BORDER_CONSTANT, borderValue=np.inf))
-            for kernel, factor in ((_SIDES, np.float32(1.0)), (_DIAGONALS, np.float32(np.sqrt(2.0))))]
+    steps = []
+    with np.errstate(invalid="ignore"):
+        for kernel, factor in ((_SIDES, np.float32(1.0)), (_DIAGONALS, np.float32(np.sqrt(2.0)))):
+            farther = cv2.dilate(farthest_fill, kernel, borderType=cv2.BORDER_CONSTANT, borderValue=-np.inf)
+            farther -= z
+            nearer = cv2.erode(nearest_fill, kernel, borderType=cv2.BORDER_CONSTANT, borderValue=np.inf)
+            np.subtract(z, nearer, out=nearer)
+            steps.append((factor, farther, nearer))
+    return steps
 
 
-def steps_beside(z: np.ndarray, extremes: list[tuple[np.float32, np.ndarray, np.ndarray]], focal_px: float,
-            max_step: float, side: str) -> np.ndarray:
-    """:func:`beside_steps` of the float32 depth ``z`` from its :func:`neighbour_extremes` (one morphology for
+def steps_beside(z: np.ndarray, steps: list[tuple[np.float32, np.ndarray, np.ndarray]], focal_px: float,
+                 max_step: float, side: str) -> np.ndarray:
+    """:func:`beside_steps` of the float32 depth ``z`` from its :func:`neighbour_steps` (one morphology for
     several thresholds)."""
     limit = np.float32(max_step / focal_px) * np.abs(z)  # (H, W), one side step
     out = np.zeros(z.shape, dtype=bool)
     with np.errstate(invalid="ignore"):
-        for factor, farthest, nearest in extremes:
+        for factor, farther, nearer in steps:
+            bound = np.multiply(factor, limit)
             if side != "far":
-                out |= farthest - z > factor * limit
+                out |= farther > bound
             if side != "near":
-                out |= z - nearest > factor * limit
+                out |= nearer > bound
     return out & np.isfinite(z)
 
 

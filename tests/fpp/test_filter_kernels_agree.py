@@ -11,6 +11,7 @@ import pytest
 
 from dptpu.fpp import depth_steps, phase, tpu
 from dptpu.fpp import flying_points as flying_points_module
+from dptpu.fpp import shadow_border as shadow_border_module
 from dptpu.fpp.depth_edges import edge_points
 from dptpu.fpp.depth_steps import continues_a_side
 from dptpu.fpp.flying_points import flying_points
@@ -153,6 +154,24 @@ def test_the_broken_pairs_of_order_regions_are_the_plain_definitions(name):
     assert np.array_equal(b, np.concatenate([rows_r * width + cols_r + 1, (rows_d + 1) * width + cols_d]))
     assert np.array_equal(difference, np.concatenate([right[rows_r, cols_r], down[rows_d, cols_d]]))
     assert a.dtype == b.dtype == np.int64
+
+
+@pytest.mark.parametrize("name", RIGS)
+def test_the_shadow_borders_normal_at_chosen_pixels_is_opencvs_sobel_there(name):
+    # the predicted error's |cos| from the 3x3 neighbourhoods of the pixels asked; OpenCV's Sobel over the whole
+    # image, with the border replicated (the kernel before): the same float32 values, on the rig's shadows and on a
+    # random mask, at pixels of the image's border too
+    _, _, _, lit = rendered(name)
+    rng = np.random.default_rng(len(name))
+    for unlit in (~lit, rng.random(lit.shape) < 0.3):
+        height, width = unlit.shape
+        border = np.concatenate([np.arange(width), (height - 1) * width + np.arange(width),
+                                 np.arange(height) * width, np.arange(height) * width + width - 1])
+        pixels = np.unique(np.concatenate([border, rng.choice(unlit.size, 500, replace=False)]))
+        for axis in ("x", "y"):
+            whole = shadow_border_module._across_fringes(unlit, axis)
+            assert np.array_equal(shadow_border_module._across_fringes(unlit, axis, pixels), whole.ravel()[pixels])
+            assert 0 < np.count_nonzero(whole.ravel()[pixels]) < pixels.size
 
 
 @pytest.mark.parametrize("name", RIGS)
