@@ -68,6 +68,11 @@ def fit_residual(images: np.ndarray, background: np.ndarray, modulation: np.ndar
     background, modulation : ndarray (H, W)
         ``A`` and ``B`` of the fit (:func:`dptpu.fpp.phase.wrapped_phase`).
     """
+    return _rms_residual64(images, background, modulation).astype(np.float32)
+
+
+def _rms_residual64(images: np.ndarray, background: np.ndarray, modulation: np.ndarray) -> np.ndarray:
+    """:func:`fit_residual` before its rounding to float32: ``R`` (H, W) float64, a buffer the caller may reuse."""
     images = np.asarray(images)
     if images.ndim != 3 or images.shape[0] < 3:
         raise ValueError(f"images must be an (N, H, W) stack with N >= 3; got shape {images.shape}")
@@ -82,18 +87,19 @@ def fit_residual(images: np.ndarray, background: np.ndarray, modulation: np.ndar
     term *= b
     residual -= term  # - B^2 / 2
     np.maximum(residual, 0.0, out=residual)
-    return np.sqrt(residual, out=residual).astype(np.float32)
+    return np.sqrt(residual, out=residual)
 
 
 def _sum_of_squares(images: np.ndarray) -> np.ndarray:
-    """``sum_n I_n^2`` (H, W) float64. OpenCV's accumulator for the camera's dtypes (exact in float32 for 8-bit frames
-    of up to 258 steps, float64 otherwise), numpy for the others."""
+    """``sum_n I_n^2`` (H, W): float32 where that is exact, float64 otherwise. OpenCV's accumulator for the
+    camera's dtypes (exact in float32 for 8-bit frames of up to 258 steps, float64 otherwise), numpy for the
+    others."""
     if images.dtype in (np.uint8, np.uint16, np.float32, np.float64):
         exact32 = images.dtype == np.uint8 and images.shape[0] <= 258  # 258 * 255^2 < 2^24
         total = np.zeros(images.shape[1:], np.float32 if exact32 else np.float64)
         for image in images:
             cv2.accumulateSquare(np.ascontiguousarray(image), total)
-        return total.astype(np.float64, copy=False)
+        return total  # float32 where exact: the caller's float64 arithmetic converts it as it reads it
     as_float = images.astype(np.float64)
     return np.einsum("nhw,nhw->hw", as_float, as_float)
 
@@ -105,8 +111,14 @@ def phase_noise(residual: np.ndarray, modulation: np.ndarray, steps: int) -> np.
         raise ValueError(f"steps must be >= 3; got {steps}")
     if steps < MIN_NOISE_STEPS:
         return None
+    return _phase_noise_into(np.empty(np.shape(residual)), residual, modulation, steps)
+
+
+def _phase_noise_into(buffer: np.ndarray, residual: np.ndarray, modulation: np.ndarray, steps: int) -> np.ndarray:
+    """:func:`phase_noise` computed in the float64 ``buffer`` (H, W) (overwritten; may be ``residual``'s own float64
+    buffer once ``residual`` is its float32 rounding)."""
     with np.errstate(divide="ignore", invalid="ignore"):  # float64 arithmetic in one buffer, rounded once
-        noise = np.multiply(residual, np.sqrt(2.0 / (steps - 3)), dtype=np.float64)
+        noise = np.multiply(residual, np.sqrt(2.0 / (steps - 3)), out=buffer, dtype=np.float64)
         np.divide(noise, modulation, out=noise, dtype=np.float64)
     np.copyto(noise, np.inf, where=np.isnan(noise))
     return noise.astype(np.float32)
@@ -157,7 +169,8 @@ def sequence_phase_noise(images: np.ndarray, background: np.ndarray, modulation:
     floor = quantization_phase_noise(modulation, steps, np.asarray(images).dtype)
     if not measure or steps < MIN_NOISE_STEPS:
         return None, floor
-    return phase_noise(fit_residual(images, background, modulation), modulation, steps), floor
+    residual64 = _rms_residual64(images, background, modulation)  # fit_residual's R, rounded to float32 below
+    return _phase_noise_into(residual64, residual64.astype(np.float32), modulation, steps), floor
 
 
 def noise_outliers(noise: Sequence[np.ndarray | None], valid: np.ndarray,
