@@ -53,6 +53,7 @@ time earlier.
 
 from __future__ import annotations
 
+import math
 from collections import deque
 
 import numpy as np
@@ -157,7 +158,7 @@ class CameraNode(Node):
         """Acquisition thread: the array a frame is copied into out of the producer's buffer, loaned by the frames'
         publisher where a loan pays (a shared-memory segment, published without a further copy; a frame no Trigger
         claims goes back to the pool when it is let go), else a new array."""
-        if not self.image_pub.can_loan_messages(int(np.prod(shape)) * np.dtype(dtype).itemsize):
+        if not self.image_pub.can_loan_messages(math.prod(shape) * np.dtype(dtype).itemsize):
             return np.empty(shape, dtype)  # ZeroMQ sends it without a copy
         (frame,) = self.image_pub.borrow_loaned_arrays([(shape, dtype)])
         return frame

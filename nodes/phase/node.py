@@ -56,6 +56,7 @@ launch file. Conventions: ``docs/messages.md``; node design: ``docs/nodes.md``.
 """
 from __future__ import annotations
 
+import math
 import time
 
 import numpy as np
@@ -284,7 +285,7 @@ class PhaseNode(Node):
         in the order PhaseMaps encodes them, where a loan pays (``Publisher.can_loan_messages``); new arrays,
         which ZeroMQ sends without a copy, where it does not."""
         specs = [((entries, *shape), np.float32), ((entries, *shape), np.float32), (shape, np.bool_)]
-        pixels = int(np.prod(shape))
+        pixels = math.prod(shape)
         if self.phase_publisher.can_loan_messages(pixels * (8 * entries + 1)):
             maps = self.phase_publisher.borrow_loaned_arrays(specs)
         else:

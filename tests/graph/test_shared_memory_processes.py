@@ -216,6 +216,16 @@ def test_a_loan_let_go_unpublished_goes_back_to_the_pool(context):
     (kept,) = publisher.borrow_loaned_arrays([((480, 640), np.uint16)])  # a loan still held is not taken back
     (other,) = publisher.borrow_loaned_arrays([((480, 640), np.uint16)])
     assert kept.ctypes.data != other.ctypes.data and publisher._pool.segment_count == 2
+    # a loan that was returned (or published) is done with: its arrays' end queues nothing to take back
+    publisher.return_loaned_arrays([kept])
+    del kept
+    gc.collect()
+    assert not publisher._abandoned and len(publisher._loans) == 1
+    del other  # the one still lent: queued, and taken back at the next borrow
+    gc.collect()
+    assert len(publisher._abandoned) == 1
+    (again,) = publisher.borrow_loaned_arrays([((480, 640), np.uint16)])
+    assert not publisher._abandoned and len(publisher._loans) == 1 and publisher._pool.segment_count == 2
 
 
 def test_a_subscriber_that_cannot_open_segments_unsubscribes_and_gets_zeromq(spawn, domain_dir):
