@@ -70,9 +70,13 @@ def network_confidence(continuous: np.ndarray, order: np.ndarray, prior_order: n
         The wrapped phase of the order's frequency, radians: adds the neighbours' support (module docstring).
     """
     valid = np.asarray(valid, dtype=bool)
-    k = np.asarray(order, dtype=np.float64)
-    own = np.clip(1.0 - 2.0 * np.abs(np.asarray(continuous, dtype=np.float64) - k), 0.0, 1.0)
-    prior = np.clip(1.0 - 0.5 * np.abs(k - np.asarray(prior_order, dtype=np.float64)), 0.0, 1.0)
+    continuous, order, prior_order = np.asarray(continuous), np.asarray(order), np.asarray(prior_order)
+    if _float32_exact(continuous, order, prior_order):
+        own, prior = _own_and_prior_float32(continuous, order, prior_order)
+    else:
+        k = order.astype(np.float64)
+        own = np.clip(1.0 - 2.0 * np.abs(continuous.astype(np.float64) - k), 0.0, 1.0)
+        prior = np.clip(1.0 - 0.5 * np.abs(k - prior_order.astype(np.float64)), 0.0, 1.0)
     confidence = np.maximum(own, prior)
     confidence = np.where(valid & np.isfinite(confidence), confidence, 0.0)
     if wrapped_high is not None:
@@ -81,6 +85,33 @@ def network_confidence(continuous: np.ndarray, order: np.ndarray, prior_order: n
                                     where=confidence < 1.0)
         confidence = np.maximum(confidence, np.clip(2.0 * support - 1.0, 0.0, 1.0))
     return np.where(valid, confidence, 0.0).astype(np.float32)
+
+
+def _float32_exact(continuous: np.ndarray, order: np.ndarray, prior_order: np.ndarray) -> bool:
+    """Whether :func:`_own_and_prior_float32` gives the float64 formulas' float32 results bit for bit: a float32
+    network output and integer orders below ``2^24`` in magnitude (exact in float32)."""
+    if continuous.dtype != np.float32 or not (np.issubdtype(order.dtype, np.integer)
+                                              and np.issubdtype(prior_order.dtype, np.integer)):
+        return False
+    return order.size == 0 or bool(-2 ** 24 < order.min() and order.max() < 2 ** 24)
+
+
+def _own_and_prior_float32(continuous: np.ndarray, order: np.ndarray,
+                           prior_order: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The network's margin ``1 - 2 |c - k|`` and the prior's ``1 - |k - k_prior| / 2``, clipped to [0, 1], float32.
+
+    Exact against float64 then float32: where ``|c - k| < 1/2`` the difference of the two float32 numbers is exact
+    (Sterbenz's lemma for ``|k| >= 1``, ``c`` itself for ``k = 0``), so ``1 - 2 |c - k|`` is rounded once in either
+    precision (float64 holds it exactly unless it lies within ``2^-30`` of 1, where both round to 1); elsewhere both
+    clip to 0. The prior's term takes only 1, 1/2 and 0, from the orders' integer distance.
+    """
+    own = np.abs(continuous - order.astype(np.float32))
+    own *= np.float32(-2.0)
+    own += np.float32(1.0)
+    np.clip(own, np.float32(0.0), np.float32(1.0), out=own)
+    distance = np.abs(np.subtract(order, prior_order, dtype=np.int64))
+    prior = np.where(distance == 0, np.float32(1.0), np.where(distance == 1, np.float32(0.5), np.float32(0.0)))
+    return own, prior
 
 
 def confident(confidence: np.ndarray, valid: np.ndarray, min_confidence: float) -> tuple[np.ndarray, int]:

@@ -18,6 +18,16 @@ whose neighbours are either on another surface or unconfident themselves: their 
 
 The gradient comes from the wrapped phase alone (:func:`phase_gradient`: wrapped neighbour differences averaged over
 a small window), never from the orders being judged.
+
+Where few pixels ask (the network's confidence asks only below 1: about 1 % of a 12-step scan's pixels), the gradient
+and the count of valid neighbours are summed at those pixels alone instead of over the whole image, with the same
+numbers bit for bit. OpenCV's box filter of float32 maps sums in float64 (running sums along rows and down columns);
+a float32 phase of at least ``2^-25`` periods is a whole multiple of ``2^-48``, and so is its float32 difference with
+another such phase (rounded to a step of at least ``2^-48``, or exact), wrapped by ``rint``; window sums of such
+differences stay below 16, so every partial sum, OpenCV's and numpy's alike, is exact in float64 (53 bits) and
+rounds once to the same float32. Only a difference with a phase in ``(0, 2^-25)`` periods (a few pixels of a scan
+whose arctangent lands next to 0) can break that: those differences are checked, and a scan with one that is not a
+whole multiple of ``2^-48`` is summed over the whole image as before.
 """
 from __future__ import annotations
 
@@ -48,18 +58,104 @@ def phase_gradient(wrapped: np.ndarray, valid: np.ndarray,
     The mean over a ``(2 radius + 1)^2`` window of the wrapped differences ``wrap(psi(p + e) - psi(p)) / 2 pi``
     between valid neighbours (right while fringes are wider than 2 pixels); 0 where the window has no valid pair.
     """
-    frac = (np.asarray(wrapped, dtype=np.float64) / (2.0 * np.pi)).astype(np.float32)
+    frac = _periods(wrapped)
     valid = np.asarray(valid, dtype=bool)
+    size = (2 * radius + 1, 2 * radius + 1)
     gradients = []
     for axis in (0, 1):
         step = np.diff(frac, axis=axis)
         step -= np.rint(step)
-        pair = (valid[1:] & valid[:-1]) if axis == 0 else (valid[:, 1:] & valid[:, :-1])
-        pad = ((0, 1), (0, 0)) if axis == 0 else ((0, 0), (0, 1))
-        weights = np.pad(pair, pad).astype(np.float32)
-        total = _box_sum(np.pad(np.where(pair, step, 0.0), pad).astype(np.float32), radius)
-        gradients.append(total / np.maximum(_box_sum(weights, radius), 1.0))
+        inner = (slice(0, -1), slice(None)) if axis == 0 else (slice(None), slice(0, -1))  # the last row/column: 0
+        pair = np.zeros(frac.shape, bool)
+        np.logical_and(valid[1:] if axis == 0 else valid[:, 1:], valid[inner], out=pair[inner])
+        steps = np.zeros(frac.shape, np.float32)
+        np.copyto(steps[inner], step, where=pair[inner])
+        # the count of pairs summed from uint8: whole numbers, the same float32 as a float32 map's sums
+        count = cv2.boxFilter(pair.view(np.uint8), cv2.CV_32F, size, normalize=False, borderType=cv2.BORDER_CONSTANT)
+        gradients.append(_box_sum(steps, radius) / np.maximum(count, np.float32(1.0)))
     return gradients[0], gradients[1]
+
+
+#: Whole multiples of this (periods) sum exactly in float64 within the windows' bound of 16 (module docstring).
+_EXACT_STEP = 2.0 ** -48
+#: A float32 phase of at least this many periods (or 0) is a whole multiple of :data:`_EXACT_STEP`.
+_SMALLEST_EXACT_PHASE = 2.0 ** -25
+#: The gathered sums serve at most this share of the pixels; more ask the whole-image box filters (cheaper there).
+_GATHERED_SHARE = 1.0 / 16.0
+
+
+def _periods(psi: np.ndarray) -> np.ndarray:
+    """``psi / 2 pi`` as :func:`phase_gradient` computes it: in float64, rounded to float32."""
+    return (np.asarray(psi, dtype=np.float64) / (2.0 * np.pi)).astype(np.float32)
+
+
+def _wrapped_steps(frac_from: np.ndarray, frac_to: np.ndarray) -> np.ndarray:
+    """``wrap(frac_to - frac_from)`` in float32 as :func:`phase_gradient` computes it (periods, in [-1/2, 1/2])."""
+    step = frac_to - frac_from
+    step -= np.rint(step)
+    return step
+
+
+def _steps_sum_exactly(padded_psi: np.ndarray, padded_valid: np.ndarray, suspects: np.ndarray) -> bool:
+    """Whether every difference between a pixel of ``suspects`` (flat indices into the padded maps, at least one
+    pixel from their border) and a valid neighbour after or before it in a row or a column is a whole multiple of
+    :data:`_EXACT_STEP` (module docstring)."""
+    width = padded_psi.shape[1]
+    flat_psi, flat_valid = padded_psi.ravel(), padded_valid.ravel()
+    for offset in (1, width):
+        for first, second in ((suspects, suspects + offset), (suspects - offset, suspects)):
+            pair = flat_valid[first] & flat_valid[second]
+            step = _wrapped_steps(_periods(flat_psi[first[pair]]), _periods(flat_psi[second[pair]]))
+            scaled = step.astype(np.float64) / _EXACT_STEP
+            if not np.array_equal(scaled, np.rint(scaled)):
+                return False
+    return True
+
+
+def _gradient_at(psi: np.ndarray, valid: np.ndarray, pixels: np.ndarray,
+                 radius: int = GRADIENT_RADIUS) -> tuple[np.ndarray, np.ndarray] | None:
+    """:func:`phase_gradient` ``(gy, gx)`` at the flat indices ``pixels`` only, each ``(n,)`` float32, bit for bit;
+    None when a difference the whole-image box filter sums may not sum exactly (module docstring).
+
+    ``psi`` (H, W) is 0 where not ``valid``; each pixel's ``(2 radius + 2)^2`` block (the window and the next row and
+    column) is gathered from maps padded with invalid pixels, as the box filter's constant border reads zeros.
+    """
+    side = 2 * radius + 2
+    pad = ((radius, radius + 1), (radius, radius + 1))
+    padded_psi = np.pad(psi, pad)
+    padded_valid = np.pad(valid, pad)
+    padded_width = padded_psi.shape[1]
+    magnitude = np.abs(psi)
+    small = (magnitude > 0.0) & (magnitude < 2.0 * np.pi * _SMALLEST_EXACT_PHASE * (1.0 + 1e-6))  # a superset
+    if small.any():
+        rows, cols = np.nonzero(small)
+        if not _steps_sum_exactly(padded_psi, padded_valid, (rows + radius) * padded_width + cols + radius):
+            return None
+    rows, cols = np.divmod(pixels, valid.shape[1])
+    corner = rows * padded_width + cols  # the block's top-left in the padded maps: (row - radius, col - radius)
+    block = (np.arange(side)[:, None] * padded_width + np.arange(side)[None, :]).ravel()
+    index = corner[:, None] + block[None, :]  # (n, side^2)
+    frac = _periods(padded_psi.ravel()[index]).reshape(-1, side, side)
+    ok = padded_valid.ravel()[index].reshape(-1, side, side)
+    gradients = []
+    for step, pair in ((_wrapped_steps(frac[:, :-1, :-1], frac[:, 1:, :-1]), ok[:, 1:, :-1] & ok[:, :-1, :-1]),
+                       (_wrapped_steps(frac[:, :-1, :-1], frac[:, :-1, 1:]), ok[:, :-1, 1:] & ok[:, :-1, :-1])):
+        total = np.where(pair, step, np.float32(0.0)).sum(axis=(1, 2), dtype=np.float64).astype(np.float32)
+        count = np.count_nonzero(pair, axis=(1, 2)).astype(np.float32)
+        gradients.append(total / np.maximum(count, np.float32(1.0)))
+    return gradients[0], gradients[1]
+
+
+def _valid_neighbours_at(valid: np.ndarray, pixels: np.ndarray, radius: int) -> np.ndarray:
+    """Valid pixels of each ``(2 radius + 1)^2`` window around the flat indices ``pixels``, the centre excluded,
+    ``(n,)`` float32: the whole-image box filter's counts there (whole numbers: exact in any order)."""
+    padded = np.pad(valid, radius)
+    padded_width = padded.shape[1]
+    rows, cols = np.divmod(pixels, valid.shape[1])
+    side = 2 * radius + 1
+    block = (np.arange(side)[:, None] * padded_width + np.arange(side)[None, :]).ravel()
+    count = np.count_nonzero(padded.ravel()[(rows * padded_width + cols)[:, None] + block[None, :]], axis=1)
+    return count.astype(np.float32) - np.float32(1.0)
 
 
 def neighbour_support(order: np.ndarray, wrapped: np.ndarray, valid: np.ndarray, confidence: np.ndarray, *,
@@ -95,10 +191,16 @@ def neighbour_support(order: np.ndarray, wrapped: np.ndarray, valid: np.ndarray,
     pixels = np.flatnonzero(todo)
     if pixels.size == 0:
         return support
-    gy, gx = phase_gradient(psi, valid)
-    size = (2 * radius + 1, 2 * radius + 1)
-    neighbours = cv2.boxFilter(valid.astype(np.float32), -1, size, normalize=False,
-                               borderType=cv2.BORDER_CONSTANT) - 1.0  # valid ones, p excluded (p is valid)
+    gathered = _gradient_at(psi, valid, pixels) if pixels.size <= _GATHERED_SHARE * valid.size else None
+    if gathered is not None:
+        grad_y, grad_x = gathered
+        neighbours = _valid_neighbours_at(valid, pixels, radius)  # valid ones, p excluded (p is valid)
+    else:
+        gy, gx = phase_gradient(psi, valid)
+        grad_y, grad_x = gy.ravel()[pixels], gx.ravel()[pixels]
+        size = (2 * radius + 1, 2 * radius + 1)
+        neighbours = (cv2.boxFilter(valid.astype(np.float32), -1, size, normalize=False,
+                                    borderType=cv2.BORDER_CONSTANT) - 1.0).ravel()[pixels]
     width = absolute.shape[1]
     padded_width = width + 2 * radius
     rows, cols = np.divmod(pixels, width)
@@ -106,7 +208,6 @@ def neighbour_support(order: np.ndarray, wrapped: np.ndarray, valid: np.ndarray,
     padded = np.pad(absolute.astype(np.float32), radius, constant_values=np.nan).ravel()
     padded_weight = np.pad(weight.astype(np.float32), radius).ravel()
     own = absolute.ravel()[pixels].astype(np.float32)
-    grad_y, grad_x = gy.ravel()[pixels], gx.ravel()[pixels]
     agreeing = np.zeros(pixels.size, np.float32)
     difference = np.empty(pixels.size, np.float32)
     with np.errstate(invalid="ignore"):
@@ -119,5 +220,5 @@ def neighbour_support(order: np.ndarray, wrapped: np.ndarray, valid: np.ndarray,
                 np.subtract(padded[shift], own, out=difference)
                 difference -= grad_y * dy + grad_x * dx
                 agreeing += np.where(np.abs(difference) < tolerance, padded_weight[shift], 0.0)
-    support.ravel()[pixels] = agreeing / np.maximum(neighbours.ravel()[pixels], 1.0)
+    support.ravel()[pixels] = agreeing / np.maximum(neighbours, 1.0)
     return support

@@ -1,0 +1,94 @@
+"""The network confidence's faster paths give its float64, whole-image numbers bit for bit: the float32 margins of
+:func:`dptpu.fpp.confidence.network_confidence` and the neighbour support's gradient and counts summed at the asked
+pixels only (:mod:`dptpu.fpp.order_support`), on outside rigs (distortion, several focal lengths, baselines and angles)
+with the paper's camera noise, and on phases next to 0, where the gathered sums are refused."""
+from functools import cache
+
+import numpy as np
+import pytest
+
+from dptpu.fpp import order_support, tpu
+from dptpu.fpp.confidence import network_confidence
+from dptpu.fpp.order_support import neighbour_support
+from dptpu.sim.outside_rigs import SIGMA_2, issue16_rig, random_outside_rig, render_phases, spheres_and_plane
+
+F_H, F_L = 20.0, 19.0  # MW
+RIGS = {"random-3": lambda: random_outside_rig(3, size=(160, 120)),
+        "random-8": lambda: random_outside_rig(8, size=(160, 120)),
+        "issue16": lambda: issue16_rig(size=(160, 120))}
+
+
+@cache
+def scan(name: str, steps: int):
+    """``(wrapped high float32, classical MW result, true order)`` of a noisy capture of spheres before a plane."""
+    rig = RIGS[name]()
+    capture = render_phases(rig, spheres_and_plane(rig, 2), [F_H, F_L], steps=steps, noise_dn=SIGMA_2, seed=7)
+    psi_h = capture.phases[F_H].astype(np.float32)
+    valid = capture.valid & (capture.modulation[F_H] > 3.0) & (capture.modulation[F_L] > 3.0)
+    result = tpu.unwrap("mw", psi_h, capture.phases[F_L].astype(np.float32), F_H, F_L, valid=valid)
+    return psi_h, result, capture.order(F_H).astype(np.int32)
+
+
+def _least_reliable(result) -> np.ndarray:
+    """The valid pixels of the classical result's lowest 5 % reliability: the few pixels a confidence asks about."""
+    return result.valid & (result.reliability <= np.quantile(result.reliability[result.valid], 0.05))
+
+
+def _whole_image(monkeypatch):
+    monkeypatch.setattr(order_support, "_GATHERED_SHARE", 0.0)  # no pixel set is small enough: the box filters
+
+
+@pytest.mark.parametrize("name", RIGS)
+@pytest.mark.parametrize("steps", [3, 12])
+def test_gathered_support_is_the_whole_image_support(name, steps, monkeypatch):
+    psi_h, result, _ = scan(name, steps)
+    wrapped = np.where(result.valid, psi_h, np.float32(0.0))
+    where = _least_reliable(result)
+    assert 0 < where.sum() <= order_support._GATHERED_SHARE * where.size
+    # 12 steps: no phase next to 0, gathered; 3 steps of 8-bit frames: phases of exactly 0 beside phases of 1e-8 rad
+    # on two of the rigs, which the gathered sums refuse (the whole image then)
+    gathered_path = order_support._gradient_at(wrapped, result.valid, np.flatnonzero(where)) is not None
+    assert gathered_path or steps == 3
+    gathered = neighbour_support(result.fringe_order, wrapped, result.valid, result.reliability, radius=4,
+                                 where=where)
+    _whole_image(monkeypatch)
+    whole = neighbour_support(result.fringe_order, wrapped, result.valid, result.reliability, radius=4, where=where)
+    assert np.array_equal(gathered, whole)
+    assert 0.5 < np.mean(whole[where] > 0) <= 1.0  # not a vacuous comparison: most asked pixels have support
+
+
+@pytest.mark.parametrize("name", RIGS)
+def test_float32_network_confidence_is_the_float64_one(name):
+    psi_h, result, truth = scan(name, 3)
+    rng = np.random.default_rng(3)
+    # a network output near the true order (some pixels near the rounding margin), an order with a few wrong ones
+    continuous = (truth + rng.normal(0.0, 0.2, truth.shape)).astype(np.float32)
+    continuous[::17, ::13] = truth[::17, ::13] + np.float32(3e-8)  # within 2^-24 of an integer
+    order = np.where(result.valid, np.rint(continuous), 0).astype(np.int32)
+    prior = np.where(rng.random(truth.shape) < 0.1, result.fringe_order + rng.integers(-2, 3, truth.shape),
+                     result.fringe_order).astype(np.int32)
+    wrapped = np.where(result.valid, psi_h, np.float32(0.0))
+    fast = network_confidence(continuous, order, prior, result.valid, wrapped_high=wrapped)
+    reference = network_confidence(continuous.astype(np.float64), order, prior, result.valid, wrapped_high=wrapped)
+    assert fast.dtype == reference.dtype == np.float32
+    assert np.array_equal(fast, reference)
+    # each term at work: the prior's 1/2, the margins and supports between 0 and 1
+    assert 0.005 < np.mean(fast[result.valid] == 0.5) and np.mean(((fast > 0) & (fast < 1))[result.valid]) > 0.1
+
+
+def test_a_phase_next_to_zero_whose_differences_may_not_sum_exactly_takes_the_whole_image(monkeypatch):
+    psi_h, result, _ = scan("random-3", 12)
+    valid = result.valid
+    wrapped = np.where(valid, psi_h, np.float32(0.0))
+    row, col = np.argwhere(valid[:, :-1] & valid[:, 1:])[len(valid) // 2]
+    wrapped[row, col], wrapped[row, col + 1] = np.float32(4.1e-9), np.float32(7.3e-9)  # differ by 2^-51.6 periods
+    where = _least_reliable(result)
+    where[row, col] = True
+    assert order_support._gradient_at(wrapped, valid, np.flatnonzero(where)) is None
+    asked = neighbour_support(result.fringe_order, wrapped, valid, result.reliability, radius=4, where=where)
+    _whole_image(monkeypatch)
+    assert np.array_equal(asked, neighbour_support(result.fringe_order, wrapped, valid, result.reliability,
+                                                   radius=4, where=where))
+    # a phase next to 0 beside a phase far from it: its differences are whole multiples of 2^-48, gathered
+    wrapped[row, col + 1] = np.float32(2.5)
+    assert order_support._gradient_at(wrapped, valid, np.flatnonzero(where)) is not None
