@@ -77,11 +77,14 @@ def organized_normals(points: np.ndarray, *, window_px: int = DEFAULT_NORMAL_WIN
     elif out.shape != points.shape or out.dtype != np.float32:
         raise ValueError(f"out must be a float32 array of shape {points.shape}; got {out.dtype} {out.shape}")
     p = [points[..., c].astype(np.float32, copy=False) for c in range(3)]  # x, y, z planes (H, W)
-    tu = _window_sums(_tangents(p, axis=1), int(window_px))  # (5, H, W): sum t_u's x, y, z, x, y
+    tu = _window_sums(_tangents(p, axis=1), int(window_px))  # (3, H, W): sum t_u's x, y, z
     tv = _window_sums(_tangents(p, axis=0), int(window_px))  # along the column
-    # t_u x t_v, all three components at once: planes (y, z, x) * (z, x, y) - (z, x, y) * (y, z, x)
-    n = np.multiply(tu[1:4], tv[2:5])  # (3, H, W)
-    scratch = np.multiply(tu[2:5], tv[1:4])
+    # t_u x t_v: component c is t_u[c + 1] t_v[c + 2] - t_u[c + 2] t_v[c + 1] (indices mod 3)
+    n = np.empty_like(tu)  # (3, H, W)
+    scratch = np.empty_like(tu)
+    for c in range(3):
+        np.multiply(tu[(c + 1) % 3], tv[(c + 2) % 3], out=n[c])
+        np.multiply(tu[(c + 2) % 3], tv[(c + 1) % 3], out=scratch[c])
     np.subtract(n, scratch, out=n)
     length, term = np.multiply(n[0], n[0]), scratch[0]  # |n|^2 = (n_x^2 + n_y^2) + n_z^2, in this order
     length += np.multiply(n[1], n[1], out=term)
@@ -104,21 +107,20 @@ def organized_normals(points: np.ndarray, *, window_px: int = DEFAULT_NORMAL_WIN
 
 
 def _window_sums(tangents: np.ndarray, window: int) -> np.ndarray:
-    """Sums of the (5, H, W) tangent planes over a ``window`` x ``window`` box of pixels (zero outside the image),
-    in place: the box filter of each of the first three planes, planes 3 and 4 copies of planes 0 and 1."""
+    """Sums of the (3, H, W) tangent planes over a ``window`` x ``window`` box of pixels (zero outside the image),
+    in place: the box filter of each plane."""
     if window > 1:
-        for plane in tangents[:3]:
+        for plane in tangents:
             cv2.boxFilter(plane, -1, (window, window), dst=plane, normalize=False, borderType=cv2.BORDER_CONSTANT)
-    tangents[3:] = tangents[:2]
     return tangents
 
 
 def _tangents(points: list[np.ndarray], *, axis: int) -> np.ndarray:
     """Central differences ``P(i + 1) - P(i - 1)`` along ``axis`` (0 rows, 1 columns) of the three (H, W) planes
-    as planes x, y, z of a (5, H, W) float32 array (3 and 4 left for :func:`_window_sums`); 0 where a neighbour
-    is NaN or outside the image (a missing tangent adds nothing to a window's sum)."""
+    as planes x, y, z of a (3, H, W) float32 array; 0 where a neighbour is NaN or outside the image (a missing
+    tangent adds nothing to a window's sum)."""
     height, width = points[0].shape
-    tangents = np.empty((5, height, width), dtype=np.float32)
+    tangents = np.empty((3, height, width), dtype=np.float32)
     for plane, t in zip(points, tangents):
         if axis == 0:
             np.subtract(plane[2:], plane[:-2], out=t[1:-1])
@@ -126,5 +128,5 @@ def _tangents(points: list[np.ndarray], *, axis: int) -> np.ndarray:
         else:  # OpenCV's subtraction walks the row-strided views 3-4x faster than numpy's; the same float32 values
             cv2.subtract(plane[:, 2:], plane[:, :-2], dst=t[:, 1:-1])
             t[:, 0] = t[:, -1] = 0.0
-    cv2.patchNaNs(tangents[:3].reshape(3 * height, width), 0.0)  # NaN differences (a neighbour missing) -> 0
+    cv2.patchNaNs(tangents.reshape(3 * height, width), 0.0)  # NaN differences (a neighbour missing) -> 0
     return tangents
