@@ -8,17 +8,30 @@ has passed (:mod:`.shared_memory`). The pool takes the first free segment that f
 write or the last time it was found busy, makes a new one while the pool stays within its bytes, and otherwise
 says no (the publisher sends through ZeroMQ).
 Segments idle for :data:`IDLE_S` are closed.
+
+The pool also says no, with one log line a pool and reason, where a new segment would not serve or cannot be made:
+
+- the process is not *dumpable* (it changed its user or group, e.g. started as root and dropped privileges, runs a
+  binary with file capabilities, or called ``prctl(PR_SET_DUMPABLE, 0)``): the kernel then lets no other process of
+  its user open its ``/proc/<pid>/fd``, so no subscriber could map a segment;
+- the process holds :data:`FD_SHARE` of its file-descriptor limit (``ulimit -n``) already: each segment costs two
+  descriptors (the memfd and the duplicate Python's ``mmap`` keeps), and a subscriber that keeps every message would
+  otherwise grow the pool until ``publish`` failed with ``EMFILE`` and the process could open no socket or file;
+- making it fails (``memfd_create``, ``ftruncate`` or ``mmap`` raise ``OSError``: no descriptor, no memory).
 """
 
 from __future__ import annotations
 
+import ctypes
 import fcntl
 import mmap
 import os
+import resource
 import time
 
 import numpy as np
 
+from .logging import get_logger
 from .shared_memory import (
     ALIGNMENT,
     GENERATION_OFFSET,
@@ -30,10 +43,13 @@ from .shared_memory import (
     pack_descriptor,
 )
 
-__all__ = ["SegmentPool", "IDLE_S"]
+__all__ = ["SegmentPool", "IDLE_S", "FD_SHARE", "process_dumpable"]
 
 #: Seconds after its last write when a free segment is closed.
 IDLE_S = 10.0
+#: Share of the process's soft file-descriptor limit beyond which no new segment is made (the rest stays for its
+#: sockets, files and the segments it maps as a subscriber).
+FD_SHARE = 0.5
 #: The header's pickup and let-go counters: their indices among its 8-byte words.
 _PICKUPS_WORD = PICKUPS_OFFSET // 8
 _RELEASES_WORD = RELEASES_OFFSET // 8
@@ -42,6 +58,32 @@ _PAGE = mmap.PAGESIZE
 
 def _aligned(nbytes: int) -> int:
     return (nbytes + ALIGNMENT - 1) // ALIGNMENT * ALIGNMENT
+
+
+_PR_GET_DUMPABLE = 3
+_libc: list = []
+
+
+def process_dumpable() -> bool:
+    """Whether the kernel lets other processes of this user open this one's ``/proc/<pid>/fd`` (``PR_GET_DUMPABLE``
+    is 1); True where it cannot be asked."""
+    if not _libc:
+        try:
+            _libc.append(ctypes.CDLL(None, use_errno=True).prctl)
+        except (OSError, AttributeError):
+            _libc.append(None)
+    prctl = _libc[0]
+    return prctl is None or prctl(_PR_GET_DUMPABLE, 0, 0, 0, 0) == 1
+
+
+def _descriptor_room() -> tuple[int, int]:
+    """``(open, allowed)``: descriptors this process has open, and :data:`FD_SHARE` of its soft limit."""
+    soft = resource.getrlimit(resource.RLIMIT_NOFILE)[0]
+    allowed = 1 << 30 if soft == resource.RLIM_INFINITY else int(soft * FD_SHARE)
+    try:
+        return len(os.listdir("/proc/self/fd")), allowed
+    except OSError:
+        return 0, allowed
 
 
 class _Segment:
@@ -130,7 +172,9 @@ class SegmentPool:
     written_count : int
         Messages written into segments.
     full_count : int
-        Messages refused because every segment was busy and the pool was at its bytes (sent through ZeroMQ).
+        Messages refused because every segment was busy and no new one could be made: the pool at its bytes, at its
+        share of the file-descriptor limit, the process not dumpable, or the kernel refusing a segment (sent through
+        ZeroMQ).
     """
 
     def __init__(self, config: SharedMemoryConfig, label: str):
@@ -139,6 +183,7 @@ class SegmentPool:
         self._segments: list[_Segment] = []  # least recently written (or found busy) first
         self._bytes = 0
         self._next_trim = 0.0
+        self._reported: set[str] = set()  # reasons already logged (once a pool each)
         self.written_count = 0
         self.full_count = 0
 
@@ -190,8 +235,7 @@ class SegmentPool:
         need = HEADER_BYTES + sum(_aligned(n) for n in sizes)
         segment = self._take(need, time.monotonic())
         if segment is None:
-            self.full_count += 1
-            return None
+            return None  # counted in full_count by the write of the plain arrays the writer gets instead
         segment.loaned = True
         entries, offset = [], HEADER_BYTES
         for nbytes in sizes:
@@ -243,11 +287,7 @@ class SegmentPool:
         size = (need + need // 16 + _PAGE - 1) // _PAGE * _PAGE  # some room for a message a little larger
         if self._bytes + size > self._config.pool_bytes:
             return self._evict_for(size, now)
-        segment = _Segment(size, self._label)
-        fcntl.flock(segment.fd, fcntl.LOCK_EX)
-        self._segments.append(segment)
-        self._bytes += size
-        return segment
+        return self._new_segment(size)
 
     def _evict_for(self, size: int, now: float) -> _Segment | None:
         """Close free segments of other sizes until ``size`` fits in the pool; a new segment, or None."""
@@ -260,11 +300,38 @@ class SegmentPool:
                 segment.close()
         if self._bytes + size > self._config.pool_bytes:
             return None
-        segment = _Segment(size, self._label)
-        fcntl.flock(segment.fd, fcntl.LOCK_EX)
+        return self._new_segment(size)
+
+    def _new_segment(self, size: int) -> _Segment | None:
+        """A new segment of ``size`` bytes, exclusively locked and listed; None (logged once a pool and reason) when
+        no subscriber could open it, the process is at its share of descriptors, or the kernel refuses one."""
+        if not process_dumpable():
+            self._report("not dumpable", "this process is not dumpable (it changed its user or group, runs a binary "
+                         "with file capabilities, or called prctl(PR_SET_DUMPABLE, 0)), so the kernel lets no other "
+                         "process open its segments; sending every message through ZeroMQ")
+            return None
+        used, allowed = _descriptor_room()
+        if used + 2 > allowed:
+            self._report("descriptors", f"this process has {used} file descriptors open, the most segments may "
+                         f"leave it ({FD_SHARE:g} of ulimit -n {resource.getrlimit(resource.RLIMIT_NOFILE)[0]}; "
+                         "subscribers hold its segments: one keeps its messages, or queues many); sending through "
+                         "ZeroMQ while no segment of the pool is free (raise ulimit -n to share more)")
+            return None
+        try:
+            segment = _Segment(size, self._label)
+        except OSError as exc:
+            self._report("kernel", f"a segment of {size} bytes cannot be made ({exc.strerror or exc}); sending "
+                         "through ZeroMQ while no segment of the pool is free")
+            return None
+        fcntl.flock(segment.fd, fcntl.LOCK_EX)  # a new file: nobody else holds it
         self._segments.append(segment)
         self._bytes += size
         return segment
+
+    def _report(self, reason: str, text: str) -> None:
+        if reason not in self._reported:
+            self._reported.add(reason)
+            get_logger("dptpu.graph").warning(f"shared memory of {self._label}: {text}")
 
     def _trim(self, now: float) -> None:
         self._next_trim = now + 1.0

@@ -54,6 +54,7 @@ Configuration (environment variables, read when a context starts its runtime):
 
 from __future__ import annotations
 
+import errno
 import fcntl
 import hashlib
 import mmap
@@ -375,14 +376,40 @@ def _release(mapping: _Mapping) -> None:
                 pass  # closed by a sweep already (cannot happen while held; kept safe)
 
 
+#: Why a segment cannot be opened, by ``errno``: what the subscriber's log says beside the system's message.
+_OPEN_HINTS = {
+    errno.ENOENT: "its publisher exited or closed it",
+    errno.EACCES: "the publisher's process is not dumpable, or a security module forbids /proc/<pid>/fd",
+    errno.EPERM: "the publisher's process is not dumpable, or a security module forbids /proc/<pid>/fd",
+    errno.EMFILE: "this process is at its file-descriptor limit, ulimit -n",
+    errno.ENFILE: "the system is at its file limit",
+}
+
+
 def _open(descriptor: Descriptor) -> _Mapping:
+    """Open and map the descriptor's segment; at the descriptor limit (``EMFILE``), once more after unmapping every
+    segment no message here holds (kept only to be reused: each costs two descriptors, its own and the duplicate
+    ``mmap`` keeps)."""
     path = f"/proc/{descriptor.pid}/fd/{descriptor.fd}"
     try:
-        # O_NONBLOCK: a forged descriptor naming a FIFO must not block the I/O thread
-        fd = os.open(path, os.O_RDWR | os.O_NONBLOCK | os.O_CLOEXEC)
+        try:
+            return _open_once(descriptor, path)
+        except OSError as exc:
+            if exc.errno != errno.EMFILE or not _close_unheld():
+                raise
+        return _open_once(descriptor, path)
     except OSError as exc:
-        raise SharedMemoryError(f"cannot open segment {path} (its publisher exited or closed it): "
-                                f"{exc.strerror}") from None
+        hint = _OPEN_HINTS.get(exc.errno or 0, "")
+        raise SharedMemoryError(f"cannot open segment {path}: {exc.strerror}" + (f" ({hint})" if hint else "")) \
+            from None
+
+
+def _open_once(descriptor: Descriptor, path: str) -> _Mapping:
+    # a forged descriptor may name any file of this user's processes: open regular files only (a device or a
+    # terminal may act on open), without blocking (a FIFO) and never as the controlling terminal
+    if not stat.S_ISREG(os.stat(path).st_mode):
+        raise SharedMemoryError(f"{path} is not the segment the descriptor names (not a regular file)")
+    fd = os.open(path, os.O_RDWR | os.O_NONBLOCK | os.O_NOCTTY | os.O_CLOEXEC)
     try:
         info = os.fstat(fd)
         if (not stat.S_ISREG(info.st_mode) or info.st_ino != descriptor.inode or info.st_uid != os.getuid()
@@ -398,6 +425,16 @@ def _open(descriptor: Descriptor) -> _Mapping:
         os.close(fd)
         raise
     return _Mapping(fd, view, descriptor.size, descriptor.pid)
+
+
+def _close_unheld() -> int:
+    """Unmap every segment no message of this process holds (holding ``_lock``); how many were closed."""
+    closed = 0
+    for key, mapping in list(_mappings.items()):
+        if not mapping.holders and mapping.close():
+            del _mappings[key]
+            closed += 1
+    return closed
 
 
 def _sweep_locked(now: float) -> None:

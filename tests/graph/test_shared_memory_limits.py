@@ -1,0 +1,128 @@
+"""The shared-memory path on a machine that limits it: few file descriptors, a publisher that is not dumpable, a
+subscriber at its descriptor limit, a forged descriptor naming a terminal.
+
+The publisher is a real process (``tests/graph/nodes/shm_limited_publisher.py``) under a real ``setrlimit`` or
+``prctl``; the subscriber is this process, which keeps every message it gets (a recorder, or a subscriber with a deep
+queue: each kept message holds its segment).
+"""
+
+from __future__ import annotations
+
+import gc
+import os
+import pty
+import subprocess
+import sys
+import time
+
+import numpy as np
+import pytest
+
+from dptpu.graph import Node, SingleThreadedExecutor, segment_pool
+from dptpu.graph.segment_pool import SegmentPool
+from dptpu.graph.shared_memory import SharedMemoryConfig, SharedMemoryError, pack_descriptor, read_message
+from dptpu.messages import Image
+
+from .nodes.shm_limited_publisher import TOPIC, image_of
+from .nodes.shm_peer import is_shared
+
+
+def _keep_everything(context, count: int, publisher, timeout: float = 60.0) -> list:
+    """Subscribe in this process, keep every message until ``count`` arrived; the kept messages."""
+    kept: list = []
+    node = Node("keeper", context=context)
+    node.create_subscription(Image, TOPIC, kept.append, 100)
+    executor = SingleThreadedExecutor(context=context)
+    executor.add_node(node)
+    publisher.wait_event("ready", timeout=30.0)
+    deadline = time.monotonic() + timeout
+    while len(kept) < count and time.monotonic() < deadline:
+        executor.spin_once(timeout_sec=0.05)
+    return kept
+
+
+def _intact(kept: list) -> list[int]:
+    """The indices of the kept messages, each checked bit for bit against the image the publisher made."""
+    indices = []
+    for msg in kept:
+        index = int(msg.header.frame_id)
+        assert np.array_equal(msg.to_array(), image_of(index)), index
+        indices.append(index)
+    return indices
+
+
+def test_a_publisher_at_its_descriptor_limit_falls_back_to_zeromq_and_loses_nothing(context, spawn):
+    # before: each kept message held a segment (two descriptors: the memfd and mmap's duplicate) until publish
+    # raised EMFILE for every later message and the process could open no file (its announcements failed)
+    nofile, count = 96, 60
+    publisher = spawn("shm_limited_publisher", "--nofile", str(nofile), "--count", str(count), "--period", "0.005")
+    kept = _keep_everything(context, count, publisher)
+    report = publisher.wait_event("published", timeout=30.0)
+    assert report["errors"] == []
+    assert sorted(_intact(kept)) == list(range(count))  # every message, none lost, none changed
+    assert 0 < report["shared"] < count and report["full"] == count - report["shared"]
+    assert sum(is_shared(msg.data) for msg in kept) == report["shared"]
+    # segments stop at FD_SHARE of the limit; ZeroMQ opens some more later (its connections): room is left
+    assert report["most_fds"] < nofile * (1 + segment_pool.FD_SHARE) / 2
+    assert publisher.wait_for_stderr("file descriptors open"), publisher.stderr
+    assert "Too many open files" not in publisher.stderr
+    assert publisher.stderr.count("shared memory of dptpu:limits:image") == 1  # one line, not one a message
+
+
+def test_a_publisher_that_is_not_dumpable_sends_through_zeromq(context, spawn):
+    # no other process of its user may open its /proc/<pid>/fd (root may): before, every subscriber of the same
+    # (non-root) user lost its first SHM_GIVE_UP messages, then gave up shared memory for good
+    count = 30
+    publisher = spawn("shm_limited_publisher", "--undumpable", "--count", str(count), "--period", "0.005")
+    kept = _keep_everything(context, count, publisher)
+    report = publisher.wait_event("published", timeout=30.0)
+    assert sorted(_intact(kept)) == list(range(count))
+    assert report["shared"] == 0 and report["full"] == count and report["errors"] == []
+    assert not any(is_shared(msg.data) for msg in kept)
+    assert publisher.wait_for_stderr("is not dumpable"), publisher.stderr
+
+
+_READER = """
+import resource, sys
+from dptpu.graph.shared_memory import read_message, SharedMemoryError
+resource.setrlimit(resource.RLIMIT_NOFILE, (int(sys.argv[1]), resource.getrlimit(resource.RLIMIT_NOFILE)[1]))
+read = failed = 0
+for line in sys.stdin:
+    try:
+        views = read_message(b"/t", b"h", bytes.fromhex(line.strip()))
+        read += 1
+        del views  # let go: the mapping stays cached (idle), as a subscriber keeps it for the publisher's next write
+    except SharedMemoryError as exc:
+        failed += 1
+        print("failed", exc, file=sys.stderr)
+print(read, failed)
+"""
+
+
+def test_a_subscriber_at_its_descriptor_limit_unmaps_idle_segments_instead_of_losing_messages():
+    # before: every new segment once the cached idle mappings had used the descriptors was refused (EMFILE), so
+    # each message was lost until the mappings went idle for 5 s
+    pool = SegmentPool(SharedMemoryConfig(lease_s=60.0, pool_bytes=64 << 20, key=b"k"), "dptpu:t")
+    try:
+        payload = [memoryview(np.arange(100_000, dtype=np.uint8))]
+        descriptors = [pool.write(payload, readers=1).hex() for _ in range(40)]  # none picked up: 40 segments
+        assert pool.segment_count == 40
+        reader = subprocess.run([sys.executable, "-c", _READER, "48"], input="\n".join(descriptors),
+                                capture_output=True, text=True, timeout=60)
+        assert reader.stdout.split() == ["40", "0"], reader.stderr  # 2 descriptors a mapping: > 48 without it
+    finally:
+        pool.close()
+
+
+def test_a_forged_descriptor_naming_a_terminal_is_refused_before_it_is_opened():
+    # opening a terminal without O_NOCTTY can make it the controlling terminal of a process that has none; a
+    # device may act on open: only regular files are opened at all
+    master, terminal = pty.openpty()
+    try:
+        forged = pack_descriptor(os.getpid(), terminal, os.fstat(terminal).st_ino, bytes(16), 1, 4096, [(64, 8)])
+        with pytest.raises(SharedMemoryError, match=r"is not the segment the descriptor names \(not a regular file"):
+            read_message(b"/t", b"h", forged)
+    finally:
+        os.close(master)
+        os.close(terminal)
+        gc.collect()
