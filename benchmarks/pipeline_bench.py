@@ -414,7 +414,8 @@ def floor_ms_per_scan(*, steps: int, size: str, repeats: int = 30, source: str =
         dropped = edge_points(depth, focal_px, modulation, lit=result.valid, depth_per_px=per_px,
                               max_edge_error=DEFAULT_MAX_EDGE_ERROR_MM * 1e-3, axis="x").dropped
         dropped |= order_islands(result.absolute_phase, modulation, result.valid).islands
-        planes[:, dropped] = np.nan
+        for plane in planes:  # blanked as the cloud node blanks them: a masked copy a plane
+            np.copyto(plane, np.float32(np.nan), where=dropped)
 
     def assemble_step():  # as the cloud node does: texture, modulation, confidence and the normals' planes beside
         # the x, y, z planes, interleaved by one cv2.merge

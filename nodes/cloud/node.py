@@ -485,7 +485,7 @@ class CloudNode(Node):
                             max_edge_error=DEFAULT_MAX_EDGE_ERROR_MM * 1e-3, axis=axis,
                             max_slope=self.max_edge_slope)
         counts = edges.counts(np.isfinite(planes[2]))
-        planes[:, edges.dropped] = np.nan
+        _blank(planes, edges.dropped)
         self.points_flying += counts["flying"]
         self.points_beside_step += counts["beside_step"]
         self.points_modulation_dip += counts["modulation_dip"]
@@ -502,7 +502,7 @@ class CloudNode(Node):
         b = np.ones(valid.shape, np.float32) if modulation is None else modulation
         island = order_islands(absolute_phase, b, valid).islands
         np.logical_and(island, np.isfinite(planes[2]), out=island)
-        planes[:, island] = np.nan
+        _blank(planes, island)
         count = int(np.count_nonzero(island))
         self.points_on_islands += count
         return count
@@ -606,6 +606,14 @@ def _odd_window(value) -> str | None:
     """The check of ``normal_window_px``: an odd number of pixels >= 1."""
     return None if isinstance(value, int) and value >= 1 and value % 2 == 1 else \
         f"must be an odd number of pixels >= 1; got {value!r}"
+
+
+def _blank(planes: np.ndarray, mask: np.ndarray) -> None:
+    """Set the (3, H, W) ``planes`` NaN where the (H, W) ``mask`` is set: a masked copy per plane (numpy's boolean
+    index assignment ``planes[:, mask] = nan`` costs ~7 times more at 640x480; docs/benchmarks.md, "Floor kernels,
+    session 10")."""
+    for plane in planes:
+        np.copyto(plane, np.float32(np.nan), where=mask)
 
 
 def _or_nan(image: np.ndarray | None, shape: tuple[int, int]) -> np.ndarray:
