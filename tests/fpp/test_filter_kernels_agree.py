@@ -6,6 +6,7 @@ seed, several focal lengths, baselines and angles) rendered with mixed pixels at
 the paper's camera noise."""
 from functools import cache
 
+import cv2
 import numpy as np
 import pytest
 
@@ -15,7 +16,7 @@ from dptpu.fpp import shadow_border as shadow_border_module
 from dptpu.fpp.depth_edges import edge_points
 from dptpu.fpp.depth_steps import continues_a_side
 from dptpu.fpp.flying_points import flying_points
-from dptpu.fpp.order_islands import _order_regions, order_islands
+from dptpu.fpp.order_islands import _brightest_within_two, _order_regions, order_islands
 from dptpu.fpp.shadow_border import depth_per_pixel
 from dptpu.fpp.triangulate import Triangulator, camera_depth, projector_coordinate
 from dptpu.sim.image_formation import SequenceSpec
@@ -172,6 +173,23 @@ def test_the_shadow_borders_normal_at_chosen_pixels_is_opencvs_sobel_there(name)
             whole = shadow_border_module._across_fringes(unlit, axis)
             assert np.array_equal(shadow_border_module._across_fringes(unlit, axis, pixels), whole.ravel()[pixels])
             assert 0 < np.count_nonzero(whole.ravel()[pixels]) < pixels.size
+
+
+@pytest.mark.parametrize("name", RIGS)
+def test_the_brightest_modulation_within_two_pixels_of_a_pair_is_opencvs_dilation_there(name):
+    # order_islands' smooth-pair test gathers the 5 x 5 windows of the broken pairs' pixels; the kernel before it,
+    # OpenCV's dilation of the whole image: the same float32 values, at the image's border too
+    _, _, modulation, lit = rendered(name)
+    values = np.nan_to_num(modulation.astype(np.float32))
+    values[~lit] = 0.0
+    height, width = values.shape
+    rng = np.random.default_rng(len(name))
+    border = np.concatenate([np.arange(width), (height - 1) * width + np.arange(width), np.arange(height) * width,
+                             np.arange(height) * width + width - 1, [width + 1, 2 * width - 2]])
+    pixels = np.concatenate([border, rng.choice(values.size, 800)])
+    whole = cv2.dilate(values, np.ones((5, 5), np.uint8)).ravel()
+    assert np.array_equal(_brightest_within_two(values, pixels), whole[pixels])
+    assert _brightest_within_two(values, pixels[:0]).shape == (0,)
 
 
 @pytest.mark.parametrize("name", RIGS)
