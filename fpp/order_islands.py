@@ -140,17 +140,28 @@ def _order_regions(phi: np.ndarray, valid: np.ndarray) -> tuple[np.ndarray, np.n
 _WITHIN_TWO = np.stack(np.meshgrid(np.arange(-2, 3), np.arange(-2, 3), indexing="ij")).reshape(2, -1)  # (2, 25)
 
 
-def _brightest_within_two(values: np.ndarray, pixels: np.ndarray) -> np.ndarray:
-    """The largest of ``values`` (H, W) within two pixels (the 5 x 5 window, inside the image) of each flat pixel
-    index ``pixels`` (M,): a grey-level dilation by a 5 x 5 square, gathered at the few pixels of the broken pairs
-    (OpenCV's over the whole image costs more than the pairs' windows); max is exact, the same values."""
-    height, width = values.shape
-    rows, cols = np.divmod(pixels, width)
-    r = rows[:, None] + _WITHIN_TWO[0]  # (M, 25)
-    c = cols[:, None] + _WITHIN_TWO[1]
-    inside = (r >= 0) & (r < height) & (c >= 0) & (c < width)
-    window = values.ravel()[np.where(inside, r * width + c, 0)]
-    return np.where(inside, window, values.dtype.type(-np.inf)).max(axis=1, initial=-np.inf)
+class _ValidModulation:
+    """The map ``np.nan_to_num(B)`` where ``valid``, 0 elsewhere (H, W) float32, read at a few flat pixel indices:
+    the broken pairs' pixels and their 5 x 5 windows (making the whole map and dilating it cost more than the pairs'
+    windows; nan_to_num and max are exact, so the values are the whole map's and its dilation's)."""
+
+    def __init__(self, modulation: np.ndarray, valid: np.ndarray) -> None:
+        self.modulation, self.valid = modulation.ravel(), valid.ravel()
+        self.height, self.width = modulation.shape
+
+    def at(self, pixels: np.ndarray) -> np.ndarray:
+        """The map at the flat indices ``pixels`` (any shape)."""
+        return np.where(self.valid[pixels], np.nan_to_num(self.modulation[pixels]), np.float32(0.0))
+
+    def brightest_near(self, pixels: np.ndarray) -> np.ndarray:
+        """The largest value of the map within two pixels (the 5 x 5 window, inside the image) of each flat index
+        ``pixels`` (M,): its grey-level dilation by a 5 x 5 square (``cv2.dilate``) there."""
+        rows, cols = np.divmod(pixels, self.width)
+        r = rows[:, None] + _WITHIN_TWO[0]  # (M, 25)
+        c = cols[:, None] + _WITHIN_TWO[1]
+        inside = (r >= 0) & (r < self.height) & (c >= 0) & (c < self.width)
+        window = self.at(np.where(inside, r * self.width + c, 0))
+        return np.where(inside, window, np.float32(-np.inf)).max(axis=1, initial=-np.inf)
 
 
 def order_islands(absolute_phase: np.ndarray, modulation: np.ndarray, valid: np.ndarray, *,
@@ -196,12 +207,12 @@ def order_islands(absolute_phase: np.ndarray, modulation: np.ndarray, valid: np.
     step = np.rint(np.where(a_smaller, -difference, difference) / _TWO_PI)  # order of R minus order of Q
     unequal = (sizes[small] < sizes[large]) & (sizes[small] <= max_island_share * np.count_nonzero(valid))
 
-    b_map = np.nan_to_num(np.asarray(modulation, dtype=np.float32))  # a copy: 0 where not valid
-    np.copyto(b_map, np.float32(0.0), where=~valid)
-    flat_b = b_map.ravel()
+    # the modulation map the test reads, B (NaN as 0) where valid and 0 elsewhere, taken at the pairs' pixels and
+    # their windows only
+    b_map = _ValidModulation(np.asarray(modulation, dtype=np.float32), valid)
     with np.errstate(invalid="ignore", divide="ignore"):
-        smooth = np.minimum(flat_b[a], flat_b[b]) >= min_modulation_ratio * np.maximum(_brightest_within_two(b_map, a),
-                                                                                        _brightest_within_two(b_map, b))
+        smooth = np.minimum(b_map.at(a), b_map.at(b)) >= min_modulation_ratio * np.maximum(b_map.brightest_near(a),
+                                                                                          b_map.brightest_near(b))
 
     # per border (R, Q): all its pairs, and the most common nonzero step among its smooth pairs
     key = small.astype(np.int64) * labels.size + large.astype(np.int64)

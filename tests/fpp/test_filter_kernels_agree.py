@@ -16,7 +16,7 @@ from dptpu.fpp import shadow_border as shadow_border_module
 from dptpu.fpp.depth_edges import edge_points
 from dptpu.fpp.depth_steps import continues_a_side
 from dptpu.fpp.flying_points import flying_points
-from dptpu.fpp.order_islands import _brightest_within_two, _order_regions, order_islands
+from dptpu.fpp.order_islands import _order_regions, _ValidModulation, order_islands
 from dptpu.fpp.shadow_border import depth_per_pixel
 from dptpu.fpp.triangulate import Triangulator, camera_depth, projector_coordinate
 from dptpu.sim.image_formation import SequenceSpec
@@ -180,7 +180,9 @@ def test_the_brightest_modulation_within_two_pixels_of_a_pair_is_opencvs_dilatio
     # order_islands' smooth-pair test gathers the 5 x 5 windows of the broken pairs' pixels; the kernel before it,
     # OpenCV's dilation of the whole image: the same float32 values, at the image's border too
     _, _, modulation, lit = rendered(name)
-    values = np.nan_to_num(modulation.astype(np.float32))
+    modulation = modulation.astype(np.float32)
+    modulation[::7, ::5] = np.nan  # NaN modulation counts as 0, as the whole map made it
+    values = np.nan_to_num(modulation)
     values[~lit] = 0.0
     height, width = values.shape
     rng = np.random.default_rng(len(name))
@@ -188,8 +190,10 @@ def test_the_brightest_modulation_within_two_pixels_of_a_pair_is_opencvs_dilatio
                              np.arange(height) * width + width - 1, [width + 1, 2 * width - 2]])
     pixels = np.concatenate([border, rng.choice(values.size, 800)])
     whole = cv2.dilate(values, np.ones((5, 5), np.uint8)).ravel()
-    assert np.array_equal(_brightest_within_two(values, pixels), whole[pixels])
-    assert _brightest_within_two(values, pixels[:0]).shape == (0,)
+    gathered = _ValidModulation(modulation, lit)
+    assert np.array_equal(gathered.brightest_near(pixels), whole[pixels])
+    assert np.array_equal(gathered.at(pixels), values.ravel()[pixels])
+    assert gathered.brightest_near(pixels[:0]).shape == (0,)
 
 
 @pytest.mark.parametrize("name", RIGS)
