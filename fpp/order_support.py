@@ -96,19 +96,32 @@ def _wrapped_steps(frac_from: np.ndarray, frac_to: np.ndarray) -> np.ndarray:
     return step
 
 
-def _steps_sum_exactly(padded_psi: np.ndarray, padded_valid: np.ndarray, suspects: np.ndarray) -> bool:
-    """Whether every difference between a pixel of ``suspects`` (flat indices into the padded maps, at least one
-    pixel from their border) and a valid neighbour after or before it in a row or a column is a whole multiple of
-    :data:`_EXACT_STEP` (module docstring)."""
-    width = padded_psi.shape[1]
-    flat_psi, flat_valid = padded_psi.ravel(), padded_valid.ravel()
-    for offset in (1, width):
-        for first, second in ((suspects, suspects + offset), (suspects - offset, suspects)):
-            pair = flat_valid[first] & flat_valid[second]
-            step = _wrapped_steps(_periods(flat_psi[first[pair]]), _periods(flat_psi[second[pair]]))
-            scaled = step.astype(np.float64) / _EXACT_STEP
-            if not np.array_equal(scaled, np.rint(scaled)):
-                return False
+def _block(shape: tuple[int, int], pixels: np.ndarray, before: int, side: int) -> tuple[np.ndarray, np.ndarray]:
+    """``(flat index, inside)``, each ``(n, side, side)``: the ``side x side`` block of each flat index of ``pixels``
+    from ``before`` rows and columns before it, indices clipped to the image and ``inside`` False beyond it (what a
+    constant border of invalid pixels would hold)."""
+    height, width = shape
+    rows, cols = np.divmod(pixels, width)
+    span = np.arange(side) - before
+    block_rows = rows[:, None, None] + span[None, :, None]
+    block_cols = cols[:, None, None] + span[None, None, :]
+    inside = (block_rows >= 0) & (block_rows < height) & (block_cols >= 0) & (block_cols < width)
+    index = np.clip(block_rows, 0, height - 1) * width + np.clip(block_cols, 0, width - 1)
+    return index, inside
+
+
+def _steps_sum_exactly(psi: np.ndarray, valid: np.ndarray, suspects: np.ndarray) -> bool:
+    """Whether every difference between a pixel of ``suspects`` (flat indices) and a valid neighbour after or before
+    it in a row or a column is a whole multiple of :data:`_EXACT_STEP` (module docstring)."""
+    index, inside = _block(psi.shape, suspects, 1, 3)
+    ok = inside & valid.ravel()[index]
+    frac = _periods(psi.ravel()[index])
+    for first, second in (((1, 1), (1, 2)), ((1, 0), (1, 1)), ((1, 1), (2, 1)), ((0, 1), (1, 1))):
+        pair = ok[:, first[0], first[1]] & ok[:, second[0], second[1]]
+        step = _wrapped_steps(frac[:, first[0], first[1]][pair], frac[:, second[0], second[1]][pair])
+        scaled = step.astype(np.float64) / _EXACT_STEP
+        if not np.array_equal(scaled, np.rint(scaled)):
+            return False
     return True
 
 
@@ -118,25 +131,15 @@ def _gradient_at(psi: np.ndarray, valid: np.ndarray, pixels: np.ndarray,
     None when a difference the whole-image box filter sums may not sum exactly (module docstring).
 
     ``psi`` (H, W) is 0 where not ``valid``; each pixel's ``(2 radius + 2)^2`` block (the window and the next row and
-    column) is gathered from maps padded with invalid pixels, as the box filter's constant border reads zeros.
+    column) is gathered, pixels beyond the image invalid, as the box filter's constant border reads zeros.
     """
-    side = 2 * radius + 2
-    pad = ((radius, radius + 1), (radius, radius + 1))
-    padded_psi = np.pad(psi, pad)
-    padded_valid = np.pad(valid, pad)
-    padded_width = padded_psi.shape[1]
     magnitude = np.abs(psi)
     small = (magnitude > 0.0) & (magnitude < 2.0 * np.pi * _SMALLEST_EXACT_PHASE * (1.0 + 1e-6))  # a superset
-    if small.any():
-        rows, cols = np.nonzero(small)
-        if not _steps_sum_exactly(padded_psi, padded_valid, (rows + radius) * padded_width + cols + radius):
-            return None
-    rows, cols = np.divmod(pixels, valid.shape[1])
-    corner = rows * padded_width + cols  # the block's top-left in the padded maps: (row - radius, col - radius)
-    block = (np.arange(side)[:, None] * padded_width + np.arange(side)[None, :]).ravel()
-    index = corner[:, None] + block[None, :]  # (n, side^2)
-    frac = _periods(padded_psi.ravel()[index]).reshape(-1, side, side)
-    ok = padded_valid.ravel()[index].reshape(-1, side, side)
+    if small.any() and not _steps_sum_exactly(psi, valid, np.flatnonzero(small)):
+        return None
+    index, inside = _block(psi.shape, pixels, radius, 2 * radius + 2)
+    frac = _periods(psi.ravel()[index])
+    ok = inside & valid.ravel()[index]
     gradients = []
     for step, pair in ((_wrapped_steps(frac[:, :-1, :-1], frac[:, 1:, :-1]), ok[:, 1:, :-1] & ok[:, :-1, :-1]),
                        (_wrapped_steps(frac[:, :-1, :-1], frac[:, :-1, 1:]), ok[:, :-1, 1:] & ok[:, :-1, :-1])):
@@ -149,12 +152,8 @@ def _gradient_at(psi: np.ndarray, valid: np.ndarray, pixels: np.ndarray,
 def _valid_neighbours_at(valid: np.ndarray, pixels: np.ndarray, radius: int) -> np.ndarray:
     """Valid pixels of each ``(2 radius + 1)^2`` window around the flat indices ``pixels``, the centre excluded,
     ``(n,)`` float32: the whole-image box filter's counts there (whole numbers: exact in any order)."""
-    padded = np.pad(valid, radius)
-    padded_width = padded.shape[1]
-    rows, cols = np.divmod(pixels, valid.shape[1])
-    side = 2 * radius + 1
-    block = (np.arange(side)[:, None] * padded_width + np.arange(side)[None, :]).ravel()
-    count = np.count_nonzero(padded.ravel()[(rows * padded_width + cols)[:, None] + block[None, :]], axis=1)
+    index, inside = _block(valid.shape, pixels, radius, 2 * radius + 1)
+    count = np.count_nonzero(inside & valid.ravel()[index], axis=(1, 2))
     return count.astype(np.float32) - np.float32(1.0)
 
 
@@ -184,9 +183,7 @@ def neighbour_support(order: np.ndarray, wrapped: np.ndarray, valid: np.ndarray,
         raise ValueError(f"neighbour_support needs radius >= 1 and tolerance in (0, 0.5]; got {radius}, {tolerance}")
     valid = np.asarray(valid, dtype=bool) & np.isfinite(wrapped)
     psi = np.where(valid, wrapped, 0.0)
-    absolute = np.where(valid, np.asarray(order, dtype=np.float64) + psi / (2.0 * np.pi), np.nan)  # U, periods
-    weight = np.where(valid, np.clip(np.nan_to_num(np.asarray(confidence, dtype=np.float64)), 0.0, 1.0), 0.0)
-    support = np.zeros(absolute.shape, np.float32)
+    support = np.zeros(psi.shape, np.float32)
     todo = valid if where is None else valid & np.asarray(where, dtype=bool)
     pixels = np.flatnonzero(todo)
     if pixels.size == 0:
@@ -201,13 +198,23 @@ def neighbour_support(order: np.ndarray, wrapped: np.ndarray, valid: np.ndarray,
         size = (2 * radius + 1, 2 * radius + 1)
         neighbours = (cv2.boxFilter(valid.astype(np.float32), -1, size, normalize=False,
                                     borderType=cv2.BORDER_CONSTANT) - 1.0).ravel()[pixels]
-    width = absolute.shape[1]
+    # U (periods; float64, then float32) and the weight (the confidence clipped to [0, 1], NaN as 0) in maps padded
+    # by radius: NaN and 0 beyond the image and where not valid
+    height, width = psi.shape
+    padded = np.full((height + 2 * radius, width + 2 * radius), np.nan, np.float32)
+    inner = (slice(radius, radius + height), slice(radius, radius + width))
+    np.copyto(padded[inner], np.asarray(order, dtype=np.float64) + psi / (2.0 * np.pi), where=valid)
+    padded_weight = np.zeros(padded.shape, np.float32)
+    weight = padded_weight[inner]
+    np.copyto(weight, confidence, where=valid)  # rounded to float32 before the clip: the same as after it
+    np.maximum(weight, np.float32(0.0), out=weight)
+    np.minimum(weight, np.float32(1.0), out=weight)
+    np.copyto(weight, np.float32(0.0), where=np.isnan(weight))
+    padded, padded_weight = padded.ravel(), padded_weight.ravel()
     padded_width = width + 2 * radius
     rows, cols = np.divmod(pixels, width)
     centre = (rows + radius) * padded_width + cols + radius  # flat indices into the padded maps
-    padded = np.pad(absolute.astype(np.float32), radius, constant_values=np.nan).ravel()
-    padded_weight = np.pad(weight.astype(np.float32), radius).ravel()
-    own = absolute.ravel()[pixels].astype(np.float32)
+    own = padded[centre]
     agreeing = np.zeros(pixels.size, np.float32)
     difference = np.empty(pixels.size, np.float32)
     with np.errstate(invalid="ignore"):

@@ -84,7 +84,7 @@ def order_error_estimate(absolute_high: np.ndarray, wrapped_low: np.ndarray, f_h
     if np.shape(valid) != eps.shape:
         raise ValueError(f"valid must have the phases' shape {eps.shape}; got {np.shape(valid)}")
     eps *= np.float32(1.0 / (2.0 * np.pi * delta))
-    eps[~np.asarray(valid, dtype=bool)] = np.nan
+    np.copyto(eps, np.float32(np.nan), where=~np.asarray(valid, dtype=bool))
     return eps
 
 
@@ -113,9 +113,14 @@ def rejected_regions(absolute_high: np.ndarray, wrapped_low: np.ndarray, f_h: fl
     rejected = np.zeros(r.shape, bool)
     if np.count_nonzero(known) < 2 * MIN_TEST_PIXELS:
         return rejected
-    scan_sigma = MAD_TO_SIGMA * float(np.median(np.abs(r[known])))
-    votes = np.clip(np.where(known, r, np.float32(0.0)), -VOTE_CLIP_ORDERS, VOTE_CLIP_ORDERS)  # (H, W) float32
-    checkerboard = (np.arange(r.shape[0])[:, None] + np.arange(r.shape[1])[None, :]) % 2 == 0  # (H, W)
+    magnitudes = r[known]
+    scan_sigma = MAD_TO_SIGMA * float(np.median(np.abs(magnitudes, out=magnitudes), overwrite_input=True))
+    votes = np.where(known, r, np.float32(0.0))  # (H, W) float32, clipped in place
+    np.maximum(votes, np.float32(-VOTE_CLIP_ORDERS), out=votes)
+    np.minimum(votes, np.float32(VOTE_CLIP_ORDERS), out=votes)
+    checkerboard = np.zeros(r.shape, bool)  # (H, W): row + column even
+    checkerboard[0::2, 0::2] = True
+    checkerboard[1::2, 1::2] = True
     first_half = known & checkerboard
     for proposing, testing in ((first_half, known & ~first_half), (known & ~first_half, first_half)):
         rejected |= _rejected_by_half(r, votes, known, proposing, testing, scan_sigma, radius, significance)
@@ -129,8 +134,8 @@ def _rejected_by_half(r: np.ndarray, votes: np.ndarray, known: np.ndarray, propo
     size = (2 * radius + 1, 2 * radius + 1)
     total = cv2.boxFilter(np.where(proposing, votes, np.float32(0.0)), -1, size, normalize=False,
                           borderType=cv2.BORDER_CONSTANT)
-    count = cv2.boxFilter(proposing.view(np.uint8).astype(np.float32), -1, size, normalize=False,
-                          borderType=cv2.BORDER_CONSTANT)
+    # the count summed from uint8: whole numbers, the same float32 as a float32 map's sums
+    count = cv2.boxFilter(proposing.view(np.uint8), cv2.CV_32F, size, normalize=False, borderType=cv2.BORDER_CONSTANT)
     mean = total / np.maximum(count, np.float32(1.0))  # (H, W), orders
     rejected = np.zeros(r.shape, bool)
     for sign in (1.0, -1.0):

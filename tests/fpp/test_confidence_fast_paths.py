@@ -1,7 +1,8 @@
-"""The network confidence's faster paths give its float64, whole-image numbers bit for bit: the float32 margins of
-:func:`dptpu.fpp.confidence.network_confidence` and the neighbour support's gradient and counts summed at the asked
-pixels only (:mod:`dptpu.fpp.order_support`), on outside rigs (distortion, several focal lengths, baselines and angles)
-with the paper's camera noise, and on phases next to 0, where the gathered sums are refused."""
+"""The DP-TPU confidence's faster paths give the numbers of their float64, whole-image formulas bit for bit: the
+float32 margins of :func:`dptpu.fpp.confidence.network_confidence`, the neighbour support's gradient and counts summed
+at the asked pixels only (:mod:`dptpu.fpp.order_support`), the two frequencies' agreement computed in place with
+``fmod`` (:mod:`dptpu.fpp.frequency_consistency`); on outside rigs (distortion, several focal lengths, baselines and
+angles) with the paper's camera noise, and on phases next to 0, where the gathered sums are refused."""
 from functools import cache
 
 import numpy as np
@@ -9,6 +10,7 @@ import pytest
 
 from dptpu.fpp import order_support, tpu
 from dptpu.fpp.confidence import network_confidence
+from dptpu.fpp.frequency_consistency import MAD_TO_SIGMA, MIN_SIGMA_RAD, frequency_consistency
 from dptpu.fpp.order_support import neighbour_support
 from dptpu.sim.outside_rigs import SIGMA_2, issue16_rig, random_outside_rig, render_phases, spheres_and_plane
 
@@ -92,3 +94,36 @@ def test_a_phase_next_to_zero_whose_differences_may_not_sum_exactly_takes_the_wh
     # a phase next to 0 beside a phase far from it: its differences are whole multiples of 2^-48, gathered
     wrapped[row, col + 1] = np.float32(2.5)
     assert order_support._gradient_at(wrapped, valid, np.flatnonzero(where)) is not None
+
+
+def _consistency_before(absolute_high, wrapped_low, f_h, f_l, valid, floor, scale=6.25):
+    """frequency_consistency as written before its in-place version: np.mod, new arrays, np.clip."""
+    difference = (f_l / f_h) * np.asarray(absolute_high, np.float64) - np.asarray(wrapped_low, np.float64)
+    eps = np.abs(np.pi - np.mod(np.pi - difference, 2.0 * np.pi))
+    valid = valid & np.isfinite(eps)
+    sigma = max(MAD_TO_SIGMA * float(np.median(eps[valid])), MIN_SIGMA_RAD)
+    if floor is not None:
+        sigma = np.maximum(sigma, np.where(np.isfinite(floor), np.asarray(floor, np.float64), 0.0))
+    with np.errstate(invalid="ignore"):
+        confidence = np.clip(1.0 - eps / (scale * sigma), 0.0, 1.0)
+    return np.where(valid, confidence, 0.0).astype(np.float32)
+
+
+@pytest.mark.parametrize("name", RIGS)
+@pytest.mark.parametrize("with_floor", [False, True])
+def test_in_place_frequency_consistency_is_the_former_one(name, with_floor):
+    psi_h, result, truth = scan(name, 3)
+    rng = np.random.default_rng(5)
+    order = np.where(rng.random(truth.shape) < 0.02, truth + 1, truth)  # some wrong orders: large residuals
+    absolute = psi_h.astype(np.float64) + 2 * np.pi * order
+    absolute[::7, ::5] = 2 * np.pi * np.round(absolute[::7, ::5] / (2 * np.pi))  # exact multiples: zero remainders
+    true_absolute = psi_h.astype(np.float64) + 2 * np.pi * truth
+    psi_l = np.where(result.valid, np.float32(1.0), np.float32(np.nan)) * (true_absolute * F_L / F_H % (2 * np.pi))
+    psi_l = (psi_l + rng.normal(0.0, 0.02, psi_l.shape)).astype(np.float32)
+    floor = None
+    if with_floor:
+        floor = rng.uniform(0.0, 0.05, truth.shape).astype(np.float32)
+        floor[::11, ::3] = np.inf
+    fast = frequency_consistency(absolute, psi_l, F_H, F_L, result.valid, floor=floor)
+    assert np.array_equal(fast, _consistency_before(absolute, psi_l, F_H, F_L, result.valid, floor))
+    assert 0.01 < np.mean((fast > 0) & (fast < 1)) and np.any(fast[result.valid] == 0)  # neither all 0 nor all 1
