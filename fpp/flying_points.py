@@ -130,9 +130,14 @@ class _RampTest:
             return
         if count <= _RAMP_GATHER_SHARE * apart.size:
             pixels = np.flatnonzero(apart)  # (numpy's 2-D nonzero scans the image ~20 times slower)
-            rows, cols = np.divmod(pixels, self.width)
-            on_ramp = on_a_ramp(self.padded, rows + 2, cols + 2, dr, dc, self.max_bend)  # padded: 2 pixels of NaN
-            np.put(apart, pixels[on_ramp], False)
+            # the line's five pixels in the padded image (two pixels of NaN around: always inside it), as on_a_ramp
+            # reads them
+            padded_width = self.width + 4
+            centre = pixels + (pixels // self.width) * 4 + 2 * padded_width + 2
+            step = dr * padded_width + dc
+            flat = self.padded.ravel()
+            line = [flat[centre + k * step].astype(np.float64) for k in (-2, -1, 0, 1, 2)]
+            np.put(apart, pixels[_straight(line, self.max_bend)], False)
             return
         height, width = self.height, self.width
         if self.padded64 is None:
@@ -184,9 +189,13 @@ def on_a_ramp(depth: np.ndarray, rows: np.ndarray, cols: np.ndarray, dr: int, dc
         inside = (r >= 0) & (r < height) & (c >= 0) & (c < width)
         return np.where(inside, flat[np.where(inside, r * width + c, 0)].astype(np.float64), np.nan)
 
-    line = [at(k) for k in (-2, -1, 0, 1, 2)]
+    return _straight([at(k) for k in (-2, -1, 0, 1, 2)], max_bend)
+
+
+def _straight(line: list[np.ndarray], max_bend: float) -> np.ndarray:
+    """:func:`on_a_ramp` of the five float64 depths ``z_-2 .. z_2`` (M,) each of a line (NaN: not a ramp)."""
     limit = max_bend * 0.5 * np.abs(line[3] - line[1])
-    ramp = np.ones(np.shape(rows), dtype=bool)
+    ramp = np.ones(line[0].shape, dtype=bool)
     with np.errstate(invalid="ignore"):
         for i in (1, 2, 3):
             ramp &= np.abs(line[i - 1] - 2.0 * line[i] + line[i + 1]) <= limit
