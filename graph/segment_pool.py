@@ -1,10 +1,10 @@
 """A publisher's pool of shared-memory segments (the writing side of :mod:`.shared_memory`).
 
-Each segment is an anonymous memfd of this process (mode 0600), mapped read-write here and read-only by the
-subscribers, who open it through ``/proc/<pid>/fd``. :meth:`SegmentPool.write` copies a message's arrays into a
-free segment under an exclusive ``flock`` and returns the descriptor to send; a segment is free when no
-subscriber holds its shared lock and either every subscriber the descriptor went to picked it up or the lease
-has passed (:mod:`.shared_memory`). The pool takes the first free segment that fits in the order of the last
+Each segment is an anonymous memfd of this process (mode 0600, sealed against resizing), mapped read-write here
+and read-only by the subscribers, who open it through ``/proc/<pid>/fd``. :meth:`SegmentPool.write` copies a
+message's arrays into a free segment under an exclusive ``flock`` and returns the descriptor to send; a segment is
+free when no subscriber holds its shared lock and either every subscriber the descriptor went to picked it up or
+the lease has passed (:mod:`.shared_memory`). The pool takes the first free segment that fits in the order of the last
 write or the last time it was found busy, makes a new one while the pool stays within its bytes, and otherwise
 says no (the publisher sends through ZeroMQ).
 Segments idle for :data:`IDLE_S` are closed.
@@ -38,6 +38,7 @@ from .shared_memory import (
     HEADER_BYTES,
     PICKUPS_OFFSET,
     RELEASES_OFFSET,
+    SEALS,
     SEGMENT_MAGIC,
     SharedMemoryConfig,
     pack_descriptor,
@@ -93,10 +94,13 @@ class _Segment:
                  "loaned")
 
     def __init__(self, size: int, label: str):
-        self.fd = os.memfd_create(label, os.MFD_CLOEXEC)
+        self.fd = os.memfd_create(label, os.MFD_CLOEXEC | os.MFD_ALLOW_SEALING)
         try:
             os.fchmod(self.fd, 0o600)
             os.ftruncate(self.fd, size)
+            # its size is fixed for good: nobody (a process of this user that opens /proc/<pid>/fd) can shrink it
+            # under a mapping, which would kill the publisher and every reader with SIGBUS at their next access
+            fcntl.fcntl(self.fd, fcntl.F_ADD_SEALS, SEALS)
             self.view = mmap.mmap(self.fd, size)
         except BaseException:
             os.close(self.fd)

@@ -73,7 +73,7 @@ from .processes import process_alive
 __all__ = [
     "SharedMemoryConfig", "SharedMemoryError", "StaleSegmentError", "host_key", "shm_topic",
     "HEADER_BYTES", "SEGMENT_MAGIC", "pack_descriptor", "unpack_descriptor", "Descriptor", "read_message",
-    "sweep_mappings", "mapped_segment_count", "ALIGNMENT", "RELEASES_OFFSET",
+    "sweep_mappings", "mapped_segment_count", "ALIGNMENT", "RELEASES_OFFSET", "SEALS",
 ]
 
 #: Bytes of a segment's header: magic (8), token (16), generation (u64), pickups (u64), size (u64), let-gos (u64),
@@ -89,6 +89,10 @@ PICKUPS_OFFSET = 32
 #: lock; the publisher skips, without a system call, a segment whose pickups outnumber its let-gos (a hint only).
 RELEASES_OFFSET = 48
 _COUNTER = struct.Struct("<Q")
+#: The seals of every segment (``F_ADD_SEALS``): its size can never change, so no process can shrink it under a
+#: mapping (a read past the end of a file kills the reader with SIGBUS); a subscriber maps only segments that have
+#: them.
+SEALS = fcntl.F_SEAL_SHRINK | fcntl.F_SEAL_GROW | fcntl.F_SEAL_SEAL
 
 _DESCRIPTOR = struct.Struct("<4sBBHIIQ16sQQ")
 _ENTRY = struct.Struct("<QQ")
@@ -164,8 +168,20 @@ def _number(env, name: str, default, kind, *, low):
 
 
 def available() -> bool:
-    """True when this system has what the shared-memory path needs (Linux: memfd, ``/proc/<pid>/fd``)."""
-    return hasattr(os, "memfd_create") and os.path.isdir(f"/proc/{os.getpid()}/fd")
+    """True when this system has what the shared-memory path needs (Linux: memfd, ``/proc/<pid>/fd``) and its
+    kernel can be told from another host's (a boot id): without one, processes of two hosts that see the same
+    first PID namespace (its inode is the same on every Linux) would share a host key, and a subscriber on the other
+    host would get descriptors it cannot map."""
+    return hasattr(os, "memfd_create") and os.path.isdir(f"/proc/{os.getpid()}/fd") and bool(_boot_id())
+
+
+def _boot_id() -> bytes:
+    """This kernel's boot id (random at each boot), or b"" where it cannot be read (a sandbox that hides it)."""
+    try:
+        with open("/proc/sys/kernel/random/boot_id", "rb") as file:
+            return file.read().strip()
+    except OSError:
+        return b""
 
 
 _HOST_KEY: bytes | None = None
@@ -179,11 +195,7 @@ def host_key() -> bytes:
     """
     global _HOST_KEY
     if _HOST_KEY is None:
-        try:
-            with open("/proc/sys/kernel/random/boot_id", "rb") as file:
-                boot = file.read().strip()
-        except OSError:
-            boot = b"no-boot-id"
+        boot = _boot_id() or b"no-boot-id"  # then shared memory is off (available)
         try:
             namespace = os.stat("/proc/self/ns/pid").st_ino
         except OSError:
@@ -416,6 +428,8 @@ def _open_once(descriptor: Descriptor, path: str) -> _Mapping:
                 or info.st_size != descriptor.size):
             raise SharedMemoryError(f"{path} is not the segment the descriptor names (inode {info.st_ino}, "
                                     f"{info.st_size} bytes; expected inode {descriptor.inode}, {descriptor.size})")
+        if _seals(fd) & SEALS != SEALS:  # a file that may shrink under the mapping
+            raise SharedMemoryError(f"{path} is not the segment the descriptor names (not sealed against resizing)")
         view = mmap.mmap(fd, descriptor.size, prot=mmap.PROT_READ)
         magic, token = _HEADER.unpack_from(view)[:2]
         if magic != SEGMENT_MAGIC or token != descriptor.token:
@@ -425,6 +439,14 @@ def _open_once(descriptor: Descriptor, path: str) -> _Mapping:
         os.close(fd)
         raise
     return _Mapping(fd, view, descriptor.size, descriptor.pid)
+
+
+def _seals(fd: int) -> int:
+    """The file's seals; 0 for a file that cannot have any (not a memfd or tmpfs file)."""
+    try:
+        return fcntl.fcntl(fd, fcntl.F_GET_SEALS)
+    except OSError:
+        return 0
 
 
 def _close_unheld() -> int:

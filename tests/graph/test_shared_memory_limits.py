@@ -1,5 +1,6 @@
-"""The shared-memory path on a machine that limits it: few file descriptors, a publisher that is not dumpable, a
-subscriber at its descriptor limit, a forged descriptor naming a terminal.
+"""The shared-memory path on a machine that limits it or is hostile to it: few file descriptors, a publisher that is
+not dumpable, a subscriber at its descriptor limit, a forged descriptor naming a terminal, a process that truncates
+a segment, a sandbox that hides the kernel's boot id.
 
 The publisher is a real process (``tests/graph/nodes/shm_limited_publisher.py``) under a real ``setrlimit`` or
 ``prctl``; the subscriber is this process, which keeps every message it gets (a recorder, or a subscriber with a deep
@@ -11,6 +12,8 @@ from __future__ import annotations
 import gc
 import os
 import pty
+import shlex
+import shutil
 import subprocess
 import sys
 import time
@@ -18,9 +21,15 @@ import time
 import numpy as np
 import pytest
 
-from dptpu.graph import Node, SingleThreadedExecutor, segment_pool
+from dptpu.graph import Node, SingleThreadedExecutor, segment_pool, shared_memory
 from dptpu.graph.segment_pool import SegmentPool
-from dptpu.graph.shared_memory import SharedMemoryConfig, SharedMemoryError, pack_descriptor, read_message
+from dptpu.graph.shared_memory import (
+    SharedMemoryConfig,
+    SharedMemoryError,
+    pack_descriptor,
+    read_message,
+    unpack_descriptor,
+)
 from dptpu.messages import Image
 
 from .nodes.shm_limited_publisher import TOPIC, image_of
@@ -126,3 +135,79 @@ def test_a_forged_descriptor_naming_a_terminal_is_refused_before_it_is_opened():
         os.close(master)
         os.close(terminal)
         gc.collect()
+
+
+_HOLDING_READER = """
+import sys
+import numpy as np
+from dptpu.graph.shared_memory import read_message
+views = read_message(b"/t", b"h", bytes.fromhex(sys.argv[1]))
+print(int(np.frombuffer(views[2], np.uint8).sum()), flush=True)
+sys.stdin.readline()
+print(int(np.frombuffer(views[2], np.uint8).sum()), flush=True)
+"""
+
+_TRUNCATOR = """
+import os, sys
+fd = os.open(sys.argv[1], os.O_RDWR)
+try:
+    os.ftruncate(fd, 0)
+except PermissionError:
+    print("refused")
+else:
+    print("truncated")
+"""
+
+
+def test_no_process_can_shrink_a_segment_under_its_readers():
+    # before: a process of the user that opened /proc/<pid>/fd/<n> and truncated the segment killed every reader
+    # (and the publisher at its next write) with SIGBUS
+    pool = SegmentPool(SharedMemoryConfig(lease_s=60.0, pool_bytes=64 << 20, key=b"k"), "dptpu:t")
+    reader = None
+    try:
+        payload = np.arange(300_000, dtype=np.uint8)
+        descriptor = pool.write([memoryview(payload)], readers=1)
+        reader = subprocess.Popen([sys.executable, "-c", _HOLDING_READER, descriptor.hex()], stdin=subprocess.PIPE,
+                                  stdout=subprocess.PIPE, text=True)
+        expected = str(int(payload.sum()))
+        assert reader.stdout.readline().strip() == expected
+        path = f"/proc/{os.getpid()}/fd/{unpack_descriptor(descriptor).fd}"
+        truncator = subprocess.run([sys.executable, "-c", _TRUNCATOR, path], capture_output=True, text=True,
+                                   timeout=30)
+        assert truncator.stdout.strip() == "refused", truncator.stderr
+        reader.stdin.write("\n")
+        reader.stdin.flush()
+        assert reader.stdout.readline().strip() == expected
+        assert reader.wait(timeout=30) == 0
+        # and a subscriber maps no file that could shrink: a memfd like a segment but not sealed is refused
+        unsealed = os.memfd_create("dptpu:unsealed", os.MFD_CLOEXEC)
+        try:
+            os.ftruncate(unsealed, 4096)
+            os.pwrite(unsealed, shared_memory.SEGMENT_MAGIC + bytes(16), 0)
+            forged = pack_descriptor(os.getpid(), unsealed, os.fstat(unsealed).st_ino, bytes(16), 0, 4096, [(64, 8)])
+            with pytest.raises(SharedMemoryError, match=r"not sealed against resizing"):
+                read_message(b"/t", b"h", forged)
+        finally:
+            os.close(unsealed)
+    finally:
+        if reader is not None and reader.poll() is None:
+            reader.kill()
+            reader.wait()
+        pool.close()
+
+
+@pytest.mark.skipif(os.geteuid() != 0 or shutil.which("unshare") is None,
+                    reason="needs root and unshare to hide the boot id in a mount namespace")
+def test_shared_memory_is_off_where_the_kernel_cannot_be_told_from_another_hosts():
+    # before: without a boot id every host's processes in the first PID namespace (its inode is the same on all
+    # Linux kernels) had one host key, so a peer on another host asked for, and got, descriptors it cannot map
+    probe = ("from dptpu.graph.shared_memory import SharedMemoryConfig; "
+             "print(SharedMemoryConfig.from_environment({}) is None)")
+    hidden = subprocess.run(["unshare", "-m", "sh", "-c", "mount --bind /dev/null /proc/sys/kernel/random/boot_id "
+                             f"&& exec {shlex.quote(sys.executable)} -c {shlex.quote(probe)}"],
+                            capture_output=True, text=True, timeout=60)
+    if hidden.returncode and "mount" in hidden.stderr:
+        pytest.skip(f"no mount namespace here: {hidden.stderr.strip()}")
+    assert hidden.stdout.strip() == "True", hidden.stderr
+    seen = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, timeout=60)
+    assert seen.stdout.strip() == "False", seen.stderr  # with the boot id: on
