@@ -8,7 +8,8 @@ The I/O thread owns every receiving socket (SUB, the nodes' service ROUTERs, cli
   itself, and takes them back when the executor does not poll them for a while
   (:mod:`dptpu.graph.lease`);
 - sends service responses and client requests handed to it by other threads;
-- every 25 ms lets each TRANSIENT_LOCAL publisher handle its subscribe events (late-joiner replays), and
+- lets each TRANSIENT_LOCAL publisher handle its subscribe events (late-joiner replays) every 25 ms for
+  :data:`EVENTS_HOT_S` after the graph changed, every 250 ms otherwise (a publish handles them at once), and
   every publisher once a second (subscriber counts; ``get_subscription_count`` also does it at once);
 - every :data:`~dptpu.graph.discovery.SCAN_INTERVAL_S` re-reads the discovery folder, writes this
   process's announcements, and connects or disconnects subscriptions and clients to match the graph
@@ -56,10 +57,15 @@ from .transport import MAX_IPC_PATH_BYTES, TransportConfig, connect, remove_ipc_
 if TYPE_CHECKING:  # node imports the runtime (through context): Node is named for the type checker only
     from .node import Node
 
-__all__ = ["GraphRuntime", "EVENTS_INTERVAL_S", "STATS_INTERVAL_S"]
+__all__ = ["GraphRuntime", "EVENTS_HOT_S", "EVENTS_IDLE_INTERVAL_S", "EVENTS_INTERVAL_S", "STATS_INTERVAL_S"]
 
-#: Seconds between two passes over the TRANSIENT_LOCAL publishers' subscribe events (late-joiner replays).
+#: Seconds between two passes over the TRANSIENT_LOCAL publishers' subscribe events (late-joiner replays) for
+#: :data:`EVENTS_HOT_S` after the graph changed (a newcomer connects within a few discovery scans of announcing
+#: itself), and :data:`EVENTS_IDLE_INTERVAL_S` otherwise: 40 passes a second cost a process ~10 ms of CPU a second
+#: (docs/benchmarks.md, Run 17).
 EVENTS_INTERVAL_S = 0.025
+EVENTS_IDLE_INTERVAL_S = 0.25
+EVENTS_HOT_S = 5.0
 #: Seconds between two refreshes of the counters in the announcements (and of all publishers' subscriber counts).
 STATS_INTERVAL_S = 1.0
 #: Longest wait of the I/O thread while it has something to retry (a client request, a lease to take back).
@@ -273,6 +279,7 @@ class GraphRuntime:
 
     def _run(self) -> None:
         next_scan = next_events = next_stats = 0.0
+        events_hot_until = float("inf")  # fast event passes until then (from start-up until the first match)
         while self._running:
             self.sleeping_until = float("inf")  # an executor going BUSY from now on wakes this thread
             now = time.monotonic()
@@ -316,7 +323,7 @@ class GraphRuntime:
             if self._deferred:
                 self._guard(self._run_deferred)
             if now >= next_events:
-                next_events = now + EVENTS_INTERVAL_S
+                next_events = now + (EVENTS_INTERVAL_S if now < events_hot_until else EVENTS_IDLE_INTERVAL_S)
                 for publisher in list(self._publishers):
                     if publisher._history is not None:  # TRANSIENT_LOCAL: replay to late joiners soon
                         self._guard(publisher._service_events)
@@ -328,6 +335,9 @@ class GraphRuntime:
                 if self._rematch:
                     self._rematch = False
                     self._guard(self._match)
+                    # the graph changed: a newcomer may connect to a TRANSIENT_LOCAL publisher here soon
+                    events_hot_until = now + EVENTS_HOT_S
+                    next_events = min(next_events, now + EVENTS_INTERVAL_S)
             if now >= next_stats:
                 next_stats = now + STATS_INTERVAL_S
                 self._guard(self._refresh_stats)
