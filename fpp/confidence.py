@@ -89,11 +89,11 @@ def network_confidence(continuous: np.ndarray, order: np.ndarray, prior_order: n
 
 def _float32_exact(continuous: np.ndarray, order: np.ndarray, prior_order: np.ndarray) -> bool:
     """Whether :func:`_own_and_prior_float32` gives the float64 formulas' float32 results bit for bit: a float32
-    network output and integer orders below ``2^24`` in magnitude (exact in float32)."""
+    network output and integer orders below ``2^23`` in magnitude (they and their differences exact in float32)."""
     if continuous.dtype != np.float32 or not (np.issubdtype(order.dtype, np.integer)
                                               and np.issubdtype(prior_order.dtype, np.integer)):
         return False
-    return order.size == 0 or bool(-2 ** 24 < order.min() and order.max() < 2 ** 24)
+    return order.size == 0 or all(-2 ** 23 < int(k.min()) and int(k.max()) < 2 ** 23 for k in (order, prior_order))
 
 
 def _own_and_prior_float32(continuous: np.ndarray, order: np.ndarray,
@@ -103,14 +103,17 @@ def _own_and_prior_float32(continuous: np.ndarray, order: np.ndarray,
     Exact against float64 then float32: where ``|c - k| < 1/2`` the difference of the two float32 numbers is exact
     (Sterbenz's lemma for ``|k| >= 1``, ``c`` itself for ``k = 0``), so ``1 - 2 |c - k|`` is rounded once in either
     precision (float64 holds it exactly unless it lies within ``2^-30`` of 1, where both round to 1); elsewhere both
-    clip to 0. The prior's term takes only 1, 1/2 and 0, from the orders' integer distance.
+    clip to 0. The prior's term takes only 1, 1/2 and 0, from the orders' whole distance (exact in float32).
     """
-    own = np.abs(continuous - order.astype(np.float32))
+    order_float = order.astype(np.float32)
+    own = np.abs(continuous - order_float)
     own *= np.float32(-2.0)
     own += np.float32(1.0)
     np.clip(own, np.float32(0.0), np.float32(1.0), out=own)
-    distance = np.abs(np.subtract(order, prior_order, dtype=np.int64))
-    prior = np.where(distance == 0, np.float32(1.0), np.where(distance == 1, np.float32(0.5), np.float32(0.0)))
+    prior = np.abs(order_float - prior_order.astype(np.float32))
+    prior *= np.float32(-0.5)
+    prior += np.float32(1.0)
+    np.clip(prior, np.float32(0.0), np.float32(1.0), out=prior)
     return own, prior
 
 
