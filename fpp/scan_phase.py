@@ -5,10 +5,10 @@ after the other; image ``n`` of an entry is ``I_n = A + B cos(psi + phase_offset
 Where each image sits is an :class:`ImageSlot`.
 
 - :class:`IncrementalScanPhase` takes the images one at a time, as a camera delivers them: each goes into its
-  entry's (N, H, W) stack and the brightest value of each pixel is kept; an entry's Eq. (2) sums, its maps
-  (:func:`dptpu.fpp.phase.sequence_sums`, one float32 matrix product; :func:`dptpu.fpp.phase.maps_from_sums`) and
-  its phase noise (from those maps' modulation, as :func:`scan_phase_maps` has it) are computed the moment its last
-  image is in, so after the scan's last image only its last entry and the masks are left.
+  entry's (N, H, W) stack and the brightest value of each pixel is kept; an entry's Eq. (2) sums are computed the
+  moment its last image is in (:func:`dptpu.fpp.phase.sequence_sums`, one float32 matrix product), so after the
+  scan's last image only its last entry's sums, the arctangents and the masks are left
+  (:func:`dptpu.fpp.phase.maps_from_sums`).
 - :func:`scan_phase_maps` gives the same maps from the stacked images in one call (the reference, and the
   fallback when the images were placed otherwise than the scan's final layout says).
 
@@ -25,7 +25,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .fringe_noise import DEFAULT_MAX_NOISE_RATIO, MIN_NOISE_STEPS, noise_outliers, sequence_phase_noise
-from .phase import WrappedPhase, maps_from_sums, quality_mask, sequence_sums, wrapped_phase
+from .phase import maps_from_sums, quality_mask, sequence_sums, wrapped_phase
 
 __all__ = ["ImageSlot", "IncrementalScanPhase", "scan_phase_maps"]
 
@@ -103,7 +103,6 @@ class IncrementalScanPhase:
         self.sums: dict[int, np.ndarray] = {}
         self.noise: dict[int, np.ndarray | None] = {}  # entry_start -> phase noise (H, W) of an entry of N >= 5
         self.noise_floor: dict[int, np.ndarray | None] = {}  # entry_start -> its quantization floor (H, W)
-        self.wrapped: dict[int, WrappedPhase] = {}  # entry_start -> its phase, modulation and background
         self.slots: dict[int, ImageSlot] = {}  # image index -> where it was added
         self.brightest: np.ndarray | None = None  # (H, W) max over the images, for the saturation mask
         self._stacks: dict[int, np.ndarray] = {}  # entry_start -> (N, H, W) images of an entry not complete yet
@@ -128,12 +127,9 @@ class IncrementalScanPhase:
         if self._filled[start] == slot.steps:  # every step of the entry
             stack = self._stacks.pop(start)
             sums = self.sums[start] = sequence_sums(stack, shift_sign=slot.shift_sign, phase_offset=slot.phase_offset)
-            # the maps once, here: the noise needs their modulation (cv2.magnitude, as scan_phase_maps and the
-            # pipeline's floor have it), and maps() hands them out
-            wrapped = self.wrapped[start] = maps_from_sums(sums)
             if slot.steps >= MIN_NOISE_STEPS:  # the fit's residual: the entry's phase noise (fpp.fringe_noise)
                 self.noise[start], self.noise_floor[start] = sequence_phase_noise(
-                    stack, wrapped.background, wrapped.modulation)
+                    stack, sums[2], np.hypot(sums[0], sums[1]))
 
     def maps(self, layout: Sequence[ImageSlot], *, min_modulation: float, saturation_level: float | None,
              max_noise_ratio: float = DEFAULT_MAX_NOISE_RATIO, out=None):
@@ -164,7 +160,7 @@ class IncrementalScanPhase:
                 raise ValueError(f"out must be arrays of (shape, dtype) {expected}; got {got}")
             valid.fill(True)
         for index, start in enumerate(starts):
-            maps = self.wrapped[start]
+            maps = maps_from_sums(self.sums[start])
             phases[index] = maps.phase  # in [0, 2*pi) in float32
             modulations[index] = maps.modulation
             valid &= maps.modulation >= min_modulation  # NaN compares False
