@@ -9,7 +9,8 @@ Eq. (5), ``unwrap_mf_float32``; ``triangulate``: the float32 camera points with 
 dropped points blanked; ``assemble``: confidence, normals and the (H, W, 9) cloud) twice, once with the ``fpp``
 package of ``--base`` (taken from git with ``git archive`` into a temporary folder and imported under another
 name) and once with the installed one, on the same frames, alternating the two every repeat (the machine's other
-load falls on both alike), and reports each part's median CPU time (``time.process_time``, every thread).
+load falls on both alike), and reports each part's median CPU time (``time.process_time``, every thread) after
+:data:`WARMUPS` untimed repeats.
 
 Before timing it runs both once and compares every output bit for bit: the wrapped phase, modulation and
 background of both sequences, the valid mask, the phase-noise maps, the absolute phase, the projector coordinate,
@@ -48,6 +49,9 @@ FIRST_SCENE = "random:1"
 #: The name the base's ``fpp`` is imported under.
 BASE_PACKAGE = "dptpu_floor_base_fpp"
 PARTS = ("phase", "unwrap", "triangulate", "filters", "assemble")
+#: Untimed repeats a side first (as the pipeline floor's ``FLOOR_WARMUPS``): the heap grows to what a scan needs
+#: (with two, the step count measured first ran 20-30 % slower than the same work measured second).
+WARMUPS = 10
 
 
 def extract_base(commit: str, folder: Path) -> str:
@@ -211,13 +215,13 @@ def side_by_side(base: str, steps: int, source: str, size: str, repeats: int) ->
     differing = sorted(name for name in base_out.keys() | tree_out.keys()
                        if name not in base_out or name not in tree_out or not _same(base_out[name], tree_out[name]))
     times: dict[str, dict[str, list[float]]] = {side: {name: [] for name in PARTS} for side in sides}
-    for repeat in range(repeats + 2):  # two warm-ups
+    for repeat in range(repeats + WARMUPS):
         for side in (("base", "tree") if repeat % 2 == 0 else ("tree", "base")):
             for name in PARTS:
                 started = time.process_time()
                 getattr(sides[side], name)()
                 times[side][name].append(time.process_time() - started)
-    medians = {side: {name: round(1e3 * float(np.median(values[2:])), 2) for name, values in parts.items()}
+    medians = {side: {name: round(1e3 * float(np.median(values[WARMUPS:])), 2) for name, values in parts.items()}
                for side, parts in times.items()}
     for figures in medians.values():
         figures["total"] = round(sum(figures[name] for name in PARTS), 2)

@@ -79,6 +79,10 @@ SEQUENCES = {12: "64x12,1x12", 3: "64x3,1x3"}
 DOMAIN_ID = 97
 #: Frames the phase node's subscription queues (``frame_queue_depth``): scans in flight x frames must fit.
 PHASE_FRAME_QUEUE = 100
+#: Untimed scans of the floor before its timed ones: the heap grows to what a scan needs (with two, the step count
+#: measured first in a process ran 20-30 % slower than the same work measured second: docs/benchmarks.md, "Floor
+#: kernels, session 10").
+FLOOR_WARMUPS = 10
 #: The raycast scenes the sim shows, in scan order.
 SCENES = "random:1,random:2"
 
@@ -311,7 +315,7 @@ def floor_ms_per_scan(*, steps: int, size: str, repeats: int = 30, source: str =
     frames and rig. ``"ramp"`` (:data:`ANALYTIC_RAMP`, the floor only): an analytic ramp across the projector (64
     and 1 periods), a plane steeper than the flying-point test's slope (the default until 2026-11-27: the floor
     then measured kernels on a scene the graph never scans; docs/benchmarks.md, Run 15). Median of ``repeats``
-    timings of each part (``time.process_time``, every thread).
+    timings of each part (``time.process_time``, every thread) after :data:`FLOOR_WARMUPS` untimed scans.
     """
     import cv2
     import zmq
@@ -435,7 +439,7 @@ def floor_ms_per_scan(*, steps: int, size: str, repeats: int = 30, source: str =
              "copy_out": lambda: copy_once([state["cloud"], state["depth"], state["confidence"]])}
     times = {name: [] for name in parts}
     try:
-        for _ in range(repeats + 2):  # two warm-ups
+        for _ in range(repeats + FLOOR_WARMUPS):
             for name, part in parts.items():
                 started = time.process_time()
                 part()
@@ -444,7 +448,7 @@ def floor_ms_per_scan(*, steps: int, size: str, repeats: int = 30, source: str =
         sender.close(linger=0)
         receiver.close(linger=0)
         context.term()
-    figures = {name: round(1e3 * float(np.median(values[2:])), 2) for name, values in times.items()}
+    figures = {name: round(1e3 * float(np.median(values[FLOOR_WARMUPS:])), 2) for name, values in times.items()}
     work = sum(figures[name] for name in ("phase", "unwrap", "triangulate", "filters", "assemble"))
     figures["total"] = round(work + figures["transport_in"] + figures["transport_out"], 2)
     figures["total_shared_memory"] = round(work + figures["copy_in"] + figures["copy_out"], 2)
