@@ -18,16 +18,6 @@ whose neighbours are either on another surface or unconfident themselves: their 
 
 The gradient comes from the wrapped phase alone (:func:`phase_gradient`: wrapped neighbour differences averaged over
 a small window), never from the orders being judged.
-
-Where few pixels ask (the network's confidence asks only below 1: about 1 % of a 12-step scan's pixels), the gradient
-and the count of valid neighbours are summed at those pixels alone instead of over the whole image, with the same
-numbers bit for bit. OpenCV's box filter of float32 maps sums in float64 (running sums along rows and down columns);
-a float32 phase of at least ``2^-25`` periods is a whole multiple of ``2^-48``, and so is its float32 difference with
-another such phase (rounded to a step of at least ``2^-48``, or exact), wrapped by ``rint``; window sums of such
-differences stay below 16, so every partial sum, OpenCV's and numpy's alike, is exact in float64 (53 bits) and
-rounds once to the same float32. Only a difference with a phase in ``(0, 2^-25)`` periods (a few pixels of a scan
-whose arctangent lands next to 0) can break that: those differences are checked, and a scan with one that is not a
-whole multiple of ``2^-48`` is summed over the whole image as before.
 """
 from __future__ import annotations
 
@@ -58,7 +48,7 @@ def phase_gradient(wrapped: np.ndarray, valid: np.ndarray,
     The mean over a ``(2 radius + 1)^2`` window of the wrapped differences ``wrap(psi(p + e) - psi(p)) / 2 pi``
     between valid neighbours (right while fringes are wider than 2 pixels); 0 where the window has no valid pair.
     """
-    frac = _periods(wrapped)
+    frac = (np.asarray(wrapped, dtype=np.float64) / (2.0 * np.pi)).astype(np.float32)
     valid = np.asarray(valid, dtype=bool)
     size = (2 * radius + 1, 2 * radius + 1)
     gradients = []
@@ -74,87 +64,6 @@ def phase_gradient(wrapped: np.ndarray, valid: np.ndarray,
         count = cv2.boxFilter(pair.view(np.uint8), cv2.CV_32F, size, normalize=False, borderType=cv2.BORDER_CONSTANT)
         gradients.append(_box_sum(steps, radius) / np.maximum(count, np.float32(1.0)))
     return gradients[0], gradients[1]
-
-
-#: Whole multiples of this (periods) sum exactly in float64 within the windows' bound of 16 (module docstring).
-_EXACT_STEP = 2.0 ** -48
-#: A float32 phase of at least this many periods (or 0) is a whole multiple of :data:`_EXACT_STEP`.
-_SMALLEST_EXACT_PHASE = 2.0 ** -25
-#: The gathered sums serve at most this share of the pixels; more ask the whole-image box filters (cheaper there).
-_GATHERED_SHARE = 1.0 / 16.0
-
-
-def _periods(psi: np.ndarray) -> np.ndarray:
-    """``psi / 2 pi`` as :func:`phase_gradient` computes it: in float64, rounded to float32."""
-    return (np.asarray(psi, dtype=np.float64) / (2.0 * np.pi)).astype(np.float32)
-
-
-def _wrapped_steps(frac_from: np.ndarray, frac_to: np.ndarray) -> np.ndarray:
-    """``wrap(frac_to - frac_from)`` in float32 as :func:`phase_gradient` computes it (periods, in [-1/2, 1/2])."""
-    step = frac_to - frac_from
-    step -= np.rint(step)
-    return step
-
-
-def _block(shape: tuple[int, int], pixels: np.ndarray, before: int, side: int) -> tuple[np.ndarray, np.ndarray]:
-    """``(flat index, inside)``, each ``(n, side, side)``: the ``side x side`` block of each flat index of ``pixels``
-    from ``before`` rows and columns before it, indices clipped to the image and ``inside`` False beyond it (what a
-    constant border of invalid pixels would hold)."""
-    height, width = shape
-    rows, cols = np.divmod(pixels, width)
-    span = np.arange(side) - before
-    block_rows = rows[:, None, None] + span[None, :, None]
-    block_cols = cols[:, None, None] + span[None, None, :]
-    inside = (block_rows >= 0) & (block_rows < height) & (block_cols >= 0) & (block_cols < width)
-    index = np.clip(block_rows, 0, height - 1) * width + np.clip(block_cols, 0, width - 1)
-    return index, inside
-
-
-def _steps_sum_exactly(psi: np.ndarray, valid: np.ndarray, suspects: np.ndarray) -> bool:
-    """Whether every difference between a pixel of ``suspects`` (flat indices) and a valid neighbour after or before
-    it in a row or a column is a whole multiple of :data:`_EXACT_STEP` (module docstring)."""
-    index, inside = _block(psi.shape, suspects, 1, 3)
-    ok = inside & valid.ravel()[index]
-    frac = _periods(psi.ravel()[index])
-    for first, second in (((1, 1), (1, 2)), ((1, 0), (1, 1)), ((1, 1), (2, 1)), ((0, 1), (1, 1))):
-        pair = ok[:, first[0], first[1]] & ok[:, second[0], second[1]]
-        step = _wrapped_steps(frac[:, first[0], first[1]][pair], frac[:, second[0], second[1]][pair])
-        scaled = step.astype(np.float64) / _EXACT_STEP
-        if not np.array_equal(scaled, np.rint(scaled)):
-            return False
-    return True
-
-
-def _gradient_at(psi: np.ndarray, valid: np.ndarray, pixels: np.ndarray,
-                 radius: int = GRADIENT_RADIUS) -> tuple[np.ndarray, np.ndarray] | None:
-    """:func:`phase_gradient` ``(gy, gx)`` at the flat indices ``pixels`` only, each ``(n,)`` float32, bit for bit;
-    None when a difference the whole-image box filter sums may not sum exactly (module docstring).
-
-    ``psi`` (H, W) is 0 where not ``valid``; each pixel's ``(2 radius + 2)^2`` block (the window and the next row and
-    column) is gathered, pixels beyond the image invalid, as the box filter's constant border reads zeros.
-    """
-    magnitude = np.abs(psi)
-    small = (magnitude > 0.0) & (magnitude < 2.0 * np.pi * _SMALLEST_EXACT_PHASE * (1.0 + 1e-6))  # a superset
-    if small.any() and not _steps_sum_exactly(psi, valid, np.flatnonzero(small)):
-        return None
-    index, inside = _block(psi.shape, pixels, radius, 2 * radius + 2)
-    frac = _periods(psi.ravel()[index])
-    ok = inside & valid.ravel()[index]
-    gradients = []
-    for step, pair in ((_wrapped_steps(frac[:, :-1, :-1], frac[:, 1:, :-1]), ok[:, 1:, :-1] & ok[:, :-1, :-1]),
-                       (_wrapped_steps(frac[:, :-1, :-1], frac[:, :-1, 1:]), ok[:, :-1, 1:] & ok[:, :-1, :-1])):
-        total = np.where(pair, step, np.float32(0.0)).sum(axis=(1, 2), dtype=np.float64).astype(np.float32)
-        count = np.count_nonzero(pair, axis=(1, 2)).astype(np.float32)
-        gradients.append(total / np.maximum(count, np.float32(1.0)))
-    return gradients[0], gradients[1]
-
-
-def _valid_neighbours_at(valid: np.ndarray, pixels: np.ndarray, radius: int) -> np.ndarray:
-    """Valid pixels of each ``(2 radius + 1)^2`` window around the flat indices ``pixels``, the centre excluded,
-    ``(n,)`` float32: the whole-image box filter's counts there (whole numbers: exact in any order)."""
-    index, inside = _block(valid.shape, pixels, radius, 2 * radius + 1)
-    count = np.count_nonzero(inside & valid.ravel()[index], axis=(1, 2))
-    return count.astype(np.float32) - np.float32(1.0)
 
 
 def neighbour_support(order: np.ndarray, wrapped: np.ndarray, valid: np.ndarray, confidence: np.ndarray, *,
@@ -188,16 +97,12 @@ def neighbour_support(order: np.ndarray, wrapped: np.ndarray, valid: np.ndarray,
     pixels = np.flatnonzero(todo)
     if pixels.size == 0:
         return support
-    gathered = _gradient_at(psi, valid, pixels) if pixels.size <= _GATHERED_SHARE * valid.size else None
-    if gathered is not None:
-        grad_y, grad_x = gathered
-        neighbours = _valid_neighbours_at(valid, pixels, radius)  # valid ones, p excluded (p is valid)
-    else:
-        gy, gx = phase_gradient(psi, valid)
-        grad_y, grad_x = gy.ravel()[pixels], gx.ravel()[pixels]
-        size = (2 * radius + 1, 2 * radius + 1)
-        neighbours = (cv2.boxFilter(valid.astype(np.float32), -1, size, normalize=False,
-                                    borderType=cv2.BORDER_CONSTANT) - 1.0).ravel()[pixels]
+    gy, gx = phase_gradient(psi, valid)
+    grad_y, grad_x = gy.ravel()[pixels], gx.ravel()[pixels]
+    size = (2 * radius + 1, 2 * radius + 1)
+    # valid ones, p excluded (p is valid); summed from uint8: whole numbers, the float32 map's sums
+    neighbours = cv2.boxFilter(valid.view(np.uint8), cv2.CV_32F, size, normalize=False,
+                               borderType=cv2.BORDER_CONSTANT).ravel()[pixels] - np.float32(1.0)
     # U (periods; float64, then float32) and the weight (the confidence clipped to [0, 1], NaN as 0) in maps padded
     # by radius: NaN and 0 beyond the image and where not valid
     height, width = psi.shape
