@@ -14,9 +14,10 @@ The pool also says no, with one log line a pool and reason, where a new segment 
 - the process is not *dumpable* (it changed its user or group, e.g. started as root and dropped privileges, runs a
   binary with file capabilities, or called ``prctl(PR_SET_DUMPABLE, 0)``): the kernel then lets no other process of
   its user open its ``/proc/<pid>/fd``, so no subscriber could map a segment;
-- the process holds :data:`FD_SHARE` of its file-descriptor limit (``ulimit -n``) already: each segment costs two
-  descriptors (the memfd and the duplicate Python's ``mmap`` keeps), and a subscriber that keeps every message would
-  otherwise grow the pool until ``publish`` failed with ``EMFILE`` and the process could open no socket or file;
+- the process holds :data:`~.shared_memory.FD_SHARE` of its file-descriptor limit (``ulimit -n``) already: each
+  segment costs two descriptors (the memfd and the duplicate Python's ``mmap`` keeps), and a subscriber that keeps
+  every message would otherwise grow the pool until ``publish`` failed with ``EMFILE`` and the process could open
+  no socket or file;
 - making it fails (``memfd_create``, ``ftruncate`` or ``mmap`` raise ``OSError``: no descriptor, no memory).
 """
 
@@ -34,6 +35,7 @@ import numpy as np
 from .logging import get_logger
 from .shared_memory import (
     ALIGNMENT,
+    FD_SHARE,
     GENERATION_OFFSET,
     HEADER_BYTES,
     PICKUPS_OFFSET,
@@ -41,6 +43,7 @@ from .shared_memory import (
     SEALS,
     SEGMENT_MAGIC,
     SharedMemoryConfig,
+    descriptor_room,
     pack_descriptor,
 )
 
@@ -48,9 +51,6 @@ __all__ = ["SegmentPool", "IDLE_S", "FD_SHARE", "process_dumpable"]
 
 #: Seconds after its last write when a free segment is closed.
 IDLE_S = 10.0
-#: Share of the process's soft file-descriptor limit beyond which no new segment is made (the rest stays for its
-#: sockets, files and the segments it maps as a subscriber).
-FD_SHARE = 0.5
 #: The header's pickup and let-go counters: their indices among its 8-byte words.
 _PICKUPS_WORD = PICKUPS_OFFSET // 8
 _RELEASES_WORD = RELEASES_OFFSET // 8
@@ -75,16 +75,6 @@ def process_dumpable() -> bool:
             _libc.append(None)
     prctl = _libc[0]
     return prctl is None or prctl(_PR_GET_DUMPABLE, 0, 0, 0, 0) == 1
-
-
-def _descriptor_room() -> tuple[int, int]:
-    """``(open, allowed)``: descriptors this process has open, and :data:`FD_SHARE` of its soft limit."""
-    soft = resource.getrlimit(resource.RLIMIT_NOFILE)[0]
-    allowed = 1 << 30 if soft == resource.RLIM_INFINITY else int(soft * FD_SHARE)
-    try:
-        return len(os.listdir("/proc/self/fd")), allowed
-    except OSError:
-        return 0, allowed
 
 
 class _Segment:
@@ -314,7 +304,7 @@ class SegmentPool:
                          "with file capabilities, or called prctl(PR_SET_DUMPABLE, 0)), so the kernel lets no other "
                          "process open its segments; sending every message through ZeroMQ")
             return None
-        used, allowed = _descriptor_room()
+        used, allowed = descriptor_room(FD_SHARE)
         if used + 2 > allowed:
             self._report("descriptors", f"this process has {used} file descriptors open, the most segments may "
                          f"leave it ({FD_SHARE:g} of ulimit -n {resource.getrlimit(resource.RLIMIT_NOFILE)[0]}; "

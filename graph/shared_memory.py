@@ -59,6 +59,7 @@ import fcntl
 import hashlib
 import mmap
 import os
+import resource
 import stat
 import struct
 import threading
@@ -73,7 +74,8 @@ from .processes import process_alive
 __all__ = [
     "SharedMemoryConfig", "SharedMemoryError", "StaleSegmentError", "host_key", "shm_topic",
     "HEADER_BYTES", "SEGMENT_MAGIC", "pack_descriptor", "unpack_descriptor", "Descriptor", "read_message",
-    "sweep_mappings", "mapped_segment_count", "ALIGNMENT", "RELEASES_OFFSET", "SEALS",
+    "sweep_mappings", "mapped_segment_count", "ALIGNMENT", "RELEASES_OFFSET", "SEALS", "descriptor_room",
+    "short_of_descriptors", "FD_SHARE", "FD_GIVE_UP_SHARE",
 ]
 
 #: Bytes of a segment's header: magic (8), token (16), generation (u64), pickups (u64), size (u64), let-gos (u64),
@@ -102,6 +104,22 @@ _DESCRIPTOR_VERSION = 1
 MAX_ARRAYS = 1024
 #: Seconds an unused mapping of a segment is kept by a subscriber's process (a publisher may write it again).
 MAPPING_IDLE_S = 5.0
+#: Share of the process's soft file-descriptor limit (``ulimit -n``) beyond which its publishers make no new segment
+#: (each costs two descriptors: the memfd and the duplicate Python's ``mmap`` keeps; so does each mapped one).
+FD_SHARE = 0.5
+#: Share beyond which a subscription of this process gives up shared memory (:func:`short_of_descriptors`): the rest
+#: maps the descriptors already on their way, and leaves the process its sockets and files.
+FD_GIVE_UP_SHARE = 0.75
+
+
+def descriptor_room(share: float = FD_SHARE) -> tuple[int, int]:
+    """``(open, allowed)``: the file descriptors this process has open, and ``share`` of its soft limit."""
+    soft = resource.getrlimit(resource.RLIMIT_NOFILE)[0]
+    allowed = 1 << 30 if soft == resource.RLIM_INFINITY else int(soft * share)
+    try:
+        return len(os.listdir("/proc/self/fd")), allowed
+    except OSError:
+        return 0, allowed
 
 
 class SharedMemoryError(ValueError):
@@ -288,6 +306,14 @@ class _Mapping:
 _lock = threading.RLock()  # re-entrant: a finalizer (_release) may run inside _acquire, on a garbage collection
 _mappings: dict[tuple, _Mapping] = {}
 _next_sweep = [0.0]
+_short = [False]  # whether the last new mapping left this process above FD_GIVE_UP_SHARE of its descriptors
+
+
+def short_of_descriptors() -> bool:
+    """Whether this process, when it last mapped a new segment, held more than :data:`FD_GIVE_UP_SHARE` of its
+    file-descriptor limit: its subscriptions then take everything through ZeroMQ (a subscriber that holds many
+    messages, e.g. a recorder behind its stream, would otherwise run out and lose the messages it cannot map)."""
+    return _short[0]
 
 
 def read_message(topic: bytes, header, descriptor_frame) -> list:
@@ -340,6 +366,8 @@ def _acquire(descriptor: Descriptor) -> _Mapping:
         mapping = _mappings.get(key)
         if mapping is None:
             mapping = _mappings[key] = _open(descriptor)
+            used, allowed = descriptor_room(FD_GIVE_UP_SHARE)
+            _short[0] = used > allowed
         if mapping.holders == 0:
             try:
                 fcntl.flock(mapping.fd, fcntl.LOCK_SH | fcntl.LOCK_NB)

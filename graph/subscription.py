@@ -35,7 +35,7 @@ from ..messages.wire_format import DecodeError
 from .known_publishers import KnownPublishers
 from .qos import QoSProfile, ReliabilityPolicy, pipe_high_water_mark, queue_limit
 from .sequence_tracking import SequenceTracker
-from .shared_memory import SharedMemoryError, StaleSegmentError, read_message, shm_topic
+from .shared_memory import SharedMemoryError, StaleSegmentError, read_message, shm_topic, short_of_descriptors
 from .transport import FLAG_HISTORY, EnvelopeError, configure_client, unpack_envelope
 
 __all__ = ["Subscription", "MessageInfo", "SHM_GIVE_UP"]
@@ -93,6 +93,7 @@ class Subscription:
         self.exception_count = 0
         self._shm_topic = b""        # set by _open when this process may map other processes' segments
         self._shm_failures = 0       # descriptors in a row whose segment could not be opened
+        self._shm_given_up = False   # the SHM topic unsubscribed: everything through ZeroMQ from then on
         self._socket = None          # owned by the I/O thread
         self._connected: dict = {}   # endpoint -> publisher gid (I/O thread)
         self._warned: set = set()    # publisher gids already warned about (I/O thread)
@@ -164,17 +165,17 @@ class Subscription:
             try:
                 item = (read_message(self._topic_bytes, frames[1], frames[2]), envelope)
                 self._shm_failures = 0
+                if short_of_descriptors():
+                    self._give_up_shared("this process holds most of its file descriptors (ulimit -n): its mapped "
+                                         "segments are held by the messages it keeps")
             except StaleSegmentError as exc:
                 self._lost_shared(str(exc))
                 return False
             except SharedMemoryError as exc:
                 self._lost_shared(str(exc))
                 self._shm_failures += 1
-                if self._shm_failures == SHM_GIVE_UP and self._socket is not None:
-                    self._socket.setsockopt(zmq.UNSUBSCRIBE, self._shm_topic)  # runs on the socket's own thread
-                    self._node.get_logger().error(
-                        f"subscription on {self.topic_name}: {SHM_GIVE_UP} shared-memory segments in a row could "
-                        "not be opened; taking every message through ZeroMQ from now on")
+                if self._shm_failures == SHM_GIVE_UP:
+                    self._give_up_shared(f"{SHM_GIVE_UP} shared-memory segments in a row could not be opened")
                 return False
         else:
             item = (frames[:-1], envelope)
@@ -185,6 +186,15 @@ class Subscription:
             self._queue.append(item)
             self.received_count += 1
         return True
+
+    def _give_up_shared(self, reason: str) -> None:
+        """Unsubscribe the SHM topic (on the socket's own thread): the publishers send everything through ZeroMQ."""
+        sock = self._socket
+        if sock is not None and not self._shm_given_up:  # descriptors on their way are still read (topic kept)
+            self._shm_given_up = True
+            sock.setsockopt(zmq.UNSUBSCRIBE, self._shm_topic)
+            self._node.get_logger().error(f"subscription on {self.topic_name}: {reason}; taking every message "
+                                          "through ZeroMQ from now on")
 
     def _malformed(self, reason: str) -> None:
         with self._lock:

@@ -31,6 +31,7 @@ from dptpu.graph.shared_memory import (
     unpack_descriptor,
 )
 from dptpu.messages import Image
+from dptpu.messages.std import Header
 
 from .nodes.shm_limited_publisher import TOPIC, image_of
 from .nodes.shm_peer import is_shared
@@ -211,3 +212,24 @@ def test_shared_memory_is_off_where_the_kernel_cannot_be_told_from_another_hosts
     assert hidden.stdout.strip() == "True", hidden.stderr
     seen = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, timeout=60)
     assert seen.stdout.strip() == "False", seen.stderr  # with the boot id: on
+
+
+def test_a_subscriber_short_of_descriptors_takes_zeromq_before_it_loses_a_message(context, spawn):
+    # before: a subscriber that held every message (a recorder behind its stream) mapped segments until the kernel
+    # refused it a descriptor (EMFILE); it lost the next SHM_GIVE_UP messages, then gave up shared memory
+    nofile, count = 96, 60
+    subscriber = spawn("shm_limited_subscriber", "--nofile", str(nofile), "--count", str(count))
+    subscriber.wait_event("ready", timeout=30.0)
+    node = Node("limits_publisher", context=context)
+    publisher = node.create_publisher(Image, TOPIC, 10)
+    assert publisher.wait_for_subscriptions(1, timeout_sec=30.0)
+    for index in range(count):
+        publisher.publish(Image.from_array(image_of(index), "mono8", header=Header(frame_id=str(index))))
+        time.sleep(0.005)
+    done = subscriber.wait_event("done", timeout=60.0)
+    assert done["received"] == list(range(count)) and done["lost_count"] == 0
+    assert done["intact"] == count  # every held message still the publisher's, bit for bit
+    assert 0 < done["shared"] < count == publisher.published_count
+    assert publisher.shared_count == done["shared"]  # the rest went through ZeroMQ once it asked
+    assert subscriber.wait_for_stderr("most of its file descriptors"), subscriber.stderr
+    assert "Too many open files" not in subscriber.stderr
