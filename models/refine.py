@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import dataclasses
 from pathlib import Path
+from typing import NamedTuple
 
 import numpy as np
 
@@ -36,8 +37,9 @@ from .inference import FringeOrderModel, shipped_model_path
 from .nt_prior import mf_representation
 from .projector_ends import coarse_order_at_ends
 
-__all__ = ["DEFAULT_MAX_PERIODS_PER_PIXEL", "REFINABLE_METHODS", "choose_model", "fringe_density", "network_prior",
-           "refine_capture_result", "refine_order", "refine_order_and_confidence", "resolve_model"]
+__all__ = ["DEFAULT_MAX_PERIODS_PER_PIXEL", "REFINABLE_METHODS", "Refinement", "choose_model", "fringe_density",
+           "network_prior", "refine_capture_result", "refine_order", "refine_order_and_confidence", "refinement",
+           "resolve_model"]
 
 #: Classical methods whose result the network refines (the paper's three two-frequency methods).
 REFINABLE_METHODS = TWO_FREQUENCY_METHODS
@@ -146,11 +148,31 @@ def refine_order(model: FringeOrderModel, method: str, psi_h, psi_l, classical_o
                                        classical_valid=classical_valid, consensus=consensus)[0]
 
 
+class Refinement(NamedTuple):
+    """DP-TPU's result of one two-frequency scan (:func:`refinement`)."""
+
+    order: np.ndarray  #: (H, W) int32, the fringe order of ``f_h``
+    confidence: np.ndarray  #: (H, W) float32 in [0, 1], 0 where not valid
+    absolute_phase: np.ndarray  #: (H, W) float64, ``psi_h + 2 pi order`` (Eq. (3)) on every pixel, valid or not
+
+
 def refine_order_and_confidence(model: FringeOrderModel, method: str, psi_h, psi_l, classical_order, f_h: float,
                                 f_l: float, valid, *, classical_valid=None, consensus: bool = True,
                                 consistency_floor: np.ndarray | None = None,
                                 modulation: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
-    """:func:`refine_order`'s order and its confidence, ``(order (H, W) int32, confidence (H, W) float32)``.
+    """:func:`refine_order`'s order and its confidence, ``(order (H, W) int32, confidence (H, W) float32)``: the first
+    two fields of :func:`refinement`."""
+    refined = refinement(model, method, psi_h, psi_l, classical_order, f_h, f_l, valid,
+                         classical_valid=classical_valid, consensus=consensus, consistency_floor=consistency_floor,
+                         modulation=modulation)
+    return refined.order, refined.confidence
+
+
+def refinement(model: FringeOrderModel, method: str, psi_h, psi_l, classical_order, f_h: float, f_l: float, valid, *,
+               classical_valid=None, consensus: bool = True, consistency_floor: np.ndarray | None = None,
+               modulation: np.ndarray | None = None) -> Refinement:
+    """:func:`refine_order`'s order, its confidence and the absolute phase they were judged on (the unwrap node
+    publishes it, computed once).
 
     The confidence is the smaller of :func:`dptpu.fpp.confidence.network_confidence` (the network's continuous
     output, its prior and its neighbours' support of the published order) and
@@ -190,7 +212,7 @@ def refine_order_and_confidence(model: FringeOrderModel, method: str, psi_h, psi
         # nor an order that neither its pixel nor its region tells from a near-twin noise can reach (fpp.nt_twins)
         disputed |= twin_ambiguous(absolute, psi_l, f_h, f_l, mask, modulation=modulation)
         confidence = np.where(disputed, np.float32(0.0), confidence)
-    return order, confidence
+    return Refinement(order, confidence, absolute)
 
 
 def _continuous_order(model: FringeOrderModel, psi_h, wrapped_low, coarse, f_h: float,

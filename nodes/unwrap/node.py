@@ -283,11 +283,10 @@ class UnwrapNode(Node):
                 high, low = indices[0], indices[1]
                 floor = integer_frames_floor(msg.modulation[high], msg.modulation[low], int(msg.steps[high]),
                                              int(msg.steps[low]), frequencies[0], frequencies[1])
-            order, confidence = self.refine_order(self.model, self.method, phases[0], phases[1], result.fringe_order,
-                                                  frequencies[0], frequencies[1], result.valid,
-                                                  consensus=self.consensus, consistency_floor=floor,
-                                                  modulation=msg.modulation[indices[0]])
-            result = refined(result, phases[0].astype(np.float64), order, confidence)
+            refinement = self.refine_order(self.model, self.method, phases[0], phases[1], result.fringe_order,
+                                           frequencies[0], frequencies[1], result.valid, consensus=self.consensus,
+                                           consistency_floor=floor, modulation=msg.modulation[indices[0]])
+            result = refined(result, refinement.absolute_phase, refinement.order, refinement.confidence)
         elif self.method == "nt":  # no confidence where neither pixel nor region tells the order from a near-twin
             twins = twin_ambiguous(result.absolute_phase, phases[1], frequencies[0], frequencies[1], result.valid,
                                    modulation=msg.modulation[indices[0]])
@@ -327,7 +326,7 @@ class _ModelSetup(NamedTuple):
     auto: bool
     consensus: bool
     model: Any  # dptpu.models.inference.FringeOrderModel or None (an optional part of a build)
-    refine_order: Callable[..., tuple[np.ndarray, np.ndarray]] | None
+    refine_order: Callable[..., Any] | None  # dptpu.models.refine.refinement (returns a Refinement)
 
 
 def _model_setup(method: str, model_path: str, consensus: bool) -> _ModelSetup:
@@ -412,13 +411,13 @@ def load_model(path: str):
     return inference.FringeOrderModel.load(path, threads=1)
 
 
-def _load_refine_order() -> Callable[..., tuple[np.ndarray, np.ndarray]]:
-    """:func:`dptpu.models.refine.refine_order_and_confidence`: the NT prior, the consensus and the network's
-    confidence (numpy, OpenCV, onnxruntime)."""
+def _load_refine_order() -> Callable[..., Any]:
+    """:func:`dptpu.models.refine.refinement`: the NT prior, the consensus, the network's confidence and the absolute
+    phase (numpy, OpenCV, onnxruntime)."""
     # with the model only: dptpu.models is optional in a build
-    from dptpu.models.refine import refine_order_and_confidence
+    from dptpu.models.refine import refinement
 
-    return refine_order_and_confidence
+    return refinement
 
 
 def _shipped_model_exists() -> bool:
@@ -430,13 +429,13 @@ def _shipped_model_exists() -> bool:
     return inference.shipped_model_path() is not None
 
 
-def refined(result: tpu.Unwrapped, psi_h: np.ndarray, order: np.ndarray,
+def refined(result: tpu.Unwrapped, absolute_phase: np.ndarray, order: np.ndarray,
             confidence: np.ndarray | None = None) -> tpu.Unwrapped:
-    """``result`` with the network's fringe order ``order`` (H, W): ``Psi = psi_h + 2*pi*k`` (Eq. (3)); its
-    ``reliability`` becomes ``confidence`` (the network's, :func:`dptpu.fpp.confidence.network_confidence`) when
-    given."""
+    """``result`` with the network's fringe order ``order`` (H, W) and its absolute phase ``Psi = psi_h + 2*pi*k``
+    (Eq. (3); :attr:`dptpu.models.refine.Refinement.absolute_phase`), NaN where not valid; its ``reliability``
+    becomes ``confidence`` (the network's, :func:`dptpu.fpp.confidence.network_confidence`) when given."""
     reliability = result.reliability if confidence is None else np.where(result.valid, confidence, 0.0)
-    return tpu.Unwrapped(fringe_order=order, absolute_phase=np.where(result.valid, psi_h + _TWO_PI * order, np.nan),
+    return tpu.Unwrapped(fringe_order=order, absolute_phase=np.where(result.valid, absolute_phase, np.nan),
                          valid=result.valid, reliability=reliability, n_rejected=result.n_rejected)
 
 
