@@ -34,8 +34,14 @@ Safety, per segment (a header of 64 bytes, then the arrays at 64-byte aligned of
   frame); the lock alone decides whether a segment is free (a killed reader never counts its let-go: after the
   lease its segment is judged by the lock, which the kernel dropped).
 - **Fallback**: a publisher with a subscriber that cannot map its segments (on another host, over tcp, another
-  user, ``DPTPU_SHM=off``), a small message, a TRANSIENT_LOCAL publisher (its history is replayed) or a full
-  pool (``DPTPU_SHM_POOL_MB``) sends the whole message through ZeroMQ, as without shared memory.
+  user, ``DPTPU_SHM=off``), a small message, a TRANSIENT_LOCAL publisher (its history is replayed), a full
+  pool (``DPTPU_SHM_POOL_MB``), a process that is not dumpable or holds :data:`FD_SHARE` of its descriptor limit,
+  or a segment the kernel refuses (:mod:`.segment_pool`) sends the whole message through ZeroMQ, as without shared
+  memory. A subscription whose process holds :data:`FD_GIVE_UP_SHARE` of its descriptor limit asks for no more
+  descriptors (:func:`short_of_descriptors`). Where the boot id cannot be read, shared memory is off
+  (:func:`available`).
+- **Hardening**: segments are sealed against resizing (a subscriber maps no other file: nothing can shrink one under
+  a reader, which would kill it with SIGBUS); a descriptor is opened only if it names a regular file.
 
 Which subscribers can map: a subscription whose process may use shared memory subscribes, beside its topic, to
 ``SHM topic`` = ``"\\0shm:" + host key + "\\0" + topic``, where the host key names this kernel, PID namespace and
