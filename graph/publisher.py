@@ -231,8 +231,17 @@ class Publisher:
             C-contiguous, uninitialized, each starting at a 64-byte boundary. Keep them (not only views of them)
             until the message is published: a loan is matched by its arrays' addresses, and one whose arrays are
             garbage counts as let go.
+
+        Raises
+        ------
+        ValueError
+            A dtype that holds Python objects (``object``, or records with such fields).
         """
         specs = [(tuple(int(n) for n in shape), np.dtype(dtype)) for shape, dtype in specs]
+        for _, dtype in specs:
+            if dtype.hasobject:  # a segment cannot hold Python objects (the view failed after the loan was taken)
+                raise ValueError(f"borrow_loaned_arrays on {self.topic_name}: dtype {dtype} holds Python objects; "
+                                 "expected plain data (numbers, bools, records of them)")
         sizes = [math.prod(shape) * dtype.itemsize for shape, dtype in specs]  # math's: np.prod costs ~7 us
         with self._lock:
             if self._abandoned:

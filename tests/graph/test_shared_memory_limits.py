@@ -233,3 +233,17 @@ def test_a_subscriber_short_of_descriptors_takes_zeromq_before_it_loses_a_messag
     assert publisher.shared_count == done["shared"]  # the rest went through ZeroMQ once it asked
     assert subscriber.wait_for_stderr("most of its file descriptors"), subscriber.stderr
     assert "Too many open files" not in subscriber.stderr
+
+
+def test_a_loan_of_python_objects_is_refused_before_it_takes_a_segment(context):
+    # before: the view of the segment as objects raised TypeError after the pool had lent the segment, which stayed
+    # lent (exclusively locked) for good: each such call took a segment from the pool forever
+    node = Node("object_loaner", context=context)
+    publisher = node.create_publisher(Image, "/limits/objects", 10)
+    for dtype in (object, [("x", "f4"), ("label", "O")]):
+        with pytest.raises(ValueError, match="holds Python objects"):
+            publisher.borrow_loaned_arrays([((300, 400), dtype)])
+    assert publisher._pool.segment_count == 0
+    (pixels,) = publisher.borrow_loaned_arrays([((300, 400), np.uint8)])  # plain data: a loan as always
+    assert publisher._pool.segment_count == 1 and pixels.flags.c_contiguous
+    publisher.return_loaned_arrays([pixels])
