@@ -1,8 +1,8 @@
 """The DP-TPU confidence's faster paths give the numbers of their former formulas bit for bit: the float32 margins of
-:func:`dptpu.fpp.confidence.network_confidence`, the neighbour support's gradient without pads and float32 masks
-(:mod:`dptpu.fpp.order_support`), the two frequencies' agreement computed in place with ``fmod``
-(:mod:`dptpu.fpp.frequency_consistency`); on outside rigs (distortion, several focal lengths, baselines and angles) with
-the paper's camera noise, at 3 and 12 steps."""
+:func:`dptpu.fpp.confidence.network_confidence`, the neighbour support's gradient without pads and float32 masks and
+its neighbours compared chunk by chunk (:mod:`dptpu.fpp.order_support`), the two frequencies' agreement computed in
+place with ``fmod`` (:mod:`dptpu.fpp.frequency_consistency`); on outside rigs (distortion, several focal lengths,
+baselines and angles) with the paper's camera noise, at 3 and 12 steps."""
 from functools import cache
 
 import cv2
@@ -12,7 +12,7 @@ import pytest
 from dptpu.fpp import tpu
 from dptpu.fpp.confidence import network_confidence
 from dptpu.fpp.frequency_consistency import MAD_TO_SIGMA, MIN_SIGMA_RAD, frequency_consistency
-from dptpu.fpp.order_support import phase_gradient
+from dptpu.fpp.order_support import neighbour_support, phase_gradient
 from dptpu.sim.outside_rigs import SIGMA_2, issue16_rig, random_outside_rig, render_phases, spheres_and_plane
 
 F_H, F_L = 20.0, 19.0  # MW
@@ -58,6 +58,51 @@ def test_phase_gradient_is_the_former_one(name, steps):
     for now, before in zip(phase_gradient(wrapped, result.valid), _gradient_before(wrapped, result.valid)):
         assert now.dtype == before.dtype == np.float32 and np.array_equal(now, before)
         assert np.count_nonzero(now) > 0.5 * result.valid.sum()
+
+
+def _support_loop(order, wrapped, valid, confidence, radius, where):
+    """neighbour_support's comparison as written before its chunked, vectorized one: a loop over the window's
+    offsets, a running float32 sum from 0 (the gradient and counts are the function's own)."""
+    valid = valid & np.isfinite(wrapped)
+    psi = np.where(valid, wrapped, 0.0)
+    absolute = np.where(valid, order.astype(np.float64) + psi / (2.0 * np.pi), np.nan)
+    weight = np.where(valid, np.clip(np.nan_to_num(confidence.astype(np.float64)), 0.0, 1.0), 0.0)
+    pixels = np.flatnonzero(valid & where)
+    gy, gx = phase_gradient(psi, valid)
+    grad_y, grad_x = gy.ravel()[pixels], gx.ravel()[pixels]
+    size = (2 * radius + 1, 2 * radius + 1)
+    neighbours = cv2.boxFilter(valid.astype(np.float32), -1, size, normalize=False, borderType=cv2.BORDER_CONSTANT)
+    padded_width = valid.shape[1] + 2 * radius
+    rows, cols = np.divmod(pixels, valid.shape[1])
+    centre = (rows + radius) * padded_width + cols + radius
+    padded = np.pad(absolute.astype(np.float32), radius, constant_values=np.nan).ravel()
+    padded_weight = np.pad(weight.astype(np.float32), radius).ravel()
+    own = absolute.ravel()[pixels].astype(np.float32)
+    agreeing = np.zeros(pixels.size, np.float32)
+    with np.errstate(invalid="ignore"):
+        for dy in range(-radius, radius + 1):
+            for dx in range(-radius, radius + 1):
+                if dy or dx:
+                    shift = centre + (dy * padded_width + dx)
+                    difference = padded[shift] - own
+                    difference -= grad_y * dy + grad_x * dx
+                    agreeing += np.where(np.abs(difference) < 0.25, padded_weight[shift], 0.0)
+    support = np.zeros(valid.shape, np.float32)
+    support.ravel()[pixels] = agreeing / np.maximum(neighbours.ravel()[pixels] - 1.0, 1.0)
+    return support
+
+
+@pytest.mark.parametrize("name", RIGS)
+@pytest.mark.parametrize("radius", [2, 4])
+def test_chunked_neighbour_support_is_the_loop(name, radius):
+    psi_h, result, _ = scan(name, 3)
+    where = np.ones(result.valid.shape, bool)  # every valid pixel: several chunks of the comparison
+    assert result.valid.sum() > 8192
+    wrapped = np.where(result.valid, psi_h, np.float32(np.nan))
+    support = neighbour_support(result.fringe_order, wrapped, result.valid, result.reliability, radius=radius)
+    assert np.array_equal(support, _support_loop(result.fringe_order, wrapped, result.valid, result.reliability,
+                                                 radius, where))
+    assert 0.2 < np.mean(support[result.valid]) < 0.95  # classical MW at 3 steps: neither no support nor all
 
 
 @pytest.mark.parametrize("name", RIGS)
