@@ -44,6 +44,7 @@ from .shared_memory import (
     SEGMENT_MAGIC,
     SharedMemoryConfig,
     descriptor_room,
+    own_segments,
     pack_descriptor,
 )
 
@@ -106,6 +107,7 @@ class _Segment:
         self.loaned = False  # lent to a writer that fills it in place (exclusively locked until it is published)
         self.view[:8] = SEGMENT_MAGIC
         self.view[8:24] = self.token
+        own_segments[0] += 1
 
     def pickups(self) -> int:
         return int.from_bytes(self.view[PICKUPS_OFFSET:PICKUPS_OFFSET + 8], "little")
@@ -149,6 +151,7 @@ class _Segment:
         except BufferError:
             pass  # a writer still holds a loaned array of it: the map goes with the last such array
         os.close(self.fd)
+        own_segments[0] -= 1
 
 
 class SegmentPool:
