@@ -135,13 +135,27 @@ def test_order_islands_of_a_float32_phase_are_those_of_its_float64_copy(name):
     assert (single.regions, single.island_regions) == (double.regions, double.island_regions)
 
 
-@pytest.mark.parametrize("name", RIGS)
+#: The outside rigs' captures and the graph's own scene (random-1 from the sim rig).
+PHASE_SCENES = [*RIGS, "sim random-1"]
+
+
+def phase_scene(name):
+    """``(absolute phase (H, W) float32 with an island one order off, modulation float32, lit)`` of a scene of
+    :data:`PHASE_SCENES`."""
+    if name in RIGS:
+        rig, x_p, modulation, lit = rendered(name)
+        absolute = (x_p * (2 * np.pi * FREQUENCY / rig.projector.size[0])).astype(np.float32)
+    else:
+        _, modulation, unwrapped = sim_unwrapped()
+        absolute, lit = unwrapped.absolute_phase.copy(), unwrapped.valid
+    absolute[40:50, 60:75] += np.float32(2 * np.pi)  # an island: broken pairs inside the lit area too
+    return absolute, modulation.astype(np.float32), lit
+
+
+@pytest.mark.parametrize("name", PHASE_SCENES)
 def test_the_broken_pairs_of_order_regions_are_the_plain_definitions(name):
     # the kernel lists the broken neighbour pairs from flat indices; the definition, with numpy's 2-D nonzero
-    rig, x_p, _, lit = rendered(name)
-    phase = x_p * (2 * np.pi * FREQUENCY / rig.projector.size[0])
-    phase[40:50, 60:75] += 2 * np.pi  # an island: broken pairs inside the lit area too
-    phase32 = phase.astype(np.float32)
+    phase32, _, lit = phase_scene(name)
     valid = lit & np.isfinite(phase32)
     _, a, b, difference = _order_regions(phase32, valid)
     right = np.subtract(phase32[:, 1:], phase32[:, :-1], dtype=np.float64)
@@ -149,7 +163,7 @@ def test_the_broken_pairs_of_order_regions_are_the_plain_definitions(name):
     with np.errstate(invalid="ignore"):
         rows_r, cols_r = np.nonzero(valid[:, 1:] & valid[:, :-1] & ~(np.abs(right) < np.pi))
         rows_d, cols_d = np.nonzero(valid[1:, :] & valid[:-1, :] & ~(np.abs(down) < np.pi))
-    width = phase.shape[1]
+    width = phase32.shape[1]
     assert rows_r.size > 20 and rows_d.size > 20
     assert np.array_equal(a, np.concatenate([rows_r * width + cols_r, rows_d * width + cols_d]))
     assert np.array_equal(b, np.concatenate([rows_r * width + cols_r + 1, (rows_d + 1) * width + cols_d]))
@@ -157,12 +171,12 @@ def test_the_broken_pairs_of_order_regions_are_the_plain_definitions(name):
     assert a.dtype == b.dtype == np.int64
 
 
-@pytest.mark.parametrize("name", RIGS)
+@pytest.mark.parametrize("name", PHASE_SCENES)
 def test_the_shadow_borders_normal_at_chosen_pixels_is_opencvs_sobel_there(name):
     # the predicted error's |cos| from the 3x3 neighbourhoods of the pixels asked; OpenCV's Sobel over the whole
     # image, with the border replicated (the kernel before): the same float32 values, on the rig's shadows and on a
     # random mask, at pixels of the image's border too
-    _, _, _, lit = rendered(name)
+    _, _, lit = phase_scene(name)
     rng = np.random.default_rng(len(name))
     for unlit in (~lit, rng.random(lit.shape) < 0.3):
         height, width = unlit.shape
@@ -175,12 +189,12 @@ def test_the_shadow_borders_normal_at_chosen_pixels_is_opencvs_sobel_there(name)
             assert 0 < np.count_nonzero(whole.ravel()[pixels]) < pixels.size
 
 
-@pytest.mark.parametrize("name", RIGS)
+@pytest.mark.parametrize("name", PHASE_SCENES)
 def test_the_brightest_modulation_within_two_pixels_of_a_pair_is_opencvs_dilation_there(name):
     # order_islands' smooth-pair test gathers the 5 x 5 windows of the broken pairs' pixels; the kernel before it,
     # OpenCV's dilation of the whole image: the same float32 values, at the image's border too
-    _, _, modulation, lit = rendered(name)
-    modulation = modulation.astype(np.float32)
+    _, modulation, lit = phase_scene(name)
+    modulation = modulation.copy()
     modulation[::7, ::5] = np.nan  # NaN modulation counts as 0, as the whole map made it
     values = np.nan_to_num(modulation)
     values[~lit] = 0.0
@@ -219,18 +233,24 @@ ROOT = __import__("pathlib").Path(__file__).resolve().parents[2]
 
 
 @cache
-def sim_capture():
-    """``(depth (H, W) float32 m, focal px, modulation, lit)`` of random-1 as the sim node renders it (the raycast
-    twin, the shipped rig at 160x120, 2 x 12 steps), through the phase, Eq. (5) and the triangulation."""
+def sim_unwrapped():
+    """``(rig, modulation (H, W) float32, Unwrapped)`` of random-1 as the sim node renders it (the raycast twin, the
+    shipped rig at 160x120, 2 x 12 steps) through the phase and Eq. (5): the graph's own scene."""
     rig = load_twin_rig(ROOT / "launch" / "params" / "shipped_rig.yaml", size=(160, 120))
     specs = [SequenceSpec(64.0, 12, axis="x", shift_sign=-1), SequenceSpec(1.0, 12, axis="x", shift_sign=-1)]
     stacks, _ = raycast_frames(rig, random_scene(rig, 1), specs, seed=0)
     maps = [phase.maps_from_sums(phase.sequence_sums(stack)) for stack in stacks]
     valid = (maps[0].modulation >= 10.0) & (maps[1].modulation >= 10.0)
-    unwrapped = tpu.unwrap_mf_float32(maps[0].phase, maps[1].phase, 64.0, 1.0, valid=valid)
+    return rig, maps[0].modulation, tpu.unwrap_mf_float32(maps[0].phase, maps[1].phase, 64.0, 1.0, valid=valid)
+
+
+@cache
+def sim_capture():
+    """``(depth (H, W) float32 m, focal px, modulation, lit)`` of :func:`sim_unwrapped`, triangulated."""
+    rig, modulation, unwrapped = sim_unwrapped()
     x_p = projector_coordinate(unwrapped.absolute_phase, 64.0, rig.projector.size[0])
     depth = Triangulator(rig, axis="x").camera_points(x_p, scale=rig.scale_to_m, dtype=np.float32)[..., 2]
-    return np.ascontiguousarray(depth), 0.5 * float(rig.camera.K[0, 0] + rig.camera.K[1, 1]), maps[0].modulation, \
+    return np.ascontiguousarray(depth), 0.5 * float(rig.camera.K[0, 0] + rig.camera.K[1, 1]), modulation, \
         unwrapped.valid
 
 
