@@ -12,6 +12,7 @@ import pytest
 
 from dptpu.fpp import depth_steps, phase, tpu
 from dptpu.fpp import flying_points as flying_points_module
+from dptpu.fpp import order_islands as order_islands_module
 from dptpu.fpp import shadow_border as shadow_border_module
 from dptpu.fpp.depth_edges import edge_points
 from dptpu.fpp.depth_steps import continues_a_side
@@ -169,6 +170,30 @@ def test_the_broken_pairs_of_order_regions_are_the_plain_definitions(name):
     assert np.array_equal(b, np.concatenate([rows_r * width + cols_r + 1, (rows_d + 1) * width + cols_d]))
     assert np.array_equal(difference, np.concatenate([right[rows_r, cols_r], down[rows_d, cols_d]]))
     assert a.dtype == b.dtype == np.int64
+
+
+def test_order_links_of_float32_differences_are_the_float64_ones():
+    # order_islands links two neighbours where |Phi_b - Phi_a| < pi in float64; the kernel decides it in float32
+    # and takes the differences within float32 rounding of pi again in float64. Pairs a few float32 steps either
+    # side of a difference of pi (where the two roundings part), over the phases' range, with NaN, inf and huge values
+    rng = np.random.default_rng(20)
+    before = rng.uniform(0.0, 2 * np.pi * 64, 4000).astype(np.float32)
+    before[:50] = rng.uniform(-1e-3, 1e-3, 50)  # near zero: the float32 difference exact, the exponents apart
+    after = (before.astype(np.float64) + np.pi * rng.choice([-1.0, 1.0], before.size)).astype(np.float32)
+    offset = rng.integers(-4, 5, before.size)  # float32 steps off the nearest difference of pi
+    for walked in range(4):
+        move = np.abs(offset) > walked
+        after[move] = np.nextafter(after[move], np.float32(np.inf) * np.sign(offset[move]).astype(np.float32))
+    far = rng.uniform(-3 * np.pi, 3 * np.pi, 1000)
+    after = np.concatenate([after, (before[:1000] + far).astype(np.float32), [np.nan, 1.0, np.inf, 3e38, 1.0]])
+    before = np.concatenate([before, before[:1000], [1.0, np.nan, np.inf, -3e38, np.inf]]).astype(np.float32)
+    after2, before2 = after.reshape(-1, 5), before.reshape(-1, 5)  # 2-D, as the kernel's images
+    with np.errstate(invalid="ignore", over="ignore"):
+        want = np.abs(np.subtract(after2, before2, dtype=np.float64)) < np.pi
+        near = np.abs(np.abs(np.subtract(after2, before2, dtype=np.float64)) - np.pi) < 1e-5
+    assert near.sum() > 1000 and 0 < want[near].sum() < near.sum()  # both sides of pi, closely
+    assert np.array_equal(order_islands_module._linked(after2, before2), want)
+    assert np.array_equal(order_islands_module._linked(after2.astype(np.float64), before2.astype(np.float64)), want)
 
 
 @pytest.mark.parametrize("name", PHASE_SCENES)
