@@ -23,6 +23,7 @@ Three ways to use it:
 from __future__ import annotations
 
 import argparse
+import bisect
 import json
 import os
 import select
@@ -143,8 +144,7 @@ class TriggerBoxEmulator:
     def _reply(self, when: float, reply: Reply) -> None:
         if self.silent:
             return
-        self._queue.append((when, encode_reply(reply)))
-        self._queue.sort(key=lambda item: item[0])
+        bisect.insort(self._queue, (when, encode_reply(reply)), key=_due_time)  # after equal times: in order
 
     def next_due(self) -> float | None:
         """Monotonic time of the next line to send, or None."""
@@ -162,6 +162,10 @@ class TriggerBoxEmulator:
         if not self._queue:
             self._scan_until = 0.0
         return lines
+
+
+def _due_time(item: tuple[float, bytes]) -> float:
+    return item[0]
 
 
 def _safe_text(text: str) -> str:

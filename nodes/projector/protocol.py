@@ -25,6 +25,7 @@ from __future__ import annotations
 import math
 import re
 from dataclasses import dataclass, field
+from functools import cached_property
 
 __all__ = ["PROTOCOL", "MAX_LINE_BYTES", "ERROR_CODES", "REFERENCES", "ProtocolError", "SequenceSpec",
            "split_references", "parse_sequence_spec",
@@ -98,7 +99,7 @@ class SequenceSpec:
         object.__setattr__(self, "entries", tuple((float(f), int(n)) for f, n in self.entries))
         object.__setattr__(self, "references", references)
 
-    @property
+    @cached_property  # asked three times a displayed pattern (the link thread's Trigger); the spec is frozen
     def pattern_count(self) -> int:
         """Total number of patterns, ``sum(N)`` and one per reference frame."""
         return sum(steps for _, steps in self.entries) + len(self.references)
