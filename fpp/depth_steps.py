@@ -121,11 +121,11 @@ def _continues_at(depth: np.ndarray, pure: np.ndarray, tolerance: float, where: 
         index = np.where(inside, r * width + c, 0)  # (not numpy's clip: its checks cost more than the arithmetic)
         return np.where(inside & flat_pure[index], flat_depth[index].astype(np.float64), np.nan)
 
-    hit = np.zeros(pixels.size, dtype=bool)
+    steps = np.array(_DIRECTIONS)  # (8, 2): the 8 directions at once, (M, 8) gathers
+    first = pure_depth(rows[:, None] + steps[:, 0], cols[:, None] + steps[:, 1])
+    second = pure_depth(rows[:, None] + 2 * steps[:, 0], cols[:, None] + 2 * steps[:, 1])
     with np.errstate(invalid="ignore"):
-        for dr, dc in _DIRECTIONS:
-            first, second = pure_depth(rows + dr, cols + dc), pure_depth(rows + 2 * dr, cols + 2 * dc)
-            hit |= np.abs(z - (2.0 * first - second)) <= tolerance
+        hit = (np.abs(z[:, None] - (2.0 * first - second)) <= tolerance).any(axis=1)
     out = np.zeros(depth.shape, dtype=bool)
     np.put(out, pixels[hit], True)
     return out
