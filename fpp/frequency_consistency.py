@@ -36,6 +36,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from .bracketed_median import bracketed_median
 from .fringe_noise import quantization_phase_noise
 
 __all__ = ["DEFAULT_CONSISTENCY_SCALE", "MIN_SIGMA_RAD", "consistency_residual", "frequency_consistency",
@@ -127,7 +128,7 @@ def frequency_consistency(absolute_high: np.ndarray, wrapped_low: np.ndarray, f_
     valid = np.asarray(valid, dtype=bool) & np.isfinite(eps)
     if not valid.any():
         return np.zeros(eps.shape, np.float32)
-    sigma = max(MAD_TO_SIGMA * float(np.median(eps[valid], overwrite_input=True)), MIN_SIGMA_RAD)
+    sigma = max(MAD_TO_SIGMA * float(bracketed_median(eps[valid])), MIN_SIGMA_RAD)
     if floor is None:
         eps /= scale * sigma
     else:  # an infinite floor (no modulation) would pass anything: such pixels keep the scan's s

@@ -43,6 +43,7 @@ import math
 import cv2
 import numpy as np
 
+from .bracketed_median import bracketed_median
 from .frequency_consistency import MAD_TO_SIGMA, consistency_residual
 
 __all__ = ["DEFAULT_RADIUS", "DEFAULT_SIGNIFICANCE", "MIN_TEST_PIXELS", "VOTE_CLIP_ORDERS", "median_and_mad",
@@ -114,7 +115,7 @@ def rejected_regions(absolute_high: np.ndarray, wrapped_low: np.ndarray, f_h: fl
     if np.count_nonzero(known) < 2 * MIN_TEST_PIXELS:
         return rejected
     magnitudes = r[known]
-    scan_sigma = MAD_TO_SIGMA * float(np.median(np.abs(magnitudes, out=magnitudes), overwrite_input=True))
+    scan_sigma = MAD_TO_SIGMA * float(bracketed_median(np.abs(magnitudes, out=magnitudes)))
     votes = np.where(known, r, np.float32(0.0))  # (H, W) float32, clipped in place
     np.maximum(votes, np.float32(-VOTE_CLIP_ORDERS), out=votes)
     np.minimum(votes, np.float32(VOTE_CLIP_ORDERS), out=votes)
