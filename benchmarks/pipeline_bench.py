@@ -93,7 +93,8 @@ def camera_limit_scans_per_s(frames_per_scan: int) -> float:
 
 
 def launch_sim_rig(*, sequence: str, model: str, size: str, scans: int, timeout_s: float,
-                   pacing: list[str], cpu_window: tuple[int, int] | None = None, source: str = "raycast") -> dict:
+                   pacing: list[str], cpu_window: tuple[int, int] | None = None, source: str = "raycast",
+                   side_commands: dict[str, list[str]] | None = None) -> dict:
     """Run the sim rig until ``scans`` scans were reported; the monitor's summary (``totals``, ``scans``).
 
     ``pacing`` holds the launch arguments that start the scans (``in_flight:=N``, or ``in_flight:=0
@@ -101,6 +102,10 @@ def launch_sim_rig(*, sequence: str, model: str, size: str, scans: int, timeout_
     ``cpu_ms_per_scan``: each process's CPU time (user + system, every thread, ``/proc/<pid>/stat``) from the
     monitor's ``a``-th reported scan to its ``b``-th, divided by ``b - a`` (:func:`cpu_per_scan_ms`). ``source``:
     the sim node's (``raycast`` renders :data:`SCENES` live; a folder of ``dptpu-capture/1`` captures is replayed).
+    ``side_commands``: ``{name: argv}`` of further processes of the same graph (consumers beside the monitor, e.g.
+    ``benchmarks/consumers_bench.py``'s), started with the launch and stopped (SIGTERM) at its end; their CPU is
+    measured as the launch's processes'. With a ``cpu_window`` the summary also holds ``memory_mb``: each process's
+    memory at the window's end (:func:`process_memory_mb`).
     """
     folder = Path(tempfile.mkdtemp(prefix="dpb", dir="/tmp"))
     summary = folder / "summary.json"
@@ -115,7 +120,10 @@ def launch_sim_rig(*, sequence: str, model: str, size: str, scans: int, timeout_
     killer = threading.Timer(timeout_s, process.kill)
     killer.start()
     pids = {"launch": process.pid}
-    reported, samples, tail = 0, [], []
+    side = {name: subprocess.Popen(argv, cwd=folder, env=env, stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
+                                   stderr=subprocess.DEVNULL) for name, argv in (side_commands or {}).items()}
+    pids.update({name: side_process.pid for name, side_process in side.items()})
+    reported, samples, tail, memory = 0, [], [], {}
     try:
         for line in process.stdout:  # the launch's prefixed lines, as they come
             tail = (tail + [line])[-40:]
@@ -126,8 +134,17 @@ def launch_sim_rig(*, sequence: str, model: str, size: str, scans: int, timeout_
                 reported += 1
                 if cpu_window is not None and reported in cpu_window:
                     samples.append((reported, time.monotonic(), cpu_times_s(pids)))
+                    if reported == cpu_window[1]:
+                        memory = {name: process_memory_mb(pid) for name, pid in pids.items()}
         returncode = process.wait()
     finally:
+        for side_process in side.values():
+            side_process.terminate()
+            try:
+                side_process.wait(timeout=10)
+            except subprocess.TimeoutExpired:
+                side_process.kill()
+                side_process.wait()
         killer.cancel()
         if process.poll() is None:
             process.kill()
@@ -140,7 +157,37 @@ def launch_sim_rig(*, sequence: str, model: str, size: str, scans: int, timeout_
         shutil.rmtree(folder, ignore_errors=True)
     if len(samples) == 2:
         report["cpu_ms_per_scan"] = cpu_per_scan_ms(samples[0], samples[1])
+        report["memory_mb"] = memory
     return report
+
+
+def process_memory_mb(pid: int) -> dict:
+    """``{"rss": MiB, "shmem": MiB, "segments": n, "segment_mb": MiB}`` of a process now: its resident memory and,
+    of it, the shared memory it maps (``/proc/<pid>/status`` VmRSS, RssShmem), and the graph's shared-memory
+    segments it holds open (``memfd:dptpu...`` files: its publishers' pools and the segments it maps) and their size,
+    in all and by topic (``by_topic``: ``{label: [segments, MiB]}``, the label ``dptpu:scanner:points`` for
+    ``/scanner/points``); ``{}`` when it is gone."""
+    try:
+        status = dict(line.split(":", 1) for line in Path(f"/proc/{pid}/status").read_text().splitlines())
+        descriptors = list(Path(f"/proc/{pid}/fd").iterdir())
+    except (OSError, ValueError):
+        return {}
+    sizes = {}  # inode -> (label, bytes) (a segment is open twice: its memfd and the duplicate Python's mmap keeps)
+    for fd in descriptors:
+        try:
+            target = os.readlink(fd)
+            if target.startswith("/memfd:dptpu"):
+                sizes[fd.stat().st_ino] = (target[7:].removesuffix(" (deleted)"), fd.stat().st_size)
+        except OSError:  # closed since listed
+            continue
+    topics: dict[str, list] = {}  # label (the publisher's topic, / as :) -> [segments, MiB]
+    for label, nbytes in sizes.values():
+        entry = topics.setdefault(label, [0, 0.0])
+        entry[0] += 1
+        entry[1] = round(entry[1] + nbytes / (1 << 20), 1)
+    kib = {key: int(status.get(key, "0 kB").split()[0]) for key in ("VmRSS", "RssShmem")}
+    return {"rss": round(kib["VmRSS"] / 1024, 1), "shmem": round(kib["RssShmem"] / 1024, 1), "segments": len(sizes),
+            "segment_mb": round(sum(nbytes for _, nbytes in sizes.values()) / (1 << 20), 1), "by_topic": topics}
 
 
 _STARTED = re.compile(r"^\[launch\] started '([\w.-]+)' \(pid (\d+)\)")

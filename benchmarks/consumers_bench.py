@@ -1,0 +1,145 @@
+"""The scanner graph with the consumers a robot puts beside it, side by side with the plain graph (not a test).
+
+``bench pipeline`` times the graph with one consumer, the scan monitor, which lets each cloud go at once. A robot's
+consumers keep them: a SLAM front end or a map accumulator keeps the last clouds, a recorder queues them behind its
+writes, the ROS 2 bridge converts each one. Each kept cloud holds its shared-memory segment (docs/graph.md,
+"What a subscriber that keeps messages costs"), so the cloud node fills new segments until its pool is at its
+bytes. This bench runs the sim rig (``launch/sim_rig.yaml``, as ``bench pipeline``'s throughput run: four scans in
+flight, the monitor on clouds and statuses only) once per consumer set, in one invocation, and reports for each
+the scans per second, the latency, each process's CPU a scan, the cloud node's duration and, at the end of the
+timed window, the memory of the cloud node and of the consumers (resident, shared, segments held)::
+
+    dptpu bench consumers [--json] [--size 640x480] [--source FOLDER|raycast] [--steps 3] [--scans 20]
+                          [--warmup 10] [--consumers plain,keep1,keep10,keep100,record,ros2,viewer]
+    python benchmarks/consumers_bench.py [same options]
+
+Consumer sets: ``plain`` (the monitor alone), ``keepN`` (a subscriber process that keeps the last N clouds in a
+list, :func:`keep_clouds`), ``record`` (``dptpu record /scanner/points`` into an MCAP file), ``ros2`` (the launch's
+ROS 2 bridge, ``ros2:=true``), ``viewer`` (the launch's web viewer, ``viewer:=true``, with nobody watching).
+Results: docs/benchmarks.md, "Consumers that keep clouds (issue 20, 20R)".
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import sys
+from pathlib import Path
+
+if __package__ in (None, ""):  # run as a script: benchmarks/ is not a package
+    sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+import pipeline_bench
+
+CONSUMERS = ("plain", "keep1", "keep10", "keep100", "record", "ros2", "viewer")
+
+
+def keep_clouds(count: int) -> None:
+    """A subscriber process that keeps the last ``count`` clouds of ``/scanner/points`` (a SLAM front end's
+    window), until SIGTERM."""
+    import collections
+    import signal
+
+    from dptpu import graph as rclpy
+    from dptpu.graph.node import Node
+    from dptpu.messages.sensor import PointCloud2
+
+    rclpy.init(args=[])
+    node = Node("cloud_keeper")
+    kept: collections.deque = collections.deque(maxlen=count)
+    node.create_subscription(PointCloud2, "/scanner/points", kept.append, 10)
+    signal.signal(signal.SIGTERM, lambda *_: rclpy.try_shutdown())
+    try:
+        rclpy.spin(node)
+    except Exception:  # noqa: BLE001 -- shut down by SIGTERM: the bench reads nothing from this process
+        pass
+
+
+def side_commands(consumer: str, folder: Path) -> tuple[dict[str, list[str]], list[str]]:
+    """``(side processes, launch arguments)`` of one consumer set."""
+    if consumer.startswith("keep"):
+        return {f"keeper{consumer[4:]}": [sys.executable, __file__, "--keeper", consumer[4:]]}, []
+    if consumer == "record":
+        return {"recorder": [sys.executable, "-c", "import sys; from dptpu.cli.main import main; sys.exit(main())",
+                             "record", "/scanner/points", "-o", str(folder / "points.mcap"),
+                             "--compression", "none"]}, []
+    if consumer == "ros2":
+        return {}, ["ros2:=true", "ros_domain_id:=97"]
+    if consumer == "viewer":
+        return {}, ["viewer:=true", f"viewer_port:={18000 + os.getpid() % 1000}"]
+    return {}, []
+
+
+def run_consumer(consumer: str, args) -> dict:
+    """One launch of the sim rig with ``consumer`` beside the monitor; its figures."""
+    import tempfile
+
+    folder = Path(tempfile.mkdtemp(prefix="dpc", dir="/tmp"))
+    side, launch_args = side_commands(consumer, folder)
+    sequence = pipeline_bench.SEQUENCES[args.steps]
+    report = pipeline_bench.launch_sim_rig(
+        sequence=sequence, model="none", size=args.size, scans=args.warmup + args.scans, timeout_s=args.timeout,
+        pacing=["in_flight:=4", "monitor_triggers:=false", *launch_args],
+        cpu_window=(args.warmup + 1, args.warmup + args.scans - 1), source=args.source, side_commands=side)
+    figures = pipeline_bench.timed_figures(report, args.scans)
+    recorded = folder / "points.mcap"
+    cpu = report.get("cpu_ms_per_scan") or {}
+    return {"consumers": consumer, "scans_per_s": figures["scans_per_s"],
+            "latency_ms_p50": figures["latency_ms_p50"], "latency_ms_p99": figures["latency_ms_p99"],
+            "scans_failed": figures["scans_failed"], "scans_lost": figures["scans_lost"],
+            "cloud_ms_p50": next((v for k, v in figures["node_duration_ms_p50"].items() if "cloud" in k), None),
+            "cpu_ms_per_scan": {k: v for k, v in cpu.items() if k != "threads"},
+            "memory_mb": report.get("memory_mb"),
+            "recorded_mb": round(recorded.stat().st_size / (1 << 20), 1) if recorded.is_file() else None}
+
+
+def _line(r: dict) -> str:
+    cpu = r["cpu_ms_per_scan"]
+    graph = {k: v for k, v in cpu.items() if k not in ("total", "scans", "window_s")}
+    memory = r["memory_mb"] or {}
+    cloud = memory.get("cloud", {})
+    return (f"{r['consumers']:<8} {r['scans_per_s']:6.2f} scans/s  latency p50 {r['latency_ms_p50']} p99 "
+            f"{r['latency_ms_p99']} ms  cloud node {r['cloud_ms_p50']} ms  CPU total {cpu.get('total')} ms/scan "
+            f"({', '.join(f'{k} {v}' for k, v in graph.items())})  cloud process RSS {cloud.get('rss')} MiB, "
+            f"shmem {cloud.get('shmem')}, {cloud.get('segments')} segments {cloud.get('segment_mb')} MiB  "
+            f"failed {r['scans_failed']} lost {r['scans_lost']}")
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(prog="consumers_bench.py", description=__doc__.split("\n")[0])
+    parser.add_argument("--keeper", type=int, default=0, help=argparse.SUPPRESS)  # the side process itself
+    parser.add_argument("--json", action="store_true")
+    parser.add_argument("--size", default="640x480")
+    parser.add_argument("--source", default="raycast")
+    parser.add_argument("--steps", type=int, default=3, choices=sorted(pipeline_bench.SEQUENCES))
+    parser.add_argument("--scans", type=int, default=20)
+    parser.add_argument("--warmup", type=int, default=10)
+    parser.add_argument("--timeout", type=float, default=600.0)
+    parser.add_argument("--consumers", default=",".join(CONSUMERS))
+    args = parser.parse_args(argv)
+    if args.keeper:
+        keep_clouds(args.keeper)
+        return 0
+    consumers = [c for c in args.consumers.split(",") if c]
+    unknown = [c for c in consumers if c not in CONSUMERS and not (c.startswith("keep") and c[4:].isdigit())]
+    if unknown or not 2 <= args.scans <= 200:
+        print(f"consumers_bench.py: error: --consumers takes {', '.join(CONSUMERS)} (keepN for any N), --scans "
+              f"2..200; got {', '.join(unknown) or args.consumers}, {args.scans}", file=sys.stderr)
+        return 2
+    results = []
+    for consumer in consumers:
+        results.append(run_consumer(consumer, args))
+        if not args.json:
+            print(_line(results[-1]), flush=True)
+    if args.json:
+        print(json.dumps({"benchmark": "consumers", "machine": {"cpus": os.cpu_count(),
+                                                               "platform": platform.platform(),
+                                                               "load_average": list(os.getloadavg())},
+                          "size": args.size, "steps": args.steps, "source": args.source, "results": results},
+                         indent=1))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
