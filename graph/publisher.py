@@ -182,8 +182,10 @@ class Publisher:
         """``[shm topic, header, descriptor]`` when every subscriber can map this process's segments and the
         arrays are large enough (and the pool has room); else ``frames`` as they are."""
         readers, pool = self._subscriber_count, self._pool
-        if pool is None or not readers or self._shm_subscriber_count < readers \
-                or sum(view.nbytes for view in frames[2:]) < self._shm_min_bytes:
+        if pool is None or not readers or sum(view.nbytes for view in frames[2:]) < self._shm_min_bytes:
+            return frames
+        if self._shm_subscriber_count < readers:
+            self._note_unmappable(readers)
             return frames
         descriptor = pool.write(frames[2:], readers)
         if descriptor is None:
@@ -203,11 +205,20 @@ class Publisher:
         if pool is None:
             return frames
         if not readers or self._shm_subscriber_count < readers:
+            if readers:
+                self._note_unmappable(readers)
             copied = [*frames[:2], *(bytes(view) for view in frames[2:])]  # the segment goes back to the pool
             pool.cancel_loan(segment)
             return copied
         self.shared_count += 1
         return [self._shm_topic, frames[1], pool.publish_loan(segment, entries, readers)]
+
+    def _note_unmappable(self, readers: int) -> None:
+        """A subscriber that cannot map sends this message through ZeroMQ: said once, naming it (the pool's)."""
+        runtime, pool = self._runtime, self._pool
+        if pool is not None:
+            pool.note_unmappable(self.topic_name, readers, self._shm_subscriber_count, runtime.entries, runtime.host,
+                                 runtime.boot_id)
 
     def borrow_loaned_arrays(self, specs) -> list[np.ndarray]:
         """Writable arrays in one shared-memory segment, to fill in place and publish without a copy.

@@ -18,7 +18,14 @@ The pool also says no, with one log line a pool and reason, where a new segment 
   segment costs two descriptors (the memfd and the duplicate Python's ``mmap`` keeps), and a subscriber that keeps
   every message would otherwise grow the pool until ``publish`` failed with ``EMFILE`` and the process could open
   no socket or file;
-- making it fails (``memfd_create``, ``ftruncate`` or ``mmap`` raise ``OSError``: no descriptor, no memory).
+- making it fails (``memfd_create``, ``ftruncate`` or ``mmap`` raise ``OSError``: no descriptor, no memory);
+- the pool is at its bytes (``DPTPU_SHM_POOL_MB``) and every segment is held: a subscriber that keeps every message
+  (a map accumulator, a recorder far behind) holds at most that much of the publisher's memory, and gets the rest
+  through ZeroMQ.
+
+A new segment's pages are allocated when it is made (``MAP_POPULATE``), in one pass, not faulted in one by one by its
+first write. And a publisher whose subscribers are not all able to map its segments sends through ZeroMQ: the pool
+says so once, naming them (:meth:`SegmentPool.note_unmappable`).
 """
 
 from __future__ import annotations
@@ -46,16 +53,21 @@ from .shared_memory import (
     descriptor_room,
     own_segments,
     pack_descriptor,
+    unmappable_subscribers,
 )
 
-__all__ = ["SegmentPool", "IDLE_S", "FD_SHARE", "process_dumpable"]
+__all__ = ["SegmentPool", "IDLE_S", "FD_SHARE", "UNMAPPABLE_WAIT_S", "process_dumpable"]
 
 #: Seconds after its last write when a free segment is closed.
 IDLE_S = 10.0
+#: Seconds :meth:`SegmentPool.note_unmappable` waits for the graph's announcements to name a subscriber that cannot
+#: map before it logs without a name.
+UNMAPPABLE_WAIT_S = 2.0
 #: The header's pickup and let-go counters: their indices among its 8-byte words.
 _PICKUPS_WORD = PICKUPS_OFFSET // 8
 _RELEASES_WORD = RELEASES_OFFSET // 8
 _PAGE = mmap.PAGESIZE
+_POPULATE = getattr(mmap, "MAP_POPULATE", 0)  # Linux
 
 
 def _aligned(nbytes: int) -> int:
@@ -92,7 +104,10 @@ class _Segment:
             # its size is fixed for good: nobody (a process of this user that opens /proc/<pid>/fd) can shrink it
             # under a mapping, which would kill the publisher and every reader with SIGBUS at their next access
             fcntl.fcntl(self.fd, fcntl.F_ADD_SEALS, SEALS)
-            self.view = mmap.mmap(self.fd, size)
+            # every page allocated and mapped in one pass (MAP_POPULATE) rather than faulted in one at a time by the
+            # writer's first pass: a segment is made when subscribers hold the others (they keep messages), and its
+            # writer fills it at once (docs/benchmarks.md, "Consumers that keep clouds")
+            self.view = mmap.mmap(self.fd, size, flags=mmap.MAP_SHARED | _POPULATE)
         except BaseException:
             os.close(self.fd)
             raise
@@ -181,6 +196,7 @@ class SegmentPool:
         self._bytes = 0
         self._next_trim = 0.0
         self._reported: set[str] = set()  # reasons already logged (once a pool each)
+        self._unmappable_since = self._unmappable_seen = float("-inf")  # note_unmappable's run of messages
         self.written_count = 0
         self.full_count = 0
 
@@ -283,7 +299,14 @@ class SegmentPool:
                 return segment
         size = (need + need // 16 + _PAGE - 1) // _PAGE * _PAGE  # some room for a message a little larger
         if self._bytes + size > self._config.pool_bytes:
-            return self._evict_for(size, now)
+            made = self._evict_for(size, now)
+            if made is None:
+                most = self._config.pool_bytes / (1 << 20)
+                self._report("bytes", f"its {len(self._segments)} segments ({self._bytes / (1 << 20):.1f} MiB; "
+                             f"DPTPU_SHM_POOL_MB={most:g} is its most) are all held by subscribers (one keeps its "
+                             "messages, or queues many); sending through ZeroMQ while none is free (a copy to every "
+                             "subscriber)")
+            return made
         return self._new_segment(size)
 
     def _evict_for(self, size: int, now: float) -> _Segment | None:
@@ -324,6 +347,27 @@ class SegmentPool:
         self._segments.append(segment)
         self._bytes += size
         return segment
+
+    def note_unmappable(self, topic: str, readers: int, mappable: int, entries, host: str, boot_id: str) -> None:
+        """Say once (one log line) that ``readers - mappable`` of the topic's ``readers`` subscribers cannot map this
+        publisher's segments, so every subscriber gets its messages through ZeroMQ, naming them from the graph's
+        ``entries`` (:func:`~.shared_memory.unmappable_subscribers`). Called at each message sent so; while the
+        announcements name none (they may come after the subscription), the line waits up to
+        :data:`UNMAPPABLE_WAIT_S` of such messages."""
+        if "unmappable" in self._reported:
+            return
+        now = time.monotonic()
+        if now - self._unmappable_seen > UNMAPPABLE_WAIT_S:  # the first such message (of a new run of them)
+            self._unmappable_since = now
+        self._unmappable_seen = now
+        named = unmappable_subscribers(entries, topic, host, boot_id)
+        if not named and now - self._unmappable_since < UNMAPPABLE_WAIT_S:
+            return
+        who = ", ".join(named) if named else ("one of this host that takes none (of another user or PID namespace, "
+                                              "or one that gave it up)")
+        self._report("unmappable", f"{readers - mappable} of the {readers} subscribers of {topic} cannot map this "
+                     f"process's segments: {who}; sending every message of {topic} to every subscriber through "
+                     "ZeroMQ (a copy each) while it is connected")
 
     def _report(self, reason: str, text: str) -> None:
         if reason not in self._reported:

@@ -34,12 +34,12 @@ Safety, per segment (a header of 64 bytes, then the arrays at 64-byte aligned of
   frame); the lock alone decides whether a segment is free (a killed reader never counts its let-go: after the
   lease its segment is judged by the lock, which the kernel dropped).
 - **Fallback**: a publisher with a subscriber that cannot map its segments (on another host, over tcp, another
-  user, ``DPTPU_SHM=off``), a small message, a TRANSIENT_LOCAL publisher (its history is replayed), a full
-  pool (``DPTPU_SHM_POOL_MB``), a process that is not dumpable or holds :data:`FD_SHARE` of its descriptor limit,
-  or a segment the kernel refuses (:mod:`.segment_pool`) sends the whole message through ZeroMQ, as without shared
-  memory. A subscription whose process holds :data:`FD_GIVE_UP_SHARE` of its descriptor limit asks for no more
-  descriptors (:func:`short_of_descriptors`). Where the boot id cannot be read, shared memory is off
-  (:func:`available`).
+  user, ``DPTPU_SHM=off``; logged once, naming it: :func:`unmappable_subscribers`), a small message, a
+  TRANSIENT_LOCAL publisher (its history is replayed), a full pool (``DPTPU_SHM_POOL_MB``; logged once), a process
+  that is not dumpable or holds :data:`FD_SHARE` of its descriptor limit, or a segment the kernel refuses
+  (:mod:`.segment_pool`) sends the whole message through ZeroMQ, as without shared memory. A subscription whose
+  process holds :data:`FD_GIVE_UP_SHARE` of its descriptor limit asks for no more descriptors
+  (:func:`short_of_descriptors`). Where the boot id cannot be read, shared memory is off (:func:`available`).
 - **Hardening**: segments are sealed against resizing (a subscriber maps no other file: nothing can shrink one under
   a reader, which would kill it with SIGBUS); a descriptor is opened only if it names a regular file.
 
@@ -81,7 +81,7 @@ __all__ = [
     "SharedMemoryConfig", "SharedMemoryError", "StaleSegmentError", "host_key", "shm_topic",
     "HEADER_BYTES", "SEGMENT_MAGIC", "pack_descriptor", "unpack_descriptor", "Descriptor", "read_message",
     "sweep_mappings", "mapped_segment_count", "ALIGNMENT", "RELEASES_OFFSET", "SEALS", "descriptor_room",
-    "short_of_descriptors", "FD_SHARE", "FD_GIVE_UP_SHARE", "OTHER_DESCRIPTORS",
+    "short_of_descriptors", "FD_SHARE", "FD_GIVE_UP_SHARE", "OTHER_DESCRIPTORS", "unmappable_subscribers",
 ]
 
 #: Bytes of a segment's header: magic (8), token (16), generation (u64), pickups (u64), size (u64), let-gos (u64),
@@ -529,6 +529,23 @@ def sweep_mappings() -> int:
     with _lock:
         _sweep_locked(time.monotonic())
         return len(_mappings)
+
+
+def unmappable_subscribers(entries, topic: str, host: str, boot_id: str) -> list[str]:
+    """The subscribers of ``topic`` in the graph's announcements ``entries`` (one a node) that cannot map segments of
+    a process on ``host`` (``boot_id``): those of another host or kernel (or heard through a peer), and those that
+    announce they take no shared memory (``DPTPU_SHM=off``, or given up); each as ``"NODE (pid P on HOST, why)"``."""
+    named = []
+    for entry in entries:
+        subscriptions = [s for s in entry.get("subscriptions", ()) if s.get("topic") == topic]
+        if not subscriptions:
+            continue
+        where = f"{entry.get('fqn', '?')} (pid {entry.get('pid', '?')} on {entry.get('host', '?')}"
+        if entry.get("via") or entry.get("host") != host or entry.get("boot_id") != boot_id:
+            named.append(where + ", another host)")
+        elif any(s.get("shared_memory") is False for s in subscriptions):
+            named.append(where + ", takes no shared memory)")
+    return named
 
 
 def mapped_segment_count() -> int:

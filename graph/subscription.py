@@ -246,7 +246,8 @@ class Subscription:
 
     def _announcement(self) -> dict:
         return {"topic": self.topic_name, "type": self.msg_type.TYPE_NAME if self.msg_type else "*",
-                "gid": self.gid.hex(), "qos": self.qos_profile.to_dict(), "stats": self._stats()}
+                "gid": self.gid.hex(), "qos": self.qos_profile.to_dict(), "stats": self._stats(),
+                "shared_memory": bool(self._shm_topic) and not self._shm_given_up}  # whether it maps segments
 
     def __repr__(self):
         type_name = self.msg_type.TYPE_NAME if self.msg_type else "*"

@@ -4,8 +4,9 @@
 ``--undumpable`` makes it not dumpable (``prctl(PR_SET_DUMPABLE, 0)``, what a process that changed its user or
 runs with file capabilities is). It waits for ``--wait-subs`` subscriptions on ``/limits/image``, publishes
 ``--count`` mono8 images of :data:`SHAPE` (image ``i`` is :func:`image_of` ``(i)``), ``--period`` s apart, and prints
-``{"event": "published", "published", "shared", "full", "errors", "most_fds"}``: ``errors`` lists what ``publish``
-raised, ``most_fds`` the most descriptors the process had open after a publish. Prints ``{"event": "ready"}`` first.
+``{"event": "published", "published", "shared", "full", "errors", "most_fds", "segments", "pool_bytes"}``: ``errors``
+lists what ``publish`` raised, ``most_fds`` the most descriptors the process had open after a publish, ``segments``
+and ``pool_bytes`` its pool's at the end. Prints ``{"event": "ready"}`` first.
 """
 
 import argparse
@@ -66,7 +67,9 @@ def main(argv=None):
         time.sleep(options.period)
     pool = publisher._pool
     emit(event="published", published=publisher.published_count, shared=publisher.shared_count,
-         full=pool.full_count if pool is not None else None, errors=errors, most_fds=most_fds)
+         full=pool.full_count if pool is not None else None, errors=errors, most_fds=most_fds,
+         segments=pool.segment_count if pool is not None else None,
+         pool_bytes=pool.pool_bytes if pool is not None else None)
     end = time.monotonic() + options.linger
     while time.monotonic() < end:
         rclpy.spin_once(node, timeout_sec=0.05)
