@@ -105,7 +105,7 @@ def launch_sim_rig(*, sequence: str, model: str, size: str, scans: int, timeout_
     ``side_commands``: ``{name: argv}`` of further processes of the same graph (consumers beside the monitor, e.g.
     ``benchmarks/consumers_bench.py``'s), started with the launch and stopped (SIGTERM) at its end; their CPU is
     measured as the launch's processes'. With a ``cpu_window`` the summary also holds ``memory_mb``: each process's
-    memory at the window's end (:func:`process_memory_mb`).
+    memory in the middle of the window (:func:`process_memory_mb`; at its end the launch may be closing them).
     """
     folder = Path(tempfile.mkdtemp(prefix="dpb", dir="/tmp"))
     summary = folder / "summary.json"
@@ -134,8 +134,8 @@ def launch_sim_rig(*, sequence: str, model: str, size: str, scans: int, timeout_
                 reported += 1
                 if cpu_window is not None and reported in cpu_window:
                     samples.append((reported, time.monotonic(), cpu_times_s(pids)))
-                    if reported == cpu_window[1]:
-                        memory = {name: process_memory_mb(pid) for name, pid in pids.items()}
+                if cpu_window is not None and reported == sum(cpu_window) // 2:  # mid-window: none is ending yet
+                    memory = {name: process_memory_mb(pid) for name, pid in pids.items()}
         returncode = process.wait()
     finally:
         for side_process in side.values():
