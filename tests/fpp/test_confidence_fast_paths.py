@@ -1,9 +1,12 @@
 """The DP-TPU confidence's faster paths give the numbers of their former formulas bit for bit: the float32 margins of
 :func:`dptpu.fpp.confidence.network_confidence`, the neighbour support's gradient without pads and float32 masks and
 its neighbours compared chunk by chunk (:mod:`dptpu.fpp.order_support`), the two frequencies' agreement computed in
-place with ``fmod`` (:mod:`dptpu.fpp.frequency_consistency`); on outside rigs (distortion, several focal lengths,
-baselines and angles) with the paper's camera noise, at 3 and 12 steps."""
+place with ``fmod``, its median by ``bracketed_median`` (:mod:`dptpu.fpp.frequency_consistency`), the region test's
+checkerboard, clip, median and counts (:mod:`dptpu.fpp.region_consistency`); on outside rigs (distortion, several
+focal lengths, baselines and angles) and the graph's shipped rig with its first random scene, with the paper's camera
+noise, at 3 and 12 steps."""
 from functools import cache
+from pathlib import Path
 
 import cv2
 import numpy as np
@@ -13,23 +16,32 @@ from dptpu.fpp import tpu
 from dptpu.fpp.confidence import network_confidence
 from dptpu.fpp.frequency_consistency import MAD_TO_SIGMA, MIN_SIGMA_RAD, frequency_consistency
 from dptpu.fpp.order_support import neighbour_support, phase_gradient
+from dptpu.fpp.region_consistency import _rejected_by_half, consistency_residual, rejected_regions
 from dptpu.sim.outside_rigs import SIGMA_2, issue16_rig, random_outside_rig, render_phases, spheres_and_plane
+from dptpu.sim.rig import load_twin_rig
+from dptpu.sim.scenes.random_scene import random_scene
 
 F_H, F_L = 20.0, 19.0  # MW
-RIGS = {"random-3": lambda: random_outside_rig(3, size=(160, 120)),
-        "random-8": lambda: random_outside_rig(8, size=(160, 120)),
-        "issue16": lambda: issue16_rig(size=(160, 120))}
+SHIPPED_RIG = Path(__file__).resolve().parents[2] / "launch" / "params" / "shipped_rig.yaml"
+#: name -> (rig, scene of it): three outside rigs' spheres before a plane, and the graph's shipped rig with its first
+#: random scene (the sim node's twin)
+RIGS = {"random-3": (lambda: random_outside_rig(3, size=(160, 120)), lambda rig: spheres_and_plane(rig, 2)),
+        "random-8": (lambda: random_outside_rig(8, size=(160, 120)), lambda rig: spheres_and_plane(rig, 2)),
+        "issue16": (lambda: issue16_rig(size=(160, 120)), lambda rig: spheres_and_plane(rig, 2)),
+        "shipped": (lambda: load_twin_rig(SHIPPED_RIG, size=(160, 120)), lambda rig: random_scene(rig, 1))}
 
 
 @cache
 def scan(name: str, steps: int):
-    """``(wrapped high float32, classical MW result, true order)`` of a noisy capture of spheres before a plane."""
-    rig = RIGS[name]()
-    capture = render_phases(rig, spheres_and_plane(rig, 2), [F_H, F_L], steps=steps, noise_dn=SIGMA_2, seed=7)
-    psi_h = capture.phases[F_H].astype(np.float32)
+    """``(wrapped high float32, classical MW result, true order, wrapped low float32)`` of a noisy capture of rig
+    ``name``'s scene."""
+    make_rig, make_scene = RIGS[name]
+    rig = make_rig()
+    capture = render_phases(rig, make_scene(rig), [F_H, F_L], steps=steps, noise_dn=SIGMA_2, seed=7)
+    psi_h, psi_l = (capture.phases[f].astype(np.float32) for f in (F_H, F_L))
     valid = capture.valid & (capture.modulation[F_H] > 3.0) & (capture.modulation[F_L] > 3.0)
-    result = tpu.unwrap("mw", psi_h, capture.phases[F_L].astype(np.float32), F_H, F_L, valid=valid)
-    return psi_h, result, capture.order(F_H).astype(np.int32)
+    result = tpu.unwrap("mw", psi_h, psi_l, F_H, F_L, valid=valid)
+    return psi_h, result, capture.order(F_H).astype(np.int32), psi_l
 
 
 def _gradient_before(wrapped, valid, radius=2):
@@ -53,7 +65,7 @@ def _gradient_before(wrapped, valid, radius=2):
 @pytest.mark.parametrize("name", RIGS)
 @pytest.mark.parametrize("steps", [3, 12])
 def test_phase_gradient_is_the_former_one(name, steps):
-    psi_h, result, _ = scan(name, steps)
+    psi_h, result, _, _ = scan(name, steps)
     wrapped = np.where(result.valid, psi_h, np.float32(0.0))
     for now, before in zip(phase_gradient(wrapped, result.valid), _gradient_before(wrapped, result.valid)):
         assert now.dtype == before.dtype == np.float32 and np.array_equal(now, before)
@@ -95,7 +107,7 @@ def _support_loop(order, wrapped, valid, confidence, radius, where):
 @pytest.mark.parametrize("name", RIGS)
 @pytest.mark.parametrize("radius", [2, 4])
 def test_chunked_neighbour_support_is_the_loop(name, radius):
-    psi_h, result, _ = scan(name, 3)
+    psi_h, result, _, _ = scan(name, 3)
     where = np.ones(result.valid.shape, bool)  # every valid pixel: several chunks of the comparison
     assert result.valid.sum() > 8192
     wrapped = np.where(result.valid, psi_h, np.float32(np.nan))
@@ -107,7 +119,7 @@ def test_chunked_neighbour_support_is_the_loop(name, radius):
 
 @pytest.mark.parametrize("name", RIGS)
 def test_float32_network_confidence_is_the_float64_one(name):
-    psi_h, result, truth = scan(name, 3)
+    psi_h, result, truth, _ = scan(name, 3)
     rng = np.random.default_rng(3)
     # a network output near the true order (some pixels near the rounding margin), an order with a few wrong ones
     continuous = (truth + rng.normal(0.0, 0.2, truth.shape)).astype(np.float32)
@@ -140,7 +152,7 @@ def _consistency_before(absolute_high, wrapped_low, f_h, f_l, valid, floor, scal
 @pytest.mark.parametrize("name", RIGS)
 @pytest.mark.parametrize("with_floor", [False, True])
 def test_in_place_frequency_consistency_is_the_former_one(name, with_floor):
-    psi_h, result, truth = scan(name, 3)
+    psi_h, result, truth, _ = scan(name, 3)
     rng = np.random.default_rng(5)
     order = np.where(rng.random(truth.shape) < 0.02, truth + 1, truth)  # some wrong orders: large residuals
     absolute = psi_h.astype(np.float64) + 2 * np.pi * order
@@ -155,3 +167,36 @@ def test_in_place_frequency_consistency_is_the_former_one(name, with_floor):
     fast = frequency_consistency(absolute, psi_l, F_H, F_L, result.valid, floor=floor)
     assert np.array_equal(fast, _consistency_before(absolute, psi_l, F_H, F_L, result.valid, floor))
     assert 0.01 < np.mean((fast > 0) & (fast < 1)) and np.any(fast[result.valid] == 0)  # neither all 0 nor all 1
+
+
+def _regions_before(absolute_high, wrapped_low, f_h, f_l, valid, radius=3, significance=4.0):
+    """rejected_regions as written before its cuts: np.median, np.clip, the checkerboard from index grids, the
+    proposing half's count from a float32 copy (the halves' test itself is the function's own)."""
+    ratio = f_l / f_h
+    r = consistency_residual(absolute_high, wrapped_low, f_h, f_l, dtype=np.float32)
+    r *= np.float32(1.0 / (2.0 * np.pi * (ratio - round(ratio))))
+    r[~valid] = np.nan
+    known = np.isfinite(r)
+    scan_sigma = MAD_TO_SIGMA * float(np.median(np.abs(r[known])))
+    votes = np.clip(np.where(known, r, np.float32(0.0)), -2.0, 2.0)
+    checkerboard = (np.arange(r.shape[0])[:, None] + np.arange(r.shape[1])[None, :]) % 2 == 0
+    first_half = known & checkerboard
+    rejected = np.zeros(r.shape, bool)
+    for proposing, testing in ((first_half, known & ~first_half), (known & ~first_half, first_half)):
+        rejected |= _rejected_by_half(r, votes, known, proposing, testing, scan_sigma, radius, significance)
+    return rejected
+
+
+@pytest.mark.parametrize("name", RIGS)
+def test_region_test_is_the_former_one(name):
+    psi_h, result, truth, psi_l = scan(name, 12)
+    valid = result.valid
+    order = truth.copy()
+    rows, cols = np.nonzero(valid)
+    centre = len(rows) // 2
+    patch = (np.abs(rows - rows[centre]) < 6) & (np.abs(cols - cols[centre]) < 8)
+    order[rows[patch], cols[patch]] += 1  # a patch one order off: the test's case
+    absolute = psi_h.astype(np.float64) + 2 * np.pi * order
+    rejected = rejected_regions(absolute, psi_l, F_H, F_L, valid)
+    assert np.array_equal(rejected, _regions_before(absolute, psi_l, F_H, F_L, valid))
+    assert rejected[rows[patch], cols[patch]].mean() > 0.5  # the patch found
