@@ -11,12 +11,14 @@ timed window, the memory of the cloud node and of the consumers (resident, share
 
     dptpu bench consumers [--json] [--size 640x480] [--source FOLDER|raycast] [--steps 3] [--scans 20]
                           [--warmup 10] [--consumers plain,keep1,keep10,keep100,record,ros2,viewer]
+    dptpu bench consumers --fill [--size 640x480]
     python benchmarks/consumers_bench.py [same options]
 
 Consumer sets: ``plain`` (the monitor alone), ``keepN`` (a subscriber process that keeps the last N clouds in a
 list, :func:`keep_clouds`), ``record`` (``dptpu record /scanner/points`` into an MCAP file), ``ros2`` (the launch's
 ROS 2 bridge, ``ros2:=true``), ``viewer`` (the launch's web viewer, ``viewer:=true``, with nobody watching).
-Results: docs/benchmarks.md, "Consumers that keep clouds (issue 20, 20R)".
+``--fill`` launches nothing: it times the cloud node's fill into a reused and into a new segment
+(:func:`fresh_segment_fill_ms`). Results: docs/benchmarks.md, "Consumers that keep clouds (issue 20, 20R)".
 """
 from __future__ import annotations
 
@@ -94,6 +96,60 @@ def run_consumer(consumer: str, args) -> dict:
             "recorded_mb": round(recorded.stat().st_size / (1 << 20), 1) if recorded.is_file() else None}
 
 
+def fresh_segment_fill_ms(size: str = "640x480", repeats: int = 15) -> dict:
+    """Median ms of the cloud node's fill (``cv2.merge`` of 9 float32 planes into a loaned segment) into a segment
+    written before (``reused``: what a consumer that lets clouds go gives), into a new one as the pool makes it
+    (``fresh``: every cloud while a consumer keeps them all, until the pool is at its bytes; ``make`` the making,
+    ``fresh_total`` both) and into a new one without ``MAP_POPULATE`` (``fresh_faulted``: its pages faulted in by the
+    fill), alternated in one process."""
+    import time
+
+    import cv2
+    import numpy as np
+
+    from dptpu.graph import segment_pool
+    from dptpu.graph.shared_memory import SharedMemoryConfig
+
+    width, height = (int(n) for n in size.split("x"))
+    planes = [np.random.default_rng(i).random((height, width), dtype=np.float32) for i in range(9)]
+    spec = (height, width, 9)
+    nbytes = height * width * 9 * 4
+    times: dict[str, list[float]] = {"reused": [], "make": [], "fresh": [], "fresh_faulted": []}
+    populate = segment_pool._POPULATE
+    pool = segment_pool.SegmentPool(SharedMemoryConfig(pool_bytes=1 << 40, key=b"bench"), "bench:fill")
+    try:
+        def fill(segment, entries) -> float:
+            (offset, _), = entries
+            cloud = segment.array[offset:offset + nbytes].view(np.float32).reshape(spec)
+            start = time.perf_counter()
+            cv2.merge(planes, dst=cloud)
+            return time.perf_counter() - start
+
+        warm = pool.loan([nbytes])
+        fill(*warm)
+        for _ in range(repeats):
+            times["reused"].append(fill(*warm))
+            for key, flags in (("fresh", populate), ("fresh_faulted", 0)):
+                segment_pool._POPULATE = flags
+                start = time.perf_counter()
+                taken = pool.loan([nbytes])  # the others are all lent: a new segment
+                made = time.perf_counter() - start
+                times[key].append(fill(*taken))
+                if key == "fresh":
+                    times["make"].append(made)
+                pool.cancel_loan(taken[0])
+                pool._segments.remove(taken[0])  # closed at once: the next loan makes a new one again
+                pool._bytes -= taken[0].size
+                taken[0].close()
+    finally:
+        segment_pool._POPULATE = populate
+        pool.close()
+    figures = {key: round(1e3 * float(np.median(values)), 2) for key, values in times.items()}
+    figures["fresh_total"] = round(figures["make"] + figures["fresh"], 2)
+    figures["segment_mb"] = round(nbytes / (1 << 20), 1)
+    return figures
+
+
 def _line(r: dict) -> str:
     cpu = r["cpu_ms_per_scan"]
     graph = {k: v for k, v in cpu.items() if k not in ("total", "scans", "window_s")}
@@ -117,9 +173,14 @@ def main(argv=None) -> int:
     parser.add_argument("--warmup", type=int, default=10)
     parser.add_argument("--timeout", type=float, default=600.0)
     parser.add_argument("--consumers", default=",".join(CONSUMERS))
+    parser.add_argument("--fill", action="store_true",
+                        help="no graph: the cloud node's fill into a reused, a fresh and a fresh unpopulated segment")
     args = parser.parse_args(argv)
     if args.keeper:
         keep_clouds(args.keeper)
+        return 0
+    if args.fill:
+        print(json.dumps(fresh_segment_fill_ms(args.size)))
         return 0
     consumers = [c for c in args.consumers.split(",") if c]
     unknown = [c for c in consumers if c not in CONSUMERS and not (c.startswith("keep") and c[4:].isdigit())]

@@ -8,15 +8,19 @@ subscriber is this process or another real one.
 
 from __future__ import annotations
 
+import collections
 import mmap
+import time
 from pathlib import Path
 
 import numpy as np
 
+from dptpu.graph import Node, SingleThreadedExecutor
 from dptpu.graph.segment_pool import SegmentPool
 from dptpu.graph.shared_memory import HEADER_BYTES, SharedMemoryConfig
+from dptpu.messages import Image
 
-from .nodes.shm_limited_publisher import SHAPE
+from .nodes.shm_limited_publisher import SHAPE, TOPIC
 from .nodes.shm_peer import is_shared
 from .test_shared_memory_limits import _intact, _keep_everything
 
@@ -45,6 +49,33 @@ def test_a_subscriber_that_keeps_every_message_holds_the_pool_at_its_bytes_and_n
     assert sum(is_shared(msg.data) for msg in kept) == most
     assert publisher.wait_for_stderr("DPTPU_SHM_POOL_MB"), publisher.stderr
     assert publisher.stderr.count("shared memory of dptpu:limits:image") == 1  # one line, not one a message
+
+
+def test_a_subscriber_that_keeps_the_last_messages_holds_that_many_segments_and_no_more(context, spawn):
+    # a SLAM front end's window: the last N messages kept. The pool grows to what the subscriber can hold (N kept,
+    # its queue, the one being written) and reuses those segments from then on: every message through shared memory
+    count, window, depth = 60, 5, 10
+    publisher = spawn("shm_limited_publisher", "--count", str(count), "--period", "0.01")
+    kept: collections.deque = collections.deque(maxlen=window)
+    indices: list[int] = []
+    node = Node("window_keeper", context=context)
+    subscription = node.create_subscription(
+        Image, TOPIC, lambda msg: (kept.append(msg), indices.append(int(msg.header.frame_id))), depth)
+    executor = SingleThreadedExecutor(context=context)
+    executor.add_node(node)
+    publisher.wait_event("ready", timeout=30.0)
+    deadline = time.monotonic() + 60.0
+    while len(indices) < count and time.monotonic() < deadline:
+        executor.spin_once(timeout_sec=0.05)
+    report = publisher.wait_event("published", timeout=30.0)
+    # in order, none changed; under load the subscription's queue (KEEP_LAST 10) may drop some, each counted
+    assert indices == sorted(set(indices)) and indices[-1] == count - 1
+    assert len(indices) + subscription.queue_dropped_count + subscription.dropped_count == count
+    assert subscription.lost_count == 0  # no descriptor came to a segment written again
+    assert _intact(list(kept)) == indices[-window:]
+    assert report["shared"] == count and report["full"] == 0
+    assert report["segments"] <= window + depth + 2, report  # held: kept, queued, and the one being written
+    assert report["pool_bytes"] == report["segments"] * _segment_bytes(int(np.prod(SHAPE)))
 
 
 def test_a_subscriber_that_cannot_map_is_named_once_by_the_publisher(context, spawn):
