@@ -207,7 +207,11 @@ class NodeHarness:
         return list(collector.messages[:count])
 
 
-def fringe_frames(stacks, frequencies, *, sequence_id: int, stamp_ns: int = 1_700_000_000_000_000_000,
+#: The exposure start of scan 0's first frame in :func:`fringe_frames`; scan ``s`` starts ``s`` seconds later.
+FIRST_STAMP_NS = 1_700_000_000_000_000_000
+
+
+def fringe_frames(stacks, frequencies, *, sequence_id: int, stamp_ns: int | None = None,
                   frame_period_ns: int = 1_333_333, frame_id: str = DEFAULT_FRAME_ID) -> list:
     """The FringeFrames of one scan, in projection order, as a camera publishes them.
 
@@ -220,7 +224,10 @@ def fringe_frames(stacks, frequencies, *, sequence_id: int, stamp_ns: int = 1_70
     sequence_id : int
         The scan.
     stamp_ns, frame_period_ns : int
-        Exposure start of the first frame and the time between frames (default 750 frames/s).
+        Exposure start of the first frame and the time between frames (default 750 frames/s). Default stamp:
+        :data:`FIRST_STAMP_NS` plus ``sequence_id`` seconds, so two scans never share a stamp (the cloud node
+        matches a scan's texture and modulation images to it by stamp, as a ROS 2 synchronizer does: two scans of
+        one stamp would take each other's images).
 
     Returns
     -------
@@ -231,6 +238,8 @@ def fringe_frames(stacks, frequencies, *, sequence_id: int, stamp_ns: int = 1_70
     if len(stacks) != len(frequencies):
         raise ValueError(f"one frequency per stack; got {len(stacks)} stacks and {len(frequencies)} frequencies")
     count = sum(int(np.shape(stack)[0]) for stack in stacks)
+    if stamp_ns is None:
+        stamp_ns = FIRST_STAMP_NS + int(sequence_id) * 1_000_000_000
     frames, index = [], 0
     for stack, frequency in zip(stacks, frequencies):
         steps = int(np.shape(stack)[0])
