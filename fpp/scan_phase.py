@@ -25,7 +25,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .fringe_noise import DEFAULT_MAX_NOISE_RATIO, MIN_NOISE_STEPS, noise_outliers, sequence_phase_noise
-from .phase import maps_from_sums, quality_mask, sequence_sums, wrapped_phase
+from .phase import maps_from_sums, modulation_from_sums, quality_mask, sequence_sums, wrapped_phase
 
 __all__ = ["ImageSlot", "IncrementalScanPhase", "scan_phase_maps"]
 
@@ -101,6 +101,7 @@ class IncrementalScanPhase:
 
     def __init__(self) -> None:
         self.sums: dict[int, np.ndarray] = {}
+        self.modulation: dict[int, np.ndarray] = {}  # entry_start -> B (H, W) float32 of its sums
         self.noise: dict[int, np.ndarray | None] = {}  # entry_start -> phase noise (H, W) of an entry of N >= 5
         self.noise_floor: dict[int, np.ndarray | None] = {}  # entry_start -> its quantization floor (H, W)
         self.slots: dict[int, ImageSlot] = {}  # image index -> where it was added
@@ -127,9 +128,9 @@ class IncrementalScanPhase:
         if self._filled[start] == slot.steps:  # every step of the entry
             stack = self._stacks.pop(start)
             sums = self.sums[start] = sequence_sums(stack, shift_sign=slot.shift_sign, phase_offset=slot.phase_offset)
+            modulation = self.modulation[start] = modulation_from_sums(sums[0], sums[1])
             if slot.steps >= MIN_NOISE_STEPS:  # the fit's residual: the entry's phase noise (fpp.fringe_noise)
-                self.noise[start], self.noise_floor[start] = sequence_phase_noise(
-                    stack, sums[2], np.hypot(sums[0], sums[1]))
+                self.noise[start], self.noise_floor[start] = sequence_phase_noise(stack, sums[2], modulation)
 
     def maps(self, layout: Sequence[ImageSlot], *, min_modulation: float, saturation_level: float | None,
              max_noise_ratio: float = DEFAULT_MAX_NOISE_RATIO, out=None):
@@ -160,7 +161,7 @@ class IncrementalScanPhase:
                 raise ValueError(f"out must be arrays of (shape, dtype) {expected}; got {got}")
             valid.fill(True)
         for index, start in enumerate(starts):
-            maps = maps_from_sums(self.sums[start])
+            maps = maps_from_sums(self.sums[start], self.modulation[start])
             phases[index] = maps.phase  # in [0, 2*pi) in float32
             modulations[index] = maps.modulation
             valid &= maps.modulation >= min_modulation  # NaN compares False
