@@ -77,14 +77,17 @@ def network_confidence(continuous: np.ndarray, order: np.ndarray, prior_order: n
         k = order.astype(np.float64)
         own = np.clip(1.0 - 2.0 * np.abs(continuous.astype(np.float64) - k), 0.0, 1.0)
         prior = np.clip(1.0 - 0.5 * np.abs(k - prior_order.astype(np.float64)), 0.0, 1.0)
-    confidence = np.maximum(own, prior)
-    confidence = np.where(valid & np.isfinite(confidence), confidence, 0.0)
+    confidence = np.maximum(own, prior)  # a new array: filled in place below
+    np.copyto(confidence, 0.0, where=~(valid & np.isfinite(confidence)))
     if wrapped_high is not None:
         # only where the support can raise the confidence (a pixel at 1 keeps 1)
         support = neighbour_support(order, wrapped_high, valid, confidence, radius=SUPPORT_RADIUS,
                                     where=confidence < 1.0)
-        confidence = np.maximum(confidence, np.clip(2.0 * support - 1.0, 0.0, 1.0))
-    return np.where(valid, confidence, 0.0).astype(np.float32)
+        support *= np.float32(2.0)  # 2 s - 1 clipped to [0, 1], float32 as the support
+        support -= np.float32(1.0)
+        np.clip(support, np.float32(0.0), np.float32(1.0), out=support)
+        np.maximum(confidence, support, out=confidence)
+    return confidence.astype(np.float32, copy=False)
 
 
 def _float32_exact(continuous: np.ndarray, order: np.ndarray, prior_order: np.ndarray) -> bool:

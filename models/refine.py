@@ -204,14 +204,14 @@ def refinement(model: FringeOrderModel, method: str, psi_h, psi_l, classical_ord
     confidence = network_confidence(continuous, order, classical, mask, wrapped_high=np.where(mask, psi_h, 0.0))
     absolute = np.asarray(psi_h, dtype=np.float64) + 2.0 * np.pi * order  # Eq. (3)
     consistency = frequency_consistency(absolute, psi_l, f_h, f_l, mask, floor=consistency_floor)
-    confidence = np.minimum(confidence, consistency)
-    confidence = np.where(rejected_regions(absolute, psi_l, f_h, f_l, mask), np.float32(0.0), confidence)
+    np.minimum(confidence, consistency, out=confidence)  # both float32 (H, W), the confidence a new array
+    np.copyto(confidence, np.float32(0.0), where=rejected_regions(absolute, psi_l, f_h, f_l, mask))
     if method == "nt":  # a band whose prior took the other low order than the per-pixel lookup, solidly: no confidence
         both = valid if classical_valid is None else valid & np.asarray(classical_valid, dtype=bool)
         disputed = low_period_disputes(order, np.asarray(classical_order), f_h / f_l, both)
         # nor an order that neither its pixel nor its region tells from a near-twin noise can reach (fpp.nt_twins)
         disputed |= twin_ambiguous(absolute, psi_l, f_h, f_l, mask, modulation=modulation)
-        confidence = np.where(disputed, np.float32(0.0), confidence)
+        np.copyto(confidence, np.float32(0.0), where=disputed)
     return Refinement(order, confidence, absolute)
 
 
@@ -224,8 +224,15 @@ def _continuous_order(model: FringeOrderModel, psi_h, wrapped_low, coarse, f_h: 
     for a in arrays:
         if not np.issubdtype(a.dtype, np.integer):
             mask &= np.isfinite(a)
-    high, low, order = (np.where(mask, a, 0).astype(np.float32) for a in arrays)
+    high, low, order = (_masked_float32(a, mask) for a in arrays)
     return model.predict(high, low, order, float(f_h)), mask
+
+
+def _masked_float32(values: np.ndarray, mask: np.ndarray) -> np.ndarray:
+    """``np.where(mask, values, 0).astype(np.float32)`` in one pass: the same cast where ``mask``, 0 elsewhere."""
+    out = np.zeros(mask.shape, np.float32)
+    np.copyto(out, values, where=mask, casting="unsafe")
+    return out
 
 
 def network_prior(method: str, psi_h, psi_l, classical_order, f_h: float, f_l: float, valid, *,
