@@ -25,6 +25,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from dptpu.fpp.bracketed_median import bracketed_median
 from dptpu.fpp.confidence import network_confidence
 from dptpu.fpp.frequency_consistency import frequency_consistency, quantization_residual_noise
 from dptpu.fpp.low_period_disputes import low_period_disputes
@@ -277,8 +278,14 @@ def fringe_density(wrapped_high, valid=None) -> float:
     medians = []
     for axis in (0, 1):
         steps = np.diff(psi, axis=axis)
-        steps = np.abs(np.mod(steps[np.isfinite(steps)] + np.pi, 2.0 * np.pi) - np.pi) / (2.0 * np.pi)
-        medians.append(float(np.median(steps)) if steps.size else 0.0)
+        steps = steps[np.isfinite(steps)]  # |wrap(d psi)| / 2 pi, in place: the same float64 operations in turn
+        steps += np.pi
+        np.fmod(steps, 2.0 * np.pi, out=steps)  # np.mod's value: fmod with the period added to a negative remainder
+        np.add(steps, 2.0 * np.pi, out=steps, where=steps < 0)
+        steps -= np.pi
+        np.abs(steps, out=steps)
+        steps /= 2.0 * np.pi
+        medians.append(float(bracketed_median(steps)) if steps.size else 0.0)
     return max(medians)
 
 

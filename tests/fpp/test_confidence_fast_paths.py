@@ -2,7 +2,8 @@
 :func:`dptpu.fpp.confidence.network_confidence`, the neighbour support's gradient without pads and float32 masks and
 its neighbours compared chunk by chunk (:mod:`dptpu.fpp.order_support`), the two frequencies' agreement computed in
 place with ``fmod``, its median by ``bracketed_median`` (:mod:`dptpu.fpp.frequency_consistency`), the region test's
-checkerboard, clip, median and counts (:mod:`dptpu.fpp.region_consistency`); on outside rigs (distortion, several
+checkerboard, clip, median and counts (:mod:`dptpu.fpp.region_consistency`), and the model gate's fringe density
+(:func:`dptpu.models.refine.fringe_density`); on outside rigs (distortion, several
 focal lengths, baselines and angles) and the graph's shipped rig with its first random scene, with the paper's camera
 noise, at 3 and 12 steps."""
 from functools import cache
@@ -200,3 +201,26 @@ def test_region_test_is_the_former_one(name):
     rejected = rejected_regions(absolute, psi_l, F_H, F_L, valid)
     assert np.array_equal(rejected, _regions_before(absolute, psi_l, F_H, F_L, valid))
     assert rejected[rows[patch], cols[patch]].mean() > 0.5  # the patch found
+
+
+def _density_before(wrapped_high, valid):
+    """models.refine.fringe_density as written before its in-place version (np.mod, np.median)."""
+    psi = np.where(valid, np.asarray(wrapped_high, dtype=np.float64), np.nan)
+    medians = []
+    for axis in (0, 1):
+        steps = np.diff(psi, axis=axis)
+        steps = np.abs(np.mod(steps[np.isfinite(steps)] + np.pi, 2.0 * np.pi) - np.pi) / (2.0 * np.pi)
+        medians.append(float(np.median(steps)) if steps.size else 0.0)
+    return max(medians)
+
+
+@pytest.mark.parametrize("name", RIGS)
+def test_in_place_fringe_density_is_the_former_one(name):
+    from dptpu.models.refine import fringe_density  # the model gate of the unwrap node's model:=auto
+
+    psi_h, result, _, psi_l = scan(name, 3)
+    tiled = np.tile(psi_h, (4, 4))  # 640x480: more differences than the bracketed median's smallest array
+    tiled[::9, ::7] = 0.0  # steps of exactly -psi: remainders of 0 and 2 pi
+    for phase, valid in ((psi_h, result.valid), (psi_l, result.valid), (tiled, np.tile(result.valid, (4, 4)))):
+        assert fringe_density(phase, valid) == _density_before(phase, valid)
+    assert 0.0 < fringe_density(psi_h, result.valid) < 0.5
