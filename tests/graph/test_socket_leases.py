@@ -71,6 +71,12 @@ def test_long_callback_lets_the_io_thread_drain_so_the_queue_drops_its_oldest(co
     thread.start()
     started.set()
     thread.join()
+    # every message in the queue before the executor takes one (under load the I/O thread may still be receiving
+    # the last ones when the publishing thread is done: the executor would take 27 before 30 arrived)
+    deadline = time.monotonic() + 10.0
+    while subscription.received_count < 31 and time.monotonic() < deadline:
+        time.sleep(0.01)
+    assert subscription.received_count == 31
     assert _spin_until(executor, lambda: got[-1:] == ["30"])
     # 30 messages reached a queue of 3 while the callback slept: the oldest were dropped, none lost
     assert got[1:] == ["28", "29", "30"]
