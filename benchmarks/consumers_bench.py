@@ -12,12 +12,15 @@ timed window, the memory of the cloud node and of the consumers (resident, share
     dptpu bench consumers [--json] [--size 640x480] [--source FOLDER|raycast] [--steps 3] [--scans 20]
                           [--warmup 10] [--consumers plain,keep1,keep10,keep100,record,ros2,viewer]
     dptpu bench consumers --fill [--size 640x480]
+    dptpu bench consumers --paced 12 [--idle-s 10,60] [--rounds 2] [--scans 5] [--warmup 2]
     python benchmarks/consumers_bench.py [same options]
 
 Consumer sets: ``plain`` (the monitor alone), ``keepN`` (a subscriber process that keeps the last N clouds in a
 list, :func:`keep_clouds`), ``record`` (``dptpu record /scanner/points`` into an MCAP file), ``ros2`` (the launch's
 ROS 2 bridge, ``ros2:=true``), ``viewer`` (the launch's web viewer, ``viewer:=true``, with nobody watching).
-``--fill`` launches nothing: it times the cloud node's fill into a reused and into a new segment
+``--paced S`` runs the plain graph with a scan every S seconds (a robot that scans, moves, scans), once per
+``DPTPU_SHM_IDLE_S`` value of ``--idle-s``: a pool closes the segments idle that long, and the next scan makes them
+again. ``--fill`` launches nothing: it times the cloud node's fill into a reused and into a new segment
 (:func:`fresh_segment_fill_ms`). Results: docs/benchmarks.md, "Consumers that keep clouds (issue 20, 20R)".
 """
 from __future__ import annotations
@@ -94,6 +97,34 @@ def run_consumer(consumer: str, args) -> dict:
             "cpu_ms_per_scan": {k: v for k, v in cpu.items() if k != "threads"},
             "memory_mb": report.get("memory_mb"),
             "recorded_mb": round(recorded.stat().st_size / (1 << 20), 1) if recorded.is_file() else None}
+
+
+def run_paced(period_s: float, idle_s: float, args) -> dict:
+    """The plain graph with the projector starting a scan every ``period_s`` seconds (a robot that scans, moves,
+    scans) and the pools closing segments idle for ``idle_s`` (``DPTPU_SHM_IDLE_S``); its figures."""
+    previous = os.environ.get("DPTPU_SHM_IDLE_S")
+    os.environ["DPTPU_SHM_IDLE_S"] = f"{idle_s:g}"  # the launch's processes inherit it
+    try:
+        report = pipeline_bench.launch_sim_rig(
+            sequence=pipeline_bench.SEQUENCES[args.steps], model="none", size=args.size,
+            scans=args.warmup + args.scans, timeout_s=args.timeout,
+            pacing=["in_flight:=0", "projector_scans:=-1", f"scan_period:={period_s:.6f}"],  # the monitor times from
+            # the Triggers (with monitor_triggers:=false it never hears of the projector's own scans)
+            cpu_window=(args.warmup + 1, args.warmup + args.scans - 1), source=args.source)
+    finally:
+        if previous is None:
+            os.environ.pop("DPTPU_SHM_IDLE_S", None)
+        else:
+            os.environ["DPTPU_SHM_IDLE_S"] = previous
+    figures = pipeline_bench.timed_figures(report, args.scans)
+    cpu = report.get("cpu_ms_per_scan") or {}
+    return {"consumers": f"plain, a scan every {period_s:g} s, segments closed after {idle_s:g} s idle",
+            "period_s": period_s, "idle_s": idle_s, "scans_per_s": figures["scans_per_s"],
+            "latency_ms_p50": figures["latency_ms_p50"], "latency_ms_p99": figures["latency_ms_p99"],
+            "scans_failed": figures["scans_failed"], "scans_lost": figures["scans_lost"],
+            "cloud_ms_p50": next((v for k, v in figures["node_duration_ms_p50"].items() if "cloud" in k), None),
+            "cpu_ms_per_scan": {k: v for k, v in cpu.items() if k != "threads"},
+            "memory_mb": report.get("memory_mb"), "recorded_mb": None}
 
 
 def fresh_segment_fill_ms(size: str = "640x480", repeats: int = 15) -> dict:
@@ -173,6 +204,10 @@ def main(argv=None) -> int:
     parser.add_argument("--warmup", type=int, default=10)
     parser.add_argument("--timeout", type=float, default=600.0)
     parser.add_argument("--consumers", default=",".join(CONSUMERS))
+    parser.add_argument("--paced", type=float, default=0.0,
+                        help="the plain graph with a scan every PACED s, once per --idle-s value (alternated)")
+    parser.add_argument("--idle-s", default="10,60", help="with --paced: DPTPU_SHM_IDLE_S values (default 10,60)")
+    parser.add_argument("--rounds", type=int, default=1, help="with --paced: runs of each value (default 1)")
     parser.add_argument("--fill", action="store_true",
                         help="no graph: the cloud node's fill into a reused, a fresh and a fresh unpopulated segment")
     args = parser.parse_args(argv)
@@ -181,6 +216,17 @@ def main(argv=None) -> int:
         return 0
     if args.fill:
         print(json.dumps(fresh_segment_fill_ms(args.size)))
+        return 0
+    if args.paced > 0:
+        results = []
+        for _ in range(args.rounds):
+            for idle_s in (float(v) for v in args.idle_s.split(",") if v.strip()):
+                results.append(run_paced(args.paced, idle_s, args))
+                if not args.json:
+                    print(_line(results[-1]), flush=True)
+        if args.json:
+            print(json.dumps({"benchmark": "consumers-paced", "load_average": list(os.getloadavg()),
+                              "results": results}, indent=1))
         return 0
     consumers = [c for c in args.consumers.split(",") if c]
     unknown = [c for c in consumers if c not in CONSUMERS and not (c.startswith("keep") and c[4:].isdigit())]

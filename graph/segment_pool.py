@@ -7,7 +7,7 @@ free when no subscriber holds its shared lock and either every subscriber the de
 the lease has passed (:mod:`.shared_memory`). The pool takes the first free segment that fits in the order of the last
 write or the last time it was found busy, makes a new one while the pool stays within its bytes, and otherwise
 says no (the publisher sends through ZeroMQ).
-Segments idle for :data:`IDLE_S` are closed.
+Segments idle for :data:`IDLE_S` (``DPTPU_SHM_IDLE_S``) are closed.
 
 The pool also says no, with one log line a pool and reason, where a new segment would not serve or cannot be made:
 
@@ -58,8 +58,10 @@ from .shared_memory import (
 
 __all__ = ["SegmentPool", "IDLE_S", "FD_SHARE", "UNMAPPABLE_WAIT_S", "process_dumpable"]
 
-#: Seconds after its last write when a free segment is closed.
-IDLE_S = 10.0
+#: Seconds after its last write when a free segment is closed (``DPTPU_SHM_IDLE_S``): longer than a robot's pause
+#: between two scans (it moves the scanner), whose next scan would otherwise make every segment of the graph again
+#: (docs/benchmarks.md, "Consumers that keep clouds": a scan every 11 s, 10 s against 60 s).
+IDLE_S = 60.0
 #: Seconds :meth:`SegmentPool.note_unmappable` waits for the graph's announcements to name a subscriber that cannot
 #: map before it logs without a name.
 UNMAPPABLE_WAIT_S = 2.0
@@ -376,8 +378,9 @@ class SegmentPool:
 
     def _trim(self, now: float) -> None:
         self._next_trim = now + 1.0
+        idle_s = IDLE_S if self._config.idle_s is None else self._config.idle_s
         for segment in list(self._segments):
-            if now - segment.written_at >= IDLE_S and segment.free(now, self._config.lease_s):
+            if now - segment.written_at >= idle_s and segment.free(now, self._config.lease_s):
                 self._segments.remove(segment)
                 self._bytes -= segment.size
                 segment.close()

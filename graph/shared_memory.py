@@ -55,6 +55,8 @@ Configuration (environment variables, read when a context starts its runtime):
 ``DPTPU_SHM_MIN_BYTES``     smallest total of a message's arrays sent through shared memory (default 65536)
 ``DPTPU_SHM_POOL_MB``       most memory of one publisher's segments, MiB (default 256); beyond it, ZeroMQ
 ``DPTPU_SHM_LEASE_S``       seconds after which a segment whose descriptor was not picked up is reused (1.0)
+``DPTPU_SHM_IDLE_S``        seconds after its last write when a publisher closes a free segment (default
+                            :data:`.segment_pool.IDLE_S`)
 ==========================  ====================================================================================
 """
 
@@ -164,12 +166,15 @@ class SharedMemoryConfig:
         Seconds after a publication when its segment is reused even if not every subscriber picked it up.
     key : bytes
         This process's host key (:func:`host_key`).
+    idle_s : float or None
+        Seconds after its last write when a free segment is closed; None: :data:`.segment_pool.IDLE_S`.
     """
 
     min_bytes: int = 65536
     pool_bytes: int = 256 << 20
     lease_s: float = 1.0
     key: bytes = b""
+    idle_s: float | None = None
 
     @classmethod
     def from_environment(cls, env=None) -> SharedMemoryConfig | None:
@@ -187,9 +192,11 @@ class SharedMemoryConfig:
         min_bytes = _number(env, "DPTPU_SHM_MIN_BYTES", 65536, int, low=1)
         pool_mb = _number(env, "DPTPU_SHM_POOL_MB", 256, float, low=1.0)
         lease_s = _number(env, "DPTPU_SHM_LEASE_S", 1.0, float, low=0.001)
+        idle_s = _number(env, "DPTPU_SHM_IDLE_S", None, float, low=0.001)
         if mode == "off" or not available():
             return None
-        return cls(int(min_bytes), int(pool_mb * (1 << 20)), float(lease_s), host_key())
+        return cls(int(min_bytes), int(pool_mb * (1 << 20)), float(lease_s), host_key(),
+                   None if idle_s is None else float(idle_s))
 
 
 def _number(env, name: str, default, kind, *, low):

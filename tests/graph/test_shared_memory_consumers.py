@@ -117,3 +117,23 @@ def test_a_new_segment_is_resident_before_its_writer_touches_it():
         pool.cancel_loan(segment)
     finally:
         pool.close()
+
+
+def test_a_pool_closes_free_segments_idle_for_its_idle_time_and_keeps_the_others():
+    # DPTPU_SHM_IDLE_S: a robot that scans every 12 s keeps its segments with a minute (no new pages a scan); the
+    # pool still closes what has been idle for longer
+    config = SharedMemoryConfig.from_environment({"DPTPU_SHM_IDLE_S": "0.2"})
+    assert config is not None and config.idle_s == 0.2
+    kept = SegmentPool(SharedMemoryConfig(key=b"test", idle_s=60.0), "test:kept")
+    closing = SegmentPool(config, "test:closing")
+    try:
+        for pool in (kept, closing):
+            assert pool.write([memoryview(bytes(100_000))], readers=0) is not None
+        time.sleep(1.2)  # past the idle time and the pools' once-a-second trim
+        for pool in (kept, closing):
+            assert pool.write([memoryview(bytes(300_000))], readers=0) is not None  # another size: a new segment
+        assert kept.segment_count == 2  # the first one kept: written 1.2 s ago, idle for less than 60 s
+        assert closing.segment_count == 1  # the first one closed: idle for more than 0.2 s
+    finally:
+        kept.close()
+        closing.close()
