@@ -194,7 +194,7 @@ def _line(r: dict) -> str:
 
 
 def main(argv=None) -> int:
-    parser = argparse.ArgumentParser(prog="consumers_bench.py", description=__doc__.split("\n")[0])
+    parser = argparse.ArgumentParser(prog="dptpu bench consumers", description=__doc__.split("\n")[0])
     parser.add_argument("--keeper", type=int, default=0, help=argparse.SUPPRESS)  # the side process itself
     parser.add_argument("--json", action="store_true")
     parser.add_argument("--size", default="640x480")
@@ -217,10 +217,18 @@ def main(argv=None) -> int:
     if args.fill:
         print(json.dumps(fresh_segment_fill_ms(args.size)))
         return 0
+    try:
+        idle_values = [float(v) for v in args.idle_s.split(",") if v.strip()]
+    except ValueError:
+        idle_values = []
+    if not idle_values or min(idle_values) <= 0 or args.rounds < 1:
+        print(f"dptpu bench consumers: error: --idle-s takes seconds > 0 (e.g. 10,60), --rounds >= 1; got "
+              f"{args.idle_s!r}, {args.rounds}", file=sys.stderr)
+        return 2
     if args.paced > 0:
         results = []
         for _ in range(args.rounds):
-            for idle_s in (float(v) for v in args.idle_s.split(",") if v.strip()):
+            for idle_s in idle_values:
                 results.append(run_paced(args.paced, idle_s, args))
                 if not args.json:
                     print(_line(results[-1]), flush=True)
@@ -231,7 +239,7 @@ def main(argv=None) -> int:
     consumers = [c for c in args.consumers.split(",") if c]
     unknown = [c for c in consumers if c not in CONSUMERS and not (c.startswith("keep") and c[4:].isdigit())]
     if unknown or not 2 <= args.scans <= 200:
-        print(f"consumers_bench.py: error: --consumers takes {', '.join(CONSUMERS)} (keepN for any N), --scans "
+        print(f"dptpu bench consumers: error: --consumers takes {', '.join(CONSUMERS)} (keepN for any N), --scans "
               f"2..200; got {', '.join(unknown) or args.consumers}, {args.scans}", file=sys.stderr)
         return 2
     results = []
