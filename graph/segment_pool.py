@@ -120,7 +120,9 @@ class _Segment:
         self.token = os.urandom(16)
         self.generation = 0
         self.readers = 0
-        self.written_at = float("-inf")
+        # its idle time counts from its making until its first write: a segment lent to a writer that let it go
+        # unpublished is not closed by the next trim as idle since ever (made again at the next loan)
+        self.written_at = time.monotonic()
         self.loaned = False  # lent to a writer that fills it in place (exclusively locked until it is published)
         self.view[:8] = SEGMENT_MAGIC
         self.view[8:24] = self.token

@@ -137,3 +137,19 @@ def test_a_pool_closes_free_segments_idle_for_its_idle_time_and_keeps_the_others
     finally:
         kept.close()
         closing.close()
+
+
+def test_a_segment_lent_and_let_go_unpublished_is_kept_for_its_idle_time():
+    # a camera node lets go of a frame no Trigger claimed: its segment, never written, is free and not idle since
+    # ever (the trim a second after its making closed it, and the next loan made a new one: the fresh-clone CI's
+    # test_a_loan_let_go_unpublished_goes_back_to_the_pool under load)
+    pool = SegmentPool(SharedMemoryConfig(key=b"test", idle_s=60.0), "test:lent")
+    try:
+        segment, _ = pool.loan([100_000])
+        pool.cancel_loan(segment)
+        time.sleep(1.1)  # past the pool's once-a-second trim
+        again, _ = pool.loan([100_000])
+        assert again is segment and pool.segment_count == 1
+        pool.cancel_loan(again)
+    finally:
+        pool.close()
