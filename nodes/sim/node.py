@@ -68,7 +68,6 @@ from collections import OrderedDict, deque
 import numpy as np
 
 from dptpu.fpp.calibration import Rig
-from dptpu.fpp.frequencies import same_frequency
 from dptpu.graph.known_publishers import SOLE_PUBLISHER
 from dptpu.graph.node import Node
 from dptpu.graph.parameter_rules import ParameterRules, at_least, frame_id
@@ -214,8 +213,8 @@ class SimNode(Node):
 
     def on_pattern_sequence(self, msg: PatternSequence) -> None:
         """Warn when the projector's sequence has entries the source cannot show."""
-        missing = [f"{e.frequency:g}x{e.steps}" for e in msg.entries if not e.is_reference
-                   and not any(n == e.steps and same_frequency(f, e.frequency) for f, n in self.source.sequences)]
+        missing = [f"{e.frequency:g}x{e.steps}" for e in msg.entries
+                   if not e.is_reference and not self.source.serves(e.frequency, e.steps)]
         missing += [e.kind for e in msg.entries if e.is_reference and e.kind not in self.source.references]
         if missing:
             self.get_logger().warning(f"the projector's sequence has {', '.join(missing)}, which the source lacks "

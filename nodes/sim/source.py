@@ -140,6 +140,11 @@ class SimSource:
     def describe_sequences(self) -> str:
         return ", ".join([f"{f:g}x{n}" for f, n in self.sequences] + list(self.references))
 
+    def serves(self, frequency: float, steps: int) -> bool:
+        """Whether the source's sequences hold ``frequency x steps``: one of that many steps, or of a multiple of
+        it (:meth:`SimScene.stack`: 12-step renders serve 3-, 4- and 6-step sequences)."""
+        return any(n % steps == 0 and same_frequency(f, frequency) for f, n in self.sequences)
+
 
 def shipped_root() -> Path:
     """``sim/shipped``: the packaged twin renders (one ``dptpu-capture/1`` folder per scene)."""

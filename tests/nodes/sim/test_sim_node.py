@@ -240,3 +240,13 @@ def test_frames_are_copied_once_into_loaned_segments_and_arrive_bit_for_bit(monk
             np.testing.assert_array_equal(image, plane.stack(message.trigger.frequency,
                                                              message.trigger.steps)[message.trigger.step])
         assert node.image_pub.shared_count == 8
+
+
+def test_a_source_serves_sequences_of_its_steps_and_of_their_divisors():
+    """12-step renders serve a 3-step scan (frames 0, 4, 8): the sim said "the projector's sequence has 64x3, 1x3,
+    which the source lacks ... those Triggers get no frame" and then served every one of them."""
+    source = load_source("raycast", rig="nominal", size="64x48", scenes="plane", sequence="16x12,1x12")
+    assert source.serves(16.0, 12) and source.serves(16.0, 3) and source.serves(1.0, 4) and source.serves(1.0, 6)
+    assert not source.serves(16.0, 5) and not source.serves(16.0, 24) and not source.serves(8.0, 3)
+    served = source.scenes[0].stack(16.0, 3)
+    assert served is not None and np.array_equal(served, source.scenes[0].stack(16.0, 12)[::4])
