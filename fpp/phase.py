@@ -148,7 +148,8 @@ def modulation_from_sums(sine: np.ndarray, cosine: np.ndarray) -> np.ndarray:
     element correctly whichever SIMD or scalar path serves it. OpenCV's ``cv2.magnitude`` (used before) rounds
     about one element in 300,000 one ulp apart when an array starts at another address, so two runs of the same
     scan could differ by a point of ~270,000 (a modulation on the threshold). Both values lie within 1 ulp of the
-    exact magnitude (the sums are at most ``N * 2^16 / 2`` in size: the squares cannot overflow float32).
+    exact magnitude (the sums of N 16-bit images are at most N x 65535 in size: their squares cannot overflow
+    float32).
     """
     modulation = np.multiply(cosine, cosine)
     modulation += np.square(sine)
