@@ -6,7 +6,7 @@
 - :mod:`.ros2_definitions`: every type's ROS 2 form (``.msg`` text; the scanner types' shipped ``msg/*.msg``);
   :mod:`.cdr`: every type in ROS 2's CDR (``encode_cdr``, ``decode_cdr``).
 - :mod:`.geometry`: ``Vector3``, ``Quaternion``, ``Transform``, ``TransformStamped``; :mod:`.tf`: ``TFMessage``.
-- :mod:`.scanner`: ``PatternEntry``, ``PatternSequence``, ``Trigger``, ``FringeFrame``, ``PhaseMaps``,
+- :mod:`.scanner`: ``PatternEntry``, ``PatternSequence``, ``Trigger``, ``FringeFrame``, ``FringeBurst``, ``PhaseMaps``,
   ``AbsolutePhase``, ``ScanStatus``.
 - the codec: :mod:`.encoder` (``encode(topic, msg) -> frames``), :mod:`.decoder` (``decode(frames) -> (topic,
   msg)``), :mod:`.decode_limits` (``DecodeLimits``), :mod:`.wire_format` (``DecodeError``, ``EncodeError``, the
@@ -25,7 +25,7 @@ from .diagnostic import DiagnosticArray, DiagnosticStatus, KeyValue
 from .encoder import encode
 from .geometry import Quaternion, Transform, TransformStamped, Vector3
 from .registry import lookup, registered_types
-from .scanner import AbsolutePhase, FringeFrame, PatternEntry, PatternSequence, PhaseMaps, ScanStatus, Trigger
+from .scanner import AbsolutePhase, FringeBurst, FringeFrame, PatternEntry, PatternSequence, PhaseMaps, ScanStatus, Trigger
 from .schema import Message, message_definition
 from .sensor import CameraInfo, Image, PointCloud2, PointField, RegionOfInterest
 from .std import Header, Time
@@ -44,6 +44,7 @@ __all__ = [
     "PatternSequence",
     "Trigger",
     "FringeFrame",
+    "FringeBurst",
     "PhaseMaps",
     "AbsolutePhase",
     "ScanStatus",

@@ -27,7 +27,7 @@ from .sensor import Image
 from .std import Header
 
 __all__ = ["PATTERN_KINDS", "REFERENCE_KINDS", "PatternEntry", "PatternSequence", "Trigger", "FringeFrame",
-           "PhaseMaps", "AbsolutePhase", "ScanStatus"]
+           "FringeBurst", "PhaseMaps", "AbsolutePhase", "ScanStatus"]
 
 FRINGE_AXES = ("x", "y")
 #: What a pattern is: one of an N-step phase-shifted set, or a reference frame (the projector full on, full off).
@@ -226,6 +226,64 @@ class FringeFrame(Message):
 
     image: Image = nested(Image)
     trigger: Trigger = nested(Trigger)
+
+
+@message("dptpu_msgs/msg/FringeBurst", version=1)
+class FringeBurst(Message):
+    """Consecutive camera frames of one scan in one message: an entry's ``N`` phase-shifted frames, or a reference.
+
+    The camera side publishes one burst where it would publish ``N`` :class:`FringeFrame` s: a scan then costs each
+    subscriber two or three message receptions instead of 24 (docs/benchmarks.md, issue 20). ``image`` is a valid
+    ``sensor_msgs/Image`` on its own: the frames stacked top to bottom.
+
+    Attributes
+    ----------
+    image : Image
+        The frames, ``mono8`` or ``mono16``, stacked: frame ``k`` is rows ``[k*H, (k+1)*H)``, ``H = image.height /
+        len(triggers)``; ``image.header.stamp`` = the first frame's exposure start.
+    triggers : list of Trigger
+        The pattern of each frame, in order; all of one ``sequence_id``, ``pattern_index`` strictly increasing.
+    """
+
+    image: Image = nested(Image)
+    triggers: list = nested_list(Trigger)
+
+    @property
+    def frame_height(self) -> int:
+        """Rows of one frame (0 for an empty burst)."""
+        return self.image.height // len(self.triggers) if self.triggers else 0
+
+    def frames(self) -> np.ndarray:
+        """The frames as an (N, H, W) view of ``image`` (read-only after decoding)."""
+        stacked = self.image.to_array()
+        if stacked.ndim != 2:
+            raise ValueError(f"FringeBurst.image must be mono8 or mono16 (one channel); got {self.image.encoding!r}")
+        return stacked.reshape(len(self.triggers), self.frame_height, stacked.shape[1])
+
+    def check_consistency(self) -> None:
+        if not self.triggers:
+            if self.image.height:
+                raise ValueError(f"FringeBurst.triggers must hold one Trigger per frame; got none for an image of "
+                                 f"{self.image.height} rows")
+            return
+        if self.image.height % len(self.triggers):
+            raise ValueError(f"FringeBurst.image.height {self.image.height} must be a multiple of the "
+                             f"{len(self.triggers)} frames (one Trigger each)")
+        scans = {trigger.sequence_id for trigger in self.triggers}
+        if len(scans) != 1:
+            raise ValueError(f"FringeBurst.triggers must be of one scan; got sequence_ids {sorted(scans)}")
+        indices = [trigger.pattern_index for trigger in self.triggers]
+        if any(b <= a for a, b in zip(indices, indices[1:])):
+            raise ValueError(f"FringeBurst.triggers' pattern_index must increase; got {indices}")
+
+    @classmethod
+    def from_frames(cls, frames: np.ndarray, triggers: list, *, header: Header | None = None) -> FringeBurst:
+        """A burst of ``frames`` (N, H, W) uint8 or uint16 (a view when C-contiguous) answering ``triggers``."""
+        if not isinstance(frames, np.ndarray) or frames.ndim != 3 or frames.shape[0] != len(triggers):
+            raise ValueError(f"frames must be an (N, H, W) array with N = {len(triggers)} triggers; got "
+                             f"{getattr(frames, 'shape', None)!r}")
+        stacked = frames.reshape(-1, frames.shape[2])
+        return cls(image=Image.from_array(stacked, header=header), triggers=list(triggers))
 
 
 @message("dptpu_msgs/msg/PhaseMaps", version=2)
