@@ -25,7 +25,16 @@ from .diagnostic import DiagnosticArray, DiagnosticStatus, KeyValue
 from .encoder import encode
 from .geometry import Quaternion, Transform, TransformStamped, Vector3
 from .registry import lookup, registered_types
-from .scanner import AbsolutePhase, FringeBurst, FringeFrame, PatternEntry, PatternSequence, PhaseMaps, ScanStatus, Trigger
+from .scanner import (
+    AbsolutePhase,
+    FringeBurst,
+    FringeFrame,
+    PatternEntry,
+    PatternSequence,
+    PhaseMaps,
+    ScanStatus,
+    Trigger,
+)
 from .schema import Message, message_definition
 from .sensor import CameraInfo, Image, PointCloud2, PointField, RegionOfInterest
 from .std import Header, Time
