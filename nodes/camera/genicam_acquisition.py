@@ -66,6 +66,13 @@ class FramePairer:
         self.triggers.append((trigger, received))
         return []
 
+    def claimant(self, arrived: float):
+        """The Trigger a frame arriving at ``arrived`` pairs with (:meth:`add_frame` takes it), or None: known before
+        the frame is copied out of the producer's buffer, so that the copy can go where that Trigger's frame goes."""
+        if self.triggers and (self.mode == "hardware" or self.triggers[0][1] <= arrived):
+            return self.triggers[0][0]
+        return None
+
     def add_frame(self, frame, arrived: float) -> tuple[list[tuple], bool]:
         """Register a frame: ``([(frame, trigger)], unpaired)``; ``unpaired`` when free-running had no Trigger."""
         if self.triggers and (self.mode == "hardware" or self.triggers[0][1] <= arrived):
@@ -109,9 +116,10 @@ class Acquisition:
     publish_unpaired : bool
     initial_s, max_s : float
         Reconnection backoff.
-    allocate : callable(shape, dtype) -> ndarray, optional
-        Where each frame is copied out of the producer's buffer (the node: an array loaned by its publisher);
-        default new arrays. A frame that is dropped unpublished is simply let go.
+    allocate : callable(shape, dtype, trigger) -> ndarray, optional
+        Where each frame is copied out of the producer's buffer, given the Trigger it will be paired with (None: a
+        frame no Trigger claims yet; the node: its row of a burst, or an array loaned by its publisher); default new
+        arrays. A frame that is dropped unpublished is simply let go.
     """
 
     def __init__(self, settings: CameraSettings, *, logger, on_frame, on_timeout, on_connected,
@@ -228,7 +236,7 @@ class Acquisition:
             except queue.Empty:
                 continue
             device.software_trigger()
-            got = device.fetch(self.frame_timeout_s, allocate=self.allocate)
+            got = device.fetch(self.frame_timeout_s, allocate=self._destination(lambda claimed=trigger: claimed))
             if got is None:
                 misses += 1
                 self.on_timeout(trigger, f"no frame within {self.frame_timeout_s:.3f} s of the software trigger")
@@ -239,25 +247,53 @@ class Acquisition:
             frame, stamp_ns = got
             self.on_frame(frame, stamp_ns, trigger)
 
+    def _destination(self, claimant):
+        """The ``allocate`` of one fetch: ``self.allocate`` told the Trigger ``claimant()`` names, or None."""
+        if self.allocate is None:
+            return None
+        allocate = self.allocate
+        return lambda shape, dtype: allocate(shape, dtype, claimant())
+
+    def _take_triggers(self, pairer: FramePairer) -> list[tuple]:
+        """Hand the Triggers that came since the last call to ``pairer``; the pairs they complete."""
+        pairs: list[tuple] = []
+        while True:
+            try:
+                trigger, received = self._triggers.get_nowait()
+            except queue.Empty:
+                return pairs
+            pairs += pairer.add_trigger(trigger, received)
+
+    def _fetch_streaming(self, device: GenICamDevice, pairer: FramePairer) -> tuple[tuple | None, float, list]:
+        """``(frame and stamp or None, its arrival, the pairs the Triggers that came while fetch waited complete)``.
+
+        The Triggers are taken once the frame is in and before it is copied out of the producer's buffer (a frame
+        pairs only with earlier ones), so that ``allocate`` is told the Trigger the frame will pair with."""
+        pairs: list[tuple] = []
+        arrivals: list[float] = []
+
+        def claimant():
+            arrivals.append(time.monotonic())
+            pairs.extend(self._take_triggers(pairer))
+            return pairer.claimant(arrivals[0])
+
+        got = device.fetch(_FETCH_SLICE_S, allocate=self._destination(claimant))
+        if not arrivals:  # no frame, or no allocate
+            claimant()
+        return got, arrivals[0], pairs
+
     def _acquire_streaming(self, device: GenICamDevice) -> None:
         pairer = FramePairer(self.settings.trigger_mode, self.frame_timeout_s)
         while not self._stop.is_set():
             self._write_settings(device)
-            got = device.fetch(_FETCH_SLICE_S, allocate=self.allocate)
-            arrived = time.monotonic()
-            pairs = []
-            while True:  # Triggers that came while fetch waited; a frame pairs only with earlier ones
-                try:
-                    trigger, received = self._triggers.get_nowait()
-                except queue.Empty:
-                    break
-                pairs += pairer.add_trigger(trigger, received)
+            got, arrived, pairs = self._fetch_streaming(device, pairer)
             if got is not None:
                 frame, stamp_ns = got
                 paired, unpaired = pairer.add_frame((frame, stamp_ns), arrived)
                 pairs += paired
                 if unpaired and self.publish_unpaired:
                     self.on_frame(frame, stamp_ns, None)
+            pairs += self._take_triggers(pairer)  # those that came while the frame was copied
             for (frame, stamp_ns), trigger in pairs:
                 self.on_frame(frame, stamp_ns, trigger)
             expired, dropped = pairer.expire(time.monotonic())

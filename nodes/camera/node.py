@@ -12,6 +12,10 @@ name                       type                    what
 =========================  ======================  ==================================================
 ``/projector/trigger``     Trigger (sub)           the pattern on screen; one frame is paired with each
 ``/camera/image_raw``      FringeFrame (pub)       the frame (``mono8``/``mono16``, DN) + its Trigger
+                                                   (with ``frame_bursts``: only while it has subscribers,
+                                                   and frames no Trigger claimed)
+``/camera/frame_bursts``   FringeBurst (pub)       with ``frame_bursts``: an entry's frames in one
+                                                   message, published with its last frame
 ``/camera/camera_info``    CameraInfo (pub)        from the ``rig`` file; TRANSIENT_LOCAL, depth 1
 ``/scanner/status``        ScanStatus (pub)        ERROR ``failed`` when a Trigger got no frame (once
                                                    per scan), with the reason
@@ -37,6 +41,9 @@ name                     default                     meaning
 ``frame_timeout_s``      1.0                         longest wait for a Trigger's frame
 ``publish_unpaired``     false                       free-running: also publish frames no Trigger claimed
                                                      (with an empty Trigger: sequence_id 0, count 0)
+``frame_bursts``         false                       publish each entry's frames as one FringeBurst
+                                                     (fewer messages a scan; the phase node needs
+                                                     ``frame_bursts:=true`` too): ``burst_writer``
 ``rig``                  ``""``                      ``dptpu-rig/1`` file for CameraInfo; ``""`` = none
 ``frame_id``             ``"scanner_optical_frame"``  ``header.frame_id`` of images and CameraInfo
 ``reconnect_initial_s``  0.5                         first reconnection delay; doubles per failure
@@ -62,10 +69,11 @@ from dptpu.fpp.calibration import load_rig
 from dptpu.graph.known_publishers import SOLE_PUBLISHER
 from dptpu.graph.node import Node
 from dptpu.graph.parameter_rules import ParameterRules, at_least, frame_id
-from dptpu.messages import CameraInfo, FringeFrame, Header, Image, ScanStatus, Time, Trigger
+from dptpu.messages import CameraInfo, FringeBurst, FringeFrame, Header, Image, ScanStatus, Time, Trigger
 from dptpu.nodes.node_main import run_node
 from dptpu.nodes.plumbing import DEFAULT_FRAME_ID, LATCHED_QOS, scan_status
 
+from .burst_writer import BurstWriter
 from .genicam_acquisition import Acquisition
 from .genicam_device import CameraSettings
 from .genicam_producers import split_cti_paths
@@ -74,7 +82,12 @@ __all__ = ["CameraNode", "main"]
 
 
 class CameraNode(Node):
-    """Opens the camera, pairs frames with Triggers, publishes FringeFrames and the rig's CameraInfo."""
+    """Opens the camera, pairs frames with Triggers, publishes FringeFrames (or FringeBursts) and the rig's
+    CameraInfo.
+
+    Counters: ``frames_published`` (FringeFrames), ``timeouts``; with ``frame_bursts``, ``bursts`` counts
+    ``bursts_published`` and ``frames_copied_twice`` (said in the log at shutdown).
+    """
 
     def __init__(self, node_name: str = "camera", **kwargs):
         super().__init__(node_name, **kwargs)
@@ -96,6 +109,7 @@ class CameraNode(Node):
                                          description="free-running: written to the camera before its next frame"))
         frame_timeout_s = rules.read_only("frame_timeout_s", 1.0, description=device)
         publish_unpaired = rules.read_only("publish_unpaired", False, description=device)
+        frame_bursts = rules.read_only("frame_bursts", False, description="sets the frames' publisher up")
         rig_path = rules.read_only("rig", "", description="the CameraInfo published at start-up")
         self.frame_id = rules.settable("frame_id", DEFAULT_FRAME_ID, check=frame_id, apply=self._set_frame_id)
         initial_s = rules.read_only("reconnect_initial_s", 0.5, description=device)
@@ -103,6 +117,8 @@ class CameraNode(Node):
         self.camera_info = self.rig_camera_info(rig_path) if rig_path else None
 
         self.image_pub = self.create_publisher(FringeFrame, "/camera/image_raw", 30)
+        self.bursts = BurstWriter(self.create_publisher(FringeBurst, "/camera/frame_bursts", 10),
+                                  lambda: self.frame_id) if frame_bursts else None
         self.info_pub = self.create_publisher(CameraInfo, "/camera/camera_info", LATCHED_QOS)
         self.status_pub = self.create_publisher(ScanStatus, "/scanner/status", 20)
         self.trigger_sub = self.create_subscription(Trigger, "/projector/trigger", self.on_trigger, 100,
@@ -118,7 +134,9 @@ class CameraNode(Node):
         self.acquisition = Acquisition(self.settings, logger=self.get_logger(), on_frame=self.on_frame,
                                        on_timeout=self.on_timeout, on_connected=self.on_connected,
                                        frame_timeout_s=frame_timeout_s, publish_unpaired=publish_unpaired,
-                                       initial_s=initial_s, max_s=max_s, allocate=self._loaned_frame)
+                                       initial_s=initial_s, max_s=max_s, allocate=self._frame_destination)
+        if self.bursts is not None:  # a lost Trigger holds a burst back max_wait_s, then it goes as it stands
+            self.burst_timer = self.create_timer(0.1, self.bursts.publish_due)
         self.acquisition.start()
 
     # --- callbacks ---------------------------------------------------------------------------------
@@ -147,12 +165,32 @@ class CameraNode(Node):
         self.acquisition.add_trigger(trigger)
 
     def on_frame(self, frame, stamp_ns: int, trigger: Trigger | None) -> None:
-        """Acquisition thread: publish ``frame`` (H, W) with the Trigger it belongs to."""
+        """Acquisition thread: publish ``frame`` (H, W) with the Trigger it belongs to; with ``frame_bursts``, a
+        frame with a Trigger joins its burst (and is published alone too while ``/camera/image_raw`` has
+        subscribers, a copy: the burst's row is the burst's)."""
+        if trigger is not None and self.bursts is not None:
+            if self.image_pub.get_subscription_count():
+                single = self._loaned_frame(frame.shape, frame.dtype)
+                np.copyto(single, frame)
+                self._publish_frame(single, stamp_ns, trigger)
+            self.bursts.add(trigger, frame, stamp_ns)
+        else:
+            self._publish_frame(frame, stamp_ns, trigger)
+
+    def _publish_frame(self, frame, stamp_ns: int, trigger: Trigger | None) -> None:
+        """A FringeFrame of ``frame`` (an empty Trigger for an unpaired one)."""
         header = Header(stamp=Time(sec=stamp_ns // 1_000_000_000, nanosec=stamp_ns % 1_000_000_000),
                         frame_id=self.frame_id)
         self.image_pub.publish(FringeFrame(image=Image.from_array(frame, header=header),
                                            trigger=trigger if trigger is not None else Trigger()))
         self.frames_published += 1
+
+    def _frame_destination(self, shape: tuple[int, int], dtype: np.dtype, trigger: Trigger | None) -> np.ndarray:
+        """Acquisition thread: where a frame is copied out of the producer's buffer, given the Trigger it pairs
+        with: its row of its burst (``frame_bursts``), else :meth:`_loaned_frame`."""
+        if trigger is not None and self.bursts is not None:
+            return self.bursts.row(trigger, shape, dtype)
+        return self._loaned_frame(shape, dtype)
 
     def _loaned_frame(self, shape: tuple[int, int], dtype: np.dtype) -> np.ndarray:
         """Acquisition thread: the array a frame is copied into out of the producer's buffer, loaned by the frames'
@@ -203,6 +241,11 @@ class CameraNode(Node):
 
     def destroy_node(self):
         self.acquisition.close()
+        if self.bursts is not None:
+            self.bursts.flush()  # frames of a scan cut short by the shutdown: sent as they stand, not dropped
+            self.get_logger().info(f"camera: published {self.bursts.bursts_published} bursts and "
+                                   f"{self.frames_published} single frames; {self.bursts.frames_copied_twice} "
+                                   f"frame(s) copied twice (not into their burst's row at once)")
         return super().destroy_node()
 
 

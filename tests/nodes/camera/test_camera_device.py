@@ -128,3 +128,25 @@ def test_free_running_pairs_each_trigger_with_the_next_frame_only():
     assert pairer.add_frame("c", 0.03) == ([("c", _trigger(1))], False)
     pairer.add_trigger(_trigger(2), 0.1)
     assert pairer.expire(0.31) == ([_trigger(2)], 0) and pairer.unpaired_frames == 2
+
+
+@pytest.mark.parametrize("mode", ["hardware", "free-running"])
+def test_the_claimant_named_before_a_frame_is_copied_is_the_trigger_it_pairs_with(mode):
+    """The node copies a frame straight into its burst's row: it asks ``claimant`` before the copy, ``add_frame``
+    pairs after it; over 400 random arrivals of Triggers and frames (either first) the two agree every time."""
+    rng = np.random.default_rng(7)
+    pairer = FramePairer(mode, window_s=0.05)
+    now, index, frames, claimed = 0.0, 0, 0, 0
+    for _ in range(400):
+        now += float(rng.uniform(0.0, 0.02))
+        if rng.random() < 0.5:
+            pairer.add_trigger(_trigger(index), now)
+            index += 1
+            continue
+        claimant = pairer.claimant(now)
+        pairs, _ = pairer.add_frame("frame", now)
+        assert (pairs[0][1] if pairs else None) == claimant
+        frames += 1
+        claimed += claimant is not None
+        pairer.expire(now)
+    assert claimed > 50 and frames - claimed > 10  # both met: frames that pair at once and frames that do not
