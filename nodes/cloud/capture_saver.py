@@ -20,7 +20,7 @@ import numpy as np
 
 from dptpu.fpp.capture import PhaseFrames, write_capture
 from dptpu.fpp.point_cloud_file import write_point_cloud
-from dptpu.messages import FringeFrame, PatternSequence, PointCloud2
+from dptpu.messages import FringeBurst, FringeFrame, Header, Image, PatternSequence, PointCloud2
 from dptpu.messages.scanner import REFERENCE_KINDS
 
 from .cloud_fields import NORMAL_FIELDS
@@ -48,6 +48,17 @@ class RecentScanFrames:
             while len(self._scans) > self.kept_scans:
                 self._scans.popitem(last=False)
         scan[int(frame.trigger.pattern_index)] = frame
+
+    def add_burst(self, burst: FringeBurst) -> None:
+        """Keep a burst's frames, each as the FringeFrame it stands for (views of the burst, no copy)."""
+        if not burst.triggers:
+            return
+        frames = burst.frames()  # (N, H, W)
+        last = len(burst.triggers) - 1
+        for index, (trigger, image) in enumerate(zip(burst.triggers, frames)):  # stamps as the phase node takes them
+            stamp = burst.image.header.stamp if index == last else trigger.header.stamp
+            header = Header(stamp=stamp, frame_id=burst.image.header.frame_id)
+            self.add(FringeFrame(image=Image.from_array(image, burst.image.encoding, header=header), trigger=trigger))
 
     def frames(self, sequence_id: int) -> list[FringeFrame]:
         """The frames of scan ``sequence_id`` in pattern order (empty when none was kept)."""

@@ -13,12 +13,15 @@ name                             kind             meaning
                                                   names what was written, or why nothing was (``success`` false)
 ``/camera/image_raw``            FringeFrame in   best effort, depth 100: the frames of the last scans (only with
                                                   ``save_frames``)
+``/camera/frame_bursts``         FringeBurst in   the same, with ``frame_bursts`` (instead of the frames)
 ``/projector/pattern_sequence``  PatternSequence  transient local: the layout written into the capture
 ``save_dir``                     "captures"       parameter: where scans are saved (settable)
 ``save_format``                  "ply"            parameter: ``ply`` or ``pcd`` (settable)
 ``save_units``                   "m"              parameter: the cloud file's unit, ``m`` or ``mm`` (settable)
 ``save_frames``                  true             parameter (read-only): keep the last scans' frames for the capture
                                                   folder (the frames' cost: one more subscriber of the camera)
+``frame_bursts``                 false            parameter (read-only): take the frames as FringeBursts, as the
+                                                  phase node given ``frame_bursts:=true`` does
 ================================ ================ ===================================================================
 """
 from __future__ import annotations
@@ -29,7 +32,7 @@ from pathlib import Path
 from dptpu.graph.interfaces import Trigger as TriggerService
 from dptpu.graph.parameter_rules import ParameterRules, one_of
 from dptpu.graph.qos import QoSProfile, ReliabilityPolicy
-from dptpu.messages import FringeFrame, PatternSequence, PointCloud2
+from dptpu.messages import FringeBurst, FringeFrame, PatternSequence, PointCloud2
 from dptpu.nodes.plumbing import LATCHED_QOS
 
 from .capture_saver import CLOUD_FORMATS, CLOUD_UNITS, RecentScanFrames, save_scan
@@ -61,6 +64,7 @@ class CaptureAndSave:
         self.save_units = rules.settable("save_units", "m", check=one_of(CLOUD_UNITS),
                                          apply=lambda value: setattr(self, "save_units", value))
         self.save_frames = rules.read_only("save_frames", True, description="sets the frame subscription up")
+        frame_bursts = rules.read_only("frame_bursts", False, description="sets the frame subscription up")
         self.frames = RecentScanFrames(kept_scans=3)
         self.layout: PatternSequence | None = None
         # (sequence_id, the cloud or what makes it, fringe axis)
@@ -68,10 +72,11 @@ class CaptureAndSave:
         self.saved = 0
         self.subscriptions = []
         if self.save_frames:
+            frame_qos = QoSProfile(depth=_FRAME_QUEUE_DEPTH, reliability=ReliabilityPolicy.BEST_EFFORT)
             self.subscriptions = [
-                node.create_subscription(FringeFrame, "/camera/image_raw", self.frames.add,
-                                         QoSProfile(depth=_FRAME_QUEUE_DEPTH,
-                                                    reliability=ReliabilityPolicy.BEST_EFFORT)),
+                node.create_subscription(FringeBurst, "/camera/frame_bursts", self.frames.add_burst, frame_qos)
+                if frame_bursts else node.create_subscription(FringeFrame, "/camera/image_raw", self.frames.add,
+                                                              frame_qos),
                 node.create_subscription(PatternSequence, "/projector/pattern_sequence", self._on_layout,
                                          LATCHED_QOS)]
         self.service = node.create_service(TriggerService, "~/capture_and_save", self.on_request)

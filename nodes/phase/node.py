@@ -14,7 +14,10 @@ Topics (defaults; remappable)
 =============================== ================= ===== ==============================================
 topic                           type              dir   notes
 =============================== ================= ===== ==============================================
-``/camera/image_raw``           FringeFrame       in    best effort, depth ``frame_queue_depth``
+``/camera/image_raw``           FringeFrame       in    best effort, depth ``frame_queue_depth`` (not with
+                                                        ``frame_bursts``)
+``/camera/frame_bursts``        FringeBurst       in    with ``frame_bursts``, instead of the frames: best effort,
+                                                        depth ``frame_queue_depth`` messages
 ``/projector/pattern_sequence`` PatternSequence   in    transient local, depth 1: the scan layout (optional)
 ``/scanner/phase``              PhaseMaps         out   reliable, depth 10
 ``/scanner/texture``            Image             out   reliable, depth 10; 32FC1, the scan's texture in DN
@@ -42,6 +45,8 @@ name                    default  meaning
 ``projector_width``     0        used until a PatternSequence arrives (0 = unknown)
 ``projector_height``    0        used until a PatternSequence arrives (0 = unknown)
 ``frame_queue_depth``   100      frames the subscription may queue (at least the patterns of two scans)
+``frame_bursts``        false    take the frames as FringeBursts (``/camera/frame_bursts``: an entry's frames in one
+                                 message, the sim's and camera's ``frame_bursts:=true``) instead of FringeFrames
 ``rig``                 ""       a dptpu-rig/1 file whose ``projector.phase_response`` (``dptpu calibrate
                                  response``) corrects the wrapped phase of each entry whose step count it holds
                                  (:meth:`dptpu.fpp.phase_harmonics.ProjectorPhaseResponse.correct`); "" or a rig
@@ -70,6 +75,7 @@ from dptpu.graph.node import Node
 from dptpu.graph.parameter_rules import ParameterRules, at_least
 from dptpu.graph.qos import QoSProfile, ReliabilityPolicy
 from dptpu.messages import (
+    FringeBurst,
     FringeFrame,
     Header,
     Image,
@@ -129,6 +135,7 @@ class PhaseNode(Node):
                           rules.read_only("projector_height", 0, description=layout))
         frame_queue_depth = self.frame_queue_depth = rules.read_only("frame_queue_depth", 100,
                                                                      description="the subscription's QoS depth")
+        frame_bursts = rules.read_only("frame_bursts", False, description="sets the frames' subscription up")
         if frame_queue_depth < 1:
             raise ValueError(f"parameter frame_queue_depth must be >= 1; got {frame_queue_depth}")
         rig_path = rules.read_only("rig", "", description="its projector.phase_response corrects the phases; "
@@ -153,8 +160,12 @@ class PhaseNode(Node):
         self.scan_failures = ScanFailures(self, self.status_publisher)  # an exception in a scan fails that scan
 
         frame_qos = QoSProfile(depth=frame_queue_depth, reliability=ReliabilityPolicy.BEST_EFFORT)
-        self.frame_subscription = self.create_subscription(FringeFrame, "/camera/image_raw", self.on_frame,
-                                                           frame_qos)
+        if frame_bursts:
+            self.frame_subscription = self.create_subscription(FringeBurst, "/camera/frame_bursts", self.on_burst,
+                                                               frame_qos)
+        else:
+            self.frame_subscription = self.create_subscription(FringeFrame, "/camera/image_raw", self.on_frame,
+                                                               frame_qos)
         self.sequence_subscription = self.create_subscription(PatternSequence, "/projector/pattern_sequence",
                                                               self.on_pattern_sequence, LATCHED_QOS,
                                                               publishers=SOLE_PUBLISHER)  # the projector's only
@@ -188,10 +199,39 @@ class PhaseNode(Node):
             self._report(self.assembler.fail(trigger.sequence_id,
                                              f"frame of pattern {trigger.pattern_index} unreadable: {exc}", now_s))
             return
+        self._frame_id = msg.image.header.frame_id or DEFAULT_FRAME_ID
+        self._add(trigger, image, msg.image.header.stamp.to_ns(), now_s)
+
+    @fails_the_scan(lambda msg: msg.triggers[0].sequence_id if msg.triggers else 0)
+    def on_burst(self, msg: FringeBurst) -> None:
+        """Add a burst's frames, as :meth:`on_frame` adds one; a frame's stamp is its Trigger's, the last one's the
+        burst's (its exposure start)."""
+        now_s = time.monotonic()
+        if not msg.triggers:
+            self.frames_rejected += 1
+            self.get_logger().warning("an empty FringeBurst (no Trigger, no frame) refused", throttle_duration_sec=1.0)
+            return
+        self.frames_received += len(msg.triggers)
+        try:
+            if msg.image.encoding not in ("mono8", "mono16"):
+                raise ValueError(f"image encoding must be mono8 or mono16; got {msg.image.encoding!r}")
+            frames = msg.frames()  # (N, H, W) view of the received burst
+        except ValueError as exc:
+            first = msg.triggers[0]
+            self._report(self.assembler.fail(first.sequence_id, f"burst of patterns {first.pattern_index}.."
+                                             f"{msg.triggers[-1].pattern_index} unreadable: {exc}", now_s))
+            return
+        self._frame_id = msg.image.header.frame_id or DEFAULT_FRAME_ID
+        last = len(msg.triggers) - 1
+        for index, (trigger, image) in enumerate(zip(msg.triggers, frames)):
+            stamp = msg.image.header.stamp if index == last else trigger.header.stamp
+            self._add(trigger, image, stamp.to_ns(), now_s)
+
+    def _add(self, trigger, image: np.ndarray, stamp_ns: int, now_s: float) -> None:
+        """Add one frame (H, W) to its scan and to its Eq. (2) sums; report what it completes or fails."""
         frame = FrameInfo(sequence_id=trigger.sequence_id, pattern_index=trigger.pattern_index,
                           pattern_count=trigger.pattern_count, frequency=trigger.frequency, steps=trigger.steps,
-                          step=trigger.step, image=image, stamp_ns=msg.image.header.stamp.to_ns(), kind=trigger.kind)
-        self._frame_id = msg.image.header.frame_id or DEFAULT_FRAME_ID
+                          step=trigger.step, image=image, stamp_ns=stamp_ns, kind=trigger.kind)
         events = self.assembler.add(frame, now_s)
         slot = self.assembler.slot(frame.sequence_id, frame.pattern_index)  # None unless kept by a pending scan
         if slot is not None:

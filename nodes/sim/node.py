@@ -17,7 +17,10 @@ topic                            type              dir   notes
                                                          ``min_subscribers`` subscriptions (the projector's own
                                                          scans wait for a trigger subscriber: none is lost)
 ``/projector/pattern_sequence``  PatternSequence   in    transient local: checked against the source's sequences
-``/camera/image_raw``            FringeFrame       out   the frame + its Trigger; stamp = the Trigger's stamp
+``/camera/image_raw``            FringeFrame       out   the frame + its Trigger; stamp = the Trigger's stamp (with
+                                                         ``frame_bursts``: only while it has subscribers)
+``/camera/frame_bursts``         FringeBurst       out   with ``frame_bursts``: an entry's frames in one message,
+                                                         published with its last frame (:mod:`dptpu.nodes.frame_bursts`)
 ``/camera/camera_info``          CameraInfo        out   transient local, depth 1: the twin rig's camera
 ``/sim/ground_truth``            AbsolutePhase     out   per scan, before its frames: true ``Psi`` of the highest
                                                          frequency (Eq. (3)), true fringe order ``floor(f x_p/W)``
@@ -51,7 +54,10 @@ name                default                      meaning
                                                  at once, as fast as possible
 ``drop_frames``     ``""``                       ``SEQUENCE_ID/PATTERN_INDEX,...``: frames not published (tests: an
                                                  incomplete scan)
-``min_subscribers`` 1                            subscriptions of ``/camera/image_raw`` before Triggers are taken
+``min_subscribers`` 1                            subscriptions of ``/camera/image_raw`` (with ``frame_bursts``:
+                                                 of ``/camera/frame_bursts``) before Triggers are taken
+``frame_bursts``    false                        publish each entry's frames as one FringeBurst (fewer messages a
+                                                 scan; the phase node needs ``frame_bursts:=true`` too)
 ``ground_truth``    true                         publish ``/sim/ground_truth`` and ``/sim/ground_truth_depth``
 ``frame_id``        ``"scanner_optical_frame"``  ``header.frame_id`` of frames, CameraInfo and ground truth
 =================== ============================ =====================================================================
@@ -76,14 +82,17 @@ from dptpu.graph.timer import Timer
 from dptpu.messages import (
     AbsolutePhase,
     CameraInfo,
+    FringeBurst,
     FringeFrame,
     Header,
     Image,
     PatternSequence,
     ScanStatus,
+    Time,
     Trigger,
 )
 from dptpu.messages.scanner import REFERENCE_KINDS
+from dptpu.nodes.frame_bursts import Burst, FrameBursts
 from dptpu.nodes.node_main import run_node
 from dptpu.nodes.plumbing import DEFAULT_FRAME_ID, LATCHED_QOS, STATUS_QOS, ScanFailures, fails_the_scan, scan_status
 from dptpu.sim.rig import load_twin_rig
@@ -134,7 +143,8 @@ class _GroundTruth:
 class SimNode(Node):
     """Trigger -> the twin's FringeFrame of that pattern (see the module docstring).
 
-    Counters: ``frames_published``, ``frames_dropped`` (by ``drop_frames``), ``triggers_unknown`` (no such frame).
+    Counters: ``frames_published``, ``frames_dropped`` (by ``drop_frames``), ``triggers_unknown`` (no such frame),
+    ``bursts_published`` (with ``frame_bursts``).
     """
 
     def __init__(self, node_name: str = "sim", **node_options):
@@ -150,6 +160,7 @@ class SimNode(Node):
         shift_sign = rules.read_only("shift_sign", -1, description=rendered)
         seed = rules.read_only("seed", 0, description=rendered)
         bit_depth = rules.read_only("bit_depth", 8, description=rendered)
+        self.frame_bursts = rules.read_only("frame_bursts", False, description="sets the frames' publisher up")
         self.pace_timer: Timer | None = None
         self.frame_rate_hz = float(rules.settable("frame_rate_hz", 0.0, check=at_least(0.0),
                                                   apply=self._set_frame_rate))
@@ -183,6 +194,9 @@ class SimNode(Node):
         self._next_due_s = 0.0
 
         self.image_pub = self.create_publisher(FringeFrame, "/camera/image_raw", 100)
+        self.burst_pub = self.create_publisher(FringeBurst, "/camera/frame_bursts", 10) if self.frame_bursts else None
+        self.bursts = FrameBursts(self._burst_buffer) if self.frame_bursts else None
+        self.bursts_published = 0
         self.truth_pub = self.create_publisher(AbsolutePhase, "/sim/ground_truth", 10)
         self.truth_depth_pub = self.create_publisher(Image, "/sim/ground_truth_depth", 10)
         self.status_pub = self.create_publisher(ScanStatus, "/scanner/status", STATUS_QOS)
@@ -194,17 +208,19 @@ class SimNode(Node):
         if self._info_rig is None:  # captures and shipped renders: their rig comes with the frames
             self._publish_camera_info(self.source.rig)
         self.wait_timer = self.create_timer(0.05, self.on_wait_timer)
+        if self.bursts is not None:
+            self.burst_timer = self.create_timer(0.1, self.on_burst_timer)
         self._set_frame_rate(self.frame_rate_hz)
         width, height = self.source.size
         self.get_logger().info(f"{len(self.source.scenes)} scene(s) at {width}x{height}, sequences "
                                f"{self.source.describe_sequences()}; waiting for {self.min_subscribers} subscriber(s) "
-                               f"of {self.image_pub.topic_name}")
+                               f"of {self._frames_publisher().topic_name}")
 
     # -- callbacks ------------------------------------------------------------------------------------------
 
     def on_wait_timer(self) -> None:
         """Take Triggers once the frames have ``min_subscribers`` subscriptions."""
-        if self.image_pub.get_subscription_count() < self.min_subscribers:
+        if self._frames_publisher().get_subscription_count() < self.min_subscribers:
             return
         self.wait_timer.cancel()
         self.trigger_sub = self.create_subscription(Trigger, "/projector/trigger", self.on_trigger, 200,
@@ -229,6 +245,12 @@ class SimNode(Node):
         self._next_due_s = max(now_s, self._next_due_s + 1.0 / self.frame_rate_hz)
         self._queue.append((trigger, self._next_due_s))
         self.on_pace_timer()
+
+    def on_burst_timer(self) -> None:
+        """Publish a burst whose next frame is late (a lost Trigger, or one refused)."""
+        assert self.bursts is not None
+        for burst in self.bursts.due(time.monotonic()):
+            self._publish_burst(burst)
 
     def on_pace_timer(self) -> None:
         """Paced mode: publish the frames that are due."""
@@ -299,14 +321,39 @@ class SimNode(Node):
             return
         header = Header(stamp=trigger.header.stamp, frame_id=self.frame_id)
         # through shared memory the frame is copied once, as a camera's driver copies it out of its buffer: into a
-        # loaned segment, published without a further copy; without it ZeroMQ sends the held frame itself
+        # loaned segment (a burst's, or its own), published without a further copy; without it ZeroMQ sends the held
+        # frame itself
         image = stack[step]
+        if self.bursts is not None:
+            for burst in self.bursts.add(trigger, image, header.stamp.to_ns(), time.monotonic()):
+                self._publish_burst(burst)
+            if not self.image_pub.get_subscription_count():  # single frames too only while someone listens
+                self.frames_published += 1
+                return
         if self.image_pub.can_loan_messages(image.nbytes):
             (loaned,) = self.image_pub.borrow_loaned_arrays([(image.shape, image.dtype)])
             np.copyto(loaned, image)
             image = loaned
         self.image_pub.publish(FringeFrame(image=Image.from_array(image, header=header), trigger=trigger))
         self.frames_published += 1
+
+    def _frames_publisher(self):
+        """The publisher the phase node takes frames from: the bursts' with ``frame_bursts``, else the frames'."""
+        return self.burst_pub if self.burst_pub is not None else self.image_pub
+
+    def _burst_buffer(self, shape: tuple[int, ...], dtype: np.dtype) -> np.ndarray:
+        """A burst's (N, H, W) buffer: loaned by the bursts' publisher where a loan pays, else a new array."""
+        assert self.burst_pub is not None
+        if not self.burst_pub.can_loan_messages(math.prod(shape) * np.dtype(dtype).itemsize):
+            return np.empty(shape, dtype)
+        (buffer,) = self.burst_pub.borrow_loaned_arrays([(shape, dtype)])
+        return buffer
+
+    def _publish_burst(self, burst: Burst) -> None:
+        assert self.burst_pub is not None
+        header = Header(stamp=Time.from_ns(burst.last_stamp_ns), frame_id=self.frame_id)
+        self.burst_pub.publish(FringeBurst.from_frames(burst.frames, burst.triggers, header=header))
+        self.bursts_published += 1
 
     def _publish_truth(self, trigger: Trigger, index: int) -> None:
         truth = self._truths[index]

@@ -19,7 +19,7 @@ import zmq
 from dptpu.graph.discovery import FORMAT, host_identity, process_start_ticks, write_announcement
 from dptpu.graph.qos import QoSProfile
 from dptpu.graph.transport import pack_envelope
-from dptpu.messages import AbsolutePhase, FringeFrame, ScanStatus
+from dptpu.messages import AbsolutePhase, FringeBurst, ScanStatus
 from tests.launch_files.running import SIM_RIG, LaunchRun
 from tests.nodes.conftest import TEST_DOMAIN_ID
 from tests.nodes.test_graph_sim_rig import ORDER_ACCURACY_BOUND, SMALL
@@ -58,10 +58,11 @@ def test_malformed_input_is_counted_and_a_killed_unwrap_is_respawned_with_later_
     sockets = []
     try:
         run.wait_for(lambda lines: len(_ok_scans(run)) >= 2, 120, "two scans")
-        # 1. malformed bytes on the camera topic (phase, and the cloud keeping frames for capture_and_save) and the
-        #    absolute-phase topic (cloud and monitor), each sent once both its subscribers are connected
+        # 1. malformed bytes on the camera's topic (the sim rig's frame bursts: phase, and the cloud keeping frames for
+        #    capture_and_save) and the absolute-phase topic (cloud and monitor), each sent once both its subscribers
+        #    are connected
         gid = uuid.uuid4().bytes
-        for index, (topic, msg_type) in enumerate((("/camera/image_raw", FringeFrame),
+        for index, (topic, msg_type) in enumerate((("/camera/frame_bursts", FringeBurst),
                                                    ("/scanner/absolute_phase", AbsolutePhase))):
             sock = context.socket(zmq.XPUB)
             sock.setsockopt(zmq.XPUB_VERBOSE, 1)  # every subscriber's subscription, not only the first
@@ -102,10 +103,11 @@ def test_malformed_input_is_counted_and_a_killed_unwrap_is_respawned_with_later_
             sock.close(linger=0)
         context.term()
         run.close()
-    assert counted.get("/phase") == 2, counted  # the two on /camera/image_raw
+    assert counted.get("/phase") == 2, counted  # the two on /camera/frame_bursts
     assert counted.get("/cloud") == 2, counted  # the two on /scanner/absolute_phase (the monitor counts its own)
     text = run.text(1000)
-    assert "malformed message on /camera/image_raw" in text and "malformed message on /scanner/absolute_phase" in text
+    assert "malformed message on /camera/frame_bursts" in text
+    assert "malformed message on /scanner/absolute_phase" in text
     assert restarts_before_kill == dict.fromkeys(NODES, 1), f"a node restarted after malformed input:\n{text}"
     assert any(f"'unwrap' (pid {unwrap_pid})" in line and "respawning" in line for line in run.lines), text
     assert all(len(run.pids(name)) == 1 for name in NODES if name != "unwrap")

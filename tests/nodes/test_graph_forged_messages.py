@@ -30,7 +30,7 @@ import zmq
 
 from dptpu.graph.discovery import get_graph
 from dptpu.graph.transport import pack_envelope
-from dptpu.messages import CameraInfo, FringeFrame, PatternSequence, ScanStatus, Trigger, decode, encode
+from dptpu.messages import CameraInfo, FringeBurst, PatternSequence, ScanStatus, Trigger, decode, encode
 from dptpu.nodes.plumbing import LATCHED_QOS
 from tests.nodes.conftest import TEST_DOMAIN_ID
 from tests.nodes.fault_matrix import IN_A_ROW, correct, start_rig
@@ -53,30 +53,31 @@ def _publisher_gid(domain_dir: Path, node: str, topic: str) -> bytes:
 
 
 def _forge_frame(domain_dir: Path, sock, captured: list) -> None:
-    """Send one real frame of a scan that never was (``FORGED_SCAN``) with the sim's publisher id and sequence number
-    2**62, from a raw publisher bound to ``sock``, once every subscriber of the frames (the phase node among them)
-    has subscribed to it."""
-    sim_gid = _publisher_gid(domain_dir, "/sim", "/camera/image_raw")
-    topic = "/camera/image_raw"
+    """Send one real burst (an entry's frames) of a scan that never was (``FORGED_SCAN``) with the sim's publisher id
+    and sequence number 2**62, from a raw publisher bound to ``sock``, once every subscriber of the bursts (the phase
+    node among them) has subscribed to it."""
+    sim_gid = _publisher_gid(domain_dir, "/sim", "/camera/frame_bursts")
+    topic = "/camera/frame_bursts"  # the sim rig's frames: an entry's in one FringeBurst
     subscribers = len(get_graph(directory=domain_dir).topics[topic].subscriptions)  # phase, cloud, this probe
     sock.setsockopt(zmq.XPUB_VERBOSE, 1)  # every subscriber's subscription, not only the first
     sock.bind(f"ipc://{domain_dir}/ep/forger")
-    _announce_raw_publisher(domain_dir, f"ipc://{domain_dir}/ep/forger", topic, FringeFrame.TYPE_NAME)
+    _announce_raw_publisher(domain_dir, f"ipc://{domain_dir}/ep/forger", topic, FringeBurst.TYPE_NAME)
     subscribed, deadline = 0, time.monotonic() + 15
     while subscribed < subscribers and time.monotonic() < deadline:  # before: the phase node could miss the frame
         if sock.poll(500):
             subscribed += sock.recv() == b"\x01" + topic.encode()  # not the shared-memory subscription
     assert subscribed == subscribers, f"{subscribed} of {subscribers} subscribers connected to the forger"
-    _, frame = decode(captured[-1], expected_type=FringeFrame)  # a real frame, of a scan that never was
-    forged = dataclasses.replace(frame, trigger=dataclasses.replace(frame.trigger, sequence_id=FORGED_SCAN))
-    sock.send_multipart([*encode("/camera/image_raw", forged), pack_envelope(0, 2**62, time.time_ns(), sim_gid)])
+    _, burst = decode(captured[-1], expected_type=FringeBurst)  # real frames, of a scan that never was
+    forged = dataclasses.replace(burst, triggers=[dataclasses.replace(t, sequence_id=FORGED_SCAN)
+                                                  for t in burst.triggers])
+    sock.send_multipart([*encode(topic, forged), pack_envelope(0, 2**62, time.time_ns(), sim_gid)])
 
 
 def test_forged_sequence_configuration_and_statuses_neither_stop_nor_fool_the_scanner(node_env, probe, tmp_path):
     domain_dir = Path(node_env["DPTPU_DISCOVERY_DIR"]) / f"domain-{TEST_DOMAIN_ID}"
     forge = set(os.environ.get("DPTPU_FORGE", ",".join(FORGERIES)).split(","))
     assert forge and forge <= set(FORGERIES), f"DPTPU_FORGE: a comma list of {', '.join(FORGERIES)}; got {forge}"
-    frames = probe.node.create_subscription(None, "/camera/image_raw", lambda views: captured.append(
+    frames = probe.node.create_subscription(None, "/camera/frame_bursts", lambda views: captured.append(
         [bytes(v) for v in views]), 5, raw=True)
     captured: list = []
     sequences = probe.subscribe(PatternSequence, "/projector/pattern_sequence", qos=LATCHED_QOS)
@@ -129,7 +130,7 @@ def test_forged_sequence_configuration_and_statuses_neither_stop_nor_fool_the_sc
     text = "\n".join(run.lines)
     after = [s for s in run.scans() if s[0] > before + 1 and s[0] != FORGED_SCAN]  # (the scan in flight may go)
     assert all(correct(line, outcome) for _id, _scene, outcome, line in after), "\n".join(s[3] for s in after)
-    assert not [s for s in run.scans() if s[0] == FORGED_SCAN and s[2] == "ok"]  # one frame makes no scan
+    assert not [s for s in run.scans() if s[0] == FORGED_SCAN and s[2] == "ok"]  # one entry makes no scan
     assert not [s for s in run.scans() if s[0] in FAKE_IDS or s[0] == FORGED_TRIGGER_SCAN]  # none made up counted
     if "sequence" in forge:
         assert any(line.startswith("[phase]") and "4611686018427387904 was out of this publisher's sequence" in line

@@ -6,7 +6,7 @@ import pytest
 
 from dptpu.fpp.phase import wrapped_phase
 from dptpu.graph import Parameter
-from dptpu.messages import AbsolutePhase, CameraInfo, FringeFrame, Header, Image, ScanStatus, Time, Trigger
+from dptpu.messages import AbsolutePhase, CameraInfo, FringeBurst, FringeFrame, Header, Image, ScanStatus, Time, Trigger
 from dptpu.nodes.harness import NodeHarness
 from dptpu.nodes.plumbing import LATCHED_QOS
 from dptpu.nodes.sim import SimNode
@@ -250,3 +250,46 @@ def test_a_source_serves_sequences_of_its_steps_and_of_their_divisors():
     assert not source.serves(16.0, 5) and not source.serves(16.0, 24) and not source.serves(8.0, 3)
     served = source.scenes[0].stack(16.0, 3)
     assert served is not None and np.array_equal(served, source.scenes[0].stack(16.0, 12)[::4])
+
+
+def _run_bursts(harness, node_params, triggers, *, bursts_expected, frames_too: bool = False):
+    node = harness.start(SimNode, **node_params, frame_bursts=True)
+    trigger_pub = harness.publisher(Trigger, "/projector/trigger", 100)
+    bursts = harness.collect(FringeBurst, "/camera/frame_bursts")
+    frames = harness.collect(FringeFrame, "/camera/image_raw") if frames_too else None
+    harness.connect(timeout_s=30.0)
+    for trigger in triggers:
+        trigger_pub.publish(trigger)
+    harness.wait(bursts, bursts_expected)
+    harness.spin_for(0.3)
+    return node, bursts, frames
+
+
+def test_with_frame_bursts_each_entry_is_one_loaned_burst_of_the_frames_single_triggers_get(monkeypatch):
+    monkeypatch.setenv("DPTPU_SHM_MIN_BYTES", "1024")  # the 64x48 bursts (12 kB) through shared memory
+    with NodeHarness() as harness:
+        node, bursts, frames = _run_bursts(harness, PARAMS, _triggers(1) + _triggers(2), bursts_expected=4)
+        plane, sphere = node.source.scenes
+        assert node.burst_pub.shared_count == 4 and node.bursts_published == 4
+        assert node.frames_published == 16 and node.image_pub.get_subscription_count() == 0
+        got = bursts.messages
+        assert [[t.pattern_index for t in b.triggers] for b in got] == [[0, 1, 2, 3], [4, 5, 6, 7]] * 2
+        for burst, scene in zip(got, (plane, plane, sphere, sphere)):
+            frequency, steps = burst.triggers[0].frequency, burst.triggers[0].steps
+            stacked = burst.frames()
+            assert is_shared(stacked) and not stacked.flags.writeable
+            np.testing.assert_array_equal(stacked, scene.stack(frequency, steps))  # the frames, in step order
+            assert burst.image.header.stamp == burst.triggers[-1].header.stamp  # the last frame's exposure
+            assert burst.image.header.frame_id == "scanner_optical_frame"
+
+
+def test_with_frame_bursts_a_dropped_frame_shortens_its_burst_and_single_frames_go_to_a_listener():
+    with NodeHarness() as harness:
+        node, bursts, frames = _run_bursts(harness, dict(PARAMS, drop_frames="1/2,1/7"), _triggers(1),
+                                           bursts_expected=2, frames_too=True)
+        harness.wait(frames, 6)
+    assert [[t.pattern_index for t in b.triggers] for b in bursts.messages] == [[0, 1, 3], [4, 5, 6]]
+    assert sorted(m.trigger.pattern_index for m in frames.messages) == [0, 1, 3, 4, 5, 6]
+    plane = node.source.scenes[0]
+    np.testing.assert_array_equal(bursts.messages[1].frames(), plane.stack(1.0, 4)[:3])
+    assert node.frames_dropped == 2

@@ -1,0 +1,117 @@
+"""Gathering a camera's frames into bursts: an entry's ``N`` phase-shifted frames in one message (issue 20).
+
+A camera side (the sim node, the camera node) that publishes :class:`~dptpu.messages.FringeBurst` s hands each
+frame with its Trigger to :class:`FrameBursts` as it comes; a burst is ready when its entry's last step is in (a
+reference frame is a burst of one). Pure logic, time passed in, like the phase node's ``SequenceAssembler``:
+
+- frames are copied once, into the burst's buffer (``allocate``: a loaned shared-memory segment where a loan pays);
+- a frame of another scan or entry, a repeated or earlier step, or another size first sends the burst pending as
+  it stands (fewer frames than its entry: the phase node then reports the scan incomplete, naming the missing
+  patterns, as it does for single frames), so frames are never held back behind a lost one;
+- ``due(now_s)`` sends a burst whose next frame has not come within ``max_wait_s`` (a dropped Trigger).
+"""
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from dptpu.messages import Trigger
+from dptpu.messages.scanner import REFERENCE_KINDS
+
+__all__ = ["Burst", "FrameBursts", "frames_in_entry"]
+
+
+def frames_in_entry(trigger: Trigger) -> int:
+    """Frames of ``trigger``'s entry: 1 for a reference frame or an unknown step count, else its ``steps``."""
+    if trigger.kind in REFERENCE_KINDS or trigger.steps < 1:
+        return 1
+    return int(trigger.steps)
+
+
+@dataclass
+class Burst:
+    """A burst ready to publish: ``frames`` (n, H, W), the first ``n`` of ``buffer`` (N, H, W), one Trigger each,
+    and the stamp of the last frame (ns)."""
+
+    buffer: np.ndarray
+    triggers: list[Trigger] = field(default_factory=list)
+    last_stamp_ns: int = 0
+    last_added_s: float = 0.0
+
+    @property
+    def frames(self) -> np.ndarray:
+        return self.buffer[:len(self.triggers)]
+
+    @property
+    def complete(self) -> bool:
+        return len(self.triggers) == self.buffer.shape[0]
+
+
+class FrameBursts:
+    """Frames with their Triggers in, :class:`Burst` s out (see the module docstring).
+
+    Parameters
+    ----------
+    allocate : callable ``(shape, dtype) -> ndarray``
+        The buffer of a new burst, (N, H, W) of the frames' dtype; a loaned segment where the publisher lends one.
+    max_wait_s : float
+        Longest wait for a burst's next frame before :meth:`due` sends it as it stands.
+    """
+
+    def __init__(self, allocate: Callable[[tuple[int, ...], np.dtype], np.ndarray], *, max_wait_s: float = 0.5):
+        if not max_wait_s > 0:
+            raise ValueError(f"max_wait_s must be > 0 seconds; got {max_wait_s}")
+        self._allocate = allocate
+        self.max_wait_s = float(max_wait_s)
+        self._pending: Burst | None = None
+
+    @property
+    def pending(self) -> Burst | None:
+        """The burst being filled (None when none)."""
+        return self._pending
+
+    def add(self, trigger: Trigger, frame: np.ndarray, stamp_ns: int, now_s: float) -> list[Burst]:
+        """Copy ``frame`` (H, W) into its burst; the bursts it makes ready (the one pending before it, cut short
+        because ``frame`` cannot join it, and its own once complete), in order."""
+        if frame.ndim != 2:
+            raise ValueError(f"a burst's frame must be (H, W); got shape {frame.shape}")
+        ready = []
+        pending = self._pending
+        if pending is not None and not self._joins(pending, trigger, frame):
+            ready.append(pending)
+            pending = self._pending = None
+        if pending is None:
+            count = frames_in_entry(trigger)
+            pending = self._pending = Burst(self._allocate((count, *frame.shape), frame.dtype))
+        np.copyto(pending.buffer[len(pending.triggers)], frame)
+        pending.triggers.append(trigger)
+        pending.last_stamp_ns = int(stamp_ns)
+        pending.last_added_s = now_s
+        if pending.complete:
+            ready.append(pending)
+            self._pending = None
+        return ready
+
+    def due(self, now_s: float) -> list[Burst]:
+        """The pending burst, when its next frame is ``max_wait_s`` late (sent as it stands)."""
+        if self._pending is None or now_s - self._pending.last_added_s < self.max_wait_s:
+            return []
+        return self.flush()
+
+    def flush(self) -> list[Burst]:
+        """The pending burst as it stands, if any."""
+        pending, self._pending = self._pending, None
+        return [] if pending is None else [pending]
+
+    @staticmethod
+    def _joins(pending: Burst, trigger: Trigger, frame: np.ndarray) -> bool:
+        """Whether ``frame`` is the next frame of ``pending``'s entry: same scan and entry, the next pattern, the
+        same size and dtype."""
+        last = pending.triggers[-1]
+        return (trigger.sequence_id == last.sequence_id and trigger.kind == last.kind == "phase"
+                and trigger.steps == last.steps and trigger.frequency == last.frequency
+                and trigger.pattern_index - trigger.step == last.pattern_index - last.step
+                and trigger.step > last.step and len(pending.triggers) < pending.buffer.shape[0]
+                and frame.shape == pending.buffer.shape[1:] and frame.dtype == pending.buffer.dtype)
