@@ -6,8 +6,8 @@
 - :mod:`.ros2_definitions`: every type's ROS 2 form (``.msg`` text; the scanner types' shipped ``msg/*.msg``);
   :mod:`.cdr`: every type in ROS 2's CDR (``encode_cdr``, ``decode_cdr``).
 - :mod:`.geometry`: ``Vector3``, ``Quaternion``, ``Transform``, ``TransformStamped``; :mod:`.tf`: ``TFMessage``.
-- :mod:`.scanner`: ``PatternEntry``, ``PatternSequence``, ``Trigger``, ``FringeFrame``, ``FringeBurst``, ``PhaseMaps``,
-  ``AbsolutePhase``, ``ScanStatus``.
+- :mod:`.scanner`: ``PatternEntry``, ``PatternSequence``, ``Trigger``, ``TriggerBurst``, ``FringeFrame``,
+  ``FringeBurst``, ``PhaseMaps``, ``AbsolutePhase``, ``ScanStatus``.
 - the codec: :mod:`.encoder` (``encode(topic, msg) -> frames``), :mod:`.decoder` (``decode(frames) -> (topic,
   msg)``), :mod:`.decode_limits` (``DecodeLimits``), :mod:`.wire_format` (``DecodeError``, ``EncodeError``, the
   frame layout); their parts: :mod:`.codec_plan`, :mod:`.field_encoding`, :mod:`.frame_reading`,
@@ -34,6 +34,7 @@ from .scanner import (
     PhaseMaps,
     ScanStatus,
     Trigger,
+    TriggerBurst,
 )
 from .schema import Message, message_definition
 from .sensor import CameraInfo, Image, PointCloud2, PointField, RegionOfInterest
@@ -54,6 +55,7 @@ __all__ = [
     "Trigger",
     "FringeFrame",
     "FringeBurst",
+    "TriggerBurst",
     "PhaseMaps",
     "AbsolutePhase",
     "ScanStatus",

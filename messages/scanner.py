@@ -27,7 +27,7 @@ from .sensor import Image
 from .std import Header
 
 __all__ = ["PATTERN_KINDS", "REFERENCE_KINDS", "PatternEntry", "PatternSequence", "Trigger", "FringeFrame",
-           "FringeBurst", "PhaseMaps", "AbsolutePhase", "ScanStatus"]
+           "FringeBurst", "TriggerBurst", "PhaseMaps", "AbsolutePhase", "ScanStatus"]
 
 FRINGE_AXES = ("x", "y")
 #: What a pattern is: one of an N-step phase-shifted set, or a reference frame (the projector full on, full off).
@@ -38,6 +38,16 @@ REFERENCE_KINDS = ("white", "black")
 def _check_fringe_axis(owner: str, fringe_axis: str) -> None:
     if fringe_axis not in FRINGE_AXES:
         raise ValueError(f"{owner}.fringe_axis must be 'x' or 'y'; got {fringe_axis!r}")
+
+
+def _check_one_scan_in_order(owner: str, triggers: list) -> None:
+    """ValueError unless ``triggers`` are of one scan with ``pattern_index`` increasing."""
+    scans = {trigger.sequence_id for trigger in triggers}
+    if len(scans) > 1:
+        raise ValueError(f"{owner}.triggers must be of one scan; got sequence_ids {sorted(scans)}")
+    indices = [trigger.pattern_index for trigger in triggers]
+    if any(b <= a for a, b in zip(indices, indices[1:])):
+        raise ValueError(f"{owner}.triggers' pattern_index must increase; got {indices}")
 
 
 def _extent_px(fringe_axis: str, projector_width: int, projector_height: int) -> int:
@@ -211,6 +221,29 @@ class Trigger(Message):
             raise ValueError(f"Trigger.step must be < steps {self.steps}; got {self.step}")
 
 
+@message("dptpu_msgs/msg/TriggerBurst", version=1)
+class TriggerBurst(Message):
+    """The Triggers of consecutive patterns of one scan in one message: an entry's ``N``, published with its last.
+
+    For a subscriber that needs an entry's patterns together, not each the moment it shows (the sim node, which
+    answers with the entry's frames as one :class:`FringeBurst`): one message an entry instead of ``N`` (issue 20).
+
+    Attributes
+    ----------
+    header : Header
+        ``stamp``: when the last pattern was displayed; ``frame_id``: projector frame.
+    triggers : list of Trigger
+        One a pattern, in order (each with its own display stamp): one ``sequence_id``, ``pattern_index``
+        increasing.
+    """
+
+    header: Header = nested(Header)
+    triggers: list = nested_list(Trigger)
+
+    def check_consistency(self) -> None:
+        _check_one_scan_in_order("TriggerBurst", self.triggers)
+
+
 @message("dptpu_msgs/msg/FringeFrame", version=2)
 class FringeFrame(Message):
     """One camera frame of a fringe pattern and the trigger it answers.
@@ -269,12 +302,7 @@ class FringeBurst(Message):
         if self.image.height % len(self.triggers):
             raise ValueError(f"FringeBurst.image.height {self.image.height} must be a multiple of the "
                              f"{len(self.triggers)} frames (one Trigger each)")
-        scans = {trigger.sequence_id for trigger in self.triggers}
-        if len(scans) != 1:
-            raise ValueError(f"FringeBurst.triggers must be of one scan; got sequence_ids {sorted(scans)}")
-        indices = [trigger.pattern_index for trigger in self.triggers]
-        if any(b <= a for a, b in zip(indices, indices[1:])):
-            raise ValueError(f"FringeBurst.triggers' pattern_index must increase; got {indices}")
+        _check_one_scan_in_order("FringeBurst", self.triggers)
 
     @classmethod
     def from_frames(cls, frames: np.ndarray, triggers: list, *, header: Header | None = None) -> FringeBurst:

@@ -29,6 +29,7 @@ from dptpu.messages import (
     Transform,
     TransformStamped,
     Trigger,
+    TriggerBurst,
     Vector3,
     decode,
     encode,
@@ -78,6 +79,7 @@ def sample_messages() -> list:
     frame = FringeFrame(image=mono8, trigger=trigger)
     burst_triggers = [Trigger(header=header, sequence_id=41, pattern_index=13 + k, pattern_count=28,
                               frequency=96.0 / 8.3, steps=4, step=k) for k in range(3)]
+    trigger_burst = TriggerBurst(header=header, triggers=burst_triggers)
     burst = FringeBurst.from_frames(rng.integers(0, 4096, (3, 8, 5), dtype=np.uint16), burst_triggers, header=header)
     phases = rng.uniform(0, 2 * np.pi, (3, 24, 32)).astype(np.float32)
     phase_maps = PhaseMaps(header=header, sequence_id=41, fringe_axis="x", projector_width=912,
@@ -105,8 +107,8 @@ def sample_messages() -> list:
                              transform=transform)
     tf = TFMessage(transforms=[mount, TransformStamped(header=header, child_frame_id="projector_optical_frame")])
     return [stamp, header, mono8, mono16, depth, rgb, roi, camera_info, field, cloud, mixed_cloud, entries[1],
-            sequence, trigger, frame, burst, phase_maps, absolute, status, key_value, diagnostic, diagnostics, translation,
-            rotation, transform, mount, tf]
+            sequence, trigger, trigger_burst, frame, burst, phase_maps, absolute, status, key_value, diagnostic,
+            diagnostics, translation, rotation, transform, mount, tf]
 
 
 def _array_paths(msg, prefix=""):
