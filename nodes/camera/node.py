@@ -135,8 +135,9 @@ class CameraNode(Node):
                                        on_timeout=self.on_timeout, on_connected=self.on_connected,
                                        frame_timeout_s=frame_timeout_s, publish_unpaired=publish_unpaired,
                                        initial_s=initial_s, max_s=max_s, allocate=self._frame_destination)
-        if self.bursts is not None:  # a lost Trigger holds a burst back max_wait_s, then it goes as it stands
-            self.burst_timer = self.create_timer(0.1, self.bursts.publish_due)
+        self._image_raw_listened = False  # with frame_bursts: /camera/image_raw has subscribers (the timer asks)
+        if self.bursts is not None:
+            self.burst_timer = self.create_timer(0.1, self.on_burst_timer)
         self.acquisition.start()
 
     # --- callbacks ---------------------------------------------------------------------------------
@@ -164,12 +165,19 @@ class CameraNode(Node):
         """A pattern is on screen: hand it to the acquisition thread to be paired with a frame."""
         self.acquisition.add_trigger(trigger)
 
+    def on_burst_timer(self) -> None:
+        """``frame_bursts``, 10 times a second: send a burst whose next frame is ``max_wait_s`` late (a lost Trigger),
+        and note whether ``/camera/image_raw`` has subscribers (asked here rather than at each frame)."""
+        assert self.bursts is not None
+        self._image_raw_listened = self.image_pub.get_subscription_count() > 0
+        self.bursts.publish_due()
+
     def on_frame(self, frame, stamp_ns: int, trigger: Trigger | None) -> None:
         """Acquisition thread: publish ``frame`` (H, W) with the Trigger it belongs to; with ``frame_bursts``, a
-        frame with a Trigger joins its burst (and is published alone too while ``/camera/image_raw`` has
-        subscribers, a copy: the burst's row is the burst's)."""
+        frame with a Trigger joins its burst (and is published alone too, a copy, while ``/camera/image_raw`` has
+        subscribers: from at most 0.1 s after the first connects)."""
         if trigger is not None and self.bursts is not None:
-            if self.image_pub.get_subscription_count():
+            if self._image_raw_listened:
                 single = self._loaned_frame(frame.shape, frame.dtype)
                 np.copyto(single, frame)
                 self._publish_frame(single, stamp_ns, trigger)
