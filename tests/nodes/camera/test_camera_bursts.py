@@ -11,12 +11,13 @@ from __future__ import annotations
 import time
 
 import numpy as np
+import pytest
 
 from dptpu.graph import Parameter
 from dptpu.graph.parameter_client import AsyncParameterClient
 from dptpu.messages import FringeBurst, FringeFrame, Trigger
 from tests.graph.nodes.shm_peer import is_shared
-from tests.nodes.camera.test_camera_node import FAST, NODE, SMALL, publish_spaced
+from tests.nodes.camera.test_camera_node import FAST, NODE, SMALL, TLSIMU, publish_spaced
 
 BURSTS = ["-p", "trigger_mode:=free-running", "-p", "frame_rate_hz:=100.0", "-p", "frame_bursts:=true", *SMALL, *FAST]
 SHM = {"DPTPU_SHM_MIN_BYTES": "1024"}
@@ -105,3 +106,23 @@ def test_a_lost_trigger_gives_a_short_burst_and_the_later_entries_still_come_and
     # no single frames without an image_raw subscriber; entry 3 of scan 6, foreseen for the short burst's free row,
     # was copied again into its own burst
     assert "camera: published 5 bursts and 0 single frames; 1 frame(s) copied twice" in node.stderr
+
+
+@pytest.mark.skipif(TLSIMU is None, reason="TLSimu.cti needs the genicam2 wheel (pip install genicam2)")
+def test_software_triggered_frames_are_copied_once_into_their_bursts(spawn_node, probe):
+    bursts = probe.subscribe(FringeBurst, "/camera/frame_bursts")
+    trigger_pub = probe.publisher(Trigger, "/projector/trigger")
+    node = spawn_node(NODE, "--ros-args", "-p", f"cti:={TLSIMU}", "-p", "serial:=SN_InterfaceA_0", "-p",
+                      "trigger_mode:=software", "-p", "frame_bursts:=true", *SMALL, *FAST, env=SHM)
+    assert node.wait_for_stderr("trigger mode software", timeout=20)
+    assert trigger_pub.wait_for_subscriptions(1, timeout_sec=10)
+    bursts.wait_for_publishers(1)
+    sent = scan(8)
+    publish_spaced(trigger_pub, sent, gap_s=0.01)
+    received = bursts.wait(3, timeout=10)
+    assert [t for b in received for t in b.triggers] == sent
+    assert [b.frames().shape for b in received] == [(3, 120, 160), (3, 120, 160), (1, 120, 160)]
+    assert all(is_shared(b.frames()) for b in received)
+    node.terminate()
+    assert node.wait(timeout=15) == 0
+    assert "camera: published 3 bursts and 0 single frames; 0 frame(s) copied twice" in node.stderr
