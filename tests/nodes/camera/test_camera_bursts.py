@@ -42,8 +42,8 @@ def square_corner(frame: np.ndarray) -> tuple[int, int]:
 
 
 def start(spawn_node, probe, *subscribed):
-    """The camera with ``frame_bursts:=true``, connected to the probe's inboxes (topic, type) and its Triggers; the
-    node has had its 0.1 s to see the subscribers of ``/camera/image_raw`` too."""
+    """The camera with ``frame_bursts:=true``, connected to the probe's inboxes (topic, type) and its Triggers (and,
+    with an inbox of ``/camera/image_raw``, given the time to note that subscriber)."""
     inboxes = [probe.subscribe(msg_type, topic) for topic, msg_type in subscribed]
     trigger_pub = probe.publisher(Trigger, "/projector/trigger")
     node = spawn_node(NODE, "--ros-args", *BURSTS, env=SHM)
@@ -51,7 +51,8 @@ def start(spawn_node, probe, *subscribed):
     assert trigger_pub.wait_for_subscriptions(1, timeout_sec=10)
     for inbox in inboxes:
         inbox.wait_for_publishers(1)
-    time.sleep(0.5)  # the node's timer notes image_raw's subscribers every 0.1 s
+    if ("/camera/image_raw", FringeFrame) in subscribed:
+        time.sleep(1.0)  # the node's timer notes image_raw's subscribers every 0.1 s (given ten times that under load)
     return node, trigger_pub, inboxes
 
 
