@@ -273,7 +273,7 @@ class FringeBurst(Message):
     ----------
     image : Image
         The frames, ``mono8`` or ``mono16``, stacked: frame ``k`` is rows ``[k*H, (k+1)*H)``, ``H = image.height /
-        len(triggers)``; ``image.header.stamp`` = the first frame's exposure start.
+        len(triggers)``; ``image.header.stamp`` = the last frame's exposure start (the burst exists once it is in).
     triggers : list of Trigger
         The pattern of each frame, in order; all of one ``sequence_id``, ``pattern_index`` strictly increasing.
     """

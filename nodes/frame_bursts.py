@@ -85,7 +85,9 @@ class FrameBursts:
         if pending is None:
             count = frames_in_entry(trigger)
             pending = self._pending = Burst(self._allocate((count, *frame.shape), frame.dtype))
-        np.copyto(pending.buffer[len(pending.triggers)], frame)
+        row = pending.buffer[len(pending.triggers)]
+        if row.ctypes.data != frame.ctypes.data:  # a camera may have copied the frame into its row already
+            np.copyto(row, frame)
         pending.triggers.append(trigger)
         pending.last_stamp_ns = int(stamp_ns)
         pending.last_added_s = now_s
