@@ -12,7 +12,8 @@ the emulated box) and ground truth off (the monitor only times), twice:
    the clouds (and the scan statuses), not every pattern's Trigger (``monitor_triggers:=false``). The phase
    node's frame queue (100 frames) holds four 24-frame scans: more in flight would drop frames, so the bench
    stays at four. The sim hands the phase node each entry's frames as one FringeBurst (``--frames single``: a
-   FringeFrame a pattern, as before issue 20's bursts).
+   FringeFrame a pattern, as before issue 20's bursts), and the projector hands the sim each entry's Triggers as
+   one TriggerBurst (``--triggers single``: a Trigger a pattern).
    ``scans_per_s = (n - 1) / (t_n - t_1)`` over the arrival times of the ``--scans`` timed clouds at the monitor
    (after ``--warmup`` scans).
 2. **Latency** at a pace the graph sustains: the projector starts its own scans every ``1 / (f * scans_per_s)``
@@ -95,7 +96,8 @@ def camera_limit_scans_per_s(frames_per_scan: int) -> float:
 
 def launch_sim_rig(*, sequence: str, model: str, size: str, scans: int, timeout_s: float,
                    pacing: list[str], cpu_window: tuple[int, int] | None = None, source: str = "raycast",
-                   side_commands: dict[str, list[str]] | None = None, frame_bursts: bool = True) -> dict:
+                   side_commands: dict[str, list[str]] | None = None, frame_bursts: bool = True,
+                   trigger_bursts: bool = True) -> dict:
     """Run the sim rig until ``scans`` scans were reported; the monitor's summary (``totals``, ``scans``).
 
     ``pacing`` holds the launch arguments that start the scans (``in_flight:=N``, or ``in_flight:=0
@@ -115,7 +117,8 @@ def launch_sim_rig(*, sequence: str, model: str, size: str, scans: int, timeout_
     command = [sys.executable, "-c", "import sys; from dptpu.cli.main import main; sys.exit(main())", "launch",
                str(SIM_RIG), f"scans:={scans}", f"size:={size}", f"sequence:={sequence}", "method:=mf",
                f"model:={model}", "ground_truth:=false", "exposure_us:=100", "ply_dir:=", f"summary:={summary}",
-               f"scenes:={SCENES}", f"source:={source}", f"frame_bursts:={str(frame_bursts).lower()}", *pacing]
+               f"scenes:={SCENES}", f"source:={source}", f"frame_bursts:={str(frame_bursts).lower()}",
+               f"trigger_bursts:={str(trigger_bursts).lower()}", *pacing]
     process = subprocess.Popen(command, cwd=folder, env=env, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE,
                                stderr=subprocess.STDOUT, text=True)
     killer = threading.Timer(timeout_s, process.kill)
@@ -286,14 +289,14 @@ def timed_figures(report: dict, scans: int) -> dict:
 
 def run_configuration(*, steps: int, model: str, size: str, scans: int, warmup: int, in_flight: int,
                       latency_load: float, timeout_s: float, source: str = "raycast",
-                      frame_bursts: bool = True) -> dict:
+                      frame_bursts: bool = True, trigger_bursts: bool = True) -> dict:
     """Launch the sim rig for one configuration (throughput run, then latency run); the module docstring's
     figures."""
     sequence = SEQUENCES[steps]
     frames = sum(int(entry.split("x")[1]) for entry in sequence.split(","))
     started = time.monotonic()
     common = {"sequence": sequence, "model": model, "size": size, "scans": warmup + scans, "timeout_s": timeout_s,
-              "source": source, "frame_bursts": frame_bursts}
+              "source": source, "frame_bursts": frame_bursts, "trigger_bursts": trigger_bursts}
     # the monitor as a robot: clouds and statuses only (the latency run takes the Triggers for the first pattern)
     throughput_report = launch_sim_rig(pacing=[f"in_flight:={in_flight}", "monitor_triggers:=false"],
                                        cpu_window=(warmup + 1, warmup + scans - 1), **common)
@@ -310,7 +313,7 @@ def run_configuration(*, steps: int, model: str, size: str, scans: int, warmup: 
     return {
         "configuration": f"2 x {steps}-step, {'DP-TPU' if model != 'none' else 'classical'} MF",
         "sequence": sequence, "frames_per_scan": frames, "method": "mf", "model": model, "size": size, "source": source,
-        "frame_bursts": frame_bursts,
+        "frame_bursts": frame_bursts, "trigger_bursts": trigger_bursts,
         "in_flight": in_flight, "latency_load": latency_load if latency is not throughput else None,
         "scans_timed": min(throughput["scans_timed"], latency["scans_timed"]),
         "scans_failed": throughput["scans_failed"] + (latency["scans_failed"] if latency is not throughput else 0),
@@ -586,7 +589,8 @@ def run(args) -> int:
             results.append(run_configuration(steps=step, model=which, size=args.size, scans=args.scans,
                                              warmup=args.warmup, in_flight=args.in_flight,
                                              latency_load=args.latency_load, timeout_s=args.timeout,
-                                             source=args.source, frame_bursts=args.frames == "bursts"))
+                                             source=args.source, frame_bursts=args.frames == "bursts",
+                                             trigger_bursts=args.triggers == "bursts"))
             if not args.json:
                 r = results[-1]
                 print(f"{r['configuration']:<28} {r['scans_per_s']:7.2f} scans/s  "
@@ -633,6 +637,9 @@ def add_arguments(parser) -> None:
     parser.add_argument("--frames", choices=("bursts", "single"), default="bursts",
                         help="how the sim hands frames to the phase node: an entry's frames in one FringeBurst "
                              "(default, as launch/sim_rig.yaml) or a FringeFrame a pattern (frame_bursts:=false)")
+    parser.add_argument("--triggers", choices=("bursts", "single"), default="bursts",
+                        help="how the projector hands Triggers to the sim: an entry's in one TriggerBurst (default, "
+                             "as launch/sim_rig.yaml) or a Trigger a pattern (trigger_bursts:=false)")
     parser.add_argument("--classical-only", action="store_true", help="skip DP-TPU even when a model exists")
     parser.add_argument("--dptpu-only", action="store_true",
                         help="DP-TPU only (no classical run): with a timeout per invocation, a slow configuration "

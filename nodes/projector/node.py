@@ -13,6 +13,10 @@ name                               type                      what
 =================================  ========================  ==============================================
 ``/projector/trigger``             Trigger (pub)             one per displayed pattern; ``sequence_id``
                                                              increases by one per scan, from 1
+``/projector/trigger_bursts``      TriggerBurst (pub)        with ``trigger_bursts``: an entry's Triggers in one
+                                                             message, with its last pattern (Triggers one by one
+                                                             then only while ``/projector/trigger`` has
+                                                             subscribers)
 ``/projector/pattern_sequence``    PatternSequence (pub)     the loaded sequence; TRANSIENT_LOCAL, depth 1
 ``/scanner/status``                ScanStatus (pub)          one per scan: ``done`` (OK) or ``failed``
                                                              (ERROR, with the reason: partial sequence,
@@ -47,7 +51,10 @@ name                     default            meaning
 ``period_s``             0.0                least time from one scan's start to the next (0: back to back)
 ``max_waiting_scans``    1                  ``~/start_scan`` requests queued while a scan runs
 ``min_subscribers``      1                  the node's own scans start only once ``/projector/trigger``
-                                            has this many subscriptions (a scan nobody hears is lost)
+                                            (with ``trigger_bursts``: and ``/projector/trigger_bursts``) has
+                                            this many subscriptions (a scan nobody hears is lost)
+``trigger_bursts``       false              publish each entry's Triggers as one TriggerBurst (for the sim,
+                                            which answers an entry with one FringeBurst: fewer messages a scan)
 ``frame_id``             ``"projector"``    ``header.frame_id`` of Trigger and PatternSequence
 ``reply_timeout_s``      1.0                longest wait for a reply to a command
 ``ack_timeout_s``        0.5                longest silence in a scan beyond one exposure
@@ -73,7 +80,8 @@ from dptpu.fpp.calibration import load_rig
 from dptpu.graph.interfaces import Trigger as TriggerService
 from dptpu.graph.node import Node
 from dptpu.graph.parameter_rules import ParameterRules, at_least, frame_id
-from dptpu.messages import Header, PatternEntry, PatternSequence, ScanStatus, Trigger
+from dptpu.messages import Header, PatternEntry, PatternSequence, ScanStatus, Trigger, TriggerBurst
+from dptpu.nodes.frame_bursts import frames_in_entry
 from dptpu.nodes.node_main import run_node
 from dptpu.nodes.plumbing import LATCHED_QOS, scan_status
 
@@ -108,6 +116,7 @@ class ProjectorNode(Node):
         max_waiting = rules.read_only("max_waiting_scans", 1, description=box)
         self.min_subscribers = rules.settable("min_subscribers", 1, check=at_least(0))
         self.frame_id = rules.settable("frame_id", "projector", check=frame_id)
+        trigger_bursts = rules.read_only("trigger_bursts", False, description="sets the Triggers' publisher up")
         reply_timeout_s = rules.read_only("reply_timeout_s", 1.0, description=box)
         ack_timeout_s = rules.read_only("ack_timeout_s", 0.5, description=box)
         initial_s = rules.read_only("reconnect_initial_s", 0.5, description=box)
@@ -121,6 +130,9 @@ class ProjectorNode(Node):
                                  parse_sequence_spec(fringes), references)
 
         self.trigger_pub = self.create_publisher(Trigger, "/projector/trigger", 100)
+        self.burst_pub = self.create_publisher(TriggerBurst, "/projector/trigger_bursts", 20) if trigger_bursts \
+            else None
+        self._entry_triggers: list[Trigger] = []  # the link thread's: the Triggers of the entry on screen
         self.sequence_pub = self.create_publisher(
             PatternSequence, "/projector/pattern_sequence", LATCHED_QOS)
         self.status_pub = self.create_publisher(ScanStatus, "/scanner/status", 20)
@@ -159,7 +171,7 @@ class ProjectorNode(Node):
             return
         now_s = time.monotonic()
         if not self.link.connected or self.link.busy or now_s < self._next_auto_start \
-                or self.trigger_pub.get_subscription_count() < self.min_subscribers:
+                or self._trigger_subscriptions() < self.min_subscribers:
             return
         _, reason = self.start_scan()
         if not reason:
@@ -172,12 +184,22 @@ class ProjectorNode(Node):
     def on_pattern(self, sequence_id: int, pattern_index: int) -> None:
         """Link thread: the box acknowledged pattern ``pattern_index`` of scan ``sequence_id``."""
         frequency, steps, step = self.spec.locate(pattern_index)
-        self.trigger_pub.publish(Trigger(header=self._header(), sequence_id=sequence_id, pattern_index=pattern_index,
-                                         pattern_count=self.spec.pattern_count, frequency=frequency, steps=steps,
-                                         step=step, kind=self.spec.kind_of(pattern_index)))
+        trigger = Trigger(header=self._header(), sequence_id=sequence_id, pattern_index=pattern_index,
+                          pattern_count=self.spec.pattern_count, frequency=frequency, steps=steps, step=step,
+                          kind=self.spec.kind_of(pattern_index))
+        if self.burst_pub is None or self.trigger_pub.get_subscription_count():
+            self.trigger_pub.publish(trigger)
+        if self.burst_pub is not None:
+            if self._entry_triggers and self._entry_triggers[-1].sequence_id != sequence_id:
+                self._publish_trigger_burst()  # a scan cut short left its entry unsent (sent at its end as well)
+            self._entry_triggers.append(trigger)
+            if trigger.step + 1 >= frames_in_entry(trigger):  # the entry's last pattern
+                self._publish_trigger_burst()
 
     def on_scan_end(self, sequence_id: int, displayed: int, reason: str) -> None:
         """Link thread: scan ``sequence_id`` ended after ``displayed`` patterns (``reason`` empty when complete)."""
+        if self._entry_triggers:  # a scan cut short: the Triggers of its last entry as they stand
+            self._publish_trigger_burst()
         with self._scans_lock:
             started = self._scan_started.pop(sequence_id, time.monotonic())
         if reason:
@@ -215,6 +237,17 @@ class ProjectorNode(Node):
                                projector_height=height, shift_sign=self.shift_sign,
                                entries=[PatternEntry(frequency=f, steps=n) for f, n in self.spec.entries]
                                + [PatternEntry(kind=kind, steps=1) for kind in self.spec.references])
+
+    def _trigger_subscriptions(self) -> int:
+        """Subscriptions of the Triggers, one by one and (with ``trigger_bursts``) as bursts: who hears a scan."""
+        bursts = self.burst_pub.get_subscription_count() if self.burst_pub is not None else 0
+        return self.trigger_pub.get_subscription_count() + bursts
+
+    def _publish_trigger_burst(self) -> None:
+        """Link thread: publish the entry's Triggers gathered so far as one TriggerBurst."""
+        assert self.burst_pub is not None
+        triggers, self._entry_triggers = self._entry_triggers, []
+        self.burst_pub.publish(TriggerBurst(header=triggers[-1].header, triggers=triggers))
 
     def _header(self) -> Header:
         return Header(stamp=self.get_clock().now().to_msg(), frame_id=self.frame_id)

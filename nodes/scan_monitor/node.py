@@ -199,6 +199,7 @@ class ScanMonitorNode(Node):
             self.truth_depth_sub = self.create_subscription(Image, "/sim/ground_truth_depth", self.on_truth_depth, 10)
         self.trigger_sub: Subscription | None = None
         self._trigger_topic = self.resolve_topic_name("/projector/trigger")
+        self._trigger_bursts_topic = self.resolve_topic_name("/projector/trigger_bursts")
         self._outputs_ready = False  # the clouds and statuses (and truth) have publishers
         self.start_client = self.create_client(TriggerService, start_service) if self.start_scans else None
         self.scans_started = 0
@@ -328,9 +329,11 @@ class ScanMonitorNode(Node):
             self.get_logger().warning(f"start_scan unanswered after {self.start_timeout_s:g} s; asking again "
                                       f"({self.start_retries} retries so far)", throttle_duration_sec=5.0)
         if now_s >= self._heard_checked_s + _HEARD_RECHECK_S:  # a graph snapshot reads all peers: once a second
-            # the camera (sim) must hear the Triggers too (and this monitor, when it takes them)
-            heard_by = 2 if self.trigger_sub is not None else 1
-            self._triggers_heard = self.count_subscribers(self._trigger_topic) >= heard_by
+            # the camera (sim) must hear the Triggers, one by one or as the projector's TriggerBursts (this monitor,
+            # when it takes them, is one more subscriber of the Triggers)
+            own = 1 if self.trigger_sub is not None else 0
+            self._triggers_heard = (self.count_subscribers(self._trigger_topic) - own
+                                    + self.count_subscribers(self._trigger_bursts_topic)) >= 1
             self._heard_checked_s = now_s if self._triggers_heard else -math.inf
         if not self._triggers_heard:
             return

@@ -16,6 +16,9 @@ topic                            type              dir   notes
 ``/projector/trigger``           Trigger           in    subscribed once ``/camera/image_raw`` has
                                                          ``min_subscribers`` subscriptions (the projector's own
                                                          scans wait for a trigger subscriber: none is lost)
+``/projector/trigger_bursts``    TriggerBurst      in    with ``trigger_bursts``, instead of ``/projector/trigger``:
+                                                         an entry's Triggers in one message (the projector's
+                                                         ``trigger_bursts:=true``)
 ``/projector/pattern_sequence``  PatternSequence   in    transient local: checked against the source's sequences
 ``/camera/image_raw``            FringeFrame       out   the frame + its Trigger; stamp = the Trigger's stamp (with
                                                          ``frame_bursts``: only while it has subscribers)
@@ -58,6 +61,8 @@ name                default                      meaning
                                                  of ``/camera/frame_bursts``) before Triggers are taken
 ``frame_bursts``    false                        publish each entry's frames as one FringeBurst (fewer messages a
                                                  scan; the phase node needs ``frame_bursts:=true`` too)
+``trigger_bursts``  false                        take the projector's Triggers as TriggerBursts (its
+                                                 ``trigger_bursts:=true``) instead of one by one
 ``ground_truth``    true                         publish ``/sim/ground_truth`` and ``/sim/ground_truth_depth``
 ``frame_id``        ``"scanner_optical_frame"``  ``header.frame_id`` of frames, CameraInfo and ground truth
 =================== ============================ =====================================================================
@@ -90,6 +95,7 @@ from dptpu.messages import (
     ScanStatus,
     Time,
     Trigger,
+    TriggerBurst,
 )
 from dptpu.messages.scanner import REFERENCE_KINDS
 from dptpu.nodes.frame_bursts import Burst, FrameBursts
@@ -161,6 +167,8 @@ class SimNode(Node):
         seed = rules.read_only("seed", 0, description=rendered)
         bit_depth = rules.read_only("bit_depth", 8, description=rendered)
         self.frame_bursts = rules.read_only("frame_bursts", False, description="sets the frames' publisher up")
+        self.trigger_bursts = rules.read_only("trigger_bursts", False,
+                                              description="sets the Triggers' subscription up")
         self.pace_timer: Timer | None = None
         self.frame_rate_hz = float(rules.settable("frame_rate_hz", 0.0, check=at_least(0.0),
                                                   apply=self._set_frame_rate))
@@ -223,8 +231,12 @@ class SimNode(Node):
         if self._frames_publisher().get_subscription_count() < self.min_subscribers:
             return
         self.wait_timer.cancel()
-        self.trigger_sub = self.create_subscription(Trigger, "/projector/trigger", self.on_trigger, 200,
-                                                    publishers=SOLE_PUBLISHER)  # a stranger's Triggers: refused
+        if self.trigger_bursts:
+            self.trigger_sub = self.create_subscription(TriggerBurst, "/projector/trigger_bursts",
+                                                        self.on_trigger_burst, 20, publishers=SOLE_PUBLISHER)
+        else:
+            self.trigger_sub = self.create_subscription(Trigger, "/projector/trigger", self.on_trigger, 200,
+                                                        publishers=SOLE_PUBLISHER)  # a stranger's Triggers: refused
         self.get_logger().info("frames have subscribers: taking Triggers")
 
     def on_pattern_sequence(self, msg: PatternSequence) -> None:
@@ -251,6 +263,11 @@ class SimNode(Node):
         assert self.bursts is not None
         for burst in self.bursts.due(time.monotonic()):
             self._publish_burst(burst)
+
+    def on_trigger_burst(self, burst: TriggerBurst) -> None:
+        """An entry's patterns were on screen: each Trigger as :meth:`on_trigger` takes it, in order."""
+        for trigger in burst.triggers:
+            self.on_trigger(trigger)
 
     def on_pace_timer(self) -> None:
         """Paced mode: publish the frames that are due."""

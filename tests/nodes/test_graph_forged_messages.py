@@ -30,7 +30,7 @@ import zmq
 
 from dptpu.graph.discovery import get_graph
 from dptpu.graph.transport import pack_envelope
-from dptpu.messages import CameraInfo, FringeBurst, PatternSequence, ScanStatus, Trigger, decode, encode
+from dptpu.messages import CameraInfo, FringeBurst, PatternSequence, ScanStatus, Trigger, TriggerBurst, decode, encode
 from dptpu.nodes.plumbing import LATCHED_QOS
 from tests.nodes.conftest import TEST_DOMAIN_ID
 from tests.nodes.fault_matrix import IN_A_ROW, correct, start_rig
@@ -109,12 +109,15 @@ def test_forged_sequence_configuration_and_statuses_neither_stop_nor_fool_the_sc
                     time.sleep(0.01)
         if "trigger" in forge:  # 5. real Triggers copied for the next scans and a made-up one, from a second node
             real = {t.pattern_index: t for t in list(triggers.messages)[-48:]}  # one scan's patterns
-            trigger_pub = probe.publisher(Trigger, "/projector/trigger", 200)
-            time.sleep(1.0)  # the sim and the monitor have seen the new publisher (and refused it)
+            trigger_pub = probe.publisher(Trigger, "/projector/trigger", 200)  # the monitor takes these
+            burst_pub = probe.publisher(TriggerBurst, "/projector/trigger_bursts", 20)  # the sim takes bursts
+            time.sleep(1.0)  # the sim and the monitor have seen the new publishers (and refused them)
             latest = max(s[0] for s in run.scans())
             for sequence_id in [*range(latest + 2, latest + 8), FORGED_TRIGGER_SCAN]:
-                for trigger in real.values():
-                    trigger_pub.publish(dataclasses.replace(trigger, sequence_id=sequence_id))
+                forged = [dataclasses.replace(real[index], sequence_id=sequence_id) for index in sorted(real)]
+                for trigger in forged:
+                    trigger_pub.publish(trigger)
+                burst_pub.publish(TriggerBurst(header=forged[-1].header, triggers=forged))
 
         def recovered(lines) -> bool:
             after = [s for s in run.scans() if s[0] > before + 1]
@@ -139,7 +142,7 @@ def test_forged_sequence_configuration_and_statuses_neither_stop_nor_fool_the_sc
                                  ("sim", "/projector/pattern_sequence", "pattern"),
                                  ("cloud", "/camera/camera_info", "info"), ("unwrap", "/camera/camera_info", "info"),
                                  ("scan_monitor", "/scanner/status", "status"),
-                                 ("sim", "/projector/trigger", "trigger"),
+                                 ("sim", "/projector/trigger_bursts", "trigger"),
                                  ("scan_monitor", "/projector/trigger", "trigger")):
         assert forgery not in forge or any(
             line.startswith(f"[{node}]") and f"refusing the publisher of {topic} of node /probe" in line

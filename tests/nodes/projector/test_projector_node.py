@@ -16,7 +16,7 @@ from dptpu.graph import Parameter
 from dptpu.graph.interfaces import Trigger as TriggerService
 from dptpu.graph.parameter_client import AsyncParameterClient
 from dptpu.graph.qos import DurabilityPolicy, QoSProfile
-from dptpu.messages import PatternSequence, ScanStatus, Trigger
+from dptpu.messages import PatternSequence, ScanStatus, Trigger, TriggerBurst
 
 NODE = "dptpu.nodes.projector"
 EMULATOR = "dptpu.nodes.projector.emulator"
@@ -231,3 +231,43 @@ def test_exposure_set_at_run_time_is_loaded_into_the_box_before_the_next_scan(sp
     assert sorted(t.pattern_index for t in triggers.messages if t.sequence_id == 1) == list(range(7))
     future = client.get_parameters(["exposure_us"])
     assert future.wait(timeout_sec=20) and client.values_of(future.result()) == [60_000]
+
+
+def bursts_of(inbox, sequence_id, count):
+    """The pattern indices of scan ``sequence_id``'s TriggerBursts, once ``count`` of them arrived."""
+    try:
+        inbox.wait_for(lambda _: sum(b.triggers[0].sequence_id == sequence_id for b in inbox.messages) >= count,
+                       timeout=5.0)
+    except AssertionError:
+        pass  # compared below, with the full list in the message
+    return [[t.pattern_index for t in b.triggers] for b in inbox.messages if b.triggers[0].sequence_id == sequence_id]
+
+
+def test_trigger_bursts_carry_each_entrys_triggers_and_single_triggers_go_only_to_a_listener(spawn_node, probe):
+    bursts = probe.subscribe(TriggerBurst, "/projector/trigger_bursts")
+    status = probe.subscribe(ScanStatus, "/scanner/status")
+    node = start_projector(spawn_node, "loop://", "-p", "trigger_bursts:=true", "-p", "scans:=1")
+    assert status.wait(1, timeout=20)[0].state == "done"  # started: the bursts' subscriber counts as a listener
+    assert bursts_of(bursts, 1, 2) == [[0, 1, 2, 3], [4, 5, 6]]
+    got = [(t.pattern_index, t.frequency, t.steps, t.step) for b in bursts.messages for t in b.triggers]
+    assert got == EXPECTED
+    for burst in bursts.messages:
+        stamps = [t.header.stamp.to_ns() for t in burst.triggers]
+        assert stamps == sorted(stamps) and burst.header.stamp == burst.triggers[-1].header.stamp
+    triggers = probe.subscribe(Trigger, "/projector/trigger")  # now someone listens to the single Triggers too
+    assert wait_until(lambda: triggers.subscription.get_publisher_count() == 1, 10)  # connected to the node
+    time.sleep(1.0)  # and the node has had its subscribe event
+    assert call_start_scan(probe).success
+    assert triggers_of(triggers, 2) == EXPECTED and bursts_of(bursts, 2, 2) == [[0, 1, 2, 3], [4, 5, 6]]
+    assert node.proc.poll() is None
+
+
+def test_a_scan_cut_short_sends_its_last_entrys_triggers_as_they_stand(spawn_node, probe, tmp_path):
+    bursts = probe.subscribe(TriggerBurst, "/projector/trigger_bursts")
+    status = probe.subscribe(ScanStatus, "/scanner/status")
+    aborting = spawn_node(EMULATOR, "--link", str(tmp_path / "abort"), "--abort-after", "6")
+    aborting.wait_event("ready")
+    start_projector(spawn_node, tmp_path / "abort", "-p", "scans:=1", "-p", "trigger_bursts:=true")
+    aborted = status.wait(1, timeout=15)[0]
+    assert (aborted.state, aborted.frames_received) == ("failed", 6)
+    assert bursts_of(bursts, 1, 2) == [[0, 1, 2, 3], [4, 5]]  # the second entry's two patterns, sent at the abort

@@ -6,7 +6,18 @@ import pytest
 
 from dptpu.fpp.phase import wrapped_phase
 from dptpu.graph import Parameter
-from dptpu.messages import AbsolutePhase, CameraInfo, FringeBurst, FringeFrame, Header, Image, ScanStatus, Time, Trigger
+from dptpu.messages import (
+    AbsolutePhase,
+    CameraInfo,
+    FringeBurst,
+    FringeFrame,
+    Header,
+    Image,
+    ScanStatus,
+    Time,
+    Trigger,
+    TriggerBurst,
+)
 from dptpu.nodes.harness import NodeHarness
 from dptpu.nodes.plumbing import LATCHED_QOS
 from dptpu.nodes.sim import SimNode
@@ -293,3 +304,24 @@ def test_with_frame_bursts_a_dropped_frame_shortens_its_burst_and_single_frames_
     plane = node.source.scenes[0]
     np.testing.assert_array_equal(bursts.messages[1].frames(), plane.stack(1.0, 4)[:3])
     assert node.frames_dropped == 2
+
+
+def test_with_trigger_bursts_an_entrys_triggers_in_one_message_get_its_frames_as_one_burst():
+    triggers = _triggers(1) + _triggers(2)
+    with NodeHarness() as harness:
+        node = harness.start(SimNode, **PARAMS, frame_bursts=True, trigger_bursts=True)
+        trigger_pub = harness.publisher(TriggerBurst, "/projector/trigger_bursts", 20)
+        bursts = harness.collect(FringeBurst, "/camera/frame_bursts")
+        harness.connect(timeout_s=30.0)
+        for start in range(0, 16, 4):
+            entry = triggers[start:start + 4]
+            trigger_pub.publish(TriggerBurst(header=entry[-1].header, triggers=entry))
+        harness.wait(bursts, 4)
+        harness.spin_for(0.3)
+    plane, sphere = node.source.scenes
+    assert [[t.pattern_index for t in b.triggers] for b in bursts.messages] == [[0, 1, 2, 3], [4, 5, 6, 7]] * 2
+    for burst, scene in zip(bursts.messages, (plane, plane, sphere, sphere)):
+        first = burst.triggers[0]
+        np.testing.assert_array_equal(burst.frames(), scene.stack(first.frequency, first.steps))
+    assert node.frames_published == 16 and node.bursts_published == 4
+    assert node.trigger_sub.topic_name == "/projector/trigger_bursts"  # the single Triggers' topic is not taken
