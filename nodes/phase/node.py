@@ -53,6 +53,10 @@ name                    default  meaning
                                  without it: the phases as computed
 ======================= ======== ================================================================================
 
+While no frame comes, the node checks once a second that its frame topic has a publisher: where only the other one
+has (the camera side's ``frame_bursts`` set otherwise), it logs one warning naming both topics, the publishers and
+the parameter (:mod:`dptpu.nodes.phase.frame_topic_check`).
+
 ``min_modulation``, ``saturation_level`` and ``max_noise_ratio`` apply from the next scan (``dptpu param set``),
 checked as at start-up; the others are read-only (``param set`` is refused; restart the node to change them).
 
@@ -95,6 +99,7 @@ from dptpu.nodes.plumbing import (
     scan_status,
 )
 
+from .frame_topic_check import FrameTopicCheck
 from .sequence_assembler import (
     AssembledScan,
     DroppedScan,
@@ -171,6 +176,10 @@ class PhaseNode(Node):
                                                               publishers=SOLE_PUBLISHER)  # the projector's only
         self.decode_errors = DecodeErrorCount(self.frame_subscription, self.sequence_subscription)
         self.expiry_timer = self.create_timer(min(0.25, self.timeout_s / 4), self.on_timer)
+        other = self.resolve_topic_name("/camera/image_raw" if frame_bursts else "/camera/frame_bursts")
+        self.frame_topic_check = FrameTopicCheck(self.frame_subscription.topic_name, other, bool(frame_bursts))
+        self._frames_at_check = -1  # frames_received at the last frame topic check (-1: none yet)
+        self.frame_topic_timer = self.create_timer(1.0, self.on_frame_topic_timer)
 
     # -- callbacks ------------------------------------------------------------------------------------------
 
@@ -243,6 +252,16 @@ class PhaseNode(Node):
         """Drop the scans that timed out."""
         for event in self.assembler.expire(time.monotonic()):
             self._report(event)
+
+    def on_frame_topic_timer(self) -> None:
+        """Once a second while no frame comes: say so when the camera side publishes on the other frame topic."""
+        if self.frames_received == self._frames_at_check:
+            publishers = [[info.node for info in self.get_publishers_info_by_topic(topic)]
+                          for topic in (self.frame_topic_check.taken, self.frame_topic_check.other)]
+            warning = self.frame_topic_check.check(*publishers)
+            if warning:
+                self.get_logger().warning(warning)
+        self._frames_at_check = self.frames_received
 
     # -- helpers ---------------------------------------------------------------------------------------------
 
