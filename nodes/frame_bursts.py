@@ -8,7 +8,10 @@ reference frame is a burst of one). Pure logic, time passed in, like the phase n
 - a frame of another scan or entry, a repeated or earlier step, or another size first sends the burst pending as
   it stands (fewer frames than its entry: the phase node then reports the scan incomplete, naming the missing
   patterns, as it does for single frames), so frames are never held back behind a lost one;
-- ``due(now_s)`` sends a burst whose next frame has not come within ``max_wait_s`` (a dropped Trigger).
+- ``due(now_s)`` sends a burst whose next frame has not come within its wait (a dropped Trigger): ``max_wait_s``, or
+  twice the latest spacing of two frames of one scan where that is longer, so that a camera slower than
+  ``1 / max_wait_s`` frames a second (a long exposure, the sim's ``frame_rate_hz``) still sends an entry as one burst
+  (with a fixed wait each of its frames went alone, in a buffer of the whole entry).
 """
 from __future__ import annotations
 
@@ -57,7 +60,7 @@ class FrameBursts:
     allocate : callable ``(shape, dtype) -> ndarray``
         The buffer of a new burst, (N, H, W) of the frames' dtype; a loaned segment where the publisher lends one.
     max_wait_s : float
-        Longest wait for a burst's next frame before :meth:`due` sends it as it stands.
+        Shortest wait for a burst's next frame before :meth:`due` sends it as it stands (:attr:`wait_s`).
     """
 
     def __init__(self, allocate: Callable[[tuple[int, ...], np.dtype], np.ndarray], *, max_wait_s: float = 0.5):
@@ -66,6 +69,13 @@ class FrameBursts:
         self._allocate = allocate
         self.max_wait_s = float(max_wait_s)
         self._pending: Burst | None = None
+        self._last_frame: tuple[int, float] | None = None  # (sequence_id, now_s) of the latest frame added
+        self.frame_spacing_s = 0.0  # the latest spacing of two consecutive frames of one scan (s)
+
+    @property
+    def wait_s(self) -> float:
+        """The wait for a burst's next frame: ``max_wait_s``, or twice :attr:`frame_spacing_s` where longer."""
+        return max(self.max_wait_s, 2.0 * self.frame_spacing_s)
 
     @property
     def pending(self) -> Burst | None:
@@ -77,6 +87,9 @@ class FrameBursts:
         because ``frame`` cannot join it, and its own once complete), in order."""
         if frame.ndim != 2:
             raise ValueError(f"a burst's frame must be (H, W); got shape {frame.shape}")
+        if self._last_frame is not None and self._last_frame[0] == trigger.sequence_id:
+            self.frame_spacing_s = max(0.0, now_s - self._last_frame[1])
+        self._last_frame = (trigger.sequence_id, now_s)
         ready = []
         pending = self._pending
         if pending is not None and not self._joins(pending, trigger, frame):
@@ -97,8 +110,8 @@ class FrameBursts:
         return ready
 
     def due(self, now_s: float) -> list[Burst]:
-        """The pending burst, when its next frame is ``max_wait_s`` late (sent as it stands)."""
-        if self._pending is None or now_s - self._pending.last_added_s < self.max_wait_s:
+        """The pending burst, when its next frame is :attr:`wait_s` late (sent as it stands)."""
+        if self._pending is None or now_s - self._pending.last_added_s < self.wait_s:
             return []
         return self.flush()
 
