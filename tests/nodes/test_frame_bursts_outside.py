@@ -2,17 +2,19 @@
 that disagree on ``frame_bursts``."""
 from __future__ import annotations
 
+import dataclasses
 import logging
 
 import numpy as np
 import pytest
 
-from dptpu.messages import FringeFrame, Header, Time, Trigger
+from dptpu.messages import FringeBurst, FringeFrame, Header, Image, PhaseMaps, ScanStatus, Time, Trigger
 from dptpu.nodes.frame_bursts import FrameBursts
-from dptpu.nodes.harness import NodeHarness
+from dptpu.nodes.harness import NodeHarness, fringe_frames
 from dptpu.nodes.phase import PhaseNode
 from dptpu.nodes.phase.frame_topic_check import FrameTopicCheck
 from dptpu.nodes.sim import SimNode
+from tests.nodes.test_cloud_scene import plane_scene
 from tests.nodes.test_frame_bursts import frame_of, triggers_of
 
 
@@ -139,3 +141,56 @@ def test_a_sim_publishing_bursts_serves_single_frames_to_a_phase_node_that_takes
                                      frequency=16.0 if index < 4 else 1.0, steps=4, step=index % 4))
         harness.spin_until(lambda: len(frames) == 8, 5.0)
         assert sorted(m.trigger.pattern_index for m in frames.messages) == list(range(8))
+
+
+def _phase_fed_bursts(bursts):
+    """PhaseMaps and statuses of a phase node (``frame_bursts:=true``) fed ``bursts`` in order, and the node."""
+    with NodeHarness() as harness:
+        node = harness.start(PhaseNode, timeout_s=0.4, frame_bursts=True)
+        camera = harness.publisher(FringeBurst, "/camera/frame_bursts")
+        phase = harness.collect(PhaseMaps, "/scanner/phase")
+        status = harness.collect(ScanStatus, "/scanner/status")
+        harness.connect()
+        for burst in bursts:
+            camera.publish(burst)
+        harness.wait(status, sum(1 for b in bursts if b.triggers and b.triggers[-1].pattern_index == 7))
+        harness.spin_for(0.2)
+        return list(phase.messages), list(status.messages), node
+
+
+def _scan_frames(sequence_id: int) -> list[FringeFrame]:
+    scene = plane_scene()
+    return fringe_frames([scene.frames(16.0, steps=4, seed=0), scene.frames(1.0, steps=4, seed=1)], (16.0, 1.0),
+                         sequence_id=sequence_id)
+
+
+def _burst(frames: list[FringeFrame], *, encoding: str | None = None) -> FringeBurst:
+    stacked = np.stack([f.image.to_array() for f in frames])  # (N, H, W)
+    burst = FringeBurst.from_frames(stacked, [f.trigger for f in frames], header=frames[-1].image.header)
+    if encoding is not None:  # the same bytes said to be another one-byte-a-pixel encoding
+        burst = dataclasses.replace(burst, image=dataclasses.replace(burst.image, encoding=encoding))
+    return burst
+
+
+def test_a_whole_scan_in_one_burst_and_an_empty_burst_beside_it():
+    # one burst holding both entries (a camera side gathering otherwise), an empty burst (refused, counted), then a
+    # scan in its two entry bursts: both scans give the same maps
+    whole, split = _scan_frames(5), _scan_frames(6)
+    empty = FringeBurst(image=Image(encoding="mono8"), triggers=[])
+    maps, statuses, node = _phase_fed_bursts([_burst(whole), empty, _burst(split[:4]), _burst(split[4:])])
+    assert [m.sequence_id for m in maps] == [5, 6] and [s.state for s in statuses] == ["processing"] * 2
+    for name in ("phases", "modulation", "valid"):
+        np.testing.assert_array_equal(getattr(maps[0], name), getattr(maps[1], name), err_msg=name)
+    assert np.count_nonzero(maps[0].valid) > 0.5 * maps[0].valid.size
+    assert maps[0].header.stamp == whole[-1].image.header.stamp  # the burst's stamp: its last frame's
+    assert node.frames_rejected == 1 and node.frames_received == 16
+
+
+def test_a_burst_of_another_encoding_fails_its_scan_naming_the_patterns_and_the_encoding():
+    bad, good = _scan_frames(7), _scan_frames(8)
+    maps, statuses, _ = _phase_fed_bursts([_burst(bad[:4], encoding="8UC1"), _burst(bad[4:]), _burst(good[:4]),
+                                           _burst(good[4:])])
+    assert [m.sequence_id for m in maps] == [8]
+    failed = next(s for s in statuses if s.sequence_id == 7)
+    assert failed.state == "failed"
+    assert "burst of patterns 0..3 unreadable: image encoding must be mono8 or mono16; got '8UC1'" in failed.reason
