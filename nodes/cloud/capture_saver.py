@@ -53,6 +53,8 @@ class RecentScanFrames:
         """Keep a burst's frames, each as the FringeFrame it stands for (views of the burst, no copy)."""
         if not burst.triggers:
             return
+        if burst.image.encoding not in ("mono8", "mono16"):  # as the phase node, which refuses the scan
+            raise ValueError(f"FringeBurst.image.encoding must be mono8 or mono16; got {burst.image.encoding!r}")
         frames = burst.frames()  # (N, H, W)
         last = len(burst.triggers) - 1
         for index, (trigger, image) in enumerate(zip(burst.triggers, frames)):  # stamps as the phase node takes them

@@ -64,7 +64,8 @@ class CaptureAndSave:
         self.save_units = rules.settable("save_units", "m", check=one_of(CLOUD_UNITS),
                                          apply=lambda value: setattr(self, "save_units", value))
         self.save_frames = rules.read_only("save_frames", True, description="sets the frame subscription up")
-        frame_bursts = rules.read_only("frame_bursts", False, description="sets the frame subscription up")
+        frame_bursts = self.frame_bursts = rules.read_only("frame_bursts", False,
+                                                           description="sets the frame subscription up")
         self.frames = RecentScanFrames(kept_scans=3)
         self.layout: PatternSequence | None = None
         # (sequence_id, the cloud or what makes it, fringe axis)
@@ -74,7 +75,7 @@ class CaptureAndSave:
         if self.save_frames:
             frame_qos = QoSProfile(depth=_FRAME_QUEUE_DEPTH, reliability=ReliabilityPolicy.BEST_EFFORT)
             self.subscriptions = [
-                node.create_subscription(FringeBurst, "/camera/frame_bursts", self.frames.add_burst, frame_qos)
+                node.create_subscription(FringeBurst, "/camera/frame_bursts", self._on_burst, frame_qos)
                 if frame_bursts else node.create_subscription(FringeFrame, "/camera/image_raw", self.frames.add,
                                                               frame_qos),
                 node.create_subscription(PatternSequence, "/projector/pattern_sequence", self._on_layout,
@@ -109,10 +110,20 @@ class CaptureAndSave:
         if saved.capture_folder is not None:
             written += f" and {saved.capture_folder} ({len(frames)} frames)"
         elif self.save_frames:
-            written += "; no frames of it were received, so no capture folder"
+            topic = self.subscriptions[0].topic_name
+            written += (f"; no frames of it were received on {topic} (frame_bursts:={str(self.frame_bursts).lower()}: "
+                        f"the camera side must publish there), so no capture folder")
         response.success, response.message = True, f"saved scan {sequence_id}: {written}"
         self._node.get_logger().info(response.message)
         return response
+
+    def _on_burst(self, burst: FringeBurst) -> None:
+        """Keep a burst's frames; one that cannot be read as frames is logged, not kept."""
+        try:
+            self.frames.add_burst(burst)
+        except ValueError as exc:
+            self._node.get_logger().warning(f"capture_and_save: a FringeBurst not kept: {exc}",
+                                            throttle_duration_sec=1.0)
 
     def _on_layout(self, msg: PatternSequence) -> None:
         self.layout = msg

@@ -222,13 +222,14 @@ class SimNode(Node):
         width, height = self.source.size
         self.get_logger().info(f"{len(self.source.scenes)} scene(s) at {width}x{height}, sequences "
                                f"{self.source.describe_sequences()}; waiting for {self.min_subscribers} subscriber(s) "
-                               f"of {self._frames_publisher().topic_name}")
+                               f"of {' or '.join(p.topic_name for p in self._frame_publishers())}")
 
     # -- callbacks ------------------------------------------------------------------------------------------
 
     def on_wait_timer(self) -> None:
-        """Take Triggers once the frames have ``min_subscribers`` subscriptions."""
-        if self._frames_publisher().get_subscription_count() < self.min_subscribers:
+        """Take Triggers once the frames have ``min_subscribers`` subscriptions (of the bursts and the single frames
+        together: with ``frame_bursts`` a phase node that takes single frames is served them)."""
+        if sum(p.get_subscription_count() for p in self._frame_publishers()) < self.min_subscribers:
             return
         self.wait_timer.cancel()
         if self.trigger_bursts:
@@ -354,9 +355,9 @@ class SimNode(Node):
         self.image_pub.publish(FringeFrame(image=Image.from_array(image, header=header), trigger=trigger))
         self.frames_published += 1
 
-    def _frames_publisher(self):
-        """The publisher the phase node takes frames from: the bursts' with ``frame_bursts``, else the frames'."""
-        return self.burst_pub if self.burst_pub is not None else self.image_pub
+    def _frame_publishers(self) -> list:
+        """The publishers a phase node may take frames from: the bursts' (with ``frame_bursts``) and the frames'."""
+        return [self.image_pub] if self.burst_pub is None else [self.burst_pub, self.image_pub]
 
     def _burst_buffer(self, shape: tuple[int, ...], dtype: np.dtype) -> np.ndarray:
         """A burst's (N, H, W) buffer: loaned by the bursts' publisher where a loan pays, else a new array."""

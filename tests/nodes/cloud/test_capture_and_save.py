@@ -10,7 +10,7 @@ from dptpu.fpp.calibration import load_rig, save_rig
 from dptpu.fpp.capture import PhaseSequence, load_sequence_images, read_capture
 from dptpu.graph import Parameter
 from dptpu.graph.interfaces import Trigger as TriggerService
-from dptpu.messages import FringeFrame, PointCloud2
+from dptpu.messages import FringeBurst, FringeFrame, Image, PointCloud2
 from dptpu.nodes.cloud import CloudNode
 from dptpu.nodes.harness import NodeHarness, fringe_frames
 from dptpu.nodes.phase import PhaseNode
@@ -93,3 +93,34 @@ def test_a_bad_save_format_is_refused_naming_the_choices(tmp_path):
     rig_path = save_rig(plane_scene().rig, tmp_path / "rig.yaml")
     with NodeHarness() as harness, pytest.raises(ValueError, match="save_format"):
         harness.start(CloudNode, rig=str(rig_path), save_format="obj")
+
+
+def test_a_cloud_node_taking_bursts_from_a_camera_side_sending_frames_says_where_it_listened(tmp_path):
+    scene = plane_scene()
+    rig_path = save_rig(scene.rig, tmp_path / "rig.yaml")
+    frequencies = (16.0, 1.0)
+    stacks = [scene.frames(f, seed=index) for index, f in enumerate(frequencies)]
+    with NodeHarness() as harness:
+        harness.start(PhaseNode, timeout_s=1.0, projector_width=912, projector_height=1140)
+        harness.start(UnwrapNode, method="mf")
+        cloud_node = harness.start(CloudNode, rig=str(rig_path), save_dir=str(tmp_path / "saved"), frame_bursts=True)
+        camera = harness.publisher(FringeFrame, "/camera/image_raw")
+        bursts = harness.publisher(FringeBurst, "/camera/frame_bursts", connect=False)
+        points = harness.collect(PointCloud2, "/scanner/points")
+        client = harness.probe.create_client(TriggerService, "/cloud/capture_and_save")
+        harness.connect()
+        assert harness.spin_until(client.service_is_ready, timeout_s=15.0)
+        frames = fringe_frames(stacks, frequencies, sequence_id=3)
+        for frame in frames:
+            camera.publish(frame)
+        harness.wait(points, 1)
+        answer = _call(harness, client)
+        # a burst that is no camera frame (an 8UC1 image) is logged, not kept
+        assert harness.spin_until(lambda: bursts.get_subscription_count() >= 1, timeout_s=15.0)
+        odd = FringeBurst(image=Image.from_array(stacks[0][0], "8UC1"), triggers=[frames[0].trigger])
+        bursts.publish(odd)
+        harness.spin_for(0.5)
+        assert cloud_node.capture.frames.frames(3) == []
+    assert answer.success and answer.message.endswith(
+        "; no frames of it were received on /camera/frame_bursts (frame_bursts:=true: the camera side must publish "
+        "there), so no capture folder"), answer.message
