@@ -218,6 +218,10 @@ class SimNode(Node):
         self.wait_timer = self.create_timer(0.05, self.on_wait_timer)
         if self.bursts is not None:
             self.burst_timer = self.create_timer(0.1, self.on_burst_timer)
+        self.triggers_received = 0
+        self._checks_without_burst_publisher = 0  # trigger_bursts: checks that found only single Triggers
+        self.trigger_topic_timer = self.create_timer(1.0, self.on_trigger_topic_timer) if self.trigger_bursts \
+            else None
         self._set_frame_rate(self.frame_rate_hz)
         width, height = self.source.size
         self.get_logger().info(f"{len(self.source.scenes)} scene(s) at {width}x{height}, sequences "
@@ -251,6 +255,7 @@ class SimNode(Node):
 
     def on_trigger(self, trigger: Trigger) -> None:
         """A pattern is on screen: publish its frame now, or when the frame rate allows."""
+        self.triggers_received += 1
         if self.frame_rate_hz <= 0:
             self._serve(trigger)
             return
@@ -264,6 +269,25 @@ class SimNode(Node):
         assert self.bursts is not None
         for burst in self.bursts.due(time.monotonic()):
             self._publish_burst(burst)
+
+    def on_trigger_topic_timer(self) -> None:
+        """``trigger_bursts``, once a second until a Trigger comes: say once, naming the publishers, when the
+        projector publishes single Triggers but no TriggerBursts (a projector given ``trigger_bursts:=false``: no
+        scan would ever get a frame)."""
+        assert self.trigger_topic_timer is not None
+        if self.triggers_received:
+            self.trigger_topic_timer.cancel()
+            return
+        if self.trigger_sub is None or self.get_publishers_info_by_topic("/projector/trigger_bursts"):
+            self._checks_without_burst_publisher = 0
+            return
+        singles = sorted({info.node for info in self.get_publishers_info_by_topic("/projector/trigger")})
+        self._checks_without_burst_publisher = self._checks_without_burst_publisher + 1 if singles else 0
+        if self._checks_without_burst_publisher == 2:  # twice in a row: not an announcement still on its way
+            self.get_logger().warning(
+                f"no Trigger can come: nothing publishes /projector/trigger_bursts, where this node takes "
+                f"TriggerBursts (trigger_bursts:=true), while {', '.join(singles)} publish(es) single Triggers on "
+                f"/projector/trigger; give this node trigger_bursts:=false, or the projector trigger_bursts:=true")
 
     def on_trigger_burst(self, burst: TriggerBurst) -> None:
         """An entry's patterns were on screen: each Trigger as :meth:`on_trigger` takes it, in order."""

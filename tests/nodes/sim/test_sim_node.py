@@ -1,6 +1,8 @@
 """The sim node in the in-process harness: Trigger in, the twin's frame of that pattern out, ground truth per scan."""
 from __future__ import annotations
 
+import logging
+
 import numpy as np
 import pytest
 
@@ -24,6 +26,7 @@ from dptpu.nodes.sim import SimNode
 from dptpu.nodes.sim.node import parse_drop_frames
 from dptpu.nodes.sim.source import SimScene, capture_scenes, load_source
 from tests.graph.nodes.shm_peer import is_shared
+from tests.nodes.test_frame_bursts_outside import _Records
 
 SEQUENCE = "16x4,1x4"
 PARAMS = dict(source="raycast", size="64x48", scenes="plane,sphere", sequence=SEQUENCE)
@@ -325,3 +328,25 @@ def test_with_trigger_bursts_an_entrys_triggers_in_one_message_get_its_frames_as
         np.testing.assert_array_equal(burst.frames(), scene.stack(first.frequency, first.steps))
     assert node.frames_published == 16 and node.bursts_published == 4
     assert node.trigger_sub.topic_name == "/projector/trigger_bursts"  # the single Triggers' topic is not taken
+
+
+def test_with_trigger_bursts_a_projector_sending_single_triggers_only_is_named_once():
+    records = _Records()
+    logging.getLogger("dptpu.node").addHandler(records)
+    try:
+        with NodeHarness() as harness:
+            node = harness.start(SimNode, **PARAMS, frame_bursts=True, trigger_bursts=True)
+            harness.collect(FringeBurst, "/camera/frame_bursts")  # the phase node: the sim takes Triggers
+            harness.publisher(Trigger, "/projector/trigger", 100, connect=False)  # a projector, trigger_bursts false
+            harness.connect(timeout_s=30.0)
+            assert harness.spin_until(lambda: any("no Trigger can come" in m for m in records.messages), 10.0), \
+                records.messages
+            harness.spin_for(2.5)  # said once
+    finally:
+        logging.getLogger("dptpu.node").removeHandler(records)
+    warnings = [m for m in records.messages if "no Trigger can come" in m]
+    assert warnings == ["no Trigger can come: nothing publishes /projector/trigger_bursts, where this node takes "
+                        "TriggerBursts (trigger_bursts:=true), while /harness_probe publish(es) single Triggers on "
+                        "/projector/trigger; give this node trigger_bursts:=false, or the projector "
+                        "trigger_bursts:=true"]
+    assert node.triggers_received == 0
