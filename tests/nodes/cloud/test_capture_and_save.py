@@ -24,17 +24,27 @@ def _call(harness, client) -> object:
     return future.result()
 
 
+FREQUENCIES = (16.0, 1.0)
+
+
+def _scene_and_nodes(harness, tmp_path, **cloud_parameters):
+    """The plane scene's frame stacks, and phase, unwrap and cloud nodes started for it: ``(stacks, cloud node,
+    scene)``."""
+    scene = plane_scene()
+    rig_path = save_rig(scene.rig, tmp_path / "rig.yaml")
+    stacks = [scene.frames(f, seed=index) for index, f in enumerate(FREQUENCIES)]
+    harness.start(PhaseNode, timeout_s=1.0, projector_width=912, projector_height=1140)
+    harness.start(UnwrapNode, method="mf")
+    cloud_node = harness.start(CloudNode, rig=str(rig_path), save_dir=str(tmp_path / "saved"), **cloud_parameters)
+    return stacks, cloud_node, scene
+
+
 def test_the_last_scan_is_saved_as_a_cloud_in_metres_and_a_capture_folder(tmp_path):
     import open3d as o3d
 
-    scene = plane_scene()
-    rig_path = save_rig(scene.rig, tmp_path / "rig.yaml")
-    frequencies = (16.0, 1.0)
-    stacks = [scene.frames(f, seed=index) for index, f in enumerate(frequencies)]
+    frequencies = FREQUENCIES
     with NodeHarness() as harness:
-        harness.start(PhaseNode, timeout_s=1.0, projector_width=912, projector_height=1140)
-        harness.start(UnwrapNode, method="mf")
-        cloud_node = harness.start(CloudNode, rig=str(rig_path), save_dir=str(tmp_path / "saved"))
+        stacks, cloud_node, scene = _scene_and_nodes(harness, tmp_path)
         camera = harness.publisher(FringeFrame, "/camera/image_raw")
         points = harness.collect(PointCloud2, "/scanner/points")
         client = harness.probe.create_client(TriggerService, "/cloud/capture_and_save")
@@ -96,14 +106,9 @@ def test_a_bad_save_format_is_refused_naming_the_choices(tmp_path):
 
 
 def test_a_cloud_node_taking_bursts_from_a_camera_side_sending_frames_says_where_it_listened(tmp_path):
-    scene = plane_scene()
-    rig_path = save_rig(scene.rig, tmp_path / "rig.yaml")
-    frequencies = (16.0, 1.0)
-    stacks = [scene.frames(f, seed=index) for index, f in enumerate(frequencies)]
+    frequencies = FREQUENCIES
     with NodeHarness() as harness:
-        harness.start(PhaseNode, timeout_s=1.0, projector_width=912, projector_height=1140)
-        harness.start(UnwrapNode, method="mf")
-        cloud_node = harness.start(CloudNode, rig=str(rig_path), save_dir=str(tmp_path / "saved"), frame_bursts=True)
+        stacks, cloud_node, _ = _scene_and_nodes(harness, tmp_path, frame_bursts=True)
         camera = harness.publisher(FringeFrame, "/camera/image_raw")
         bursts = harness.publisher(FringeBurst, "/camera/frame_bursts", connect=False)
         points = harness.collect(PointCloud2, "/scanner/points")
