@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 
 from dptpu.messages import (
@@ -9,6 +11,7 @@ from dptpu.messages import (
     CameraInfo,
     DiagnosticArray,
     DiagnosticStatus,
+    FringeBurst,
     FringeFrame,
     Header,
     Image,
@@ -22,6 +25,7 @@ from dptpu.messages import (
     ScanStatus,
     Time,
     Trigger,
+    TriggerBurst,
 )
 from dptpu.messages.geometry import Quaternion, Transform, TransformStamped, Vector3
 from dptpu.messages.tf import TFMessage
@@ -89,6 +93,12 @@ def sample_messages() -> dict[str, object]:
         "/projector/patterns": sequence,
         "/projector/trigger": trigger,
         "/camera/fringe": FringeFrame(image=mono8, trigger=trigger),
+        "/camera/frame_bursts": FringeBurst.from_frames(
+            rng.integers(0, 4096, (2, 5, 7), dtype=np.uint16),
+            [trigger, dataclasses.replace(trigger, pattern_index=trigger.pattern_index + 1, step=trigger.step + 1)],
+            header=HEADER),
+        "/projector/trigger_bursts": TriggerBurst(header=trigger.header, triggers=[
+            trigger, dataclasses.replace(trigger, pattern_index=trigger.pattern_index + 1, step=trigger.step + 1)]),
         "/scanner/phase": phase_maps,
         "/scanner/absolute_phase": absolute,
         "/scanner/status": status,
