@@ -18,6 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
+from dptpu.fpp.calibration import Rig, save_rig
 from dptpu.fpp.capture import PhaseFrames, write_capture
 from dptpu.fpp.point_cloud_file import write_point_cloud
 from dptpu.messages import FringeBurst, FringeFrame, Header, Image, PatternSequence, PointCloud2
@@ -79,7 +80,7 @@ class SavedScan:
 
 def save_scan(folder, cloud: PointCloud2, frames: list[FringeFrame], *, projector_size: tuple[int, int],
               fringe_axis: str = "x", cloud_format: str = "ply", layout: PatternSequence | None = None,
-              rig_path: str = "", cloud_unit: str = "m") -> SavedScan:
+              rig: Rig | None = None, cloud_unit: str = "m") -> SavedScan:
     """Write ``cloud`` as ``folder/cloud.<cloud_format>`` (every field, in ``cloud_unit``) and ``frames`` as a
     capture folder ``folder/capture``.
 
@@ -100,8 +101,10 @@ def save_scan(folder, cloud: PointCloud2, frames: list[FringeFrame], *, projecto
     layout : PatternSequence, optional
         The projector's layout (phase offsets, shift sign, fringe axis, projector size); without it the paper's
         shift sign and no phase offsets. The triggers' frequency, steps and step place the frames either way.
-    rig_path : str
-        The rig file, copied into the capture as its calibration ("" = none).
+    rig : Rig, optional
+        The rig the cloud was triangulated with (the rig file, its camera as the camera's CameraInfo gave it: the
+        frames' size and intrinsics), written as ``folder/calibration.yaml`` and copied into the capture as its
+        calibration, so the capture replays (``source:=<folder>/capture``) with the frames' own camera; None: none.
     cloud_unit : {"m", "mm"}
         The unit of the cloud file's coordinates.
 
@@ -132,6 +135,7 @@ def save_scan(folder, cloud: PointCloud2, frames: list[FringeFrame], *, projecto
         capture_folder = folder / "capture"
         if layout is not None:
             projector_size, fringe_axis = layout.projector_size, layout.fringe_axis
+        rig_path = str(save_rig(rig, folder / "calibration.yaml")) if rig is not None else ""
         _write_frames(capture_folder, frames, layout, rig_path, projector_size, fringe_axis)
     return SavedScan(cloud_path, count, capture_folder)
 

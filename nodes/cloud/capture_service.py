@@ -26,9 +26,11 @@ name                             kind             meaning
 """
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Callable
 from pathlib import Path
 
+from dptpu.fpp.calibration import load_rig
 from dptpu.graph.interfaces import Trigger as TriggerService
 from dptpu.graph.parameter_rules import ParameterRules, one_of
 from dptpu.graph.qos import QoSProfile, ReliabilityPolicy
@@ -97,9 +99,12 @@ class CaptureAndSave:
         frames = self.frames.frames(sequence_id)
         folder = Path(self.save_dir) / f"scan_{sequence_id:08d}"
         try:
+            # the rig file as the cloud was triangulated with it: its camera the CameraInfo's (size, intrinsics)
+            rig = dataclasses.replace(load_rig(self.rig_path), camera=self._node.rig.camera) if self.rig_path \
+                else None
             saved = save_scan(folder, cloud, frames, projector_size=tuple(self._node.rig.projector.size),
-                              fringe_axis=fringe_axis, cloud_format=self.save_format, layout=self.layout,
-                              rig_path=self.rig_path, cloud_unit=self.save_units)
+                              fringe_axis=fringe_axis, cloud_format=self.save_format, layout=self.layout, rig=rig,
+                              cloud_unit=self.save_units)
         except (OSError, ImportError, RuntimeError, ValueError) as exc:
             response.success, response.message = False, f"cannot save scan {sequence_id} to {folder}: {exc}"
             self._node.get_logger().warning(response.message)

@@ -193,7 +193,9 @@ class SimNode(Node):
             self._check_rig(rig, size)
         extent_px = self.source.rig.projector.size[0 if self.source.fringe_axis == "x" else 1]
         self.truth_frequency = max(f for f, _ in self.source.sequences)
-        self._truths = [_GroundTruth(scene, self.truth_frequency, extent_px) for scene in self.source.scenes]
+        self._truths = [_GroundTruth(scene, self.truth_frequency, extent_px) if scene.has_truth else None
+                        for scene in self.source.scenes]  # None: a capture of a real rig (no gt.npz)
+        self._truthless_said: set[str] = set()  # scenes without ground truth already named in the log
         self.frames_published = 0
         self.frames_dropped = 0
         self.triggers_unknown = 0
@@ -399,6 +401,13 @@ class SimNode(Node):
 
     def _publish_truth(self, trigger: Trigger, index: int) -> None:
         truth = self._truths[index]
+        if truth is None:
+            name = self.source.scenes[index].name
+            if name not in self._truthless_said:
+                self._truthless_said.add(name)
+                self.get_logger().warning(f"scene {name} has no ground truth (its capture has no gt.npz): no "
+                                          f"/sim/ground_truth for its scans; grade them with ground_truth:=false")
+            return
         header = Header(stamp=trigger.header.stamp, frame_id=self.frame_id)
         width, height = self.source.rig.projector.size
         self.truth_pub.publish(AbsolutePhase(

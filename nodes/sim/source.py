@@ -80,6 +80,9 @@ class SimScene:
     references : dict
         ``"white"`` / ``"black"`` -> (H, W) frame under the projector full on / full off (read-only), the ones the
         source has.
+    has_truth : bool
+        False for a capture without ground truth (no ``gt.npz``: a scan saved from a real rig by the cloud node's
+        ``~/capture_and_save``): then ``projector_coord`` and ``depth_m`` are NaN and ``valid`` is False everywhere.
     """
 
     name: str
@@ -88,6 +91,7 @@ class SimScene:
     valid: np.ndarray
     depth_m: np.ndarray
     references: dict = field(default_factory=dict)
+    has_truth: bool = True
 
     def stack(self, frequency: float, steps: int) -> np.ndarray | None:
         """The (N, H, W) frames of the sequence ``frequency x steps``, or None when the scene has none.
@@ -246,14 +250,15 @@ def _capture_folders(folder: Path) -> list[Path]:
 def capture_scenes(folder) -> tuple[list[SimScene], Rig, str, int]:
     """Read the capture folder(s) under ``folder``: scenes, the rig, the fringe axis and the shift sign.
 
-    Every capture must hold a ``calibration`` and a ``ground_truth`` (``gt.npz``, depth in the rig's units)
-    and share the camera size, fringe axis, shift sign and projector of the first one.
+    Every capture must hold a ``calibration`` and share the camera size, fringe axis, shift sign and projector of
+    the first one; its ``ground_truth`` (``gt.npz``, depth in the rig's units) is read when it has one (a capture of
+    a real rig has none: its scene's ``has_truth`` is False).
 
     Raises
     ------
     ValueError
-        No capture folder, or a capture without calibration or ground truth, or captures that disagree (the
-        message names the folder and what differs).
+        No capture folder, or a capture without calibration, or captures that disagree (the message names the
+        folder and what differs).
     """
     folders = _capture_folders(Path(folder))
     if not folders:
@@ -263,9 +268,9 @@ def capture_scenes(folder) -> tuple[list[SimScene], Rig, str, int]:
     first: Capture | None = None
     for path in folders:
         capture = read_capture(path)
-        if capture.calibration is None or capture.ground_truth is None:
-            raise ValueError(f"{path}: the sim replays captures with a calibration and a ground_truth (gt.npz); "
-                             f"this one lacks {'calibration' if capture.calibration is None else 'ground_truth'}")
+        if capture.calibration is None:
+            raise ValueError(f"{path}: the sim replays captures with a calibration (the rig the cloud node "
+                             f"triangulates with); this one lacks calibration")
         if first is None:
             first, rig = capture, load_rig(capture.calibration)
         elif (capture.camera_size, capture.fringe_axis, capture.phase_shift_sign, capture.projector_size) != \
@@ -280,17 +285,25 @@ def capture_scenes(folder) -> tuple[list[SimScene], Rig, str, int]:
             if isinstance(sequence, PhaseSequence):
                 frames[(sequence.frequency_for(extent), int(sequence.steps))] = \
                     _readonly(load_sequence_images(capture, sequence))
+        references = {}
+        for kind in REFERENCES:
+            image = load_reference(capture, kind)
+            if image is not None:
+                references[kind] = _readonly(image)
+        if capture.ground_truth is None:  # a real rig's scan: frames only
+            width, height = capture.camera_size
+            scenes.append(SimScene(name=path.name, frames=frames,
+                                   projector_coord=_readonly(np.full((height, width), np.nan, np.float32)),
+                                   valid=_readonly(np.zeros((height, width), bool)),
+                                   depth_m=_readonly(np.full((height, width), np.nan, np.float32)),
+                                   references=references, has_truth=False))
+            continue
         truth = load_ground_truth(capture)
         with np.load(capture.ground_truth) as data:
             coord = data["projector_y"] if capture.fringe_axis == "y" and "projector_y" in data.files \
                 else truth.projector_x
             depth = data["depth"] if "depth" in data.files else np.full(truth.valid.shape, np.nan)
         depth_m = (np.asarray(depth, np.float64) * load_rig(capture.calibration).scale_to_m).astype(np.float32)
-        references = {}
-        for kind in REFERENCES:
-            image = load_reference(capture, kind)
-            if image is not None:
-                references[kind] = _readonly(image)
         scenes.append(SimScene(name=path.name, frames=frames,
                                projector_coord=_readonly(np.where(truth.valid, coord, np.nan).astype(np.float32)),
                                valid=_readonly(truth.valid), depth_m=_readonly(depth_m), references=references))

@@ -10,10 +10,11 @@ from dptpu.fpp.calibration import load_rig, save_rig
 from dptpu.fpp.capture import PhaseSequence, load_sequence_images, read_capture
 from dptpu.graph import Parameter
 from dptpu.graph.interfaces import Trigger as TriggerService
-from dptpu.messages import FringeBurst, FringeFrame, Image, PointCloud2
+from dptpu.messages import CameraInfo, FringeBurst, FringeFrame, Image, PointCloud2
 from dptpu.nodes.cloud import CloudNode
 from dptpu.nodes.harness import NodeHarness, fringe_frames
 from dptpu.nodes.phase import PhaseNode
+from dptpu.nodes.plumbing import LATCHED_QOS
 from dptpu.nodes.unwrap import UnwrapNode
 from tests.nodes.test_cloud_scene import plane_scene
 
@@ -27,11 +28,11 @@ def _call(harness, client) -> object:
 FREQUENCIES = (16.0, 1.0)
 
 
-def _scene_and_nodes(harness, tmp_path, **cloud_parameters):
-    """The plane scene's frame stacks, and phase, unwrap and cloud nodes started for it: ``(stacks, cloud node,
-    scene)``."""
+def _scene_and_nodes(harness, tmp_path, rig=None, **cloud_parameters):
+    """The plane scene's frame stacks, and phase, unwrap and cloud nodes started for it (the cloud node given
+    ``rig``, default the scene's): ``(stacks, cloud node, scene)``."""
     scene = plane_scene()
-    rig_path = save_rig(scene.rig, tmp_path / "rig.yaml")
+    rig_path = save_rig(rig or scene.rig, tmp_path / "rig.yaml")
     stacks = [scene.frames(f, seed=index) for index, f in enumerate(FREQUENCIES)]
     harness.start(PhaseNode, timeout_s=1.0, projector_width=912, projector_height=1140)
     harness.start(UnwrapNode, method="mf")
@@ -129,3 +130,32 @@ def test_a_cloud_node_taking_bursts_from_a_camera_side_sending_frames_says_where
     assert answer.success and answer.message.endswith(
         "; no frames of it were received on /camera/frame_bursts (frame_bursts:=true: the camera side must publish "
         "there), so no capture folder"), answer.message
+
+
+def test_the_capture_holds_the_camera_the_cloud_was_triangulated_with(tmp_path):
+    """The rig file's camera at another size than the frames (a launch's size:=), the frames' camera from
+    CameraInfo: the capture's calibration is the camera of the frames, so the capture replays as it was scanned."""
+    import dataclasses
+
+    scene = plane_scene()
+    big = dataclasses.replace(scene.rig, camera=dataclasses.replace(
+        scene.rig.camera, K=scene.rig.camera.K * np.array([[2, 1, 2], [1, 2, 2], [1, 1, 1]]), size=(320, 240)))
+    with NodeHarness() as harness:
+        stacks, cloud_node, _ = _scene_and_nodes(harness, tmp_path, rig=big, use_camera_info=True)
+        camera = harness.publisher(FringeFrame, "/camera/image_raw")
+        info = harness.publisher(CameraInfo, "/camera/camera_info", LATCHED_QOS, connect=False)
+        points = harness.collect(PointCloud2, "/scanner/points")
+        client = harness.probe.create_client(TriggerService, "/cloud/capture_and_save")
+        harness.connect()
+        info.publish(CameraInfo.from_intrinsics(scene.rig.camera.K, scene.rig.camera.dist, 160, 120))
+        assert harness.spin_until(lambda: cloud_node.rig.camera.size == (160, 120), timeout_s=15.0)
+        for frame in fringe_frames(stacks, FREQUENCIES, sequence_id=5):
+            camera.publish(frame)
+        harness.wait(points, 1)
+        answer = _call(harness, client)
+    assert answer.success, answer.message
+    saved = load_rig(read_capture(tmp_path / "saved" / "scan_00000005" / "capture").calibration)
+    assert saved.camera.size == (160, 120)
+    np.testing.assert_allclose(saved.camera.K, scene.rig.camera.K)
+    np.testing.assert_allclose(saved.projector.K, scene.rig.projector.K)  # the rest is the rig file's
+    assert load_rig(tmp_path / "saved" / "scan_00000005" / "calibration.yaml").camera.size == (160, 120)

@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import logging
+import shutil
 
 import numpy as np
 import pytest
@@ -126,6 +127,44 @@ def test_capture_folders_are_replayed_with_their_ground_truth(tmp_path):
     with NodeHarness() as harness:
         frames, truth, _, _ = _run(harness, dict(source=str(tmp_path)), _triggers(1), frames_expected=8)
     assert truth.messages[0].method == "ground_truth:board"
+
+
+def test_a_capture_without_ground_truth_a_real_rigs_scan_is_replayed_without_truth(tmp_path):
+    from dptpu.sim.image_formation import SequenceSpec
+    from dptpu.sim.render import render_capture
+    from dptpu.sim.rig import load_twin_rig
+    from dptpu.sim.scenes import load_scene
+
+    rig = load_twin_rig("nominal", size="64x48")
+    folder = tmp_path / "saved"
+    render_capture(rig, load_scene("plane", rig), [SequenceSpec(16, 4), SequenceSpec(1, 4)], folder)
+    (folder / "gt.npz").unlink()  # as ~/capture_and_save writes a real rig's scan: frames and calibration only
+    text = (folder / "capture.yaml").read_text()
+    (folder / "capture.yaml").write_text(text.replace("ground_truth: gt.npz\n", ""))
+    (scene,), _, _, _ = capture_scenes(folder)
+    assert not scene.has_truth and not scene.valid.any() and np.isnan(scene.depth_m).all()
+    assert scene.stack(16.0, 4).shape == (4, 48, 64)
+    records = _Records()
+    logging.getLogger("dptpu.node").addHandler(records)
+    try:
+        with NodeHarness() as harness:
+            frames, truth, truth_depth, _ = _run(harness, dict(source=str(folder)), _triggers(1) + _triggers(2),
+                                                 frames_expected=16)
+    finally:
+        logging.getLogger("dptpu.node").removeHandler(records)
+    got = sorted(frames.messages, key=lambda m: (m.trigger.sequence_id, m.trigger.pattern_index))
+    for message in got:  # the saved frames, bit for bit
+        expected = scene.stack(message.trigger.frequency, message.trigger.steps)[message.trigger.step]
+        np.testing.assert_array_equal(message.image.to_array(), expected)
+    assert not truth.messages and not truth_depth.messages
+    assert [m for m in records.messages if "has no ground truth" in m] == [
+        "scene saved has no ground truth (its capture has no gt.npz): no /sim/ground_truth for its scans; grade "
+        "them with ground_truth:=false"]  # once, not once a scan
+    shutil.copytree(folder, tmp_path / "bare")
+    (tmp_path / "bare" / "capture.yaml").write_text(text.replace("ground_truth: gt.npz\n", "").replace(
+        "calibration: calibration.yaml\n", ""))
+    with pytest.raises(ValueError, match="this one lacks calibration"):
+        capture_scenes(tmp_path / "bare")
 
 
 def test_bad_parameters_raise_value_errors_naming_them(tmp_path):
