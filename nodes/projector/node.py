@@ -190,8 +190,10 @@ class ProjectorNode(Node):
         if self.burst_pub is None or self.trigger_pub.get_subscription_count():
             self.trigger_pub.publish(trigger)
         if self.burst_pub is not None:
-            if self._entry_triggers and self._entry_triggers[-1].sequence_id != sequence_id:
-                self._publish_trigger_burst()  # a scan cut short left its entry unsent (sent at its end as well)
+            if self._entry_triggers and not _continues_burst(self._entry_triggers[-1], trigger):
+                # a scan cut short, a lost ACK of an entry's last pattern or a repeated ACK: the gathered Triggers
+                # go as they stand (one burst never mixes scans or entries, its pattern_index increases)
+                self._publish_trigger_burst()
             self._entry_triggers.append(trigger)
             if trigger.step + 1 >= frames_in_entry(trigger):  # the entry's last pattern
                 self._publish_trigger_burst()
@@ -260,6 +262,13 @@ class ProjectorNode(Node):
 def main(argv=None) -> int:
     """``python -m dptpu.nodes.projector [--ros-args ...]``; returns the exit code (2 for bad parameters)."""
     return run_node("projector", ProjectorNode, argv)
+
+
+def _continues_burst(last: Trigger, trigger: Trigger) -> bool:
+    """Whether ``trigger`` joins the burst whose latest Trigger is ``last``: the same scan and entry (the entry's
+    first pattern is ``pattern_index - step``), a later pattern (a box may repeat an ACK or lose one)."""
+    return (trigger.sequence_id == last.sequence_id and trigger.pattern_index > last.pattern_index
+            and trigger.pattern_index - trigger.step == last.pattern_index - last.step)
 
 
 def panel_size(projector_size, rig_path: str) -> tuple[int, int]:

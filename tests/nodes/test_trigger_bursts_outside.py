@@ -1,0 +1,63 @@
+"""Trigger bursts from outside (issue 20, 20Y): a trigger box that glitches on the wire, as a new user's box may.
+
+The projector runs as a real process with ``trigger_bursts:=true`` against the trigger-box EMULATOR on a real
+pseudo-terminal (:class:`~dptpu.nodes.projector.emulator.PtyTriggerBox`, in the test process). A real box's ACK line
+can be repeated or lost (noise on the line, a DLP that reports a pattern twice): the emulator is made to do so by a
+FAULT INJECTOR on its outgoing lines (named as such; the emulator itself sends every ACK once). The link accepts such
+ACKs with a warning, and the single Triggers carry them as they came; the bursts must carry the same Triggers, each
+burst of one entry with ``pattern_index`` increasing (the message refuses anything else), and the node must go on.
+"""
+
+from __future__ import annotations
+
+from dptpu.messages import ScanStatus, Trigger, TriggerBurst
+from dptpu.nodes.projector.emulator import PtyTriggerBox
+
+NODE = "dptpu.nodes.projector"
+FAST = ["-p", "reconnect_initial_s:=0.1", "-p", "reconnect_max_s:=0.4", "-p", "reply_timeout_s:=0.5",
+        "-p", "ack_timeout_s:=0.3"]
+
+
+def inject_ack_faults(box: PtyTriggerBox, scan_id: int, repeat: int, lose: int) -> None:
+    """FAULT INJECTOR: during scan ``scan_id`` the box sends pattern ``repeat``'s ACK twice and never ``lose``'s."""
+    due = box.emulator.due
+    repeated, lost = f"ACK {scan_id} {repeat}\n".encode(), f"ACK {scan_id} {lose}\n".encode()
+
+    def faulty_due(now: float) -> list[bytes]:
+        lines = []
+        for line in due(now):
+            if line != lost:
+                lines.append(line)
+            if line == repeated:
+                lines.append(line)
+        return lines
+
+    box.emulator.due = faulty_due  # type: ignore[method-assign]
+
+
+def test_a_repeated_and_a_lost_ack_give_the_single_triggers_order_in_bursts_of_one_entry(spawn_node, probe,
+                                                                                         tmp_path):
+    bursts = probe.subscribe(TriggerBurst, "/projector/trigger_bursts")
+    singles = probe.subscribe(Trigger, "/projector/trigger")
+    status = probe.subscribe(ScanStatus, "/scanner/status")
+    with PtyTriggerBox(link=tmp_path / "box") as box:
+        inject_ack_faults(box, scan_id=1, repeat=2, lose=3)  # 3: the first entry's last pattern (8x4)
+        node = spawn_node(NODE, "--ros-args", "-p", f"port:={box.port}", "-p", "sequence:=8x4,1x3", "-p",
+                          "exposure_us:=2000", *FAST, "-p", "trigger_bursts:=true", "-p", "scans:=2", "-p",
+                          "min_subscribers:=2")
+        try:
+            first, second = status.wait(2, timeout=20)[:2]
+        except AssertionError as exc:
+            raise AssertionError(f"{exc}; the projector's stderr:\n{node.stderr}") from None
+        # the box reported all 7 done and the last ACK was pattern 6: the link calls the scan done (pattern 3's
+        # frame is missing downstream, where the phase node fails the scan naming it)
+        assert (first.sequence_id, first.state, second.sequence_id, second.state) == (1, "done", 2, "done")
+        bursts.wait_for(lambda _: sum(b.triggers[0].sequence_id == 2 for b in bursts.messages) >= 2, timeout=10)
+        got = {scan: [[t.pattern_index for t in b.triggers] for b in bursts.messages
+                      if b.triggers[0].sequence_id == scan] for scan in (1, 2)}
+        # scan 1: the repeat starts a new burst (indices must increase), the lost boundary ACK does not merge the
+        # first entry's patterns into the second's burst; scan 2: the link thread lived on
+        assert got == {1: [[0, 1, 2], [2], [4, 5, 6]], 2: [[0, 1, 2, 3], [4, 5, 6]]}
+        singles.wait_for(lambda _: sum(t.sequence_id == 1 for t in singles.messages) >= 7, timeout=10)
+        assert [t.pattern_index for t in singles.messages if t.sequence_id == 1] == [0, 1, 2, 2, 4, 5, 6]
+        assert node.proc.poll() is None
