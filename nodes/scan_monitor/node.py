@@ -8,7 +8,9 @@ reported it failed (``FAILED``, with the node and the reason), or when nothing m
 (``LOST``). With ground truth a scan whose cloud arrived is ``ok`` only within the bounds ``max_wrong_share`` (the
 share of its published points with a wrong fringe order or off the true surface) and ``min_completeness`` (the
 share of the truly valid pixels published); otherwise it is ``UNTRUSTED``, with the figure out of bounds
-(:func:`dptpu.nodes.scan_monitor.scan_metrics.trust_verdict`). While two live nodes share the name of one of its
+(:func:`dptpu.nodes.scan_monitor.scan_metrics.trust_verdict`); one whose truth (or absolute phase) did not come
+within a second of its cloud (a replayed capture without ``gt.npz``) is ``ok (not graded: ...)``, naming what did
+not come, and the summary counts them. While two live nodes share the name of one of its
 ``status_nodes`` (or its own), two graphs run in one domain and their scans mix: every scan whose cloud arrived is
 ``UNTRUSTED`` with that reason, and the monitor says once what to do (a domain of its own for each graph:
 ``dptpu launch --domain-id N``; docs/launch.md).
@@ -172,6 +174,7 @@ class ScanMonitorNode(Node):
         self.records: list[dict] = []
         self.reported = 0
         self.counts = {"ok": 0, "untrusted": 0, "failed": 0, "lost": 0}
+        self.not_graded = 0  # ground_truth true: scans with a cloud but no figures against the truth
         self._latencies_ms = LatencyHistogram()  # every ok scan's latency, in fixed memory (p50, p99)
         self._pooled: dict[str, float] = {"compared": 0, "errors": 0, "depth_pixels": 0, "depth_squares": 0.0,
                                           "published": 0, "wrong": 0, "truly_valid": 0, "published_truly_valid": 0}
@@ -481,6 +484,9 @@ class ScanMonitorNode(Node):
         if scan.cloud is not None:
             record.update(self._figures(scan, scan.cloud, truth))
             record["outcome"] = "ok"
+            if self.use_truth and "wrong_share" not in record:
+                record["not_graded"] = self._why_not_graded(scan)
+                self.not_graded += 1
             if "wrong_share" in record:
                 reason = trust_verdict(record["wrong_share"], record["completeness"],
                                        max_wrong_share=self.max_wrong_share, min_completeness=self.min_completeness)
@@ -522,6 +528,16 @@ class ScanMonitorNode(Node):
                 self.write_summary()
         self._start_more()
 
+    @staticmethod
+    def _why_not_graded(scan: _Scan) -> str:
+        """Why a scan with a cloud got no figures against the ground truth (``ground_truth`` true): what did not come
+        within the grace after its cloud (a replayed capture without ``gt.npz`` sends no truth), or sizes unlike."""
+        missing = [name for name, part in (("ground truth", scan.truth), ("true depth", scan.truth_depth),
+                                           ("absolute phase", scan.absolute_phase)) if part is None]
+        if missing:
+            return f"no {', '.join(missing)} within {_GRACE_S:g} s of its cloud"
+        return "its absolute phase, ground truth and cloud differ in size"
+
     def _figures(self, scan: _Scan, cloud: PointCloud2, truth) -> dict[str, Any]:
         """The figures of ``scan``, whose cloud is ``cloud``."""
         xyz = cloud.to_array(["x", "y", "z"]) if truth is not None else None  # (H, W, 3) metres
@@ -554,6 +570,8 @@ class ScanMonitorNode(Node):
         if record["outcome"] not in ("ok", "untrusted"):
             return f"{head}: {record['outcome'].upper()}: {record['reason']}"
         verdict = "ok" if record["outcome"] == "ok" else f"UNTRUSTED ({record['reason']})"
+        if record.get("not_graded"):
+            verdict += f" (not graded: {record['not_graded']})"
         text = f"{head}: {verdict}, {record['valid_points']:,} points"
         if "wrong_share" in record:
             text += f", {100.0 * record['wrong_share']:.3f} % wrong, {100.0 * record['completeness']:.1f} % complete"
@@ -582,6 +600,8 @@ class ScanMonitorNode(Node):
     def totals(self) -> dict[str, float]:
         """Counts and figures over every reported scan (accuracy and RMS pooled over pixels)."""
         totals: dict[str, float] = dict(self.counts, scans=self.reported)
+        if self.not_graded:
+            totals["not_graded"] = self.not_graded
         if self._latencies_ms:
             totals["latency_ms_p50"] = self._latencies_ms.percentile(50)
             totals["latency_ms_p99"] = self._latencies_ms.percentile(99)
@@ -599,6 +619,8 @@ class ScanMonitorNode(Node):
     def summary_line(self) -> str:
         t = self.totals()
         text = f"{t['scans']} scans: {t['ok']} ok, {t['untrusted']} untrusted, {t['failed']} failed, {t['lost']} lost"
+        if t.get("not_graded"):
+            text += f" ({t['not_graded']} with a cloud not graded against the ground truth)"
         if "wrong_share" in t:
             text += f"; {100.0 * t['wrong_share']:.3f} % of the points wrong"
             if "completeness" in t:

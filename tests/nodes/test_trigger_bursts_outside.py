@@ -10,9 +10,12 @@ burst of one entry with ``pattern_index`` increasing (the message refuses anythi
 
 from __future__ import annotations
 
+from pathlib import Path
+
 from dptpu.messages import ScanStatus, Trigger, TriggerBurst
 from dptpu.nodes.projector.emulator import PtyTriggerBox
 
+REPO_ROOT = Path(__file__).resolve().parents[2]
 NODE = "dptpu.nodes.projector"
 FAST = ["-p", "reconnect_initial_s:=0.1", "-p", "reconnect_max_s:=0.4", "-p", "reply_timeout_s:=0.5",
         "-p", "ack_timeout_s:=0.3"]
@@ -61,3 +64,50 @@ def test_a_repeated_and_a_lost_ack_give_the_single_triggers_order_in_bursts_of_o
         singles.wait_for(lambda _: sum(t.sequence_id == 1 for t in singles.messages) >= 7, timeout=10)
         assert [t.pattern_index for t in singles.messages if t.sequence_id == 1] == [0, 1, 2, 2, 4, 5, 6]
         assert node.proc.poll() is None
+
+
+def test_a_capture_without_ground_truth_replayed_with_ground_truth_true_is_ok_but_said_not_graded(node_env, tmp_path):
+    """The sim rig (trigger and frame bursts, its defaults) replays a saved scan without gt.npz, as
+    ``~/capture_and_save`` writes a real rig's, with ``ground_truth:=true``: before, every scan said a bare ``ok``
+    though nothing was graded (the sim warns once on its own line); the monitor now says it on each scan's line and
+    in the summary."""
+    from dptpu.fpp.capture import load_ground_truth, read_capture
+    from dptpu.sim.image_formation import SequenceSpec
+    from dptpu.sim.render import render_capture
+    from dptpu.sim.rig import load_twin_rig
+    from dptpu.sim.scenes import load_scene
+    from tests.launch_files.running import LaunchRun
+
+    rig = load_twin_rig("nominal", size="160x120")
+    folder = tmp_path / "saved"
+    render_capture(rig, load_scene("sphere", rig), [SequenceSpec(16, 4), SequenceSpec(1, 4)], folder)
+    truly_valid = int(load_ground_truth(read_capture(folder)).valid.sum())  # the sphere's pixels the truth decodes
+    (folder / "gt.npz").unlink()
+    text = (folder / "capture.yaml").read_text()
+    (folder / "capture.yaml").write_text(text.replace("ground_truth: gt.npz\n", ""))
+    run = LaunchRun(REPO_ROOT / "launch" / "sim_rig.yaml", "scans:=2", "size:=160x120", "sequence:=16x4,1x4",
+                    "method:=mf", "model:=none", "ply_dir:=", f"source:={folder}",
+                    f"rig:={folder / 'calibration.yaml'}", "ground_truth:=true", env=node_env, cwd=tmp_path)
+    try:
+        code = run.wait(timeout=180)
+    finally:
+        run.close()
+    assert code == 0, run.text()
+    lines = [line for line in run.lines if line.startswith("[scan_monitor] scan ")]
+    assert len(lines) == 2, run.text()
+    graded_not = "ok (not graded: no ground truth, true depth within 1 s of its cloud), "
+    points = {line.partition(graded_not)[2].partition(" points")[0] for line in lines}
+    assert all(graded_not in line for line in lines) and len(points) == 1, lines  # the same frames, the same cloud
+    # the sphere's cloud: most of the truly valid pixels (graded, the monitor's bound is 50 %), not a pixel more
+    assert 0.5 * truly_valid <= int(points.pop().replace(",", "")) <= truly_valid, (lines, truly_valid)
+    assert any("2 scans: 2 ok, 0 untrusted, 0 failed, 0 lost (2 with a cloud not graded against the ground truth)"
+               in line for line in run.lines), run.text()
+
+
+def test_the_monitor_line_of_a_scan_not_graded_names_what_did_not_come():
+    from dptpu.nodes.scan_monitor.node import ScanMonitorNode
+
+    record = {"sequence_id": 4, "scene": "", "outcome": "ok", "valid_points": 1123, "latency_ms": 21.4,
+              "not_graded": "no ground truth, true depth within 1 s of its cloud"}
+    assert ScanMonitorNode._line(record) == (
+        "scan 4: ok (not graded: no ground truth, true depth within 1 s of its cloud), 1,123 points, latency 21 ms")
