@@ -254,6 +254,7 @@ class ProjectorLink:
     def _scan(self, scan_id: int) -> None:
         count = self.sequence.pattern_count
         displayed = 0
+        acknowledged: set[int] = set()  # a box may lose an ACK on the line: its pattern got no Trigger
         try:
             self._write(Command("START", scan_id=scan_id))
             started = self._expect("STARTED", time.monotonic() + self.reply_timeout_s, "START")
@@ -271,10 +272,14 @@ class ProjectorLink:
                         self.logger.warning(f"scan {scan_id}: box acknowledged pattern {reply.index}, "
                                             f"expected {displayed}")
                     displayed = reply.index + 1
+                    acknowledged.add(reply.index)
                     self.on_pattern(scan_id, reply.index)
                 elif reply.kind == "DONE" and reply.scan_id == scan_id:
-                    reason = "" if displayed == count == reply.count else \
-                        f"the box reported {reply.count} patterns done, {displayed} of {count} acknowledged"
+                    unacknowledged = sorted(set(range(count)) - acknowledged)
+                    reason = "" if displayed == count == reply.count and not unacknowledged else \
+                        f"the box reported {reply.count} patterns done, {len(acknowledged)} of {count} acknowledged" \
+                        + (f" (no ACK of pattern(s) {', '.join(map(str, unacknowledged[:8]))})" if unacknowledged
+                           else "")
                     self.on_scan_end(scan_id, displayed, reason)
                     return
                 elif reply.kind == "ABORT" and reply.scan_id == scan_id:

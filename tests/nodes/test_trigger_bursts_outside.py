@@ -5,7 +5,8 @@ pseudo-terminal (:class:`~dptpu.nodes.projector.emulator.PtyTriggerBox`, in the 
 can be repeated or lost (noise on the line, a DLP that reports a pattern twice): the emulator is made to do so by a
 FAULT INJECTOR on its outgoing lines (named as such; the emulator itself sends every ACK once). The link accepts such
 ACKs with a warning, and the single Triggers carry them as they came; the bursts must carry the same Triggers, each
-burst of one entry with ``pattern_index`` increasing (the message refuses anything else), and the node must go on.
+burst of one entry with ``pattern_index`` increasing (the message refuses anything else), the scan with a pattern
+never acknowledged must fail naming it, and the node must go on.
 """
 
 from __future__ import annotations
@@ -52,9 +53,10 @@ def test_a_repeated_and_a_lost_ack_give_the_single_triggers_order_in_bursts_of_o
             first, second = status.wait(2, timeout=20)[:2]
         except AssertionError as exc:
             raise AssertionError(f"{exc}; the projector's stderr:\n{node.stderr}") from None
-        # the box reported all 7 done and the last ACK was pattern 6: the link calls the scan done (pattern 3's
-        # frame is missing downstream, where the phase node fails the scan naming it)
-        assert (first.sequence_id, first.state, second.sequence_id, second.state) == (1, "done", 2, "done")
+        # the box reported all 7 done, but pattern 3 got no Trigger (so no frame downstream): not a done scan
+        assert (first.sequence_id, first.state, second.sequence_id, second.state) == (1, "failed", 2, "done")
+        assert first.reason == "projector: the box reported 7 patterns done, 6 of 7 acknowledged (no ACK of " \
+                               "pattern(s) 3)"
         bursts.wait_for(lambda _: sum(b.triggers[0].sequence_id == 2 for b in bursts.messages) >= 2, timeout=10)
         got = {scan: [[t.pattern_index for t in b.triggers] for b in bursts.messages
                       if b.triggers[0].sequence_id == scan] for scan in (1, 2)}
