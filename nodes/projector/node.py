@@ -90,6 +90,8 @@ from .protocol import SequenceSpec, parse_sequence_spec, split_references
 
 __all__ = ["DLP4500_SIZE", "ProjectorNode", "main", "panel_size"]
 
+#: Seconds the node's own scans wait for ``min_subscribers`` before it says so, once.
+_SUBSCRIBER_WAIT_S = 5.0
 #: ``(width, height)`` of the DLP LightCrafter 4500's panel, the projector size without a rig or a size.
 DLP4500_SIZE = (912, 1140)
 
@@ -146,6 +148,8 @@ class ProjectorNode(Node):
         self._scan_started: dict[int, float] = {}   # sequence_id -> monotonic start, for ScanStatus.duration_s
         self._auto_started = 0
         self._next_auto_start = -float("inf")  # monotonic s when the next of the node's own scans is due
+        self._waiting_since_s: float | None = None  # monotonic s since the own scans wait for subscribers
+        self._wait_said = False
         self.sequence_pub.publish(self.pattern_sequence())
         self.link = ProjectorLink(port, self.spec, logger=self.get_logger(), on_pattern=self.on_pattern,
                                   on_scan_end=self.on_scan_end, baudrate=baudrate, reply_timeout_s=reply_timeout_s,
@@ -170,9 +174,12 @@ class ProjectorNode(Node):
             self.get_logger().info(f"started the {self.scans} scan(s) asked for by the scans parameter")
             return
         now_s = time.monotonic()
-        if not self.link.connected or self.link.busy or now_s < self._next_auto_start \
-                or self._trigger_subscriptions() < self.min_subscribers:
+        if not self.link.connected or self.link.busy or now_s < self._next_auto_start:
             return
+        if self._trigger_subscriptions() < self.min_subscribers:
+            self._say_scans_wait(now_s)
+            return
+        self._waiting_since_s = None
         _, reason = self.start_scan()
         if not reason:
             self._auto_started += 1
@@ -244,6 +251,21 @@ class ProjectorNode(Node):
         """Subscriptions of the Triggers, one by one and (with ``trigger_bursts``) as bursts: who hears a scan."""
         bursts = self.burst_pub.get_subscription_count() if self.burst_pub is not None else 0
         return self.trigger_pub.get_subscription_count() + bursts
+
+    def _say_scans_wait(self, now_s: float) -> None:
+        """The own scans wait for ``min_subscribers``: say once, after :data:`_SUBSCRIBER_WAIT_S`, who listens (a
+        listener left out, e.g. the scan monitor at ``monitor_triggers:=false``, stopped the scans without a word)."""
+        if self._waiting_since_s is None:
+            self._waiting_since_s = now_s
+        if self._wait_said or now_s - self._waiting_since_s < _SUBSCRIBER_WAIT_S:
+            return
+        self._wait_said = True
+        topics = ["/projector/trigger"] + (["/projector/trigger_bursts"] if self.burst_pub is not None else [])
+        listeners = sorted({info.node for topic in topics for info in self.get_subscriptions_info_by_topic(topic)})
+        self.get_logger().warning(
+            f"its own scans wait for {self.min_subscribers} subscription(s) of {' and '.join(topics)} "
+            f"(min_subscribers) and have had {self._trigger_subscriptions()} for {_SUBSCRIBER_WAIT_S:g} s "
+            f"(from {', '.join(listeners) or 'no node'}): start the missing listener, or lower min_subscribers")
 
     def _publish_trigger_burst(self) -> None:
         """Link thread: publish the entry's Triggers gathered so far as one TriggerBurst."""

@@ -11,6 +11,7 @@ never acknowledged must fail naming it, and the node must go on.
 
 from __future__ import annotations
 
+import time
 from pathlib import Path
 
 from dptpu.messages import ScanStatus, Trigger, TriggerBurst
@@ -113,3 +114,25 @@ def test_the_monitor_line_of_a_scan_not_graded_names_what_did_not_come():
               "not_graded": "no ground truth, true depth within 1 s of its cloud"}
     assert ScanMonitorNode._line(record) == (
         "scan 4: ok (not graded: no ground truth, true depth within 1 s of its cloud), 1,123 points, latency 21 ms")
+
+
+def test_own_scans_waiting_for_a_listener_say_so_once_and_start_when_it_comes(spawn_node, probe):
+    """``in_flight:=0 projector_scans:=-1 monitor_triggers:=false`` on the sim rig: the projector's own scans wait
+    for 2 subscriptions (the sim's and the monitor's, launch/params/projector_sim.yaml) and the monitor takes no
+    Triggers; before, no scan ever started and nothing said why."""
+    bursts = probe.subscribe(TriggerBurst, "/projector/trigger_bursts")  # the sim: one listener of two
+    status = probe.subscribe(ScanStatus, "/scanner/status")
+    node = spawn_node(NODE, "--ros-args", "-p", "port:=loop://", "-p", "sequence:=8x4,1x3", "-p",
+                      "exposure_us:=2000", *FAST, "-p", "trigger_bursts:=true", "-p", "scans:=1", "-p",
+                      "min_subscribers:=2")
+    said = "its own scans wait for 2 subscription(s) of /projector/trigger and /projector/trigger_bursts " \
+           "(min_subscribers) and have had 1 for 5 s (from /probe): start the missing listener, or lower " \
+           "min_subscribers"
+    deadline = time.monotonic() + 20
+    while said not in node.stderr and time.monotonic() < deadline:
+        time.sleep(0.1)
+    assert said in node.stderr and not status.messages
+    probe.subscribe(Trigger, "/projector/trigger")  # the second listener comes: the scan starts
+    assert status.wait(1, timeout=20)[0].state == "done"
+    assert [[t.pattern_index for t in b.triggers] for b in bursts.messages] == [[0, 1, 2, 3], [4, 5, 6]]
+    assert node.stderr.count("its own scans wait") == 1
