@@ -18,6 +18,7 @@ from __future__ import annotations
 import queue
 import threading
 import time
+import traceback
 from typing import Protocol
 
 import serial
@@ -171,6 +172,12 @@ class ProjectorLink:
                                   f"(attempt {attempt})")
                 self._close()
                 self._stop.wait(delay_s)
+            except Exception as exc:  # noqa: BLE001 -- a callback's bug: the thread ending would end every scan
+                self.failures += 1
+                self.logger.error(f"trigger box on {self.port_name}: {type(exc).__name__} in the link (a bug): {exc}; "
+                                  f"reconnecting in {self.initial_s:.2f} s\n{traceback.format_exc()}")
+                self._close()
+                self._stop.wait(self.initial_s)
             finally:
                 self._connected.clear()
         self._close()
@@ -294,8 +301,9 @@ class ProjectorLink:
                     self.garbage_lines += 1
                     self.logger.warning(f"scan {scan_id}: ignored {reply.kind} line of scan {reply.scan_id}",
                                         throttle_duration_sec=1.0)
-        except LinkError as exc:
-            self.on_scan_end(scan_id, displayed, f"{displayed} of {count} patterns displayed; {exc}")
+        except Exception as exc:  # a LinkError, or a callback's bug: the scan fails with it (traceback: _run's log)
+            detail = str(exc) if isinstance(exc, LinkError) else f"{type(exc).__name__}: {exc}"
+            self.on_scan_end(scan_id, displayed, f"{displayed} of {count} patterns displayed; {detail}")
             raise
 
     # --- lines -----------------------------------------------------------------------------------

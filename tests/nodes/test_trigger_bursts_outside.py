@@ -136,3 +136,58 @@ def test_own_scans_waiting_for_a_listener_say_so_once_and_start_when_it_comes(sp
     assert status.wait(1, timeout=20)[0].state == "done"
     assert [[t.pattern_index for t in b.triggers] for b in bursts.messages] == [[0, 1, 2, 3], [4, 5, 6]]
     assert node.stderr.count("its own scans wait") == 1
+
+
+class _Log:
+    """The link's logger, kept: ``error`` lines in ``errors``."""
+
+    def __init__(self):
+        self.errors: list[str] = []
+
+    def info(self, message, **_):
+        pass
+
+    def warning(self, message, **_):
+        pass
+
+    def error(self, message, **_):
+        self.errors.append(message)
+
+
+def test_a_callback_that_raises_fails_its_scan_and_the_link_goes_on():
+    """Before, any exception but a LinkError in ``on_pattern`` (as the repeated ACK's burst raised) ended the link
+    thread: that scan never ended and no later scan ran, while the node stayed up saying the box was not connected."""
+    import threading
+
+    from dptpu.nodes.projector.link import ProjectorLink
+    from dptpu.nodes.projector.protocol import SequenceSpec, parse_sequence_spec
+
+    ended: list[tuple[int, int, str]] = []
+    done = threading.Event()
+
+    def on_pattern(scan_id, index):
+        if (scan_id, index) == (1, 2):
+            raise ValueError("a bug in a callback")
+
+    def on_scan_end(scan_id, displayed, reason):
+        ended.append((scan_id, displayed, reason))
+        if scan_id == 2:
+            done.set()
+
+    log = _Log()
+    link = ProjectorLink("loop://", SequenceSpec("x", (912, 1140), 2000, parse_sequence_spec("8x4,1x3"), ()),
+                         logger=log, on_pattern=on_pattern, on_scan_end=on_scan_end, initial_s=0.05, max_s=0.1)
+    link.start()
+    try:
+        deadline = time.monotonic() + 10
+        while not link.connected and time.monotonic() < deadline:
+            time.sleep(0.01)
+        assert link.request_scan(1) == ""
+        while not (log.errors and link.connected and not link.busy) and time.monotonic() < deadline:
+            time.sleep(0.01)
+        assert link.request_scan(2) == ""
+        assert done.wait(10), (ended, log.errors)
+    finally:
+        link.close()
+    assert ended == [(1, 3, "3 of 7 patterns displayed; ValueError: a bug in a callback"), (2, 7, "")]
+    assert "ValueError in the link (a bug): a bug in a callback" in log.errors[0] and "Traceback" in log.errors[0]
