@@ -47,6 +47,8 @@ topic                         type              dir   notes
                                                       statuses (and the absolute phase and truth) have publishers,
                                                       so a projector with ``min_subscribers: 2`` waits for the
                                                       monitor too; gives each scan's first Trigger
+``/projector/trigger_bursts`` TriggerBurst      in    instead, with ``trigger_bursts``: an entry's Triggers in one
+                                                      message (the projector's ``trigger_bursts:=true``)
 ============================= ================= ===== ============================================================
 
 Parameters
@@ -84,9 +86,12 @@ name                 default  meaning
 ``trigger_latency``  true     take the Triggers (every pattern's) for ``latency_from_first_trigger_ms``; false:
                               clouds and statuses only, as a robot subscribes (``dptpu bench pipeline``'s
                               throughput run: 24 messages a 2 x 12-step scan less; docs/benchmarks.md)
+``trigger_bursts``   false    with ``trigger_latency``: take them as the projector's TriggerBursts (an entry's in one
+                              message; then the projector sends no single Trigger for the monitor alone)
 ==================== ======== ==================================================================================
 
-``ground_truth``, ``start_scans``, ``start_service``, ``status_nodes`` and ``trigger_latency`` set the subscriptions
+``ground_truth``, ``start_scans``, ``start_service``, ``status_nodes``, ``trigger_latency`` and ``trigger_bursts`` set
+the subscriptions
 and the client up and are read-only; the others apply at run time (``dptpu param set /scan_monitor
 min_completeness 0.6``), checked as at start-up.
 """
@@ -112,7 +117,7 @@ from dptpu.graph.processes import process_alive
 from dptpu.graph.qos import QoSProfile
 from dptpu.graph.subscription import Subscription
 from dptpu.graph.task import Future
-from dptpu.messages import AbsolutePhase, DiagnosticArray, Image, PointCloud2, ScanStatus, Trigger
+from dptpu.messages import AbsolutePhase, DiagnosticArray, Image, PointCloud2, ScanStatus, Trigger, TriggerBurst
 from dptpu.nodes.node_main import run_node
 
 from .latency_histogram import LatencyHistogram
@@ -163,6 +168,7 @@ class ScanMonitorNode(Node):
         self.start_scans = rules.read_only("start_scans", 0, description=wiring)
         start_service = rules.read_only("start_service", "projector/start_scan", description=wiring)  # in its namespace
         self.trigger_latency = rules.read_only("trigger_latency", True, description=wiring)
+        self.trigger_bursts = rules.read_only("trigger_bursts", False, description=wiring)
         status_nodes = tuple(rules.read_only("status_nodes", list(_STATUS_NODES), description=wiring))
         self.start_timeout_s = float(rules.settable("start_timeout_s", 2.0, check=greater_than(0.0)))
         self.max_wrong_share = float(rules.settable("max_wrong_share", MAX_WRONG_SHARE, check=within(0.0, 1.0)))
@@ -230,6 +236,11 @@ class ScanMonitorNode(Node):
         scan = self._scan(msg.sequence_id)
         if scan is not None and not scan.first_trigger_ns:
             scan.first_trigger_ns = msg.header.stamp.to_ns()
+
+    def on_trigger_burst(self, msg: TriggerBurst) -> None:
+        """An entry's Triggers: the first names its scan's first pattern when the entry is the scan's first seen."""
+        if msg.triggers:
+            self.on_trigger(msg.triggers[0])
 
     def on_cloud(self, msg: PointCloud2) -> None:
         # a cloud carries its scan's stamp, not its sequence_id: the scan is named by the AbsolutePhase of that
@@ -300,7 +311,10 @@ class ScanMonitorNode(Node):
                 and self.status_sub.get_publisher_count() \
                 and all(sub is None or sub.get_publisher_count() for sub in (self.phase_sub, self.truth_sub)):
             self._outputs_ready = True
-            if self.trigger_latency:
+            if self.trigger_latency and self.trigger_bursts:
+                self.trigger_sub = self.create_subscription(TriggerBurst, self._trigger_bursts_topic,
+                                                            self.on_trigger_burst, 20, publishers=SOLE_PUBLISHER)
+            elif self.trigger_latency:
                 self.trigger_sub = self.create_subscription(Trigger, self._trigger_topic, self.on_trigger, 200,
                                                             publishers=SOLE_PUBLISHER)  # made-up scans: refused
             self.get_logger().info("clouds, statuses" + (", absolute phase and ground truth" if self.use_truth else "")
@@ -335,8 +349,8 @@ class ScanMonitorNode(Node):
             # the camera (sim) must hear the Triggers, one by one or as the projector's TriggerBursts (this monitor,
             # when it takes them, is one more subscriber of the Triggers)
             own = 1 if self.trigger_sub is not None else 0
-            self._triggers_heard = (self.count_subscribers(self._trigger_topic) - own
-                                    + self.count_subscribers(self._trigger_bursts_topic)) >= 1
+            self._triggers_heard = (self.count_subscribers(self._trigger_topic)
+                                    + self.count_subscribers(self._trigger_bursts_topic) - own) >= 1
             self._heard_checked_s = now_s if self._triggers_heard else -math.inf
         if not self._triggers_heard:
             return

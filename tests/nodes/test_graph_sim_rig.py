@@ -61,6 +61,10 @@ def test_n_scans_through_the_whole_graph_meet_the_documented_bounds_and_a_droppe
     assert [records[i]["scene"] for i in range(1, 5)] == ["random-1", "sphere", "random-2", "board-11x8"]
     for sequence_id in (1, 2, 3, 4, 6):  # scan 6 comes right after the incomplete one
         _check_scan(records[sequence_id])
+        # the monitor's first pattern of each scan, from the projector's TriggerBursts (the sim rig's default): 24
+        # patterns of 1.333 ms before the last frame's stamp, which the cloud's latency counts from
+        record = records[sequence_id]
+        assert record["latency_from_first_trigger_ms"] > record["latency_ms"] > 0, record
     assert records[5]["outcome"] == "failed", records[5]
     assert "/phase: incomplete after 2 s: received 23 of 24 frames; missing pattern 5 (f=16 step 5)" \
         in records[5]["reason"]
