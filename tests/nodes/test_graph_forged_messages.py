@@ -109,8 +109,8 @@ def test_forged_sequence_configuration_and_statuses_neither_stop_nor_fool_the_sc
                     time.sleep(0.01)
         if "trigger" in forge:  # 5. real Triggers copied for the next scans and a made-up one, from a second node
             real = {t.pattern_index: t for t in list(triggers.messages)[-48:]}  # one scan's patterns
-            trigger_pub = probe.publisher(Trigger, "/projector/trigger", 200)  # the monitor takes these
-            burst_pub = probe.publisher(TriggerBurst, "/projector/trigger_bursts", 20)  # the sim takes bursts
+            trigger_pub = probe.publisher(Trigger, "/projector/trigger", 200)  # a camera node would take these
+            burst_pub = probe.publisher(TriggerBurst, "/projector/trigger_bursts", 20)  # the sim and monitor take
             time.sleep(1.0)  # the sim and the monitor have seen the new publishers (and refused them)
             latest = max(s[0] for s in run.scans())
             for sequence_id in [*range(latest + 2, latest + 8), FORGED_TRIGGER_SCAN]:
@@ -143,7 +143,7 @@ def test_forged_sequence_configuration_and_statuses_neither_stop_nor_fool_the_sc
                                  ("cloud", "/camera/camera_info", "info"), ("unwrap", "/camera/camera_info", "info"),
                                  ("scan_monitor", "/scanner/status", "status"),
                                  ("sim", "/projector/trigger_bursts", "trigger"),
-                                 ("scan_monitor", "/projector/trigger", "trigger")):
+                                 ("scan_monitor", "/projector/trigger_bursts", "trigger")):
         assert forgery not in forge or any(
             line.startswith(f"[{node}]") and f"refusing the publisher of {topic} of node /probe" in line
             for line in run.lines), f"{node} did not refuse the forged {topic}:\n{run.text(200)}"
