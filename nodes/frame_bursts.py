@@ -12,18 +12,22 @@ reference frame is a burst of one). Pure logic, time passed in, like the phase n
   twice the latest spacing of two frames of one scan where that is longer, so that a camera slower than
   ``1 / max_wait_s`` frames a second (a long exposure, the sim's ``frame_rate_hz``) still sends an entry as one burst
   (with a fixed wait each of its frames went alone, in a buffer of the whole entry).
+
+Shared by every side that gathers or sends an entry at once: :func:`continues_entry` (the projector's TriggerBursts
+too), :func:`loaned_buffer` and :func:`burst_message` (the sim and camera nodes).
 """
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
 
-from dptpu.messages import Trigger
+from dptpu.messages import FringeBurst, Header, Time, Trigger
 from dptpu.messages.scanner import REFERENCE_KINDS
 
-__all__ = ["Burst", "FrameBursts", "frames_in_entry"]
+__all__ = ["Burst", "FrameBursts", "burst_message", "continues_entry", "frames_in_entry", "loaned_buffer"]
 
 
 def frames_in_entry(trigger: Trigger) -> int:
@@ -31,6 +35,31 @@ def frames_in_entry(trigger: Trigger) -> int:
     if trigger.kind in REFERENCE_KINDS or trigger.steps < 1:
         return 1
     return int(trigger.steps)
+
+
+def continues_entry(last: Trigger, trigger: Trigger) -> bool:
+    """Whether ``trigger`` is a later pattern of ``last``'s entry: the same scan, a phase pattern of the same
+    frequency and steps, the same first pattern (``pattern_index - step``), a later step (a repeated or lost one
+    is not)."""
+    return (trigger.sequence_id == last.sequence_id and trigger.kind == last.kind == "phase"
+            and trigger.steps == last.steps and trigger.frequency == last.frequency
+            and trigger.pattern_index - trigger.step == last.pattern_index - last.step and trigger.step > last.step)
+
+
+def loaned_buffer(publisher, shape: tuple[int, ...], dtype) -> np.ndarray:
+    """A burst's (N, H, W) buffer: lent by ``publisher`` where a loan pays (published without a copy), else a new
+    array (which ZeroMQ sends without a copy)."""
+    dtype = np.dtype(dtype)
+    if not publisher.can_loan_messages(math.prod(shape) * dtype.itemsize):
+        return np.empty(shape, dtype)
+    (buffer,) = publisher.borrow_loaned_arrays([(shape, dtype)])
+    return buffer
+
+
+def burst_message(burst: Burst, frame_id: str) -> FringeBurst:
+    """The FringeBurst of ``burst``: its frames (a view of its buffer), stamped with its last frame's stamp."""
+    header = Header(stamp=Time.from_ns(burst.last_stamp_ns), frame_id=frame_id)
+    return FringeBurst.from_frames(burst.frames, burst.triggers, header=header)
 
 
 @dataclass
@@ -124,9 +153,5 @@ class FrameBursts:
     def _joins(pending: Burst, trigger: Trigger, frame: np.ndarray) -> bool:
         """Whether ``frame`` is the next frame of ``pending``'s entry: same scan and entry, the next pattern, the
         same size and dtype."""
-        last = pending.triggers[-1]
-        return (trigger.sequence_id == last.sequence_id and trigger.kind == last.kind == "phase"
-                and trigger.steps == last.steps and trigger.frequency == last.frequency
-                and trigger.pattern_index - trigger.step == last.pattern_index - last.step
-                and trigger.step > last.step and len(pending.triggers) < pending.buffer.shape[0]
+        return (continues_entry(pending.triggers[-1], trigger) and len(pending.triggers) < pending.buffer.shape[0]
                 and frame.shape == pending.buffer.shape[1:] and frame.dtype == pending.buffer.dtype)

@@ -18,15 +18,14 @@ keeps the gatherer's state, and a burst whose row is being filled is not sent by
 """
 from __future__ import annotations
 
-import math
 import threading
 import time
 from collections.abc import Callable
 
 import numpy as np
 
-from dptpu.messages import FringeBurst, Header, Time, Trigger
-from dptpu.nodes.frame_bursts import Burst, FrameBursts, frames_in_entry
+from dptpu.messages import Trigger
+from dptpu.nodes.frame_bursts import Burst, FrameBursts, burst_message, frames_in_entry, loaned_buffer
 
 __all__ = ["BurstWriter"]
 
@@ -65,7 +64,7 @@ class BurstWriter:
             pending = self._bursts.pending
             if pending is not None and pending.buffer.shape[1:] == tuple(shape) and pending.buffer.dtype == dtype:
                 return pending.buffer[len(pending.triggers)]
-            self._prepared = self._new_buffer((frames_in_entry(trigger), *shape), np.dtype(dtype))
+            self._prepared = loaned_buffer(self.publisher, (frames_in_entry(trigger), *shape), np.dtype(dtype))
             return self._prepared[0]
 
     def add(self, trigger: Trigger, frame: np.ndarray, stamp_ns: int) -> None:
@@ -102,18 +101,10 @@ class BurstWriter:
         prepared, self._prepared = self._prepared, None
         if prepared is not None and prepared.shape == tuple(shape) and prepared.dtype == dtype:
             return prepared
-        return self._new_buffer(shape, dtype)
-
-    def _new_buffer(self, shape: tuple[int, ...], dtype: np.dtype) -> np.ndarray:
-        """(N, H, W) loaned by the bursts' publisher where a loan pays (published without a copy), else new."""
-        if not self.publisher.can_loan_messages(math.prod(shape) * dtype.itemsize):
-            return np.empty(shape, dtype)  # ZeroMQ sends it without a copy
-        (buffer,) = self.publisher.borrow_loaned_arrays([(shape, dtype)])
-        return buffer
+        return loaned_buffer(self.publisher, shape, dtype)
 
     def _publish(self, burst: Burst) -> None:
-        header = Header(stamp=Time.from_ns(burst.last_stamp_ns), frame_id=self._frame_id())
-        self.publisher.publish(FringeBurst.from_frames(burst.frames, burst.triggers, header=header))
+        self.publisher.publish(burst_message(burst, self._frame_id()))
         self.bursts_published += 1
 
 

@@ -81,7 +81,7 @@ from dptpu.graph.interfaces import Trigger as TriggerService
 from dptpu.graph.node import Node
 from dptpu.graph.parameter_rules import ParameterRules, at_least, frame_id
 from dptpu.messages import Header, PatternEntry, PatternSequence, ScanStatus, Trigger, TriggerBurst
-from dptpu.nodes.frame_bursts import frames_in_entry
+from dptpu.nodes.frame_bursts import continues_entry, frames_in_entry
 from dptpu.nodes.node_main import run_node
 from dptpu.nodes.plumbing import LATCHED_QOS, scan_status
 
@@ -197,7 +197,7 @@ class ProjectorNode(Node):
         if self.burst_pub is None or self.trigger_pub.get_subscription_count():
             self.trigger_pub.publish(trigger)
         if self.burst_pub is not None:
-            if self._entry_triggers and not _continues_burst(self._entry_triggers[-1], trigger):
+            if self._entry_triggers and not continues_entry(self._entry_triggers[-1], trigger):
                 # a scan cut short, a lost ACK of an entry's last pattern or a repeated ACK: the gathered Triggers
                 # go as they stand (one burst never mixes scans or entries, its pattern_index increases)
                 self._publish_trigger_burst()
@@ -284,13 +284,6 @@ class ProjectorNode(Node):
 def main(argv=None) -> int:
     """``python -m dptpu.nodes.projector [--ros-args ...]``; returns the exit code (2 for bad parameters)."""
     return run_node("projector", ProjectorNode, argv)
-
-
-def _continues_burst(last: Trigger, trigger: Trigger) -> bool:
-    """Whether ``trigger`` joins the burst whose latest Trigger is ``last``: the same scan and entry (the entry's
-    first pattern is ``pattern_index - step``), a later pattern (a box may repeat an ACK or lose one)."""
-    return (trigger.sequence_id == last.sequence_id and trigger.pattern_index > last.pattern_index
-            and trigger.pattern_index - trigger.step == last.pattern_index - last.step)
 
 
 def panel_size(projector_size, rig_path: str) -> tuple[int, int]:

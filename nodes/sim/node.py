@@ -93,12 +93,11 @@ from dptpu.messages import (
     Image,
     PatternSequence,
     ScanStatus,
-    Time,
     Trigger,
     TriggerBurst,
 )
 from dptpu.messages.scanner import REFERENCE_KINDS
-from dptpu.nodes.frame_bursts import Burst, FrameBursts
+from dptpu.nodes.frame_bursts import Burst, FrameBursts, burst_message, loaned_buffer
 from dptpu.nodes.node_main import run_node
 from dptpu.nodes.plumbing import DEFAULT_FRAME_ID, LATCHED_QOS, STATUS_QOS, ScanFailures, fails_the_scan, scan_status
 from dptpu.sim.rig import load_twin_rig
@@ -205,7 +204,8 @@ class SimNode(Node):
 
         self.image_pub = self.create_publisher(FringeFrame, "/camera/image_raw", 100)
         self.burst_pub = self.create_publisher(FringeBurst, "/camera/frame_bursts", 10) if self.frame_bursts else None
-        self.bursts = FrameBursts(self._burst_buffer) if self.frame_bursts else None
+        self.bursts = FrameBursts(lambda shape, dtype: loaned_buffer(self.burst_pub, shape, dtype)) \
+            if self.frame_bursts else None
         self.bursts_published = 0
         self.truth_pub = self.create_publisher(AbsolutePhase, "/sim/ground_truth", 10)
         self.truth_depth_pub = self.create_publisher(Image, "/sim/ground_truth_depth", 10)
@@ -385,18 +385,9 @@ class SimNode(Node):
         """The publishers a phase node may take frames from: the bursts' (with ``frame_bursts``) and the frames'."""
         return [self.image_pub] if self.burst_pub is None else [self.burst_pub, self.image_pub]
 
-    def _burst_buffer(self, shape: tuple[int, ...], dtype: np.dtype) -> np.ndarray:
-        """A burst's (N, H, W) buffer: loaned by the bursts' publisher where a loan pays, else a new array."""
-        assert self.burst_pub is not None
-        if not self.burst_pub.can_loan_messages(math.prod(shape) * np.dtype(dtype).itemsize):
-            return np.empty(shape, dtype)
-        (buffer,) = self.burst_pub.borrow_loaned_arrays([(shape, dtype)])
-        return buffer
-
     def _publish_burst(self, burst: Burst) -> None:
         assert self.burst_pub is not None
-        header = Header(stamp=Time.from_ns(burst.last_stamp_ns), frame_id=self.frame_id)
-        self.burst_pub.publish(FringeBurst.from_frames(burst.frames, burst.triggers, header=header))
+        self.burst_pub.publish(burst_message(burst, self.frame_id))
         self.bursts_published += 1
 
     def _publish_truth(self, trigger: Trigger, index: int) -> None:
